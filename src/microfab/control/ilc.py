@@ -1,0 +1,401 @@
+"""Frequency-domain iterative learning control on the harmonics of a periodic task.
+
+Implements seed 000 §3.2, eqs. (2)-(7): the input is updated harmonic by harmonic with the
+inverse frequency response of the stabilised machine,
+
+``U_{i+1}[n] = U_i[n] + rho * P^-1[n] * E_i[n]`` for ``n`` in the selected set ``S``,
+``U_{i+1}[n] = 0`` otherwise,
+
+with ``E_i = Y_d - Y_i``. Two sign typos of the seed are corrected here: with its eq. (3),
+``E = Y - Y_d``, the ``+`` of eq. (2) would make ``E_{i+1} = (1 + rho) E_i`` and diverge,
+whereas its convergence condition eq. (5), ``|1 - rho P P^-1| <= 1``, belongs to the update
+written above; and the inverse DFT of eq. (6) must carry ``e^{+j 2 pi k n / N}``, not
+``e^{-j...}``, which would time-reverse the input. The inverse model is taken from the first
+trial by complex division (eq. 7), or from a given model.
+
+Harmonic selection (the ``Q`` filter of the seed): harmonics ``1 <= n`` with
+``n f_r <= cutoff_hz`` (seed §4: 8 kHz), of which are kept only those where
+
+1. the first trial's input has content: ``|U_1[n]| > content_tol * max |U_1|`` (a square
+   traced at constant speed has no even harmonics, whose inverse would be noise over
+   noise), and
+2. the first trial's output stands out of the noise: ``|Y_1[n]| > snr_min * noise``, where
+   ``noise`` is the RMS magnitude of ``Y_1`` over the bins below Nyquist in which the input
+   has no content (skipped when fewer than 8 such bins exist).
+
+With a given model only rule 1 applies.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from microfab.io.atomic import atomic_save_npz
+
+__all__ = ["ConvergenceError", "FrequencyILC", "ILCConfig", "Trial"]
+
+STATE_FILE = "ilc_state.npz"
+
+
+class ConvergenceError(ValueError):
+    """The learning gain violates the monotonic convergence condition, seed 000 eq. (5)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class ILCConfig:
+    """Settings of the frequency-domain ILC.
+
+    Parameters
+    ----------
+    cutoff_hz : float
+        Highest harmonic frequency learned, Hz (seed 000 §4: 8 kHz).
+    gain : float
+        Learning gain rho (seed 000 §4: 0.4).
+    snr_min : float
+        Output-to-noise magnitude ratio a harmonic needs in the first trial to be learned.
+    content_tol : float
+        Relative input magnitude below which a harmonic counts as empty.
+    """
+
+    cutoff_hz: float = 8000.0  # seed 000 §4: harmonics up to 8 kHz
+    gain: float = 0.4  # seed 000 §4: rho = 0.4
+    snr_min: float = 3.0
+    content_tol: float = 1e-6
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
+            raise ValueError(f"cutoff_hz must be positive, got {self.cutoff_hz} Hz")
+        if not (np.isfinite(self.gain) and 0 < self.gain <= 2):
+            raise ValueError(f"gain must lie in (0, 2], got {self.gain}")
+        if not (self.snr_min >= 0 and self.content_tol >= 0):
+            raise ValueError("snr_min and content_tol must be >= 0")
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Trial:
+    """One measured period of a periodic task.
+
+    Attributes
+    ----------
+    dt : float
+        Sample time, s.
+    reference : numpy.ndarray
+        Desired output ``y_d``, shape (N, n_axes).
+    input : numpy.ndarray
+        Input ``u_i`` applied to the stabilised machine, shape (N, n_axes).
+    output : numpy.ndarray
+        Measured output ``y_i`` (steady state), shape (N, n_axes).
+    axes : tuple of str
+        Axis names.
+    """
+
+    dt: float
+    reference: np.ndarray
+    input: np.ndarray
+    output: np.ndarray
+    axes: tuple[str, ...]
+
+    @property
+    def error(self) -> np.ndarray:
+        """``y_i - y_d``, shape (N, n_axes)."""
+        return self.output - self.reference
+
+
+FRFModel = Callable[[np.ndarray], np.ndarray]
+"""A model ``P(f)``: frequencies (n_f,) in Hz -> complex response (n_f, n_axes)."""
+
+
+@dataclass(eq=False)
+class _State:
+    iteration: int = 0  # trials learned from so far
+    dt: float = 0.0
+    axes: tuple[str, ...] = ()
+    reference: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    inputs: list[np.ndarray] = field(default_factory=list)  # u_1, u_2, ..., u_{i+1}
+    pinv: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), complex))
+    mask: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
+    rms: list[list[float]] = field(default_factory=list)
+    pp: list[list[float]] = field(default_factory=list)
+    meta: dict[str, object] = field(default_factory=dict)
+
+
+class FrequencyILC:
+    """Trial-to-trial learner of seed 000 eqs. (2)-(7).
+
+    Parameters
+    ----------
+    reference : numpy.ndarray
+        One period of the desired output, shape (N, n_axes).
+    dt : float
+        Sample time, s.
+    axes : tuple of str
+        Axis names.
+    config : ILCConfig
+        Cutoff, gain and harmonic-selection settings.
+    model : callable, optional
+        Model ``P(f)`` of the stabilised machine to invert instead of the first trial.
+    true_frf : callable, optional
+        The true ``P(f)`` when known (a digital twin): eq. (5) is then checked at every
+        learned harmonic and a violating gain is refused with `ConvergenceError`.
+
+    Examples
+    --------
+    >>> ilc = FrequencyILC(ref, dt=1e-6, axes=("x", "y"))       # doctest: +SKIP
+    >>> u = ilc.initial_input()                                 # doctest: +SKIP
+    >>> for _ in range(30):                                     # doctest: +SKIP
+    ...     y = machine.run(u).output
+    ...     u = ilc.update(Trial(dt=1e-6, reference=ref, input=u, output=y, axes=("x", "y")))
+
+    References
+    ----------
+    Seed 000 §3.2, eqs. (2)-(7); §4 (8 kHz cutoff, rho = 0.4, u_1 = y_d).
+    """
+
+    def __init__(
+        self,
+        reference: np.ndarray,
+        dt: float,
+        axes: tuple[str, ...],
+        config: ILCConfig | None = None,
+        model: FRFModel | None = None,
+        true_frf: FRFModel | None = None,
+    ) -> None:
+        ref = np.asarray(reference, dtype=float)
+        if ref.ndim == 1:
+            ref = ref[:, None]
+        if ref.ndim != 2 or ref.shape[0] < 8:
+            raise ValueError(f"reference must be (N >= 8, n_axes), got shape {ref.shape}")
+        if not np.all(np.isfinite(ref)):
+            raise ValueError("reference holds NaN or inf")
+        if len(axes) != ref.shape[1]:
+            raise ValueError(f"{ref.shape[1]} reference columns but {len(axes)} axis names")
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt} s")
+        self.config = config or ILCConfig()
+        self.model = model
+        self.true_frf = true_frf
+        self.state = _State(dt=float(dt), axes=tuple(axes), reference=ref.copy())
+        self.state.inputs = [ref.copy()]  # seed 000 §4: u_1 = y_d
+
+    # ----------------------------------------------------------------- basics
+    @property
+    def n_samples(self) -> int:
+        """Samples per period ``N``."""
+        return int(self.state.reference.shape[0])
+
+    @property
+    def period_s(self) -> float:
+        """Period ``N dt`` in s."""
+        return self.n_samples * self.state.dt
+
+    @property
+    def iteration(self) -> int:
+        """Number of trials learned from so far."""
+        return self.state.iteration
+
+    @property
+    def harmonic_freq_hz(self) -> np.ndarray:
+        """Frequencies of the rfft bins, Hz, shape (N // 2 + 1,)."""
+        return np.fft.rfftfreq(self.n_samples, self.state.dt)
+
+    def initial_input(self) -> np.ndarray:
+        """``u_1 = y_d`` (seed 000 §4)."""
+        return self.state.inputs[0].copy()
+
+    def current_input(self) -> np.ndarray:
+        """The input to apply next, ``u_{i+1}``."""
+        return self.state.inputs[-1].copy()
+
+    @property
+    def rms_history(self) -> np.ndarray:
+        """RMS error per learned trial, shape (n_trials, n_axes)."""
+        return np.array(self.state.rms).reshape(-1, len(self.state.axes))
+
+    @property
+    def pp_history(self) -> np.ndarray:
+        """Peak-to-peak error per learned trial, shape (n_trials, n_axes)."""
+        return np.array(self.state.pp).reshape(-1, len(self.state.axes))
+
+    @property
+    def harmonics(self) -> list[np.ndarray]:
+        """Learned harmonic numbers per axis (empty before the first update)."""
+        return [np.nonzero(self.state.mask[:, a])[0] for a in range(self.state.mask.shape[1])]
+
+    # ------------------------------------------------------------- selection
+    def _band(self) -> np.ndarray:
+        f = self.harmonic_freq_hz
+        n = np.arange(f.size)
+        band = (n >= 1) & (f <= self.config.cutoff_hz)
+        if self.n_samples % 2 == 0:
+            band[-1] = False  # never learn the Nyquist bin
+        return band
+
+    def _select_and_invert(self, U1: np.ndarray, Y1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        band = self._band()
+        n_bins, n_axes = U1.shape
+        mask = np.zeros((n_bins, n_axes), bool)
+        pinv = np.zeros((n_bins, n_axes), complex)
+        if self.model is not None:
+            P = np.asarray(self.model(self.harmonic_freq_hz), dtype=complex).reshape(n_bins, -1)
+        for a in range(n_axes):
+            mag_u = np.abs(U1[:, a])
+            content = mag_u > self.config.content_tol * mag_u.max()
+            keep = band & content
+            if self.model is None:
+                empty = ~content
+                empty[0] = False
+                if self.n_samples % 2 == 0:
+                    empty[-1] = False
+                if empty.sum() >= 8:
+                    noise = np.sqrt(np.mean(np.abs(Y1[empty, a]) ** 2))
+                    keep &= np.abs(Y1[:, a]) > self.config.snr_min * noise
+                keep &= np.abs(Y1[:, a]) > 0
+                pinv[keep, a] = U1[keep, a] / Y1[keep, a]  # seed 000 eq. (7)
+            else:
+                keep &= np.abs(P[:, a]) > 0
+                pinv[keep, a] = 1.0 / P[keep, a]
+            mask[:, a] = keep
+        return pinv, mask
+
+    def _check_convergence(self) -> None:
+        if self.true_frf is None:
+            return
+        f = self.harmonic_freq_hz
+        P = np.asarray(self.true_frf(f), dtype=complex).reshape(f.size, -1)
+        rho = self.config.gain
+        for a, name in enumerate(self.state.axes):
+            m = self.state.mask[:, a]
+            if not m.any():
+                continue
+            q = P[m, a] * self.state.pinv[m, a]
+            val = np.abs(1 - rho * q)  # seed 000 eq. (5)
+            if np.any(val > 1.0 + 1e-9):
+                worst = int(np.argmax(val))
+                n = int(np.nonzero(m)[0][worst])
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    rho_max = np.where(q.real > 0, 2 * q.real / np.abs(q) ** 2, 0.0).min()
+                raise ConvergenceError(
+                    f"axis {name}: learning gain {rho} violates |1 - rho P P^-1| <= 1 "
+                    f"(seed 000 eq. 5) at harmonic {n} ({f[n]:.6g} Hz): {val[worst]:.4f}; "
+                    f"largest admissible gain {max(rho_max, 0.0):.4g}"
+                )
+
+    # ---------------------------------------------------------------- update
+    def update(self, trial: Trial) -> np.ndarray:
+        """Learn from one trial and return the next input ``u_{i+1}``.
+
+        Parameters
+        ----------
+        trial : Trial
+            The measured period; its ``input`` is the input actually applied.
+
+        Returns
+        -------
+        numpy.ndarray
+            Next input, shape (N, n_axes).
+        """
+        st = self.state
+        u = np.asarray(trial.input, dtype=float)
+        y = np.asarray(trial.output, dtype=float)
+        if u.shape != st.reference.shape or y.shape != st.reference.shape:
+            raise ValueError(
+                f"trial signals must be shaped {st.reference.shape}, "
+                f"got input {u.shape} and output {y.shape}"
+            )
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+            raise ValueError("trial holds NaN or inf")
+        U = np.fft.rfft(u, axis=0)
+        Y = np.fft.rfft(y, axis=0)
+        if st.iteration == 0:
+            st.pinv, st.mask = self._select_and_invert(U, Y)
+            self._check_convergence()
+        E = np.fft.rfft(st.reference - y, axis=0)  # E_i = Y_d - Y_i (sign: see module doc)
+        U_next = np.where(st.mask, U + self.config.gain * st.pinv * E, 0.0)  # eq. (2)
+        u_next = np.fft.irfft(U_next, n=self.n_samples, axis=0)  # eq. (6), +j sign
+        err = y - st.reference
+        st.rms.append([float(v) for v in np.sqrt(np.mean(err**2, axis=0))])
+        st.pp.append([float(v) for v in err.max(axis=0) - err.min(axis=0)])
+        st.iteration += 1
+        st.inputs.append(u_next)
+        return u_next.copy()
+
+    # ----------------------------------------------------------- persistence
+    def save(self, directory: str | Path, extra: dict[str, object] | None = None) -> Path:
+        """Write the whole learning state to ``directory/ilc_state.npz`` atomically.
+
+        Parameters
+        ----------
+        directory : str or Path
+            State directory (created if missing).
+        extra : dict, optional
+            JSON-serialisable metadata kept with the state (e.g. machine limits).
+        """
+        st = self.state
+        if extra is not None:
+            st.meta.update(extra)
+        meta = {
+            "iteration": st.iteration,
+            "dt": st.dt,
+            "axes": list(st.axes),
+            "config": asdict(self.config),
+            "model": self.model is not None,
+            "meta": st.meta,
+        }
+        path = Path(directory) / STATE_FILE
+        atomic_save_npz(
+            path,
+            meta=np.array(json.dumps(meta)),
+            reference=st.reference,
+            inputs=np.stack(st.inputs),
+            pinv=st.pinv,
+            mask=st.mask,
+            rms=np.array(st.rms, dtype=float).reshape(-1, len(st.axes)),
+            pp=np.array(st.pp, dtype=float).reshape(-1, len(st.axes)),
+        )
+        return path
+
+    @classmethod
+    def exists(cls, directory: str | Path) -> bool:
+        """True when ``directory`` holds a saved learning state."""
+        return (Path(directory) / STATE_FILE).is_file()
+
+    @classmethod
+    def load(
+        cls, directory: str | Path, true_frf: FRFModel | None = None
+    ) -> FrequencyILC:
+        """Resume a learner saved with `save`.
+
+        Raises
+        ------
+        FileNotFoundError
+            No state in ``directory``.
+        ValueError
+            The state file is unreadable.
+        """
+        path = Path(directory) / STATE_FILE
+        if not path.is_file():
+            raise FileNotFoundError(f"no ILC state in {directory} (expected {STATE_FILE})")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                data = {k: z[k] for k in z.files if k != "meta"}
+        except (OSError, ValueError, KeyError) as exc:
+            raise ValueError(f"cannot read ILC state {path}: {exc}") from exc
+        obj = cls(
+            data["reference"], meta["dt"], tuple(meta["axes"]), ILCConfig(**meta["config"]),
+            true_frf=true_frf,
+        )
+        st = obj.state
+        st.iteration = int(meta["iteration"])
+        st.inputs = list(data["inputs"])
+        st.pinv = data["pinv"]
+        st.mask = data["mask"]
+        st.rms = data["rms"].tolist()
+        st.pp = data["pp"].tolist()
+        st.meta = dict(meta.get("meta", {}))
+        return obj

@@ -1,0 +1,253 @@
+"""Seed 000 on the digital twin: galvo MSL, feedback vs frequency-domain ILC.
+
+`run_msl_ilc` runs one scan rate (both axes) for a number of ILC iterations on a
+`Machine`, saving the learning state after every iteration so that an interrupted run
+resumes where it stopped. `reproduce_tables` runs all three rates and assembles the
+numbers of seed Tables 1 and 2 beside ours.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
+from microfab.control.margins import loop_margins
+from microfab.experiments import seed000
+from microfab.machines.base import Machine
+from microfab.machines.galvo import galvo_twin
+from microfab.plants.galvo import GalvoAxis, default_galvo_axes
+from microfab.process.velocity import BeamVelocityParams, beam_velocity
+from microfab.trajectory.periodic import square_scan
+
+__all__ = ["MSLRunResult", "reproduce_tables", "run_msl_ilc"]
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class MSLRunResult:
+    """Feedback-only and ILC results of one scan rate, both axes.
+
+    All signals are one period, shape (N, n_axes), in encoder volts.
+
+    Attributes
+    ----------
+    rate_hz : float
+        Features (laps of the square) per second.
+    dt : float
+        Sample time, s.
+    axes : tuple of str
+        Axis names.
+    reference : numpy.ndarray
+        Desired output ``y_d``.
+    fb_output : numpy.ndarray
+        Measured output of trial 1 (``u_1 = y_d``: feedback only).
+    ilc_output : numpy.ndarray
+        Measured output of the last trial.
+    ilc_input : numpy.ndarray
+        Input applied in the last trial (``u_30`` of seed Fig. 4).
+    rms_history, pp_history : numpy.ndarray
+        Error RMS and peak-to-peak per trial, shape (n_trials, n_axes), V.
+    scale_mm_per_v : tuple of float
+        Beam position per encoder volt per axis, mm/V.
+    noise_rms_v : tuple of float
+        Encoder noise per axis, V.
+    harmonics : list of numpy.ndarray
+        Learned harmonic numbers per axis.
+    """
+
+    rate_hz: float
+    dt: float
+    axes: tuple[str, ...]
+    reference: np.ndarray
+    fb_output: np.ndarray
+    ilc_output: np.ndarray
+    ilc_input: np.ndarray
+    rms_history: np.ndarray
+    pp_history: np.ndarray
+    scale_mm_per_v: tuple[float, ...]
+    noise_rms_v: tuple[float, ...]
+    harmonics: list[np.ndarray] = field(default_factory=list)
+
+    @property
+    def fb_error(self) -> np.ndarray:
+        """Feedback-only error ``y_1 - y_d``, V."""
+        return self.fb_output - self.reference
+
+    @property
+    def ilc_error(self) -> np.ndarray:
+        """Error of the last ILC trial, V."""
+        return self.ilc_output - self.reference
+
+    @property
+    def period_s(self) -> float:
+        """Scan period, s."""
+        return self.reference.shape[0] * self.dt
+
+    def velocity_params(self) -> BeamVelocityParams:
+        """Seed 000 §4.2 beam-velocity settings with this run's mm/V scales."""
+        return BeamVelocityParams(scale_mm_per_v=self.scale_mm_per_v)
+
+    def velocity_stats(self) -> dict[str, float]:
+        """Mean, std, min, max beam speed (mm/s) for FB and ILC (seed Table 2 keys)."""
+        out: dict[str, float] = {}
+        for tag, y in (("fb", self.fb_output), ("ilc", self.ilc_output)):
+            bv = beam_velocity(y, self.dt, self.velocity_params(), periodic=True)
+            out |= {f"{tag}_mean": bv.mean, f"{tag}_std": bv.std,
+                    f"{tag}_min": bv.min, f"{tag}_max": bv.max}
+        return out
+
+    def table1_row(self, axis: str) -> dict[str, float]:
+        """RMS and PP (mV) of FB and ILC for one axis (seed Table 1 keys)."""
+        a = self.axes.index(axis)
+        fb, ilc = self.fb_error[:, a], self.ilc_error[:, a]
+        return {
+            "fb_rms": float(np.sqrt(np.mean(fb**2)) * 1e3),
+            "fb_pp": float(np.ptp(fb) * 1e3),
+            "ilc_rms": float(np.sqrt(np.mean(ilc**2)) * 1e3),
+            "ilc_pp": float(np.ptp(ilc) * 1e3),
+        }
+
+
+def _square_reference(axes: dict[str, GalvoAxis], rate_hz: float) -> np.ndarray:
+    ax = list(axes.values())
+    return square_scan(rate_hz, (ax[0].amplitude_v, ax[1].amplitude_v), ax[0].fs_hz)
+
+
+def run_msl_ilc(
+    rate_hz: float = 400,
+    iterations: int = 30,
+    *,
+    machine: Machine | None = None,
+    axes: dict[str, GalvoAxis] | None = None,
+    config: ILCConfig | None = None,
+    seed: int = 0,
+    state_dir: str | Path | None = None,
+    check_convergence: bool = True,
+    progress: Progress | None = None,
+) -> MSLRunResult:
+    """Learn the square scan at one rate on the twin (or a given machine).
+
+    Parameters
+    ----------
+    rate_hz : float
+        Features per second (seed 000: 100, 200, 400).
+    iterations : int
+        Number of trials (seed 000 §4: 30). Trial 1 is feedback only (``u_1 = y_d``).
+    machine : Machine, optional
+        Where to run; the calibrated galvo twin when omitted.
+    axes : dict of str to GalvoAxis, optional
+        Axis models (reference amplitudes, scales, noise, and the true FRF used to check
+        eq. (5)); the calibrated defaults when omitted.
+    config : ILCConfig, optional
+        ILC settings; the seed's (8 kHz, rho 0.4) when omitted.
+    seed : int
+        Noise seed of the twin.
+    state_dir : str or Path, optional
+        Where the learning state is saved after every trial; an existing state there is
+        resumed (the run continues to ``iterations`` trials).
+    check_convergence : bool
+        Check eq. (5) against the twin's true FRF.
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each trial.
+
+    Returns
+    -------
+    MSLRunResult
+    """
+    if iterations < 2:
+        raise ValueError(f"iterations must be >= 2 (trial 1 is feedback only), got {iterations}")
+    axes = axes or default_galvo_axes()
+    names = tuple(axes)
+    machine = machine or galvo_twin(axes, seed=seed)
+    ref = _square_reference(axes, rate_hz)
+    dt = machine.dt
+
+    def true_frf(f: np.ndarray) -> np.ndarray:
+        return np.column_stack([axes[a].complementary_sensitivity(f) for a in names])
+
+    frf = true_frf if check_convergence else None
+    if state_dir is not None and FrequencyILC.exists(state_dir):
+        ilc = FrequencyILC.load(state_dir, true_frf=frf)
+        if ilc.state.reference.shape != ref.shape or not np.allclose(
+            ilc.state.reference, ref, rtol=0, atol=1e-12
+        ):
+            raise ValueError(f"the state in {state_dir} belongs to another reference")
+    else:
+        ilc = FrequencyILC(ref, dt, names, config, true_frf=frf)
+    fb_output = None
+    if state_dir is not None and "fb_output" in ilc.state.meta:
+        fb_output = np.asarray(ilc.state.meta["fb_output"], dtype=float)
+    last_input = ilc.current_input()
+    last_output = None
+    while ilc.iteration < iterations:
+        u = ilc.current_input()
+        meas = machine.run(u)
+        if ilc.iteration == 0:
+            fb_output = meas.output.copy()
+        last_input, last_output = u, meas.output
+        ilc.update(Trial(dt=dt, reference=ref, input=u, output=meas.output, axes=names))
+        if state_dir is not None:
+            extra: dict[str, Any] = {"last_output": last_output.tolist()}
+            if ilc.iteration == 1:
+                extra["fb_output"] = fb_output.tolist()  # type: ignore[union-attr]
+            ilc.save(state_dir, extra)
+        if progress is not None:
+            progress(ilc.iteration, iterations)
+    if last_output is None:  # fully resumed: nothing left to run
+        last_output = np.asarray(ilc.state.meta["last_output"], dtype=float)
+        last_input = ilc.state.inputs[-2]
+    assert fb_output is not None
+    return MSLRunResult(
+        rate_hz=float(rate_hz),
+        dt=dt,
+        axes=names,
+        reference=ref,
+        fb_output=fb_output,
+        ilc_output=last_output,
+        ilc_input=last_input,
+        rms_history=ilc.rms_history,
+        pp_history=ilc.pp_history,
+        scale_mm_per_v=tuple(axes[a].scale_mm_per_v for a in names),
+        noise_rms_v=tuple(axes[a].noise_rms_v for a in names),
+        harmonics=ilc.harmonics,
+    )
+
+
+def reproduce_tables(
+    rates: tuple[int, ...] = seed000.RATES,
+    iterations: int = 30,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[dict[str, Any], dict[int, MSLRunResult]]:
+    """Run every rate and collect Tables 1 and 2, margins and learning curves.
+
+    Returns
+    -------
+    tables : dict
+        JSON-ready dict with keys ``table1``, ``table2``, ``margins``, ``rms_history``
+        (values in mV and mm/s), shaped as documented in the README.
+    runs : dict of int to MSLRunResult
+        The runs by rate.
+    """
+    axes = default_galvo_axes()
+    runs: dict[int, MSLRunResult] = {}
+    for r in rates:
+        if progress is not None:
+            progress(f"{r} features/s")
+        runs[r] = run_msl_ilc(r, iterations, axes=axes, seed=seed)
+    table1 = {a: {str(r): runs[r].table1_row(a) for r in rates} for a in axes}
+    table2 = {str(r): runs[r].velocity_stats() for r in rates}
+    margins = {}
+    for name, ax in axes.items():
+        m = loop_margins(ax.open_loop())
+        margins[name] = {"gm_db": m.gm_db, "pm_deg": m.pm_deg,
+                         "gm_freq_hz": m.gm_freq_hz, "pm_freq_hz": m.pm_freq_hz}
+    hist = {a: {str(r): (runs[r].rms_history[:, i] * 1e3).tolist() for r in rates}
+            for i, a in enumerate(axes)}
+    return {"table1": table1, "table2": table2, "margins": margins, "rms_history": hist}, runs

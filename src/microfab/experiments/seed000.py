@@ -1,0 +1,41 @@
+"""Published numbers of seed 000 (Yoo et al., ILC for laser-scanning micro 3D printing).
+
+Every value cites its table or section in ``../shared/seeds/000_f8fa17eaefc5dca4.txt``.
+"""
+
+from __future__ import annotations
+
+RATES = (100, 200, 400)  # seed 000 §4: features/s
+SIDE_MM = 0.6  # seed 000 §4: 0.6 x 0.6 mm square
+TARGET_SPEED_MM_S = {100: 240.0, 200: 480.0, 400: 960.0}  # seed 000 §4.2
+
+# seed 000 Table 1: RMS (PP) tracking errors in mV.
+TABLE1_MV: dict[str, dict[int, dict[str, float]]] = {
+    "x": {
+        100: {"fb_rms": 15.49, "fb_pp": 126.82, "ilc_rms": 1.41, "ilc_pp": 12.91},
+        200: {"fb_rms": 41.86, "fb_pp": 243.10, "ilc_rms": 1.92, "ilc_pp": 21.24},
+        400: {"fb_rms": 121.18, "fb_pp": 491.46, "ilc_rms": 4.11, "ilc_pp": 41.99},
+    },
+    "y": {
+        100: {"fb_rms": 17.98, "fb_pp": 142.40, "ilc_rms": 1.45, "ilc_pp": 12.98},
+        200: {"fb_rms": 48.29, "fb_pp": 275.90, "ilc_rms": 1.8207, "ilc_pp": 20.02},
+        400: {"fb_rms": 139.59, "fb_pp": 532.96, "ilc_rms": 5.21, "ilc_pp": 44.43},
+    },
+}
+
+# seed 000 Table 2: beam velocity mean (std) and (max, min) in mm/s. The table's header
+# says "(Max., Min.)" but lists the smaller value first; we store them by meaning.
+TABLE2_MM_S: dict[int, dict[str, float]] = {
+    100: {"fb_mean": 245, "fb_std": 27, "fb_min": 158, "fb_max": 351,
+          "ilc_mean": 239, "ilc_std": 12, "ilc_min": 156, "ilc_max": 280},
+    200: {"fb_mean": 502, "fb_std": 75, "fb_min": 311, "fb_max": 697,
+          "ilc_mean": 477, "ilc_std": 26, "ilc_min": 344, "ilc_max": 535},
+    400: {"fb_mean": 1061, "fb_std": 202, "fb_min": 623, "fb_max": 1401,
+          "ilc_mean": 947, "ilc_std": 91, "ilc_min": 640, "ilc_max": 1101},
+}
+
+# seed 000 §3.1: measured gain and phase margins.
+MARGINS = {"x": {"gm_db": 68.5, "pm_deg": 53.0}, "y": {"gm_db": 69.6, "pm_deg": 51.0}}
+
+# seed 000 §4.2: max velocity error w.r.t. target at 400 features/s, FB -> ILC.
+MAX_VELOCITY_ERROR_400 = {"fb": 0.458, "ilc": 0.146}

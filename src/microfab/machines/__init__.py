@@ -1,0 +1,1 @@
+"""Machines: the `Machine` protocol, digital twins and file-based hardware access."""

@@ -1,0 +1,61 @@
+"""Periodic scan references: the square traced at constant speed (seed 000 §4)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["square_scan"]
+
+
+def square_scan(
+    rate_hz: float,
+    half_sizes: tuple[float, float],
+    fs_hz: float,
+) -> np.ndarray:
+    """One period of a square traced at constant speed, as x and y signals.
+
+    The square is traversed counter-clockwise from the corner ``(-a, -b)``: along the
+    bottom edge x ramps from ``-a`` to ``a``, then y ramps up the right edge, and so on, a
+    quarter period per edge. x and y are thus trapezoidal waves a quarter period apart.
+
+    Parameters
+    ----------
+    rate_hz : float
+        Features (laps of the square) per second; seed 000 §4 uses 100, 200 and 400.
+    half_sizes : tuple of float
+        Half side lengths ``(a, b)`` in the signal's unit (seed 000 §4.3: 1 V and 1.44 V
+        encoder signal for the 0.6 mm square).
+    fs_hz : float
+        Sample rate in Hz; ``fs_hz / rate_hz`` must be an integer number of samples.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (N, 2), ``N = fs_hz / rate_hz``.
+
+    References
+    ----------
+    Seed 000 §4: square trajectory, 0.6 × 0.6 mm, 100/200/400 features/s.
+    """
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz must be positive, got {rate_hz} Hz")
+    if not (np.isfinite(fs_hz) and fs_hz > 0):
+        raise ValueError(f"fs_hz must be positive, got {fs_hz} Hz")
+    n_float = fs_hz / rate_hz
+    n = round(n_float)
+    if n < 8 or abs(n - n_float) > 1e-9 * n_float:
+        raise ValueError(
+            f"one period must be a whole number (>= 8) of samples: fs/rate = {n_float:.6g}"
+        )
+    a, b = (float(h) for h in half_sizes)
+    if a <= 0 or b <= 0:
+        raise ValueError(f"half sizes must be positive, got {half_sizes}")
+    p = np.arange(n) / n
+    x = np.select(
+        [p < 0.25, p < 0.5, p < 0.75], [-a + 8 * a * p, a + 0 * p, a - 8 * a * (p - 0.5)], -a
+    )
+    y = np.select(
+        [p < 0.25, p < 0.5, p < 0.75], [-b + 0 * p, -b + 8 * b * (p - 0.25), b + 0 * p],
+        b - 8 * b * (p - 0.75),
+    )
+    return np.column_stack([x, y])

@@ -1,0 +1,448 @@
+from __future__ import annotations
+
+import os
+import re
+import sys
+
+import numpy as np
+import pytest
+
+from microfab.io import atomic
+from microfab.io.trace import Trace, read_columns, read_trace, write_columns, write_trace
+
+SUFFIXES = [".csv", ".mat", ".h5", ".hdf5"]
+
+
+def _needs(suffix: str) -> None:
+    if suffix in (".h5", ".hdf5"):
+        pytest.importorskip("h5py")
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def trace(rng):
+    # Axis order deliberately not alphabetical, values with full float64 mantissas.
+    values = rng.normal(scale=1e-3, size=(257, 3)) * np.array([1.0, 1e-9, 1e6])
+    return Trace(dt=2.5e-5, values=values, axes=("z", "x", "b_2"), unit="m", t0=0.125)
+
+
+# --- construction and properties -------------------------------------------------------
+
+
+def test_properties(trace):
+    assert trace.n_samples == 257
+    assert trace.n_axes == 3
+    assert trace.duration == pytest.approx(257 * 2.5e-5, rel=1e-15)
+    assert trace.fs == pytest.approx(40_000.0, rel=1e-15)
+    assert trace.time.shape == (257,)
+    assert trace.time[0] == 0.125
+    np.testing.assert_allclose(np.diff(trace.time), 2.5e-5, rtol=1e-9)
+    np.testing.assert_array_equal(trace["x"], trace.values[:, 1])
+
+
+def test_values_are_copied_and_read_only(rng):
+    raw = rng.normal(size=(10, 2))
+    t = Trace(dt=0.1, values=raw, axes=("a", "b"))
+    raw[0, 0] = 99.0
+    assert t.values[0, 0] != 99.0
+    assert t.values.dtype == np.float64
+    assert not t.values.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        t.values[0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        t["a"][0] = 1.0
+
+
+def test_integer_values_become_float64():
+    t = Trace(dt=1, values=[[1, 2], [3, 4]], axes=["a", "b"])
+    assert t.values.dtype == np.float64
+    assert t.axes == ("a", "b")
+    assert t.dt == 1.0
+    assert isinstance(t.dt, float)
+
+
+def test_one_d_values_with_one_axis_are_reshaped():
+    t = Trace(dt=0.5, values=np.array([1.0, 2.0, 3.0]), axes=("x",))
+    assert t.values.shape == (3, 1)
+    np.testing.assert_array_equal(t["x"], [1.0, 2.0, 3.0])
+
+
+def test_getitem_unknown_axis_lists_available():
+    t = Trace(dt=1.0, values=np.zeros((2, 2)), axes=("x", "y"))
+    with pytest.raises(KeyError, match=r"no axis 'q'.*\['x', 'y'\]"):
+        t["q"]
+
+
+def test_select_and_with_values(trace):
+    sub = trace.select("b_2", "z")
+    assert sub.axes == ("b_2", "z")
+    np.testing.assert_array_equal(sub.values, trace.values[:, [2, 0]])
+    assert (sub.dt, sub.t0, sub.unit) == (trace.dt, trace.t0, trace.unit)
+    with pytest.raises(KeyError):
+        trace.select("nope")
+    doubled = trace.with_values(2 * trace.values)
+    np.testing.assert_array_equal(doubled.values, 2 * trace.values)
+    assert (doubled.axes, doubled.dt, doubled.unit, doubled.t0) == (
+        trace.axes,
+        trace.dt,
+        trace.unit,
+        trace.t0,
+    )
+    with pytest.raises(ValueError, match="shape"):
+        trace.with_values(np.zeros((4, 2)))
+
+
+def test_to_dict_order(trace):
+    d = trace.to_dict()
+    assert list(d) == ["time", "z", "x", "b_2"]
+    np.testing.assert_array_equal(d["time"], trace.time)
+    np.testing.assert_array_equal(d["b_2"], trace.values[:, 2])
+
+
+def test_equality_and_hash(trace):
+    same = Trace(dt=trace.dt, values=trace.values.copy(), axes=trace.axes, unit="m", t0=0.125)
+    assert same == trace
+    assert hash(same) == hash(trace)
+    assert trace.with_values(trace.values + 1.0) != trace
+    assert Trace(dt=1.0, values=[-0.0], axes="x") == Trace(dt=1.0, values=[0.0], axes="x")
+    assert hash(Trace(dt=1.0, values=[-0.0], axes="x")) == hash(
+        Trace(dt=1.0, values=[0.0], axes="x")
+    )
+
+
+# --- validation ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("dt", "shown"), [(-1.0, "-1.0"), (0.0, "0.0"), (np.nan, "nan"), (np.inf, "inf"), ("x", "'x'")]
+)
+def test_bad_dt(dt, shown):
+    with pytest.raises(ValueError) as info:
+        Trace(dt=dt, values=np.zeros((3, 1)), axes=("x",))
+    assert str(info.value) == f"dt must be a positive finite number of seconds, got {shown} s"
+
+
+def test_bad_t0():
+    with pytest.raises(ValueError, match="t0 must be a finite number of seconds, got nan s"):
+        Trace(dt=1.0, values=np.zeros((3, 1)), axes=("x",), t0=np.nan)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_values_name_axis_and_sample(bad):
+    values = np.zeros((6, 3))
+    values[4, 1] = bad
+    values[5, 2] = bad
+    with pytest.raises(ValueError, match=r"axis 'y' must be finite, got -?(nan|inf) V at sample 4"):
+        Trace(dt=1.0, values=values, axes=("x", "y", "z"), unit="V")
+
+
+@pytest.mark.parametrize(
+    ("values", "axes", "match"),
+    [
+        (np.zeros((4, 3)), ("x", "y"), r"shape \(n_samples, 2\).*got shape \(4, 3\)"),
+        (np.zeros(4), ("x", "y"), r"got shape \(4,\)"),
+        (np.zeros((2, 2, 2)), ("x", "y"), r"got shape \(2, 2, 2\)"),
+        (np.zeros((0, 1)), ("x",), "at least 1 sample"),
+        (np.zeros((3, 2)), ("x", "x"), r"unique.*\['x'\]"),
+        (np.zeros((3, 1)), ("1x",), "start with a letter.*'1x'"),
+        (np.zeros((3, 1)), ("a-b",), "'a-b'"),
+        (np.zeros((3, 1)), ("_x",), "'_x'"),
+        (np.zeros((3, 1)), ("time",), "reserved"),
+        (np.zeros((3, 0)), (), "at least one axis"),
+        ([["a"], ["b"]], ("x",), "real numbers"),
+    ],
+)
+def test_invalid_values_and_axes(values, axes, match):
+    with pytest.raises(ValueError, match=match):
+        Trace(dt=1.0, values=values, axes=axes)
+
+
+def test_unit_must_be_single_line():
+    with pytest.raises(ValueError, match="single-line"):
+        Trace(dt=1.0, values=[1.0], axes="x", unit="m\nx")
+
+
+# --- from_columns ----------------------------------------------------------------------
+
+
+def test_from_columns(rng):
+    time = 3.0 + 1e-3 * np.arange(50)
+    cols = {"b": rng.normal(size=50), "a": rng.normal(size=50)}
+    t = Trace.from_columns(time, cols, unit="N")
+    assert t.axes == ("b", "a")
+    assert t.dt == 1e-3
+    assert t.t0 == 3.0
+    assert t.unit == "N"
+    np.testing.assert_array_equal(t["a"], cols["a"])
+
+
+def test_from_columns_non_uniform_reports_max_deviation():
+    time = np.arange(10.0)
+    time[5] += 0.01
+    with pytest.raises(ValueError, match=r"uniformly sampled: max deviation") as info:
+        Trace.from_columns(time, {"x": np.zeros(10)})
+    match = re.search(r"dt=(\S+) s is (\S+) s", str(info.value))
+    assert match is not None
+    assert float(match.group(1)) == pytest.approx(1.0, rel=1e-12)
+    assert float(match.group(2)) == pytest.approx(0.01, rel=1e-9)
+
+
+def test_from_columns_tolerates_tiny_jitter():
+    time = np.arange(10.0) * 0.1
+    time[3] += 1e-9  # 1e-8 relative to dt: within 1e-6
+    t = Trace.from_columns(time, {"x": np.zeros(10)})
+    assert t.dt == pytest.approx(0.1, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("time", "match"),
+    [
+        (np.array([0.0, 1.0, 1.0, 2.0]), "strictly increasing, got 1.0 s then 1.0 s at sample 2"),
+        (np.array([0.0, 2.0, 1.0, 3.0]), "strictly increasing"),
+        (np.zeros((4, 1)), "1-D"),
+        (np.array([0.0]), ">= 2 samples"),
+        (np.array([0.0, np.nan, 2.0, 3.0]), "finite"),
+    ],
+)
+def test_from_columns_bad_time(time, match):
+    with pytest.raises(ValueError, match=match):
+        Trace.from_columns(time, {"x": np.zeros(len(time))})
+
+
+def test_from_columns_mismatched_lengths():
+    with pytest.raises(ValueError, match=r"column 'y' has shape \(9,\), time has shape \(10,\)"):
+        Trace.from_columns(np.arange(10.0), {"x": np.zeros(10), "y": np.zeros(9)})
+
+
+def test_from_columns_needs_a_column():
+    with pytest.raises(ValueError, match="at least one axis column"):
+        Trace.from_columns(np.arange(10.0), {})
+
+
+# --- file round trips ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_round_trip_exact(tmp_path, trace, suffix):
+    _needs(suffix)
+    path = tmp_path / f"trace{suffix}"
+    write_trace(trace, path)
+    back = read_trace(path)
+    assert back.axes == ("z", "x", "b_2")
+    assert back.unit == "m"
+    assert back.t0 == trace.t0
+    assert back.dt == trace.dt
+    np.testing.assert_array_equal(back.values, trace.values)  # bit-exact float64
+    np.testing.assert_array_equal(back.time, trace.time)
+    assert back == trace
+    assert os.listdir(tmp_path) == [path.name]
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_save_load_methods_and_unit_override(tmp_path, trace, suffix):
+    _needs(suffix)
+    path = tmp_path / f"t{suffix}"
+    trace.save(str(path))
+    assert Trace.load(path) == trace
+    assert Trace.load(path, unit="mm").unit == "mm"
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_round_trip_without_unit_and_single_sample_columns(tmp_path, suffix):
+    _needs(suffix)
+    path = tmp_path / f"c{suffix}"
+    write_columns(path, {"time": [0.5], "only": [1.0 / 3.0]})
+    cols = read_columns(path)
+    assert list(cols) == ["time", "only"]
+    assert cols["only"].shape == (1,)
+    assert cols["only"][0] == 1.0 / 3.0
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_read_columns_raw_names(tmp_path, rng, suffix):
+    _needs(suffix)
+    names = ["time", "reference_x", "input_x", "output_x", "error_y"]
+    columns = {name: rng.normal(size=20) for name in names}
+    path = tmp_path / f"raw{suffix}"
+    write_columns(path, columns, unit="um")
+    back = read_columns(path)
+    assert list(back) == names  # unit is metadata, not a column
+    for name in names:
+        assert back[name].dtype == np.float64
+        np.testing.assert_array_equal(back[name], columns[name])
+
+
+def test_csv_layout(tmp_path):
+    t = Trace(dt=0.5, values=[[0.1, -2.0], [1 / 3, -2.5e-7]], axes=("y", "x"), unit="V")
+    path = tmp_path / "t.csv"
+    t.save(path)
+    lines = path.read_text().splitlines()
+    assert lines[0] == "# unit: V"
+    assert lines[1] == "time,y,x"
+    assert lines[2] == "0,0.10000000000000001,-2"
+    assert lines[3] == "0.5,0.33333333333333331,-2.4999999999999999e-07"
+
+
+def test_csv_written_by_hand(tmp_path):
+    path = tmp_path / "hand.csv"
+    path.write_text("# recorded on rig 2\n#unit:mm\n\ntime, a ,b\n0,1,2\n\n1e-3,3,4 # note\n")
+    t = read_trace(path)
+    assert t.axes == ("a", "b")
+    assert t.unit == "mm"
+    assert t.dt == 1e-3
+    np.testing.assert_array_equal(t.values, [[1.0, 2.0], [3.0, 4.0]])
+
+
+def test_mat_file_from_scipy_with_extra_metadata(tmp_path):
+    sio = pytest.importorskip("scipy.io")
+    path = tmp_path / "ext.mat"
+    sio.savemat(path, {"time": np.arange(4) * 0.25, "q": np.arange(4.0) ** 2, "unit": "rad"})
+    t = read_trace(path)
+    assert t.axes == ("q",)
+    assert t.unit == "rad"
+    assert t.dt == 0.25
+    np.testing.assert_array_equal(t["q"], [0.0, 1.0, 4.0, 9.0])
+
+
+def test_h5_file_without_track_order_is_read(tmp_path):
+    h5py = pytest.importorskip("h5py")
+    path = tmp_path / "ext.h5"
+    with h5py.File(path, "w") as f:
+        f["time"] = np.arange(3.0)
+        f["y"] = np.ones(3)
+        f["a"] = np.zeros(3)
+        f.create_group("meta")
+    cols = read_columns(path)
+    assert set(cols) == {"time", "y", "a"}
+    assert read_trace(path).unit == ""
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_writers_are_atomic(tmp_path, trace, monkeypatch, suffix):
+    _needs(suffix)
+    path = tmp_path / f"old{suffix}"
+    path.write_bytes(b"previous result")
+    monkeypatch.setattr(atomic.os, "replace", _boom)
+    with pytest.raises(OSError, match="simulated"):
+        write_trace(trace, path)
+    assert path.read_bytes() == b"previous result"
+    assert os.listdir(tmp_path) == [path.name]
+
+
+def _boom(*args, **kwargs):
+    raise OSError("simulated failure in os.replace")
+
+
+# --- errors ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["t.txt", "t.npz", "t"])
+def test_unknown_suffix(tmp_path, trace, name):
+    path = tmp_path / name
+    path.write_text("time,x\n0,1\n")
+    for call in (lambda: read_trace(path), lambda: read_columns(path), lambda: trace.save(path)):
+        with pytest.raises(ValueError, match=r"unsupported.*suffix.*\.csv, \.mat, \.h5, \.hdf5"):
+            call()
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_missing_file(tmp_path, suffix):
+    _needs(suffix)
+    path = tmp_path / f"missing{suffix}"
+    with pytest.raises(FileNotFoundError, match="missing"):
+        read_trace(path)
+    with pytest.raises(FileNotFoundError, match=str(path).replace("\\", "\\\\")):
+        read_columns(path)
+
+
+def test_ragged_csv_names_line(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("time,x,y\n0,1,2\n1,3\n2,5,6\n")
+    with pytest.raises(ValueError, match=r"bad\.csv, line 3: expected 3 fields, got 2"):
+        read_columns(path)
+
+
+def test_non_numeric_csv_names_line_and_column(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("# unit: m\ntime,x,y\n0,1,2\n1,3,4\n2,oops,6\n")
+    with pytest.raises(ValueError, match=r"bad\.csv, line 5, column 'x': not a number: 'oops'"):
+        read_trace(path)
+
+
+def test_csv_without_header_or_duplicate_names(tmp_path):
+    empty = tmp_path / "empty.csv"
+    empty.write_text("# unit: m\n\n")
+    with pytest.raises(ValueError, match="no header"):
+        read_columns(empty)
+    dup = tmp_path / "dup.csv"
+    dup.write_text("time,x,x\n0,1,2\n")
+    with pytest.raises(ValueError, match="line 1: empty or duplicate"):
+        read_columns(dup)
+
+
+def test_read_trace_needs_time_column(tmp_path):
+    path = tmp_path / "notime.csv"
+    path.write_text("t,x\n0,1\n1,2\n")
+    with pytest.raises(
+        ValueError, match=r"notime\.csv: no 'time' column; columns are \['t', 'x'\]"
+    ):
+        read_trace(path)
+
+
+def test_read_trace_non_uniform_names_file(tmp_path):
+    path = tmp_path / "jitter.csv"
+    path.write_text("time,x\n0,1\n1,2\n2.5,3\n3,4\n")
+    with pytest.raises(ValueError, match=r"jitter\.csv: time must be uniformly sampled"):
+        read_trace(path)
+
+
+def test_read_trace_nan_names_file_axis_and_sample(tmp_path):
+    path = tmp_path / "nan.csv"
+    path.write_text("time,x,y\n0,1,2\n1,nan,4\n2,5,6\n")
+    with pytest.raises(ValueError, match=r"nan\.csv: values of axis 'x' .* at sample 1"):
+        read_trace(path)
+
+
+def test_write_columns_validation(tmp_path):
+    with pytest.raises(ValueError, match="equal length"):
+        write_columns(tmp_path / "a.csv", {"time": np.arange(3.0), "x": np.arange(4.0)})
+    with pytest.raises(ValueError, match="equal length"):
+        write_columns(tmp_path / "a.csv", {"time": np.zeros((3, 2))})
+    with pytest.raises(ValueError, match="'bad name'"):
+        write_columns(tmp_path / "a.csv", {"bad name": np.arange(3.0)})
+    with pytest.raises(ValueError, match="clashes"):
+        write_columns(tmp_path / "a.mat", {"unit": np.arange(3.0)}, unit="m")
+    assert os.listdir(tmp_path) == []
+
+
+def test_malformed_mat_and_h5(tmp_path):
+    bad_mat = tmp_path / "bad.mat"
+    bad_mat.write_bytes(b"this is not a MAT file at all" * 10)
+    with pytest.raises(ValueError, match=r"bad\.mat"):
+        read_columns(bad_mat)
+    pytest.importorskip("h5py")
+    bad_h5 = tmp_path / "bad.h5"
+    bad_h5.write_bytes(b"not hdf5")
+    with pytest.raises(ValueError, match=r"bad\.h5: not an HDF5 file"):
+        read_columns(bad_h5)
+
+
+def test_mat_matrix_variable_is_rejected(tmp_path):
+    sio = pytest.importorskip("scipy.io")
+    path = tmp_path / "m.mat"
+    sio.savemat(path, {"time": np.arange(3.0), "M": np.ones((3, 2))})
+    with pytest.raises(ValueError, match=r"'M' is not a numeric 1-D column"):
+        read_columns(path)
+
+
+def test_missing_h5py_message(tmp_path, trace, monkeypatch):
+    monkeypatch.setitem(sys.modules, "h5py", None)  # makes `import h5py` raise ImportError
+    with pytest.raises(
+        ImportError, match=r"HDF5 support needs h5py: pip install 'microfab\[hdf5\]'"
+    ):
+        trace.save(tmp_path / "t.h5")
+    assert os.listdir(tmp_path) == []
