@@ -8,13 +8,13 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -31,20 +31,26 @@ err_console = Console(stderr=True)
 
 
 def _fail(msg: str, code: int = 2) -> None:
-    err_console.print(f"[bold red]error:[/] {msg}", highlight=False, soft_wrap=True)
+    err_console.print(f"[bold red]error:[/] {escape(msg)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
 
 
 def _progress() -> Progress:
     return Progress(
-        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        console=err_console, disable=not err_console.is_terminal and "CI" in __import__("os").environ,
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=err_console,
+        disable=not err_console.is_terminal and "CI" in __import__("os").environ,
     )
 
 
 @app.command()
 def run(
-    job_file: Annotated[Path | None, typer.Argument(help="Job TOML; the default job if omitted.")] = None,
+    job_file: Annotated[
+        Path | None, typer.Argument(help="Job TOML; the default job if omitted.")
+    ] = None,
     out: Annotated[Path | None, typer.Option(help="Report folder (overrides the job's).")] = None,
 ) -> None:
     """Run a job on the digital twin and write its report (report.html + figures + JSON)."""
@@ -64,7 +70,10 @@ def run(
         for r in rates:
             task = prog.add_task(f"ILC at {r} features/s", total=job.iterations)
             runs[r] = run_msl_ilc(
-                r, job.iterations, config=job.ilc, seed=job.seed,
+                r,
+                job.iterations,
+                config=job.ilc,
+                seed=job.seed,
                 state_dir=out_dir / "state" / f"rate_{r}",
                 progress=lambda done, total, t=task: prog.update(t, completed=done),
             )
@@ -91,7 +100,9 @@ def run(
 
 @reproduce_app.command("msl-ilc")
 def reproduce_msl_ilc(
-    json_path: Annotated[Path | None, typer.Option("--json", help="Write the numbers as JSON.")] = None,
+    json_path: Annotated[
+        Path | None, typer.Option("--json", help="Write the numbers as JSON.")
+    ] = None,
     iterations: Annotated[int, typer.Option(help="ILC trials per run.")] = 30,
     seed: Annotated[int, typer.Option(help="Twin noise seed.")] = 0,
 ) -> None:
@@ -103,7 +114,8 @@ def reproduce_msl_ilc(
     with _progress() as prog:
         task = prog.add_task("runs", total=len(seed000.RATES))
         tables, _ = reproduce_tables(
-            iterations=iterations, seed=seed,
+            iterations=iterations,
+            seed=seed,
             progress=lambda label: prog.update(task, advance=0, description=label),
         )
         prog.update(task, completed=len(seed000.RATES))
@@ -152,14 +164,24 @@ def reproduce_msl_ilc(
 
 @ilc_app.command("step")
 def ilc_step_cmd(
-    trial: Annotated[Path, typer.Argument(help="Measured trial: time, reference_<a>, input_<a>, output_<a>.")],
+    trial: Annotated[
+        Path, typer.Argument(help="Measured trial: time, reference_<a>, input_<a>, output_<a>.")
+    ],
     state: Annotated[Path, typer.Option("--state", help="Learning-state directory.")],
     out: Annotated[Path, typer.Option("--out", help="Next input file (.csv, .mat, .h5).")],
-    cutoff_hz: Annotated[float, typer.Option(help="Highest learned harmonic [Hz] (first call).")] = 8000.0,
+    cutoff_hz: Annotated[
+        float, typer.Option(help="Highest learned harmonic [Hz] (first call).")
+    ] = 8000.0,
     gain: Annotated[float, typer.Option(help="Learning gain rho (first call).")] = 0.4,
-    max_position: Annotated[float | None, typer.Option(help="Declared |input| limit [unit].")] = None,
-    max_velocity: Annotated[float | None, typer.Option(help="Declared slope limit [unit/s].")] = None,
-    max_acceleration: Annotated[float | None, typer.Option(help="Declared [unit/s^2] limit.")] = None,
+    max_position: Annotated[
+        float | None, typer.Option(help="Declared |input| limit [unit].")
+    ] = None,
+    max_velocity: Annotated[
+        float | None, typer.Option(help="Declared slope limit [unit/s].")
+    ] = None,
+    max_acceleration: Annotated[
+        float | None, typer.Option(help="Declared [unit/s^2] limit.")
+    ] = None,
 ) -> None:
     """Learn from one measured trial and write the next input (state kept in --state).
 
@@ -180,7 +202,9 @@ def ilc_step_cmd(
             lim = AxisLimits(
                 position=max_position if max_position is not None else base.position,
                 velocity=max_velocity if max_velocity is not None else base.velocity,
-                acceleration=max_acceleration if max_acceleration is not None else base.acceleration,
+                acceleration=max_acceleration
+                if max_acceleration is not None
+                else base.acceleration,
                 unit=base.unit,
             )
             from microfab.machines.files import read_trial_file

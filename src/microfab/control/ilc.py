@@ -365,9 +365,7 @@ class FrequencyILC:
         return (Path(directory) / STATE_FILE).is_file()
 
     @classmethod
-    def load(
-        cls, directory: str | Path, true_frf: FRFModel | None = None
-    ) -> FrequencyILC:
+    def load(cls, directory: str | Path, true_frf: FRFModel | None = None) -> FrequencyILC:
         """Resume a learner saved with `save`.
 
         Raises
@@ -387,7 +385,10 @@ class FrequencyILC:
         except (OSError, ValueError, KeyError) as exc:
             raise ValueError(f"cannot read ILC state {path}: {exc}") from exc
         obj = cls(
-            data["reference"], meta["dt"], tuple(meta["axes"]), ILCConfig(**meta["config"]),
+            data["reference"],
+            meta["dt"],
+            tuple(meta["axes"]),
+            ILCConfig(**meta["config"]),
             true_frf=true_frf,
         )
         st = obj.state

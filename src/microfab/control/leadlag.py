@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import control
 import numpy as np
+
+import control
 
 __all__ = ["lead_lag"]
 
@@ -74,7 +75,11 @@ def lead_lag(
         raise ValueError(f"|G(j w_c)| must be finite and non-zero, got {mag}")
     s = control.tf("s")
     return (
-        1.0 / (lead_ratio * mag) * (wi / wit)
-        * (1 + s / wi) / (1 + s / wit)
-        * (1 + s / wd) / (1 + s / wdt)
+        1.0
+        / (lead_ratio * mag)
+        * (wi / wit)
+        * (1 + s / wi)
+        / (1 + s / wit)
+        * (1 + s / wd)
+        / (1 + s / wdt)
     )

@@ -98,8 +98,12 @@ class MSLRunResult:
         out: dict[str, float] = {}
         for tag, y in (("fb", self.fb_output), ("ilc", self.ilc_output)):
             bv = beam_velocity(y, self.dt, self.velocity_params(), periodic=True)
-            out |= {f"{tag}_mean": bv.mean, f"{tag}_std": bv.std,
-                    f"{tag}_min": bv.min, f"{tag}_max": bv.max}
+            out |= {
+                f"{tag}_mean": bv.mean,
+                f"{tag}_std": bv.std,
+                f"{tag}_min": bv.min,
+                f"{tag}_max": bv.max,
+            }
         return out
 
     def table1_row(self, axis: str) -> dict[str, float]:
@@ -246,8 +250,14 @@ def reproduce_tables(
     margins = {}
     for name, ax in axes.items():
         m = loop_margins(ax.open_loop())
-        margins[name] = {"gm_db": m.gm_db, "pm_deg": m.pm_deg,
-                         "gm_freq_hz": m.gm_freq_hz, "pm_freq_hz": m.pm_freq_hz}
-    hist = {a: {str(r): (runs[r].rms_history[:, i] * 1e3).tolist() for r in rates}
-            for i, a in enumerate(axes)}
+        margins[name] = {
+            "gm_db": m.gm_db,
+            "pm_deg": m.pm_deg,
+            "gm_freq_hz": m.gm_freq_hz,
+            "pm_freq_hz": m.pm_freq_hz,
+        }
+    hist = {
+        a: {str(r): (runs[r].rms_history[:, i] * 1e3).tolist() for r in rates}
+        for i, a in enumerate(axes)
+    }
     return {"table1": table1, "table2": table2, "margins": margins, "rms_history": hist}, runs

@@ -26,12 +26,36 @@ TABLE1_MV: dict[str, dict[int, dict[str, float]]] = {
 # seed 000 Table 2: beam velocity mean (std) and (max, min) in mm/s. The table's header
 # says "(Max., Min.)" but lists the smaller value first; we store them by meaning.
 TABLE2_MM_S: dict[int, dict[str, float]] = {
-    100: {"fb_mean": 245, "fb_std": 27, "fb_min": 158, "fb_max": 351,
-          "ilc_mean": 239, "ilc_std": 12, "ilc_min": 156, "ilc_max": 280},
-    200: {"fb_mean": 502, "fb_std": 75, "fb_min": 311, "fb_max": 697,
-          "ilc_mean": 477, "ilc_std": 26, "ilc_min": 344, "ilc_max": 535},
-    400: {"fb_mean": 1061, "fb_std": 202, "fb_min": 623, "fb_max": 1401,
-          "ilc_mean": 947, "ilc_std": 91, "ilc_min": 640, "ilc_max": 1101},
+    100: {
+        "fb_mean": 245,
+        "fb_std": 27,
+        "fb_min": 158,
+        "fb_max": 351,
+        "ilc_mean": 239,
+        "ilc_std": 12,
+        "ilc_min": 156,
+        "ilc_max": 280,
+    },
+    200: {
+        "fb_mean": 502,
+        "fb_std": 75,
+        "fb_min": 311,
+        "fb_max": 697,
+        "ilc_mean": 477,
+        "ilc_std": 26,
+        "ilc_min": 344,
+        "ilc_max": 535,
+    },
+    400: {
+        "fb_mean": 1061,
+        "fb_std": 202,
+        "fb_min": 623,
+        "fb_max": 1401,
+        "ilc_mean": 947,
+        "ilc_std": 91,
+        "ilc_min": 640,
+        "ilc_max": 1101,
+    },
 }
 
 # seed 000 §3.1: measured gain and phase margins.

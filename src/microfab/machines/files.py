@@ -89,7 +89,10 @@ def read_trial_file(path: str | Path) -> Trial:
         raise TrialFileError(f"{p}: 'time' is not uniformly increasing (one period expected)")
     stack = lambda kind: np.column_stack([cols[f"{kind}_{a}"] for a in axes])  # noqa: E731
     return Trial(
-        dt=dt, reference=stack("reference"), input=stack("input"), output=stack("output"),
+        dt=dt,
+        reference=stack("reference"),
+        input=stack("input"),
+        output=stack("output"),
         axes=axes,
     )
 
@@ -175,7 +178,7 @@ def ilc_step(
                 f"{trial_path}: the reference changed since the first trial (max difference "
                 f"{diff:.3g}); start a new state directory for a new reference"
             )
-        if st.meta.get("last_digest") == digest:
+        if digest in st.meta.get("digests", []):  # type: ignore[operator]
             raise TrialFileError(f"{trial_path}: this trial was already learned from")
         stored = st.meta.get("limits")
         if limits is None and isinstance(stored, dict):
@@ -186,11 +189,16 @@ def ilc_step(
     if limits is not None:
         check_command(next_input, trial.dt, limits, trial.axes, periodic=True)
     write_input_file(out_path, trial.dt, next_input, trial.axes)
-    extra: dict[str, object] = {"last_digest": digest}
+    seen = list(ilc.state.meta.get("digests", []))  # type: ignore[call-overload]
+    extra: dict[str, object] = {"digests": [*seen, digest]}
     if limits is not None:
         extra["limits"] = {
-            a: {"position": v.position, "velocity": v.velocity,
-                "acceleration": v.acceleration, "unit": v.unit}
+            a: {
+                "position": v.position,
+                "velocity": v.velocity,
+                "acceleration": v.acceleration,
+                "unit": v.unit,
+            }
             for a, v in limits.items()
         }
     ilc.save(sd, extra)

@@ -10,7 +10,7 @@ import numpy as np
 __all__ = ["AxisLimits", "LimitViolation", "check_command"]
 
 
-class LimitViolation(ValueError):
+class LimitViolation(ValueError):  # noqa: N818 - reads as a sentence: "raise LimitViolation"
     """A command would exceed a machine's declared position, velocity or acceleration."""
 
 

@@ -19,9 +19,9 @@ import tomllib
 from dataclasses import dataclass, replace
 from importlib import resources
 
-import control
 import numpy as np
 
+import control
 from microfab.control.leadlag import lead_lag
 from microfab.plants.lti import DiscreteLTI, discretize, with_input_delay
 
@@ -170,12 +170,18 @@ def _seed_axes() -> dict[str, GalvoAxis]:
     # same section; we keep 0.3 mm/V for x and scale y so that 1.44 V is 0.3 mm.
     return {
         "x": GalvoAxis(
-            name="x", resonances_hz=(31.26e3, 41.70e3), amplitude_v=1.0,
-            scale_mm_per_v=0.3, rigid_pole_hz=100.0,
+            name="x",
+            resonances_hz=(31.26e3, 41.70e3),
+            amplitude_v=1.0,
+            scale_mm_per_v=0.3,
+            rigid_pole_hz=100.0,
         ),
         "y": GalvoAxis(
-            name="y", resonances_hz=(25.71e3, 31.55e3), amplitude_v=1.44,
-            scale_mm_per_v=0.3 / 1.44, rigid_pole_hz=100.0,
+            name="y",
+            resonances_hz=(25.71e3, 31.55e3),
+            amplitude_v=1.44,
+            scale_mm_per_v=0.3 / 1.44,
+            rigid_pole_hz=100.0,
         ),
     }
 

@@ -11,9 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
-import control
 import numpy as np
 import scipy.linalg
+
+import control
 
 __all__ = ["DiscreteLTI", "block_diag", "discretize", "freqresp_ss", "with_input_delay"]
 

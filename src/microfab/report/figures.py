@@ -26,6 +26,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from microfab.experiments.msl_ilc import MSLRunResult
 from microfab.io.atomic import atomic_path
@@ -157,7 +158,9 @@ def fig_time(result: MSLRunResult) -> Figure:
         ax.grid(True, alpha=0.3)
     axs[0].set_title(f"One period at {_rate_label(result.rate_hz)}")
     fig.legend(
-        *axs[0].get_legend_handles_labels(), loc="outside lower center", ncols=4,
+        *axs[0].get_legend_handles_labels(),
+        loc="outside lower center",
+        ncols=4,
         fontsize="small",
     )
     axs[-1].set_xlabel("time (ms)")
@@ -217,20 +220,34 @@ def fig_psd(
             color="tab:red",
             linestyle=":",
             linewidth=1.4,
-            label=f"encoder noise floor (σ = {sigma * 1e3:.2f} mV)",
+            label="encoder noise floor 2σ²·dt",
+        )
+        ax.text(
+            0.99,
+            0.97,
+            f"{name}: encoder noise σ = {sigma * 1e3:.2f} mV",
+            transform=ax.transAxes,
+            ha="right",
+            va="top",
+            fontsize="small",
+            color="tab:red",
         )
         ax.axvline(
-            cutoff_hz, color="0.4", linestyle="--", linewidth=1.0,
+            cutoff_hz,
+            color="0.4",
+            linestyle="--",
+            linewidth=1.0,
             label=f"ILC cutoff {cutoff_hz / 1e3:g} kHz",
         )
         ax.set_ylabel(f"{name} error PSD (V²/Hz)")
         ax.grid(True, which="both", alpha=0.25)
     axs[0].set_title(
-        f"Error PSD at {_rate_label(result.rate_hz)} "
-        f"(harmonics of {1 / result.period_s:g} Hz)"
+        f"Error PSD at {_rate_label(result.rate_hz)} (harmonics of {1 / result.period_s:g} Hz)"
     )
     fig.legend(
-        *axs[0].get_legend_handles_labels(), loc="outside lower center", ncols=3,
+        *axs[0].get_legend_handles_labels(),
+        loc="outside lower center",
+        ncols=3,
         fontsize="small",
     )
     axs[-1].set_xlabel("frequency (Hz)")
@@ -276,6 +293,9 @@ def fig_learning(results: Mapping[float, MSLRunResult] | MSLRunResult) -> Figure
         ax.grid(True, which="both", alpha=0.25)
         ax.legend(fontsize="small")
     axs[0].set_ylabel("RMS error (mV)")
+    axs[0].yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    axs[0].yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    axs[0].yaxis.set_minor_formatter(NullFormatter())
     return fig
 
 
@@ -333,8 +353,7 @@ def fig_velocity(result: MSLRunResult, *, cmap: str = "turbo", n_arrows: int = 4
                 "",
                 xy=(p[j, 0], p[j, 1]),
                 xytext=(p[i, 0], p[i, 1]),
-                arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 1.2,
-                            "mutation_scale": 14},
+                arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 1.2, "mutation_scale": 14},
             )
         ax.autoscale_view()
         ax.set_aspect("equal", adjustable="box")
@@ -380,7 +399,7 @@ def fig_line_width(
     """
     params = result.velocity_params()
     t_ms = np.arange(result.reference.shape[0]) * result.dt * 1e3
-    fig = _new_figure(7.0, 3.8)
+    fig = _new_figure(7.0, 4.2)
     ax = fig.add_subplot()
     for signal, tag, style in ((result.fb_output, "FB", _FB), (result.ilc_output, "ILC", _ILC)):
         bv = beam_velocity(signal, result.dt, params, periodic=True)
@@ -412,7 +431,9 @@ def fig_line_width(
         fontsize="medium",
     )
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small", loc="lower right", framealpha=0.9)
+    fig.legend(
+        *ax.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize="small"
+    )
     return fig
 
 

@@ -71,7 +71,9 @@ class LTIPlant:
 
     def __init__(self, sys: DiscreteLTI) -> None:
         if np.any(sys.D != 0):
-            raise ValueError("LTIPlant needs a strictly proper model (D = 0) to avoid an algebraic loop")
+            raise ValueError(
+                "LTIPlant needs a strictly proper model (D = 0) to avoid an algebraic loop"
+            )
         self.sys = sys
         self.params = pack_lti(sys.A, sys.B, sys.C, sys.D)
         self.n_inputs = sys.n_inputs

@@ -96,11 +96,11 @@ def lti_error_step(
 
 @njit
 def run_loop(
-    plant_output,  # noqa: ANN001 - numba dispatcher
-    plant_update,  # noqa: ANN001
+    plant_output,
+    plant_update,
     pp: np.ndarray,
     px: np.ndarray,
-    ctrl_step,  # noqa: ANN001
+    ctrl_step,
     cp: np.ndarray,
     cx: np.ndarray,
     ref: np.ndarray,

@@ -85,9 +85,13 @@ def simulate(
     ref, nz = _prepare(plant, reference, noise)
     if not has_kernels(plant, controller):
         return simulate_python(plant, controller, ref, nz, state, axes)
-    px, cx = (plant.init(), controller.init()) if state is None else (
-        state[0].copy(),
-        state[1].copy(),
+    px, cx = (
+        (plant.init(), controller.init())
+        if state is None
+        else (
+            state[0].copy(),
+            state[1].copy(),
+        )
     )
     n = ref.shape[0]
     y = np.empty((n, plant.n_outputs))
@@ -108,7 +112,12 @@ def simulate(
         u,
     )
     return SimResult(
-        dt=plant.dt, reference=ref, output=y, measured=ym, command=u, axes=axes,
+        dt=plant.dt,
+        reference=ref,
+        output=y,
+        measured=ym,
+        command=u,
+        axes=axes,
         final_state=(px, cx),
     )
 
@@ -135,6 +144,11 @@ def simulate_python(
         px = plant.update(px, uk)
         y[k], ym[k], u[k] = yk, ymk, uk
     return SimResult(
-        dt=plant.dt, reference=ref, output=y, measured=ym, command=u, axes=axes,
+        dt=plant.dt,
+        reference=ref,
+        output=y,
+        measured=ym,
+        command=u,
+        axes=axes,
         final_state=(px, cx),
     )

@@ -146,7 +146,7 @@ class BlockSimulator:
         n, nu = u.shape
         if outputs is None:
             outputs = tuple(range(self.sys.n_outputs))
-        O, T = self._rows(outputs)
+        obs, T = self._rows(outputs)
         ny, L = len(outputs), self.L
         nb, rest = divmod(n, L)
         y = np.empty((n, ny))
@@ -155,12 +155,12 @@ class BlockSimulator:
             U = u[: nb * L].reshape(nb, L * nu).T  # (L*nu, nb), sample-major per block
             X = np.empty((x.size, nb + 1))
             _hop(self._powers[L], np.ascontiguousarray(self._W @ U), x, X)
-            Y = O @ X[:, :nb] + T @ U  # (L*ny, nb)
+            Y = obs @ X[:, :nb] + T @ U  # (L*ny, nb)
             y[: nb * L] = Y.T.reshape(nb * L, ny)
             x = X[:, nb].copy()
         if rest:
             ur = u[nb * L :].reshape(rest * nu)
-            yr = O[: rest * ny] @ x + T[: rest * ny, : rest * nu] @ ur
+            yr = obs[: rest * ny] @ x + T[: rest * ny, : rest * nu] @ ur
             y[nb * L :] = yr.reshape(rest, ny)
             x = self._powers[rest] @ x + self._W[:, (L - rest) * nu :] @ ur
         self.state = x

@@ -55,7 +55,8 @@ def square_scan(
         [p < 0.25, p < 0.5, p < 0.75], [-a + 8 * a * p, a + 0 * p, a - 8 * a * (p - 0.5)], -a
     )
     y = np.select(
-        [p < 0.25, p < 0.5, p < 0.75], [-b + 0 * p, -b + 8 * b * (p - 0.25), b + 0 * p],
+        [p < 0.25, p < 0.5, p < 0.75],
+        [-b + 0 * p, -b + 8 * b * (p - 0.25), b + 0 * p],
         b - 8 * b * (p - 0.75),
     )
     return np.column_stack([x, y])
