@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from microfab.experiments.seed000 import RATES, TABLE1_MV
-from microfab.plants.galvo import default_galvo_axes
 from microfab.plants import galvo_calibration
+from microfab.plants.galvo import default_galvo_axes
 from microfab.plants.galvo_calibration import calibrate_galvo, fb_error, truncation_error
 from microfab.trajectory.periodic import square_scan
 
@@ -97,8 +97,8 @@ def test_written_toml_is_readable_and_matches(written, shipped):
         flat = [v for pair in c.residual_pct.values() for v in pair]
         np.testing.assert_allclose(res, flat, atol=0.006)
         assert set(entry) == set(shipped[name])
-    # the written file is what default_galvo_axes() would load
-    assert not list(path.parent.glob("*.tmp*"))
+    # written atomically into a new folder: nothing but the file is left there
+    assert list(path.parent.iterdir()) == [path]
 
 
 def test_fb_error_is_periodic_steady_state_error():

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import importlib.util
 
-import control
 import numpy as np
 import pytest
 
+import control
 from microfab.plants.lti import DiscreteLTI, block_diag, discretize, with_input_delay
 
 DT = 1e-4  # 10 kHz: coarse enough that discretisation effects are visible
