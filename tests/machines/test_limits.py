@@ -1,0 +1,106 @@
+"""Declared machine limits: every command is checked before anything is emitted."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from microfab.machines.limits import AxisLimits, LimitViolation, check_command
+
+DT = 1e-3
+N = 1000  # one period of 1 s
+
+
+def sine(amplitude: float) -> np.ndarray:
+    """One period of ``A sin(2 pi t)``: |x| <= A, |v| ~ 2 pi A, |a| ~ (2 pi)^2 A."""
+    return amplitude * np.sin(2 * np.pi * np.arange(N) / N)
+
+
+LOOSE = AxisLimits(position=10.0, velocity=1e3, acceleration=1e5)
+
+
+def test_command_inside_limits_passes():
+    x = sine(1.0)  # |x| 1, |v| ~6.28, |a| ~39.5
+    lim = AxisLimits(position=1.01, velocity=6.3, acceleration=39.6)
+    check_command(x, DT, {"x": lim}, ("x",))
+    check_command(np.column_stack([x, 0.5 * x]), DT, {"x": lim, "y": lim}, ("x", "y"))
+
+
+@pytest.mark.parametrize(
+    ("limits", "quantity"),
+    [
+        (AxisLimits(position=0.99, velocity=1e3, acceleration=1e5), "position"),
+        (AxisLimits(position=10.0, velocity=6.2, acceleration=1e5), "velocity"),
+        (AxisLimits(position=10.0, velocity=1e3, acceleration=39.0), "acceleration"),
+    ],
+)
+def test_each_quantity_beyond_its_limit_is_refused(limits, quantity):
+    x = sine(1.0)
+    with pytest.raises(LimitViolation, match=rf"axis x: {quantity} ") as exc:
+        check_command(x, DT, {"x": limits}, ("x",))
+    msg = str(exc.value)
+    assert "exceeds the declared limit" in msg
+    assert "nothing was emitted" in msg
+    assert isinstance(exc.value, ValueError)
+
+
+def test_violation_names_the_offending_axis():
+    ok = sine(0.1)
+    bad = sine(20.0)
+    lims = {"x": LOOSE, "y": LOOSE}
+    with pytest.raises(LimitViolation, match=r"axis y: position -?20"):
+        check_command(np.column_stack([ok, bad]), DT, lims, ("x", "y"))
+    with pytest.raises(LimitViolation, match=r"axis x: position"):
+        check_command(np.column_stack([bad, ok]), DT, lims, ("x", "y"))
+
+
+def test_velocity_value_and_sample_in_message():
+    # a ramp of slope 2 unit/s with one 0.01 jump at sample 500: velocity 10 /s there
+    x = 2.0 * DT * np.arange(N) - 1.0
+    x[500:] += 0.01
+    lim = AxisLimits(position=10.0, velocity=5.0, acceleration=1e9)
+    pattern = r"velocity 12 V/s .* limit 5 V/s \(near sample (499|500)\)"
+    with pytest.raises(LimitViolation, match=pattern):
+        check_command(x, DT, {"x": lim}, ("x",), periodic=False)
+
+
+def test_periodic_wrap_counts():
+    # a sawtooth is smooth within the period but jumps from +1 to -1 at the wrap
+    x = np.linspace(-1.0, 1.0, N)
+    lim = AxisLimits(position=1.5, velocity=10.0, acceleration=1e9)
+    check_command(x, DT, {"x": lim}, ("x",), periodic=False)  # slope ~2 unit/s
+    with pytest.raises(LimitViolation, match="velocity"):
+        check_command(x, DT, {"x": lim}, ("x",), periodic=True)  # jump of 2 in 1 ms
+
+
+def test_missing_axis_is_refused():
+    with pytest.raises(LimitViolation, match=r"axis 'z' has no declared limits"):
+        check_command(np.column_stack([sine(0.1), sine(0.1)]), DT, {"x": LOOSE}, ("x", "z"))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_command_is_refused(bad):
+    x = sine(0.1)
+    x[17] = bad
+    with pytest.raises(LimitViolation, match="NaN or inf"):
+        check_command(x, DT, {"x": LOOSE}, ("x",))
+
+
+def test_short_commands():
+    # one sample: only the position can be checked without wrapping
+    check_command(np.array([[0.5]]), DT, {"x": LOOSE}, ("x",), periodic=False)
+    with pytest.raises(LimitViolation, match="position"):
+        check_command(np.array([[11.0]]), DT, {"x": LOOSE}, ("x",), periodic=False)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"position": 0.0, "velocity": 1.0, "acceleration": 1.0}, "position"),
+        ({"position": 1.0, "velocity": -1.0, "acceleration": 1.0}, "velocity"),
+        ({"position": 1.0, "velocity": 1.0, "acceleration": np.nan}, "acceleration"),
+    ],
+)
+def test_axis_limits_validation(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        AxisLimits(**kwargs)
