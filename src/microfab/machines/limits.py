@@ -4,10 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-__all__ = ["AxisLimits", "LimitViolation", "check_command"]
+if TYPE_CHECKING:
+    from microfab.trajectory.base import Trajectory
+
+__all__ = ["AxisLimits", "LimitViolation", "MachineLimits", "check_command", "check_trajectory"]
 
 
 class LimitViolation(ValueError):  # noqa: N818 - reads as a sentence: "raise LimitViolation"
@@ -101,4 +105,170 @@ def check_command(
                     f"axis {name}: {qty} {sig[k]:.4g} {lim.unit}{suffix} exceeds the declared "
                     f"limit {bound:.4g} {lim.unit}{suffix} (near sample {k}); "
                     "nothing was emitted"
+                )
+
+
+@dataclass(frozen=True, kw_only=True)
+class MachineLimits:
+    """Declared limits of a Cartesian machine, per axis, in SI units.
+
+    Parameters
+    ----------
+    workspace : tuple of (float, float)
+        ``(min, max)`` position per axis, m.
+    velocity, acceleration : tuple of float
+        Largest ``|v|`` (m/s) and ``|a|`` (m/s²) per axis.
+    jerk : tuple of float, optional
+        Largest ``|j|`` per axis, m/s³; ``inf`` (the default) where none is declared.
+    axes : tuple of str
+        Axis names.
+    """
+
+    workspace: tuple[tuple[float, float], ...]
+    velocity: tuple[float, ...]
+    acceleration: tuple[float, ...]
+    jerk: tuple[float, ...] | None = None
+    axes: tuple[str, ...] = ("x", "y")
+
+    def __post_init__(self) -> None:
+        n = len(self.axes)
+        jerk = self.jerk if self.jerk is not None else (float("inf"),) * n
+        object.__setattr__(self, "jerk", tuple(float(j) for j in jerk))
+        ws = tuple((float(lo), float(hi)) for lo, hi in self.workspace)
+        object.__setattr__(self, "workspace", ws)
+        object.__setattr__(self, "velocity", tuple(float(v) for v in self.velocity))
+        object.__setattr__(self, "acceleration", tuple(float(v) for v in self.acceleration))
+        for name, vals in (
+            ("workspace", ws),
+            ("velocity", self.velocity),
+            ("acceleration", self.acceleration),
+            ("jerk", self.jerk),
+        ):
+            if len(vals) != n:
+                raise ValueError(f"{name} needs one entry per axis {self.axes}, got {vals}")
+        for ax, (lo, hi) in zip(self.axes, ws, strict=True):
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+                raise ValueError(f"workspace of axis {ax} must be min < max, got [{lo}, {hi}] m")
+        for name, vals, unit in (
+            ("velocity", self.velocity, "m/s"),
+            ("acceleration", self.acceleration, "m/s^2"),
+            ("jerk", self.jerk, "m/s^3"),
+        ):
+            for ax, v in zip(self.axes, vals, strict=True):
+                if not v > 0 or np.isnan(v):
+                    raise ValueError(f"{name} limit of axis {ax} must be positive, got {v} {unit}")
+        if not all(np.isfinite(v) for v in (*self.velocity, *self.acceleration)):
+            raise ValueError("velocity and acceleration limits must be finite")
+
+    @classmethod
+    def seed002_stage(cls) -> MachineLimits:
+        """The ETEL DXL-LM325 stage's software limits (seed 002 Table I); no jerk limit."""
+        return cls(
+            workspace=((-0.19, 0.19), (-0.19, 0.19)),  # seed 002 Table I: [-0.19, 0.19]^2 m^2
+            velocity=(1.5, 1.5),  # seed 002 Table I: 1.5 m/s
+            acceleration=(40.0, 40.0),  # seed 002 Table I: 40 m/s^2
+        )
+
+    def with_jerk(self, jerk: float | tuple[float, ...]) -> MachineLimits:
+        """A copy with the jerk limit replaced (one value for all axes, or per axis)."""
+        j = (float(jerk),) * len(self.axes) if np.isscalar(jerk) else tuple(jerk)  # type: ignore[arg-type]
+        return MachineLimits(
+            workspace=self.workspace,
+            velocity=self.velocity,
+            acceleration=self.acceleration,
+            jerk=j,
+            axes=self.axes,
+        )
+
+
+def _violation(axis: str, qty: str, value: float, bound: float, unit: str, t: float) -> str:
+    return (
+        f"axis {axis}: {qty} {value:.6g} {unit} at t = {t:.6g} s exceeds the limit "
+        f"{bound:.6g} {unit}; nothing was emitted"
+    )
+
+
+def check_trajectory(traj: Trajectory, limits: MachineLimits, rtol: float = 1e-9) -> None:
+    """Refuse a trajectory outside the workspace or above a velocity/acceleration/jerk limit.
+
+    Two views are checked: the analytic derivatives the generator provides (if any) and
+    the finite differences of the samples, which is what a machine sampling the
+    positions sees. A trajectory marked ``at_rest`` is checked with the machine holding
+    still before and after it; otherwise it is taken as one period and wrapped around.
+
+    Parameters
+    ----------
+    traj : microfab.trajectory.base.Trajectory
+        The trajectory.
+    limits : MachineLimits
+        Declared limits; the trajectory's axes must match ``limits.axes``.
+    rtol : float
+        Relative allowance for floating-point rounding.
+
+    Raises
+    ------
+    LimitViolation
+        Naming the axis, the quantity, the time, the value and the limit.
+    """
+    pos = np.asarray(traj.position, dtype=float)
+    dt = float(traj.dt)
+    axes = tuple(traj.axes)
+    if axes != tuple(limits.axes):
+        raise LimitViolation(f"trajectory axes {axes} do not match the limits' axes {limits.axes}")
+    if not np.all(np.isfinite(pos)):
+        raise LimitViolation("trajectory holds NaN or inf; nothing was emitted")
+    n = pos.shape[0]
+    t = np.arange(n) * dt
+    at_rest = bool(getattr(traj, "at_rest", True))
+    scale = float(np.max(np.abs(pos))) if n else 0.0
+    eps = np.finfo(float).eps
+    for k, ax in enumerate(axes):
+        lo, hi = limits.workspace[k]
+        x = pos[:, k]
+        i_lo, i_hi = int(np.argmin(x)), int(np.argmax(x))
+        if x[i_lo] < lo:
+            raise LimitViolation(
+                f"axis {ax}: position {x[i_lo]:.6g} m at t = {t[i_lo]:.6g} s is below the "
+                f"workspace minimum {lo:.6g} m; nothing was emitted"
+            )
+        if x[i_hi] > hi:
+            raise LimitViolation(
+                f"axis {ax}: position {x[i_hi]:.6g} m at t = {t[i_hi]:.6g} s is above the "
+                f"workspace maximum {hi:.6g} m; nothing was emitted"
+            )
+        bounds = (limits.velocity[k], limits.acceleration[k], limits.jerk[k])  # type: ignore[index]
+        names = (("velocity", "m/s"), ("acceleration", "m/s^2"), ("jerk", "m/s^3"))
+        # analytic derivatives from the generator
+        for (qty, unit), bound, arr in zip(
+            names,
+            bounds,
+            (traj.velocity, traj.acceleration, traj.jerk),
+            strict=True,
+        ):
+            if arr is None or not np.isfinite(bound):
+                continue
+            sig = np.asarray(arr)[:, k]
+            i = int(np.argmax(np.abs(sig)))
+            if abs(sig[i]) > bound * (1 + rtol):
+                raise LimitViolation(_violation(ax, qty, sig[i], bound, unit, t[i]))
+        # finite differences of the samples (what the machine sees)
+        pad = 3
+        if at_rest:
+            xe = np.concatenate([np.full(pad, x[0]), x, np.full(pad, x[-1])])
+        else:
+            xe = np.concatenate([x[-pad:], x, x[:pad]])
+        te = (np.arange(xe.size) - pad) * dt
+        for order, ((qty, unit), bound) in enumerate(zip(names, bounds, strict=True), start=1):
+            if not np.isfinite(bound):
+                continue
+            d = np.diff(xe, order) / dt**order
+            # rounding of the samples, amplified by the difference (2**order * eps * |x|)
+            allow = bound * (1 + rtol) + 2**order * 4 * eps * scale / dt**order
+            i = int(np.argmax(np.abs(d)))
+            if abs(d[i]) > allow:
+                tc = float(np.clip(te[i] + 0.5 * order * dt, 0.0, max(t[-1], 0.0)))
+                raise LimitViolation(
+                    _violation(ax, qty, d[i], bound, unit, tc).replace(
+                        "exceeds", "(sampled) exceeds"
+                    )
                 )

@@ -1,0 +1,1 @@
+"""Geometry: exact segments, arc-length parameterised paths, layers and their sources."""

@@ -1,0 +1,151 @@
+"""`Layer`: the contours of one drawing or slice, with outer boundaries and holes."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from matplotlib.path import Path as MplPath
+
+from microfab.geometry.path import Path
+
+__all__ = ["Layer", "Skipped"]
+
+
+@dataclass(frozen=True)
+class Skipped:
+    """Something in a drawing that was not imported, and why."""
+
+    kind: str
+    reason: str
+    ref: str = ""
+
+    def to_dict(self) -> dict[str, str]:
+        """As a JSON-ready dict."""
+        return {"kind": self.kind, "ref": self.ref, "reason": self.reason}
+
+
+@dataclass(frozen=True, eq=False)
+class Layer:
+    """Contours of one layer: closed outer boundaries, the holes inside them, open paths.
+
+    Parameters
+    ----------
+    contours : sequence of Path
+        The contours, in drawing order.
+    skipped : sequence of Skipped
+        What the importer could not take, reported rather than dropped silently.
+    source : str
+        Where the contours came from (file name or shape), for reports.
+    """
+
+    contours: tuple[Path, ...]
+    skipped: tuple[Skipped, ...] = field(default=())
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "contours", tuple(self.contours))
+        object.__setattr__(self, "skipped", tuple(self.skipped))
+        for c in self.contours:
+            if not isinstance(c, Path):
+                raise TypeError(f"a layer holds Path contours, got {type(c).__name__}")
+
+    def __iter__(self) -> Iterator[Path]:
+        return iter(self.contours)
+
+    def __len__(self) -> int:
+        return len(self.contours)
+
+    def __getitem__(self, i: int) -> Path:
+        return self.contours[i]
+
+    @property
+    def closed(self) -> tuple[Path, ...]:
+        """The closed contours."""
+        return tuple(c for c in self.contours if c.closed)
+
+    @property
+    def open(self) -> tuple[Path, ...]:
+        """The open contours."""
+        return tuple(c for c in self.contours if not c.closed)
+
+    @cached_property
+    def depth(self) -> tuple[int, ...]:
+        """Nesting depth of each contour: 0 outer, 1 hole, 2 island in a hole, …; -1 open.
+
+        A closed contour's depth is the number of other closed contours containing a
+        point of it (the even–odd rule decides what is material).
+        """
+        closed_idx = [i for i, c in enumerate(self.contours) if c.closed]
+        polys = {i: MplPath(self.contours[i].flatten()) for i in closed_idx}
+        depth = [-1] * len(self.contours)
+        for i in closed_idx:
+            # a point just inside the contour's first segment, away from shared vertices
+            c = self.contours[i]
+            probe = c.point([0.5 * c.segments[0].length])
+            depth[i] = sum(
+                1 for j in closed_idx if j != i and polys[j].contains_point(tuple(probe[0]))
+            )
+        return tuple(depth)
+
+    def oriented(self) -> Layer:
+        """Outer contours counter-clockwise, holes clockwise.
+
+        Closed contours at even depth turn counter-clockwise (material on the left), at
+        odd depth clockwise; open contours are unchanged.
+        """
+        out = []
+        for c, d in zip(self.contours, self.depth, strict=True):
+            if d < 0:
+                out.append(c)
+            else:
+                want = "ccw" if d % 2 == 0 else "cw"
+                out.append(c if c.orientation == want else c.reversed())
+        return Layer(tuple(out), self.skipped, self.source)
+
+    def require_closed(self) -> Layer:
+        """Return the layer if every contour is closed, else raise a ValueError naming them."""
+        bad = [
+            (i, float(np.hypot(*(c.end - c.start))))
+            for i, c in enumerate(self.contours)
+            if not c.closed
+        ]
+        if bad:
+            desc = ", ".join(f"#{i} (gap {g:.3g} m)" for i, g in bad[:10])
+            raise ValueError(
+                f"{len(bad)} contour(s) are open and cannot be closed: {desc}; "
+                "fix the drawing or raise the chaining tolerance"
+            )
+        if not self.contours:
+            raise ValueError("the layer has no contours")
+        return self
+
+    def transformed(self, A: object, b: object = (0.0, 0.0)) -> Layer:
+        """Every contour mapped by ``p -> A p + b``."""
+        return Layer(tuple(c.transformed(A, b) for c in self.contours), self.skipped, self.source)
+
+    def scaled(self, k: float) -> Layer:
+        """Every contour scaled by ``k`` about the origin."""
+        return self.transformed(k * np.eye(2))
+
+    def translated(self, d: Sequence[float]) -> Layer:
+        """Every contour shifted by ``d`` (m)."""
+        return self.transformed(np.eye(2), d)
+
+    @property
+    def bbox(self) -> tuple[float, float, float, float]:
+        """``(xmin, ymin, xmax, ymax)`` over all contours, m."""
+        if not self.contours:
+            raise ValueError("the layer has no contours")
+        b = np.array([c.bbox for c in self.contours])
+        lo, hi = b[:, :2].min(axis=0), b[:, 2:].max(axis=0)
+        return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+
+    def summary(self) -> dict[str, object]:
+        """The JSON summary printed by ``microfab path show --json``."""
+        return {
+            "contours": [c.summary() for c in self.contours],
+            "skipped": [s.to_dict() for s in self.skipped],
+        }

@@ -1,0 +1,349 @@
+"""Exact planar curve segments: straight lines, circular arcs and polynomial curves.
+
+Every segment maps a local arc length ``σ ∈ [0, length]`` to a point. Three kinds cover
+all sources exactly:
+
+- :class:`LineSegment` — DXF LINE, polyline edges, SVG ``L``;
+- :class:`ArcSegment` — DXF ARC/CIRCLE, bulged polyline edges;
+- :class:`CurveSegment` — a polynomial curve ``f(u), u ∈ [0, 1]`` held as Chebyshev
+  coefficients. Bézier curves (fonts, SVG, DXF splines) convert to it exactly; any other
+  smooth parametric curve (ellipse, spiral, Lissajous, rational spline) is approximated by
+  adaptive Chebyshev interpolation to ~1e-13 relative (:meth:`CurveSegment.from_function`).
+
+A curve's arc length is tabulated once with 16 panels of 10-point Gauss–Legendre
+quadrature; the inverse ``u(σ)`` is found by Newton's method on that table (see
+:mod:`microfab.geometry.path`, which evaluates many segments at once).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from numpy.polynomial import chebyshev as cheb
+
+__all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment"]
+
+GL_X, GL_W = np.polynomial.legendre.leggauss(10)
+N_PANELS = 16
+_FIT_DEGREES = (8, 16, 32, 64, 128)
+
+
+def cheb_fit2(x: np.ndarray, vals: np.ndarray, deg: int) -> np.ndarray:
+    """Chebyshev coefficients (deg + 1, 2) interpolating 2-D points ``vals`` at nodes ``x``."""
+    return np.column_stack([cheb.chebfit(x, vals[:, 0], deg), cheb.chebfit(x, vals[:, 1], deg)])
+
+
+def _vec2(p: object, name: str) -> np.ndarray:
+    a = np.array(p, dtype=float).reshape(-1)
+    if a.shape != (2,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be a finite 2-vector (m), got {p!r}")
+    a.setflags(write=False)
+    return a
+
+
+def _affine(A: object, b: object) -> tuple[np.ndarray, np.ndarray]:
+    Am = np.asarray(A, dtype=float).reshape(2, 2)
+    bv = np.asarray(b, dtype=float).reshape(2)
+    if not (np.all(np.isfinite(Am)) and np.all(np.isfinite(bv))):
+        raise ValueError("transform must be finite")
+    if abs(np.linalg.det(Am)) < 1e-300:
+        raise ValueError("transform is singular")
+    return Am, bv
+
+
+@dataclass(frozen=True, eq=False)
+class LineSegment:
+    """A straight segment from ``p0`` to ``p1`` (m)."""
+
+    p0: np.ndarray
+    p1: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "p0", _vec2(self.p0, "p0"))
+        object.__setattr__(self, "p1", _vec2(self.p1, "p1"))
+
+    @property
+    def start(self) -> np.ndarray:
+        """Start point, m."""
+        return self.p0
+
+    @property
+    def end(self) -> np.ndarray:
+        """End point, m."""
+        return self.p1
+
+    @cached_property
+    def length(self) -> float:
+        """Length, m."""
+        return float(np.hypot(*(self.p1 - self.p0)))
+
+    def reversed(self) -> LineSegment:
+        """The same segment traversed backwards."""
+        return LineSegment(self.p1, self.p0)
+
+    def transformed(self, A: object, b: object = (0.0, 0.0)) -> LineSegment:
+        """Image under ``p -> A p + b``."""
+        Am, bv = _affine(A, b)
+        return LineSegment(Am @ self.p0 + bv, Am @ self.p1 + bv)
+
+
+@dataclass(frozen=True, eq=False)
+class ArcSegment:
+    """A circular arc.
+
+    Parameters
+    ----------
+    center : array_like, shape (2,)
+        Centre, m.
+    radius : float
+        Radius, m, positive.
+    theta0 : float
+        Angle of the start point from the centre, rad.
+    sweep : float
+        Signed swept angle, rad: positive counter-clockwise, ``|sweep| <= 2π``.
+    """
+
+    center: np.ndarray
+    radius: float
+    theta0: float
+    sweep: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "center", _vec2(self.center, "center"))
+        r, s = float(self.radius), float(self.sweep)
+        if not (np.isfinite(r) and r > 0):
+            raise ValueError(f"arc radius must be positive, got {self.radius} m")
+        if not (np.isfinite(s) and s != 0 and abs(s) <= 2 * np.pi * (1 + 1e-12)):
+            raise ValueError(f"arc sweep must be nonzero and within ±2π, got {self.sweep} rad")
+        object.__setattr__(self, "radius", r)
+        object.__setattr__(self, "sweep", s)
+        object.__setattr__(self, "theta0", float(self.theta0))
+
+    @classmethod
+    def from_bulge(cls, p0: object, p1: object, bulge: float) -> ArcSegment:
+        """Arc from ``p0`` to ``p1`` with a DXF bulge ``tan(sweep / 4)`` (positive: CCW)."""
+        a, b = _vec2(p0, "p0"), _vec2(p1, "p1")
+        bulge = float(bulge)
+        if bulge == 0:
+            raise ValueError("a bulge of 0 is a straight segment, not an arc")
+        chord = b - a
+        c = float(np.hypot(*chord))
+        if c == 0:
+            raise ValueError("a bulged segment needs distinct end points")
+        sweep = 4.0 * np.arctan(bulge)
+        radius = c / (2.0 * abs(np.sin(sweep / 2.0)))
+        # centre: from the chord midpoint along the left normal by the signed apothem
+        apothem = c / 2.0 / np.tan(sweep / 2.0)
+        n = np.array([-chord[1], chord[0]]) / c
+        center = (a + b) / 2.0 + apothem * n
+        theta0 = float(np.arctan2(a[1] - center[1], a[0] - center[0]))
+        return cls(center, radius, theta0, sweep)
+
+    @property
+    def start(self) -> np.ndarray:
+        """Start point, m."""
+        return self.center + self.radius * np.array([np.cos(self.theta0), np.sin(self.theta0)])
+
+    @property
+    def end(self) -> np.ndarray:
+        """End point, m."""
+        t = self.theta0 + self.sweep
+        return self.center + self.radius * np.array([np.cos(t), np.sin(t)])
+
+    @cached_property
+    def length(self) -> float:
+        """Length, m."""
+        return self.radius * abs(self.sweep)
+
+    def reversed(self) -> ArcSegment:
+        """The same arc traversed backwards."""
+        return ArcSegment(self.center, self.radius, self.theta0 + self.sweep, -self.sweep)
+
+    def transformed(self, A: object, b: object = (0.0, 0.0)) -> ArcSegment | CurveSegment:
+        """Image under ``p -> A p + b``; an arc stays an arc under a similarity.
+
+        A non-uniform scale turns the arc into an elliptical arc, returned as a
+        :class:`CurveSegment` (Chebyshev approximation, ~1e-13 relative).
+        """
+        Am, bv = _affine(A, b)
+        g = Am.T @ Am
+        k2 = 0.5 * (g[0, 0] + g[1, 1])
+        if abs(g[0, 0] - g[1, 1]) <= 1e-12 * k2 and abs(g[0, 1]) <= 1e-12 * k2:
+            k = float(np.sqrt(k2))
+            mirror = np.linalg.det(Am) < 0
+            c = Am @ self.center + bv
+            s0 = Am @ self.start + bv
+            theta0 = float(np.arctan2(s0[1] - c[1], s0[0] - c[0]))
+            return ArcSegment(c, self.radius * k, theta0, -self.sweep if mirror else self.sweep)
+        c, r, t0, sw = self.center, self.radius, self.theta0, self.sweep
+
+        def f(u: np.ndarray) -> np.ndarray:
+            t = t0 + u * sw
+            p = c + r * np.column_stack([np.cos(t), np.sin(t)])
+            return p @ Am.T + bv
+
+        parts = CurveSegment.from_function(f)
+        if len(parts) != 1:  # pragma: no cover - an elliptic arc fits one degree-128 piece
+            raise ValueError("elliptic arc did not fit one polynomial piece")
+        return parts[0]
+
+
+def _bezier_to_cheb(ctrl: np.ndarray) -> np.ndarray:
+    """Chebyshev coefficients on u ∈ [0, 1] (x = 2u − 1) of a Bézier curve.
+
+    A degree-d polynomial is fixed by d + 1 values: interpolate at Chebyshev points
+    (well conditioned), evaluating the Bézier curve in the Bernstein basis.
+    """
+    from math import comb
+
+    d = ctrl.shape[0] - 1
+    x = np.cos(np.pi * (np.arange(d + 1) + 0.5) / (d + 1))
+    u = (x + 1.0) / 2.0
+    k = np.arange(d + 1)
+    binom = np.array([comb(d, int(i)) for i in k], dtype=float)
+    bern = binom * u[:, None] ** k * (1.0 - u[:, None]) ** (d - k)
+    vals = bern @ ctrl
+    return cheb_fit2(x, vals, d)
+
+
+@dataclass(frozen=True, eq=False)
+class CurveSegment:
+    """A polynomial curve ``f(u), u ∈ [0, 1]``, from ``f(0)`` to ``f(1)``.
+
+    Parameters
+    ----------
+    coef : array_like, shape (degree + 1, 2)
+        Chebyshev coefficients of x(u) and y(u) in the variable ``2u − 1``, m.
+    """
+
+    coef: np.ndarray
+
+    def __post_init__(self) -> None:
+        c = np.array(self.coef, dtype=float)
+        if c.ndim != 2 or c.shape[1] != 2 or c.shape[0] < 2 or not np.all(np.isfinite(c)):
+            raise ValueError(f"coef must be a finite (degree + 1, 2) array, got {c.shape}")
+        c.setflags(write=False)
+        object.__setattr__(self, "coef", c)
+
+    @classmethod
+    def from_bezier(cls, ctrl: object) -> CurveSegment:
+        """Exact conversion of a Bézier curve with control points ``ctrl`` (d + 1, 2), m."""
+        P = np.asarray(ctrl, dtype=float)
+        if P.ndim != 2 or P.shape[1] != 2 or P.shape[0] < 2 or not np.all(np.isfinite(P)):
+            raise ValueError(f"Bézier control points must be finite (n >= 2, 2), got {P.shape}")
+        return cls(_bezier_to_cheb(P))
+
+    @classmethod
+    def from_function(
+        cls,
+        f: Callable[[np.ndarray], np.ndarray],
+        rtol: float = 1e-13,
+        max_pieces: int = 4096,
+    ) -> list[CurveSegment]:
+        """Approximate a smooth curve ``f(u) -> (n, 2)`` on ``u ∈ [0, 1]``.
+
+        Chebyshev interpolation of increasing degree (8 … 128) until the trailing
+        coefficients fall below ``rtol`` times the curve's size; pieces that do not
+        converge are halved. The pieces join with C∞ continuity up to ``rtol``.
+
+        Returns
+        -------
+        list of CurveSegment
+            Consecutive pieces covering ``[0, 1]``.
+        """
+        out: list[CurveSegment] = []
+        stack = [(0.0, 1.0)]
+        scale = float(np.max(np.abs(f(np.linspace(0.0, 1.0, 33))))) or 1.0
+        while stack:
+            a, b = stack.pop()
+            if len(out) + len(stack) > max_pieces:
+                raise ValueError("curve needs too many pieces; is it smooth on [0, 1]?")
+            for deg in _FIT_DEGREES:
+                x = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))
+                vals = np.asarray(f(a + (b - a) * (x + 1) / 2), dtype=float)
+                if vals.shape != (deg + 1, 2) or not np.all(np.isfinite(vals)):
+                    raise ValueError("curve function must return finite (n, 2) points")
+                coef = cheb_fit2(x, vals, deg)
+                tail = np.max(np.abs(coef[-3:]))
+                if tail <= rtol * scale:
+                    keep = np.nonzero(np.max(np.abs(coef), axis=1) > 0.1 * rtol * scale)[0]
+                    n = max(int(keep[-1]) + 1 if keep.size else 2, 2)
+                    out.append(cls(coef[:n]))
+                    break
+            else:
+                m = 0.5 * (a + b)
+                stack.extend([(m, b), (a, m)])
+                continue
+        # the stack pops the left half first, so pieces come out in order
+        return out
+
+    @property
+    def degree(self) -> int:
+        """Polynomial degree."""
+        return int(self.coef.shape[0] - 1)
+
+    def point(self, u: np.ndarray) -> np.ndarray:
+        """``f(u)``, shape (n, 2)."""
+        x = 2.0 * np.asarray(u, dtype=float) - 1.0
+        return np.column_stack([cheb.chebval(x, self.coef[:, 0]), cheb.chebval(x, self.coef[:, 1])])
+
+    @cached_property
+    def derivative_coefs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Chebyshev coefficients of ``f'``, ``f''``, ``f'''`` with respect to u."""
+        out = []
+        c = self.coef
+        for _ in range(3):
+            c = 2.0 * cheb.chebder(c, axis=0) if c.shape[0] > 1 else np.zeros((1, 2))
+            out.append(c)
+        return out[0], out[1], out[2]
+
+    @property
+    def start(self) -> np.ndarray:
+        """Start point, m."""
+        return self.point(np.array([0.0]))[0]
+
+    @property
+    def end(self) -> np.ndarray:
+        """End point, m."""
+        return self.point(np.array([1.0]))[0]
+
+    def speed(self, u: np.ndarray) -> np.ndarray:
+        """``|f'(u)|``, m per unit u."""
+        d1 = self.derivative_coefs[0]
+        x = 2.0 * np.asarray(u, dtype=float) - 1.0
+        return np.hypot(cheb.chebval(x, d1[:, 0]), cheb.chebval(x, d1[:, 1]))
+
+    @cached_property
+    def length_table(self) -> np.ndarray:
+        """Arc length at ``u = j / 16``, j = 0 … 16, m (Gauss–Legendre per panel)."""
+        edges = np.linspace(0.0, 1.0, N_PANELS + 1)
+        h = np.diff(edges)
+        nodes = edges[:-1, None] + h[:, None] * (GL_X[None, :] + 1.0) / 2.0
+        sp = self.speed(nodes.ravel()).reshape(nodes.shape)
+        panel = (sp * GL_W[None, :]).sum(axis=1) * h / 2.0
+        table = np.concatenate([[0.0], np.cumsum(panel)])
+        table.setflags(write=False)
+        return table
+
+    @cached_property
+    def length(self) -> float:
+        """Length, m."""
+        return float(self.length_table[-1])
+
+    def reversed(self) -> CurveSegment:
+        """The same curve traversed backwards (``u -> 1 − u``)."""
+        sign = (-1.0) ** np.arange(self.coef.shape[0])
+        return CurveSegment(self.coef * sign[:, None])
+
+    def transformed(self, A: object, b: object = (0.0, 0.0)) -> CurveSegment:
+        """Image under ``p -> A p + b`` (exact: the polynomial's coefficients transform)."""
+        Am, bv = _affine(A, b)
+        c = self.coef @ Am.T
+        c[0] += bv
+        return CurveSegment(c)
+
+
+Segment = LineSegment | ArcSegment | CurveSegment
