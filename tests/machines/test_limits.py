@@ -104,3 +104,52 @@ def test_short_commands():
 def test_axis_limits_validation(kwargs, match):
     with pytest.raises(ValueError, match=match):
         AxisLimits(**kwargs)
+
+
+# ---------------------------------------------------------------- MachineLimits
+from microfab.machines.limits import MachineLimits, check_trajectory  # noqa: E402
+from microfab.trajectory.base import Trajectory  # noqa: E402
+
+
+def _line_traj(x: np.ndarray, dt: float, at_rest: bool = True) -> Trajectory:
+    return Trajectory(dt=dt, position=np.column_stack([x, np.zeros_like(x)]), at_rest=at_rest)
+
+
+def test_machine_limits_validation() -> None:
+    with pytest.raises(ValueError, match="workspace of axis x"):
+        MachineLimits(workspace=((1, 0), (0, 1)), velocity=(1, 1), acceleration=(1, 1))
+    with pytest.raises(ValueError, match="acceleration limit of axis y must be positive"):
+        MachineLimits(workspace=((0, 1), (0, 1)), velocity=(1, 1), acceleration=(1, -1))
+    with pytest.raises(ValueError, match="one entry per axis"):
+        MachineLimits(workspace=((0, 1),), velocity=(1, 1), acceleration=(1, 1))
+    lim = MachineLimits.seed002_stage()
+    assert lim.jerk == (np.inf, np.inf)
+    assert lim.with_jerk(500.0).jerk == (500.0, 500.0)
+
+
+def test_check_trajectory_names_axis_time_value_and_limit() -> None:
+    lim = MachineLimits.seed002_stage().with_jerk(1e4)
+    dt = 1e-4
+    t = np.arange(2001) * dt
+    # a smooth move (cosine ramp) of 1 cm in 0.2 s: peak v ≈ 0.079 m/s, a ≈ 2.5 m/s²
+    x = 0.005 * (1 - np.cos(np.pi * t / 0.2))
+    check_trajectory(_line_traj(x, dt), lim)
+    with pytest.raises(LimitViolation, match=r"axis x: position 0\.3 m at t = 0\.2 s is above"):
+        check_trajectory(_line_traj(x * 30, dt), lim)
+    fast = 0.08 * (1 - np.cos(np.pi * t / 0.16))  # peak v ≈ 1.571 m/s > 1.5 at t = 0.08 s
+    with pytest.raises(LimitViolation, match=r"axis x: velocity 1\.57\d* m/s at t = 0\.08\d* s"):
+        check_trajectory(_line_traj(fast, dt), lim)
+    # a cosine ramp starts with a = 5 m/s² straight from rest: a jerk of ~a/(2 dt)
+    jerky = 5.0 * 0.04 / np.pi**2 * (1 - np.cos(np.pi * t / 0.2))
+    with pytest.raises(LimitViolation, match=r"axis x: jerk .* exceeds the limit 10000 m/s\^3"):
+        check_trajectory(_line_traj(jerky, dt), lim)
+
+
+def test_check_trajectory_uses_analytic_derivatives_when_given() -> None:
+    lim = MachineLimits.seed002_stage()
+    x = np.zeros((10, 2))
+    acc = np.zeros((10, 2))
+    acc[4, 1] = 41.0
+    tr = Trajectory(dt=1e-3, position=x, acceleration=acc)
+    with pytest.raises(LimitViolation, match=r"axis y: acceleration 41 m/s\^2 at t = 0\.004 s"):
+        check_trajectory(tr, lim)

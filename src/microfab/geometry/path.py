@@ -437,8 +437,8 @@ class Path:
             return 0.0
         n = len(self.segments)
         lengths = np.array([s.length for s in self.segments])
-        # 4 panels x 10 nodes per segment: exact for lines, ~1e-15 for arcs and curves
-        panels = 4
+        # 16 panels x 10 Gauss nodes per segment, as for the curves' length tables
+        panels = N_PANELS
         frac = (np.arange(panels)[:, None] + (GL_X[None, :] + 1.0) / 2.0).ravel() / panels
         w = np.tile(GL_W, panels) / (2.0 * panels)
         seg = np.repeat(np.arange(n), frac.size)
@@ -461,7 +461,13 @@ class Path:
 
     def transformed(self, A: object, b: object = (0.0, 0.0)) -> Path:
         """Image under ``p -> A p + b`` (A shape (2, 2), b in m)."""
-        return Path(tuple(s.transformed(A, b) for s in self.segments), closed=self.closed)
+        segs: list[Segment] = []
+        for s in self.segments:
+            if isinstance(s, ArcSegment):
+                segs.extend(s.transformed_pieces(A, b))
+            else:
+                segs.append(s.transformed(A, b))
+        return Path(tuple(segs), closed=self.closed)
 
     def scaled(self, k: float, origin: object = (0.0, 0.0)) -> Path:
         """Uniformly scaled by ``k`` about ``origin``."""

@@ -28,7 +28,7 @@ __all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment"]
 
 GL_X, GL_W = np.polynomial.legendre.leggauss(10)
 N_PANELS = 16
-_FIT_DEGREES = (8, 16, 32, 64, 128)
+_FIT_DEGREES = (8, 16, 32, 64)
 
 
 def cheb_fit2(x: np.ndarray, vals: np.ndarray, deg: int) -> np.ndarray:
@@ -168,6 +168,28 @@ class ArcSegment:
         A non-uniform scale turns the arc into an elliptical arc, returned as a
         :class:`CurveSegment` (Chebyshev approximation, ~1e-13 relative).
         """
+        parts = self.transformed_pieces(A, b)
+        if len(parts) == 1:
+            return parts[0]
+        # keep one segment: refit the whole elliptic arc at the finest degree
+        Am, bv = _affine(A, b)
+        x = np.cos(np.pi * (np.arange(65) + 0.5) / 65)
+        return CurveSegment(cheb_fit2(x, self._mapped(Am, bv)((x + 1) / 2), 64))
+
+    def _mapped(self, Am: np.ndarray, bv: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        c, r, t0, sw = self.center, self.radius, self.theta0, self.sweep
+
+        def f(u: np.ndarray) -> np.ndarray:
+            t = t0 + u * sw
+            p = c + r * np.column_stack([np.cos(t), np.sin(t)])
+            return p @ Am.T + bv
+
+        return f
+
+    def transformed_pieces(
+        self, A: object, b: object = (0.0, 0.0)
+    ) -> list[ArcSegment] | list[CurveSegment]:
+        """Image under ``p -> A p + b`` as one arc, or as elliptic curve pieces."""
         Am, bv = _affine(A, b)
         g = Am.T @ Am
         k2 = 0.5 * (g[0, 0] + g[1, 1])
@@ -177,18 +199,8 @@ class ArcSegment:
             c = Am @ self.center + bv
             s0 = Am @ self.start + bv
             theta0 = float(np.arctan2(s0[1] - c[1], s0[0] - c[0]))
-            return ArcSegment(c, self.radius * k, theta0, -self.sweep if mirror else self.sweep)
-        c, r, t0, sw = self.center, self.radius, self.theta0, self.sweep
-
-        def f(u: np.ndarray) -> np.ndarray:
-            t = t0 + u * sw
-            p = c + r * np.column_stack([np.cos(t), np.sin(t)])
-            return p @ Am.T + bv
-
-        parts = CurveSegment.from_function(f)
-        if len(parts) != 1:  # pragma: no cover - an elliptic arc fits one degree-128 piece
-            raise ValueError("elliptic arc did not fit one polynomial piece")
-        return parts[0]
+            return [ArcSegment(c, self.radius * k, theta0, -self.sweep if mirror else self.sweep)]
+        return CurveSegment.from_function(self._mapped(Am, bv))
 
 
 def _bezier_to_cheb(ctrl: np.ndarray) -> np.ndarray:
@@ -261,22 +273,12 @@ class CurveSegment:
             a, b = stack.pop()
             if len(out) + len(stack) > max_pieces:
                 raise ValueError("curve needs too many pieces; is it smooth on [0, 1]?")
-            for deg in _FIT_DEGREES:
-                x = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))
-                vals = np.asarray(f(a + (b - a) * (x + 1) / 2), dtype=float)
-                if vals.shape != (deg + 1, 2) or not np.all(np.isfinite(vals)):
-                    raise ValueError("curve function must return finite (n, 2) points")
-                coef = cheb_fit2(x, vals, deg)
-                tail = np.max(np.abs(coef[-3:]))
-                if tail <= rtol * scale:
-                    keep = np.nonzero(np.max(np.abs(coef), axis=1) > 0.1 * rtol * scale)[0]
-                    n = max(int(keep[-1]) + 1 if keep.size else 2, 2)
-                    out.append(cls(coef[:n]))
-                    break
-            else:
+            piece = _fit_piece(f, a, b, rtol * scale)
+            if piece is None or not piece.quadrature_converged(rtol=max(rtol, 1e-13)):
                 m = 0.5 * (a + b)
                 stack.extend([(m, b), (a, m)])
-                continue
+            else:
+                out.append(piece)
         # the stack pops the left half first, so pieces come out in order
         return out
 
@@ -333,6 +335,15 @@ class CurveSegment:
         """Length, m."""
         return float(self.length_table[-1])
 
+    def quadrature_converged(self, rtol: float = 1e-13) -> bool:
+        """Whether the 16-panel length table agrees with a 64-panel one to ``rtol``."""
+        edges = np.linspace(0.0, 1.0, 4 * N_PANELS + 1)
+        h = np.diff(edges)
+        nodes = edges[:-1, None] + h[:, None] * (GL_X[None, :] + 1.0) / 2.0
+        sp = self.speed(nodes.ravel()).reshape(nodes.shape)
+        fine = np.cumsum((sp * GL_W[None, :]).sum(axis=1) * h / 2.0)[3::4]
+        return bool(np.max(np.abs(fine - self.length_table[1:])) <= rtol * max(fine[-1], 1e-300))
+
     def reversed(self) -> CurveSegment:
         """The same curve traversed backwards (``u -> 1 − u``)."""
         sign = (-1.0) ** np.arange(self.coef.shape[0])
@@ -344,6 +355,23 @@ class CurveSegment:
         c = self.coef @ Am.T
         c[0] += bv
         return CurveSegment(c)
+
+
+def _fit_piece(
+    f: Callable[[np.ndarray], np.ndarray], a: float, b: float, atol: float
+) -> CurveSegment | None:
+    """Chebyshev interpolant of f on [a, b] with trailing coefficients below atol, or None."""
+    for deg in _FIT_DEGREES:
+        x = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))
+        vals = np.asarray(f(a + (b - a) * (x + 1) / 2), dtype=float)
+        if vals.shape != (deg + 1, 2) or not np.all(np.isfinite(vals)):
+            raise ValueError("curve function must return finite (n, 2) points")
+        coef = cheb_fit2(x, vals, deg)
+        if np.max(np.abs(coef[-3:])) <= atol:
+            keep = np.nonzero(np.max(np.abs(coef), axis=1) > 0.1 * atol)[0]
+            n = max(int(keep[-1]) + 1 if keep.size else 2, 2)
+            return CurveSegment(coef[:n])
+    return None
 
 
 Segment = LineSegment | ArcSegment | CurveSegment

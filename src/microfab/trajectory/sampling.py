@@ -1,0 +1,115 @@
+"""Constant-speed sampling of a path (seed 002 eq. 15) and periodic repetition (seed 000).
+
+``ρ(t) = Ξ(v t)``: the state-of-practice reference that traverses the target geometry at
+a constant path speed ``v = S / T``. Velocity, acceleration and jerk follow analytically
+from the path's arc-length derivatives: ``v T(s)``, ``v² q''(s)``, ``v³ q'''(s)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from microfab.geometry.path import Path
+from microfab.trajectory.base import Trajectory
+
+__all__ = ["constant_speed", "periodic"]
+
+
+def _sample(path: Path, s: np.ndarray, speed: float, dt: float, at_rest: bool) -> Trajectory:
+    q, d1, d2, d3 = path.evaluate(s, 3)
+    return Trajectory(
+        dt=dt,
+        position=q,
+        velocity=speed * d1,
+        acceleration=speed**2 * d2,
+        jerk=speed**3 * d3,
+        s=s,
+        at_rest=at_rest,
+        meta={"generator": "constant_speed", "speed_m_s": speed},
+    )
+
+
+def constant_speed(
+    path: Path,
+    *,
+    rate_hz: float,
+    speed: float | None = None,
+    duration: float | None = None,
+) -> Trajectory:
+    """Sample ``ρ(t) = Ξ(v t)`` at ``rate_hz`` (seed 002 eq. 15).
+
+    Give the path speed ``speed`` (m/s) or the traversal time ``duration`` (s, then
+    ``v = S / T`` as in eq. 15). The last sample lands exactly on the end of the path.
+
+    The trajectory starts and ends at full speed, so a machine at rest before and after
+    sees a velocity step: :func:`~microfab.machines.limits.check_trajectory` refuses it
+    under any finite acceleration limit. It is the baseline of seed 002, and the way to
+    repeat a closed contour (see :func:`periodic`); use
+    :func:`~microfab.trajectory.optimal.time_optimal` for a reference a machine can run
+    from rest.
+
+    Parameters
+    ----------
+    path : Path
+        The target geometry Ξ.
+    rate_hz : float
+        Sample rate, Hz.
+    speed : float, optional
+        Path speed, m/s.
+    duration : float, optional
+        Traversal time, s.
+
+    Returns
+    -------
+    Trajectory
+        Marked ``at_rest=True`` (the machine holds still before and after).
+    """
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz must be positive, got {rate_hz} Hz")
+    if (speed is None) == (duration is None):
+        raise ValueError("give exactly one of speed (m/s) or duration (s)")
+    L = path.length
+    if speed is not None:
+        if not (np.isfinite(speed) and speed > 0):
+            raise ValueError(f"speed must be positive, got {speed} m/s")
+        duration = L / speed
+    assert duration is not None
+    if not (np.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be positive, got {duration} s")
+    n = max(round(duration * rate_hz) + 1, 2)
+    dt = duration / (n - 1)
+    v = L / duration
+    s = np.linspace(0.0, L, n)
+    if path.closed:
+        s[-1] = np.nextafter(L, 0.0)  # stay on the last segment instead of wrapping to 0
+    return _sample(path, s, v, dt, at_rest=True)
+
+
+def periodic(path: Path, *, features_per_s: float, rate_hz: float) -> Trajectory:
+    """One period of a closed path repeated at ``features_per_s`` laps per second.
+
+    Seed 000 §4 repeats a square at 100, 200 and 400 features/s; the path speed is
+    ``length × features_per_s``. One period must be a whole number of samples.
+
+    Returns
+    -------
+    Trajectory
+        One period (the start is not repeated), ``at_rest=False``: the limit check wraps
+        around as the machine repeats it.
+    """
+    if not path.closed:
+        raise ValueError("periodic repetition needs a closed path")
+    if not (np.isfinite(features_per_s) and features_per_s > 0):
+        raise ValueError(f"features_per_s must be positive, got {features_per_s} 1/s")
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz must be positive, got {rate_hz} Hz")
+    n_float = rate_hz / features_per_s
+    n = round(n_float)
+    if n < 8 or abs(n - n_float) > 1e-9 * n_float:
+        raise ValueError(
+            f"one period must be a whole number (>= 8) of samples: rate/features = {n_float:.6g}"
+        )
+    L = path.length
+    speed = L * features_per_s
+    s = np.arange(n) * (L / n)
+    return _sample(path, s, speed, 1.0 / rate_hz, at_rest=False)
