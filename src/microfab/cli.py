@@ -4,6 +4,8 @@
 ``microfab reproduce msl-ilc``        seed 000 Tables 1 and 2 beside ours, optional JSON
 ``microfab ilc step TRIAL ...``       one ILC step on real hardware through files
 ``microfab calibrate galvo``          refit the galvo twin to seed 000 Table 1
+``microfab path show DRAWING``        picture and summary of a drawing's contours
+``microfab trajectory DRAWING``       a limit-safe sampled reference along a drawing
 """
 
 from __future__ import annotations
@@ -13,10 +15,10 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from rich.console import Console
-from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
+
+from microfab.cli_geometry import path_app, trajectory_cmd
+from microfab.clikit import console, fail, progress
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
 reproduce_app = typer.Typer(no_args_is_help=True, help="Reproduce a seed paper on the twin.")
@@ -25,25 +27,11 @@ calibrate_app = typer.Typer(no_args_is_help=True, help="Calibrate digital twins.
 app.add_typer(reproduce_app, name="reproduce")
 app.add_typer(ilc_app, name="ilc")
 app.add_typer(calibrate_app, name="calibrate")
+app.add_typer(path_app, name="path")
+app.command("trajectory")(trajectory_cmd)
 
-console = Console()
-err_console = Console(stderr=True)
-
-
-def _fail(msg: str, code: int = 2) -> None:
-    err_console.print(f"[bold red]error:[/] {escape(msg)}", highlight=False, soft_wrap=True)
-    raise typer.Exit(code)
-
-
-def _progress() -> Progress:
-    return Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=err_console,
-        disable=not err_console.is_terminal and "CI" in __import__("os").environ,
-    )
+_fail = fail
+_progress = progress
 
 
 @app.command()

@@ -10,6 +10,7 @@ import numpy as np
 from matplotlib.path import Path as MplPath
 
 from microfab.geometry.path import Path
+from microfab.geometry.segments import LineSegment, Segment
 
 __all__ = ["Layer", "Skipped"]
 
@@ -142,6 +143,37 @@ class Layer:
         b = np.array([c.bbox for c in self.contours])
         lo, hi = b[:, :2].min(axis=0), b[:, 2:].max(axis=0)
         return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+
+    def tour(self) -> tuple[Path, tuple[tuple[float, float], ...]]:
+        """All contours as one open path, joined by straight jumps, and where to mark.
+
+        The contours are visited in order; a straight :class:`LineSegment` jumps from the
+        end of one to the start of the next (the laser is off there). A trajectory planned
+        along the tour stops at every corner, including both ends of each jump.
+
+        Returns
+        -------
+        path : Path
+            The open tour.
+        marks : tuple of (float, float)
+            Arc-length intervals ``(s_start, s_end)`` of the contours themselves, m.
+        """
+        if not self.contours:
+            raise ValueError("the layer has no contours")
+        segs: list[Segment] = []
+        marks: list[tuple[float, float]] = []
+        s = 0.0
+        for c in self.contours:
+            if segs:
+                gap = c.start - segs[-1].end
+                if np.hypot(*gap) > 0:
+                    jump = LineSegment(segs[-1].end, c.start)
+                    segs.append(jump)
+                    s += jump.length
+            segs.extend(c.segments)
+            marks.append((s, s + c.length))
+            s += c.length
+        return Path(tuple(segs), closed=False), tuple(marks)
 
     def summary(self) -> dict[str, object]:
         """The JSON summary printed by ``microfab path show --json``."""

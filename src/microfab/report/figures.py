@@ -17,19 +17,15 @@ Seed 000 §4: Fig. 4a (xy plane), Fig. 4b (time axis), Fig. 5 (error PSD), Fig. 
 from __future__ import annotations
 
 import io
-import os
 from collections.abc import Mapping
-from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from microfab.experiments.msl_ilc import MSLRunResult
-from microfab.io.atomic import atomic_path
 from microfab.metrics import error_psd
 from microfab.process.exposure import (
     ENVISIONTEC_R11_ASSUMED,
@@ -39,6 +35,7 @@ from microfab.process.exposure import (
     line_profile,
 )
 from microfab.process.velocity import beam_velocity
+from microfab.report.canvas import DPI, new_figure, save_figure
 
 __all__ = [
     "DPI",
@@ -53,7 +50,6 @@ __all__ = [
 ]
 
 #: Resolution of saved PNGs, dots per inch.
-DPI = 120
 
 # Seed 000 §4.1 styles (Fig. 4 and 5 text).
 _DESIRED = {"color": "0.55", "linestyle": "--", "linewidth": 1.0}
@@ -68,11 +64,7 @@ _RATE_MARKERS = ("o", "s", "^", "D", "v", "P")
 _MIN_SPEED_M_S = 1e-6
 
 
-def _new_figure(width: float, height: float) -> Figure:
-    """Create a figure with an Agg canvas and constrained layout (no pyplot)."""
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
+_new_figure = new_figure
 
 
 def _rate_label(rate_hz: float) -> str:
@@ -455,27 +447,3 @@ def render_png(fig: Figure, *, dpi: int = DPI) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()
-
-
-def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: int = DPI) -> Path:
-    """Write a figure to PNG atomically.
-
-    Parameters
-    ----------
-    fig : matplotlib.figure.Figure
-        Figure to save.
-    path : str or os.PathLike
-        Target file; its directory is created if missing. On failure the target is
-        left as it was.
-    dpi : int, optional
-        Resolution, dots per inch (default 120).
-
-    Returns
-    -------
-    pathlib.Path
-        The target path.
-    """
-    target = Path(path)
-    with atomic_path(target) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    return target

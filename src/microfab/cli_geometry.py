@@ -1,0 +1,184 @@
+"""``microfab path show`` and ``microfab trajectory``: drawings in, references out."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from microfab.clikit import console, err_console, fail
+
+__all__ = ["path_app", "trajectory_cmd"]
+
+path_app = typer.Typer(no_args_is_help=True, help="Inspect drawings: contours, lengths, holes.")
+
+DrawingArg = Annotated[
+    str,
+    typer.Argument(
+        help="A .dxf/.svg/.dat file, a shape (circle:radius=0.01, square:side=0.02, spiral, "
+        "polygon:n_sides=6,radius=0.01, ...), text:LETTERS or airfoil:e344."
+    ),
+]
+UnitsOpt = Annotated[
+    str | None, typer.Option(help="DXF drawing units when the header has none (mm, inch, m, um).")
+]
+ChordOpt = Annotated[float, typer.Option(help="Airfoil chord, m.")]
+HeightOpt = Annotated[float, typer.Option(help="Text font size, m.")]
+
+
+def _load(drawing: str, units: str | None, chord: float, text_height: float):
+    from microfab.geometry.load import load_drawing
+
+    try:
+        return load_drawing(drawing, units=units, chord=chord, text_height=text_height)
+    except (OSError, ValueError) as exc:
+        fail(str(exc))
+
+
+@path_app.command("show")
+def path_show_cmd(
+    drawing: DrawingArg,
+    out: Annotated[
+        Path | None, typer.Option(help="PNG picture (default: DRAWING-stem.png).")
+    ] = None,
+    json_out: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+    units: UnitsOpt = None,
+    chord: ChordOpt = 0.1,
+    text_height: HeightOpt = 0.01,
+) -> None:
+    """Picture of the contours (start dots, direction arrows) and a summary."""
+    from microfab.report.canvas import save_figure
+    from microfab.report.geometry import fig_layer
+
+    layer = _load(drawing, units, chord, text_height)
+    target = out or Path(_stem(drawing) + ".png")
+    try:
+        save_figure(fig_layer(layer), target)
+    except OSError as exc:
+        fail(f"cannot write {target}: {exc}")
+    summary = layer.summary()
+    if json_out:
+        console.print_json(json.dumps(summary))
+        err_console.print(f"wrote {target}")
+        return
+    for i, (c, d) in enumerate(zip(summary["contours"], layer.depth, strict=True)):  # type: ignore[arg-type]
+        kind = "open" if d < 0 else ("outer" if d % 2 == 0 else "hole")
+        x0, y0, x1, y1 = (v * 1e3 for v in c["bbox_m"])
+        console.print(
+            f"#{i} {kind:5s} {'closed' if c['closed'] else 'open  '} "
+            f"length {c['length_m'] * 1e3:.4f} mm, bbox [{x0:.3f}, {y0:.3f}] - [{x1:.3f}, "
+            f"{y1:.3f}] mm, {c['n_segments']} segments",
+            highlight=False,
+        )
+    for s in layer.skipped:
+        err_console.print(f"skipped {s.kind} {s.ref}: {s.reason}", highlight=False)
+    console.print(f"wrote {target}")
+
+
+def _stem(drawing: str) -> str:
+    p = Path(drawing)
+    stem = p.stem if p.suffix.lower() in (".dxf", ".svg", ".dat") else drawing.split(":")[0]
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in stem) or "drawing"
+
+
+def trajectory_cmd(
+    drawing: DrawingArg,
+    speed: Annotated[
+        float | None, typer.Option(help="Constant path speed, m/s (seed 002 eq. 15).")
+    ] = None,
+    time_optimal: Annotated[
+        bool, typer.Option("--time-optimal", help="Minimum time under the limits.")
+    ] = False,
+    vmax: Annotated[float | None, typer.Option(help="Per-axis velocity limit, m/s.")] = None,
+    amax: Annotated[float | None, typer.Option(help="Per-axis acceleration limit, m/s².")] = None,
+    jmax: Annotated[float | None, typer.Option(help="Per-axis jerk limit, m/s³.")] = None,
+    workspace: Annotated[
+        float | None, typer.Option(help="Half width of the square workspace, m.")
+    ] = None,
+    feed: Annotated[float | None, typer.Option(help="Path speed cap, m/s (time-optimal).")] = None,
+    rate: Annotated[float, typer.Option(help="Sample rate, Hz.")] = 10_000.0,
+    n_grid: Annotated[int, typer.Option(help="Planning grid points (time-optimal).")] = 1000,
+    contour: Annotated[
+        int | None, typer.Option(help="Only this contour (index); default: all, joined by jumps.")
+    ] = None,
+    out: Annotated[Path, typer.Option(help="Reference file: .csv, .h5 or .mat.")] = Path(
+        "reference.csv"
+    ),
+    plot: Annotated[Path | None, typer.Option(help="Profile PNG (default: next to --out).")] = None,
+    units: UnitsOpt = None,
+    chord: ChordOpt = 0.1,
+    text_height: HeightOpt = 0.01,
+) -> None:
+    """Sample a reference along a drawing, check it against the machine limits, write it.
+
+    Limits default to the seed 002 stage (Table I: 1.5 m/s, 40 m/s², ±0.19 m, no jerk
+    limit); each option overrides one. Nothing is written if the reference would break
+    a limit.
+    """
+    from microfab.io.trace import write_columns
+    from microfab.machines.limits import LimitViolation, MachineLimits, check_trajectory
+    from microfab.report.canvas import save_figure
+    from microfab.report.geometry import fig_profile
+    from microfab.trajectory.sampling import constant_speed
+
+    if (speed is None) == (not time_optimal):
+        fail("give exactly one of --speed V or --time-optimal")
+    base = MachineLimits.seed002_stage()
+    try:
+        half = workspace
+        limits = MachineLimits(
+            workspace=tuple((-half, half) for _ in base.axes) if half else base.workspace,
+            velocity=(vmax,) * 2 if vmax is not None else base.velocity,
+            acceleration=(amax,) * 2 if amax is not None else base.acceleration,
+            jerk=(jmax,) * 2 if jmax is not None else None,
+        )
+    except ValueError as exc:
+        fail(str(exc))
+    layer = _load(drawing, units, chord, text_height)
+    if contour is not None:
+        if not 0 <= contour < len(layer):
+            fail(f"--contour {contour} is out of range: the drawing has {len(layer)} contours")
+        path, marks = layer[contour], ((0.0, layer[contour].length),)
+    else:
+        path, marks = layer.tour() if len(layer) > 1 else (layer[0], ((0.0, layer[0].length),))
+    try:
+        if time_optimal:
+            from microfab.trajectory.optimal import PlanningError
+            from microfab.trajectory.optimal import time_optimal as plan
+
+            with console.status("planning the time-optimal profile"):
+                try:
+                    res = plan(path, limits, n_grid=n_grid, rate_hz=rate, feed=feed)
+                except PlanningError as exc:
+                    fail(str(exc))
+            traj = res.trajectory
+        else:
+            traj = constant_speed(path, rate_hz=rate, speed=speed)
+        check_trajectory(traj, limits)
+    except LimitViolation as exc:
+        fail(
+            f"{exc}. Use --time-optimal (and --feed for a speed cap) for a reference that "
+            "respects the limits, or declare other limits."
+        )
+    except ValueError as exc:
+        fail(str(exc))
+    cols = traj.columns()
+    on = np.zeros(traj.n_samples)
+    if traj.s is not None:
+        for a, b in marks:
+            on[(traj.s >= a) & (traj.s <= b)] = 1.0
+        cols["laser"] = on
+    try:
+        write_columns(out, cols, unit="m")
+        target = plot or out.with_suffix(".png")
+        save_figure(fig_profile(traj, limits), target)
+    except (OSError, ValueError) as exc:
+        fail(f"cannot write the reference: {exc}")
+    console.print(
+        f"{traj.n_samples} samples at {1 / traj.dt:.6g} Hz, duration {traj.duration:.6g} s, "
+        f"path length {path.length * 1e3:.4f} mm; wrote {out} and {target}",
+        highlight=False,
+    )

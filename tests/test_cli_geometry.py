@@ -1,0 +1,88 @@
+"""``microfab path show`` and ``microfab trajectory`` through typer's CliRunner."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from microfab.cli import app
+from microfab.io.trace import read_columns
+
+runner = CliRunner()
+
+
+def test_path_show_json_summary_and_png(tmp_path: Path) -> None:
+    png = tmp_path / "sq.png"
+    res = runner.invoke(app, ["path", "show", "square:side=0.02", "--json", "--out", str(png)])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    (c,) = data["contours"]
+    assert c["closed"] is True
+    assert c["length_m"] == pytest.approx(0.08)
+    assert c["bbox_m"] == pytest.approx([-0.01, -0.01, 0.01, 0.01], abs=1e-9)
+    assert c["n_points"] >= 5
+    assert data["skipped"] == []
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_path_show_text_and_errors(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["path", "show", "blob:radius=1", "--out", str(tmp_path / "x.png")])
+    assert res.exit_code == 2 and "cannot tell what" in res.output
+    res = runner.invoke(app, ["path", "show", str(tmp_path / "missing.dxf")])
+    assert res.exit_code == 2 and "not found" in res.output
+
+
+def test_trajectory_time_optimal_writes_a_limit_safe_reference(tmp_path: Path) -> None:
+    out = tmp_path / "ref.csv"
+    res = runner.invoke(
+        app,
+        [
+            "trajectory",
+            "square:side=0.01",
+            "--time-optimal",
+            "--amax",
+            "5",
+            "--vmax",
+            "0.2",
+            "--out",
+            str(out),
+            "--rate",
+            "5000",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    cols = read_columns(out)
+    x, y = cols["x"], cols["y"]
+    dt = np.diff(cols["time"]).mean()
+    v = np.diff(np.column_stack([x, y]), axis=0) / dt
+    a = np.diff(np.column_stack([x, y]), 2, axis=0) / dt**2
+    assert np.abs(v).max() <= 0.2 * (1 + 1e-9)
+    assert np.abs(a).max() <= 5 * (1 + 1e-9)
+    assert np.abs(v).max() > 0.15  # the limit is actually used somewhere
+    assert set(np.unique(cols["laser"])) <= {0.0, 1.0}
+    assert out.with_suffix(".png").exists()
+
+
+def test_trajectory_constant_speed_is_refused_with_advice(tmp_path: Path) -> None:
+    out = tmp_path / "ref.csv"
+    res = runner.invoke(
+        app, ["trajectory", "square:side=0.01", "--speed", "0.1", "--out", str(out)]
+    )
+    assert res.exit_code == 2
+    assert "exceeds the limit" in res.output and "--time-optimal" in res.output
+    assert not out.exists()
+
+
+def test_trajectory_option_errors(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["trajectory", "circle:radius=0.01"])
+    assert res.exit_code == 2 and "exactly one" in res.output
+    res = runner.invoke(app, ["trajectory", "circle:radius=0.01", "--time-optimal", "--amax", "-1"])
+    assert res.exit_code == 2 and "acceleration limit of axis x must be positive" in res.output
+    res = runner.invoke(
+        app, ["trajectory", "circle:radius=0.01", "--time-optimal", "--contour", "3"]
+    )
+    assert res.exit_code == 2 and "out of range" in res.output
