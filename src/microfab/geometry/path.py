@@ -131,18 +131,20 @@ class Path:
         for s in segs:
             if not isinstance(s, LineSegment | ArcSegment | CurveSegment):
                 raise TypeError(f"not a segment: {s!r}")
-        pts = np.array([p for s in segs for p in (s.start, s.end)])
-        size = float(np.max(np.ptp(pts, axis=0))) if len(pts) > 1 else 0.0
+        starts = np.array([s.start for s in segs])
+        ends = np.array([s.end for s in segs])
+        pts = np.vstack([starts, ends])
+        size = float(np.max(np.ptp(pts, axis=0)))
         tol = self.gap_tol if self.gap_tol is not None else 1e-9 * size + 1e-12
-        for i in range(len(segs) - 1):
-            gap = float(np.hypot(*(segs[i + 1].start - segs[i].end)))
-            if gap > tol:
-                raise ValueError(
-                    f"segment {i + 1} starts {gap:.3g} m away from the end of segment {i} "
-                    f"(tolerance {tol:.3g} m); chain the segments first"
-                )
+        gaps = np.hypot(*(starts[1:] - ends[:-1]).T) if len(segs) > 1 else np.zeros(0)
+        if gaps.size and gaps.max() > tol:
+            i = int(np.argmax(gaps > tol))
+            raise ValueError(
+                f"segment {i + 1} starts {gaps[i]:.3g} m away from the end of segment {i} "
+                f"(tolerance {tol:.3g} m); chain the segments first"
+            )
         if self.closed:
-            gap = float(np.hypot(*(segs[0].start - segs[-1].end)))
+            gap = float(np.hypot(*(starts[0] - ends[-1])))
             if gap > tol:
                 raise ValueError(
                     f"closed path does not close: the end is {gap:.3g} m from the start "
@@ -457,7 +459,11 @@ class Path:
     # ----------------------------------------------------------------- transforms
     def reversed(self) -> Path:
         """The same contour traversed backwards."""
-        return Path(tuple(s.reversed() for s in reversed(self.segments)), closed=self.closed)
+        return Path(
+            tuple(s.reversed() for s in reversed(self.segments)),
+            closed=self.closed,
+            gap_tol=self.gap_tol,
+        )
 
     def transformed(self, A: object, b: object = (0.0, 0.0)) -> Path:
         """Image under ``p -> A p + b`` (A shape (2, 2), b in m)."""
@@ -467,7 +473,10 @@ class Path:
                 segs.extend(s.transformed_pieces(A, b))
             else:
                 segs.append(s.transformed(A, b))
-        return Path(tuple(segs), closed=self.closed)
+        # gaps scale with the transform: allow its largest stretch
+        stretch = float(np.linalg.norm(np.asarray(A, dtype=float).reshape(2, 2), 2))
+        tol = None if self.gap_tol is None else self.gap_tol * max(stretch, 1.0)
+        return Path(tuple(segs), closed=self.closed, gap_tol=tol)
 
     def scaled(self, k: float, origin: object = (0.0, 0.0)) -> Path:
         """Uniformly scaled by ``k`` about ``origin``."""
@@ -494,7 +503,7 @@ class Path:
         head, tail = _split(self.segments[i], sg)
         segs = [*([tail] if tail else []), *self.segments[i + 1 :], *self.segments[:i]]
         segs += [head] if head else []
-        return Path(tuple(segs), closed=True)
+        return Path(tuple(segs), closed=True, gap_tol=self.gap_tol)
 
     def summary(self) -> dict[str, object]:
         """Length, bbox, closure and point count, for printing or JSON."""
@@ -538,6 +547,8 @@ def _split(seg: Segment, sigma: float) -> tuple[Segment | None, Segment | None]:
 def concatenate(paths: Iterable[Path], closed: bool = False) -> Path:
     """Join paths end to start into one path."""
     segs: list[Segment] = []
+    tols: list[float] = []
     for p in paths:
         segs.extend(p.segments)
-    return Path(tuple(segs), closed=closed)
+        tols.append(p.gap_tol or 0.0)
+    return Path(tuple(segs), closed=closed, gap_tol=max(tols) or None)

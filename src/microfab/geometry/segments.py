@@ -17,6 +17,7 @@ quadrature; the inverse ``u(σ)`` is found by Newton's method on that table (see
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
@@ -37,10 +38,12 @@ def cheb_fit2(x: np.ndarray, vals: np.ndarray, deg: int) -> np.ndarray:
 
 
 def _vec2(p: object, name: str) -> np.ndarray:
-    a = np.array(p, dtype=float).reshape(-1)
-    if a.shape != (2,) or not np.all(np.isfinite(a)):
+    a = np.array(p, dtype=float)
+    if a.shape != (2,):
+        a = a.reshape(-1)
+    if a.shape != (2,) or not (math.isfinite(a[0]) and math.isfinite(a[1])):
         raise ValueError(f"{name} must be a finite 2-vector (m), got {p!r}")
-    a.setflags(write=False)
+    a.flags.writeable = False
     return a
 
 
@@ -78,7 +81,7 @@ class LineSegment:
     @cached_property
     def length(self) -> float:
         """Length, m."""
-        return float(np.hypot(*(self.p1 - self.p0)))
+        return math.hypot(self.p1[0] - self.p0[0], self.p1[1] - self.p0[1])
 
     def reversed(self) -> LineSegment:
         """The same segment traversed backwards."""
@@ -142,12 +145,12 @@ class ArcSegment:
         theta0 = float(np.arctan2(a[1] - center[1], a[0] - center[0]))
         return cls(center, radius, theta0, sweep)
 
-    @property
+    @cached_property
     def start(self) -> np.ndarray:
         """Start point, m."""
         return self.center + self.radius * np.array([np.cos(self.theta0), np.sin(self.theta0)])
 
-    @property
+    @cached_property
     def end(self) -> np.ndarray:
         """End point, m."""
         t = self.theta0 + self.sweep
@@ -302,12 +305,12 @@ class CurveSegment:
             out.append(c)
         return out[0], out[1], out[2]
 
-    @property
+    @cached_property
     def start(self) -> np.ndarray:
         """Start point, m."""
         return self.point(np.array([0.0]))[0]
 
-    @property
+    @cached_property
     def end(self) -> np.ndarray:
         """End point, m."""
         return self.point(np.array([1.0]))[0]

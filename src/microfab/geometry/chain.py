@@ -1,0 +1,298 @@
+"""Join loose segments (as read from a drawing) into open and closed :class:`Path` chains.
+
+Drawings store contours as unordered pieces: a square may be four LINE entities in any
+order and direction. :func:`chain_segments` finds, with a k-d tree over all segment ends
+(no quadratic search), which ends meet within a tolerance and links the pieces into
+maximal chains, reversing pieces as needed.
+
+Rules
+-----
+- **Meeting ends.** Two ends of different segments meet when they lie within ``tol`` of
+  each other. An end that meets exactly one other end, which meets no other, is linked to
+  it.
+- **Junctions.** Where more than two ends meet (a T or an X, or a cluster of nearby ends),
+  the pairing is ambiguous. Candidate pairs are then linked greedily by the smallest
+  turning angle (the straightest continuation first), ties broken by the smaller gap and
+  then by the lower end indices; an end left over at a junction ends its chain. A T thus
+  gives one straight chain through the bar and an open stem; an X gives two straight
+  chains.
+- **Closure.** A chain whose links form a cycle is a closed path. A single arc or curve
+  whose end lies within ``tol`` of its start (a circle, a closed spline) and which is
+  longer than ``2 tol`` is closed too; a single straight line never is.
+- **Gaps.** Gaps up to ``tol`` are snapped, so that the returned paths have no gaps (and
+  stay valid when reversed or transformed): at each junction the end point of the more
+  rigid segment is kept (arc over curve over line; of two alike, the shorter one's) and
+  the other segment's end is moved onto it — a line gets the new end point, a curve an
+  added linear correction (exact at both ends, at most the gap in between), an arc keeps
+  its sweep and takes the new chord. Nothing is inserted. Gaps up to 1e-13 m (rounding
+  noise, well inside :class:`Path`'s default tolerance) are left alone. Each path is
+  built with ``gap_tol`` slightly above ``tol``, which covers the rare gap that cannot
+  be snapped (between two near-full circles).
+- **Order.** Chains are returned in the order of their lowest segment index; a closed
+  chain starts at its lowest-index segment, and every chain runs in the direction of
+  that segment as given. Zero-length segments are dropped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from microfab.geometry.path import Path
+from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
+
+__all__ = ["chain_segments", "segment_endpoints"]
+
+#: the relative slack added to ``tol`` when a chained path's ``gap_tol`` is set
+_GAP_SLACK = 1e-9
+#: gaps up to this (m) are rounding noise, far inside Path's default tolerance: not snapped
+_NOISE_GAP = 1e-13
+
+
+def segment_endpoints(segments: Sequence[Segment]) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end points of many segments, vectorised by segment kind.
+
+    Parameters
+    ----------
+    segments : sequence of Segment
+        The segments.
+
+    Returns
+    -------
+    starts, ends : numpy.ndarray
+        Shape (n, 2) each, m.
+    """
+    n = len(segments)
+    starts = np.empty((n, 2))
+    ends = np.empty((n, 2))
+    arcs: list[int] = []
+    for i, s in enumerate(segments):
+        if isinstance(s, LineSegment):
+            starts[i] = s.p0
+            ends[i] = s.p1
+        elif isinstance(s, ArcSegment):
+            arcs.append(i)
+        elif isinstance(s, CurveSegment):
+            # f(0) = Σ c_k (-1)^k and f(1) = Σ c_k in the variable x = 2u - 1
+            c = s.coef
+            sign = (-1.0) ** np.arange(c.shape[0])
+            starts[i] = sign @ c
+            ends[i] = c.sum(axis=0)
+        else:
+            raise TypeError(f"not a segment: {s!r}")
+    if arcs:
+        a = [segments[i] for i in arcs]
+        c = np.array([s.center for s in a])
+        r = np.array([s.radius for s in a])[:, None]
+        t0 = np.array([s.theta0 for s in a])
+        t1 = t0 + np.array([s.sweep for s in a])
+        starts[arcs] = c + r * np.column_stack([np.cos(t0), np.sin(t0)])
+        ends[arcs] = c + r * np.column_stack([np.cos(t1), np.sin(t1)])
+    return starts, ends
+
+
+def _unit_tangent(seg: Segment, at_end: bool) -> np.ndarray:
+    """Unit tangent (direction of travel) of a segment at its start or end."""
+    if isinstance(seg, LineSegment):
+        d = seg.p1 - seg.p0
+    elif isinstance(seg, ArcSegment):
+        t = seg.theta0 + (seg.sweep if at_end else 0.0)
+        d = np.sign(seg.sweep) * np.array([-np.sin(t), np.cos(t)])
+    else:
+        d1 = seg.derivative_coefs[0]
+        # f'(1) = Σ d_k and f'(0) = Σ d_k (-1)^k in the variable x = 2u - 1
+        d = d1.sum(axis=0) if at_end else ((-1.0) ** np.arange(d1.shape[0])) @ d1
+        if not np.any(d):  # a cusp at the end: fall back to the chord direction
+            d = seg.end - seg.start
+    n = float(np.hypot(*d))
+    return d / n if n > 0 else np.zeros(2)
+
+
+def _link_ends(segs: Sequence[Segment], points: np.ndarray, tol: float) -> np.ndarray:
+    """Partner end index of each end (-1: free); ends are ``2 i`` (start), ``2 i + 1`` (end)."""
+    n_ends = points.shape[0]
+    partner = np.full(n_ends, -1, dtype=np.int64)
+    pairs = cKDTree(points).query_pairs(tol, output_type="ndarray")
+    if pairs.size == 0:
+        return partner
+    pairs = pairs[(pairs[:, 0] >> 1) != (pairs[:, 1] >> 1)]  # never link a segment to itself
+    if pairs.size == 0:
+        return partner
+    degree = np.bincount(pairs.ravel(), minlength=n_ends)
+    simple = (degree[pairs[:, 0]] == 1) & (degree[pairs[:, 1]] == 1)
+    a, b = pairs[simple, 0], pairs[simple, 1]
+    partner[a] = b
+    partner[b] = a
+    hard = pairs[~simple]
+    if hard.size == 0:
+        return partner
+    # junctions: greedy on (turning angle, gap, indices)
+    cache: dict[int, np.ndarray] = {}
+
+    def outward(e: int) -> np.ndarray:
+        """Direction of travel arriving at end e (leaving the segment there)."""
+        if e not in cache:
+            t = _unit_tangent(segs[e >> 1], at_end=bool(e & 1))
+            cache[e] = t if e & 1 else -t
+        return cache[e]
+
+    keys = []
+    for e0, e1 in hard.tolist():
+        # arrive along outward(e0), leave into the other segment along -outward(e1)
+        cosang = float(np.clip(-np.dot(outward(e0), outward(e1)), -1.0, 1.0))
+        gap = float(np.hypot(*(points[e0] - points[e1])))
+        keys.append((float(np.arccos(cosang)), gap, min(e0, e1), max(e0, e1)))
+    keys.sort()
+    for _, _, e0, e1 in keys:
+        if partner[e0] < 0 and partner[e1] < 0:
+            partner[e0] = e1
+            partner[e1] = e0
+    return partner
+
+
+def _moved(seg: Segment, start: np.ndarray | None, end: np.ndarray | None) -> Segment:
+    """The segment with its start and/or end moved (by at most the chaining tolerance)."""
+    if isinstance(seg, LineSegment):
+        return LineSegment(seg.p0 if start is None else start, seg.p1 if end is None else end)
+    if isinstance(seg, CurveSegment):
+        d0 = np.zeros(2) if start is None else start - seg.start
+        d1 = np.zeros(2) if end is None else end - seg.end
+        c = np.array(seg.coef)
+        # add the linear function d0 (1 - u) + d1 u = (d0 + d1)/2 + (d1 - d0)/2 x
+        c[0] += 0.5 * (d0 + d1)
+        c[1] += 0.5 * (d1 - d0)
+        return CurveSegment(c)
+    p0 = seg.start if start is None else start
+    p1 = seg.end if end is None else end
+    if abs(seg.sweep) > 2.0 * np.pi - 1e-3 or not np.any(p0 != p1):
+        return seg  # a (near) full circle has no chord to re-fit: keep it and the gap
+    return ArcSegment.from_bulge(p0, p1, np.tan(seg.sweep / 4.0))
+
+
+_RIGIDITY = {LineSegment: 0, CurveSegment: 1, ArcSegment: 2}
+
+
+def _snap(chain: list[Segment], closed: bool) -> list[Segment]:
+    """Remove the gaps between consecutive segments of a chain (see the module notes)."""
+    n = len(chain)
+    new_start: list[np.ndarray | None] = [None] * n
+    new_end: list[np.ndarray | None] = [None] * n
+    for k in range(n if closed else n - 1):
+        a, b = chain[k], chain[(k + 1) % n]
+        pa, pb = a.end, b.start
+        if np.hypot(*(pa - pb)) <= _NOISE_GAP:
+            continue
+        ra, rb = _RIGIDITY[type(a)], _RIGIDITY[type(b)]
+        keep_a = ra > rb or (ra == rb and a.length <= b.length)
+        if keep_a:
+            new_start[(k + 1) % n] = pa
+        else:
+            new_end[k] = pb
+    if all(s is None for s in new_start) and all(e is None for e in new_end):
+        return chain
+    return [
+        s if (p is None and q is None) else _moved(s, p, q)
+        for s, p, q in zip(chain, new_start, new_end, strict=True)
+    ]
+
+
+def chain_segments(segments: Sequence[Segment], tol: float) -> list[Path]:
+    """Join loose segments into maximal open or closed paths.
+
+    Segments may come in any order and direction. See the module documentation for the
+    rules at junctions (straightest continuation first), closure, gap snapping and
+    output order.
+
+    Parameters
+    ----------
+    segments : sequence of Segment
+        The pieces, m.
+    tol : float
+        Largest gap between two ends that still joins them, m; positive.
+
+    Returns
+    -------
+    list of Path
+        The chains, ordered by their lowest segment index. Closed chains are closed
+        paths; the rest are open.
+
+    Raises
+    ------
+    ValueError
+        If ``tol`` is not positive and finite.
+
+    Examples
+    --------
+    >>> from microfab.geometry.segments import LineSegment
+    >>> sq = [LineSegment((1, 0), (1, 1)), LineSegment((0, 0), (1, 0)),
+    ...       LineSegment((0, 0), (0, 1)), LineSegment((1, 1), (0, 1))]
+    >>> [p.closed for p in chain_segments(sq, 1e-9)]
+    [True]
+    """
+    tol = float(tol)
+    if not (np.isfinite(tol) and tol > 0):
+        raise ValueError(f"chaining tolerance tol must be positive and finite, got {tol} m")
+    segs = [s for s in segments if s.length > 0]
+    n = len(segs)
+    if n == 0:
+        return []
+    starts, ends = segment_endpoints(segs)
+    points = np.empty((2 * n, 2))
+    points[0::2] = starts
+    points[1::2] = ends
+    partner_arr = _link_ends(segs, points, tol)
+    # segments with a linked end farther than floating-point noise from its partner
+    linked = partner_arr >= 0
+    inexact = np.zeros(2 * n, dtype=bool)
+    d = points[linked] - points[partner_arr[linked]]
+    inexact[linked] = np.hypot(d[:, 0], d[:, 1]) > _NOISE_GAP
+    needs_snap = (inexact[0::2] | inexact[1::2]).tolist()
+    partner = partner_arr.tolist()
+
+    visited = bytearray(n)
+    gap_tol = tol * (1.0 + _GAP_SLACK)
+    out: list[Path] = []
+    for i in range(n):
+        if visited[i]:
+            continue
+        # walk backwards from the start of segment i to the head of its chain
+        head, head_fwd, cycle = i, True, False
+        entry = 2 * i
+        while True:
+            q = partner[entry]
+            if q < 0:
+                break
+            j = q >> 1
+            if j == i:
+                cycle = True
+                break
+            head, head_fwd = j, bool(q & 1)  # arriving at j's end: j runs forwards
+            entry = q ^ 1
+        if cycle:
+            head, head_fwd = i, True
+        # walk forwards from the head
+        order: list[tuple[int, bool]] = []
+        s, fwd = head, head_fwd
+        while True:
+            visited[s] = 1
+            order.append((s, fwd))
+            q = partner[2 * s + 1 if fwd else 2 * s]
+            if q < 0:
+                break
+            j = q >> 1
+            if j == head:
+                break
+            s, fwd = j, not (q & 1)
+        # segment i (the lowest index of the chain) keeps its given direction: the walks
+        # above traverse it forwards
+        chain = [segs[k] if f else segs[k].reversed() for k, f in order]
+        closed = cycle
+        if len(chain) == 1 and not isinstance(chain[0], LineSegment):
+            s0, e0 = starts[order[0][0]], ends[order[0][0]]
+            closed = bool(np.hypot(*(e0 - s0)) <= tol) and chain[0].length > 2.0 * tol
+        if (closed and len(chain) == 1) or any(needs_snap[k] for k, _ in order):
+            chain = _snap(chain, closed)
+        out.append(Path(tuple(chain), closed=closed, gap_tol=gap_tol))
+    return out

@@ -1,0 +1,521 @@
+"""Read the planar geometry of a DXF drawing into a :class:`~microfab.geometry.layer.Layer`.
+
+The modelspace is read with `ezdxf <https://ezdxf.readthedocs.io>`_; block references
+(INSERT, MINSERT) are expanded recursively with ezdxf's virtual entities, so nested
+blocks, scale, rotation, mirroring and non-uniform scale (which turns arcs into
+ellipses) all come out in world coordinates. Every entity becomes exact segments:
+
+============================  ===================================================
+DXF entity                    segments
+============================  ===================================================
+LINE                          :class:`LineSegment`
+ARC, CIRCLE                   :class:`ArcSegment` (clockwise for extrusion −z)
+LWPOLYLINE, 2D POLYLINE       lines and bulge arcs (:meth:`ArcSegment.from_bulge`)
+3D POLYLINE                   lines (when it lies in a plane parallel to XY)
+SPLINE                        Bézier pieces (:meth:`CurveSegment.from_bezier`),
+                              exact; rational or unclamped splines are fitted per
+                              knot span (:meth:`CurveSegment.from_function`)
+ELLIPSE                       :meth:`CurveSegment.from_function`, ~1e-13 relative
+============================  ===================================================
+
+Only geometry lying in a plane parallel to XY (constant z, any elevation; extrusion
+±z) is taken, projected onto XY. Everything else — other entity types (TEXT, HATCH,
+DIMENSION, POINT, 3DFACE, …), tilted or 3-D geometry, polyface meshes, degenerate
+entities — is reported in :attr:`Layer.skipped` with the entity's handle (for entities
+inside blocks, the INSERT's handle followed by the block names), never dropped
+silently. Paper space is not read.
+
+The pieces are converted to metres from the header's ``$INSUNITS`` (or the ``units``
+override) and joined by :func:`~microfab.geometry.chain.chain_segments`. Open chains
+stay open paths (engraving lines); call :meth:`Layer.require_closed` where closed
+contours are needed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import itertools
+import math
+import os
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path as FsPath
+
+import numpy as np
+
+from microfab.geometry.chain import chain_segments, segment_endpoints
+from microfab.geometry.layer import Layer, Skipped
+from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
+
+__all__ = ["INSUNITS_M", "UNITS_M", "read_dxf"]
+
+#: metres per drawing unit for the ``$INSUNITS`` codes (exact definitions)
+INSUNITS_M: dict[int, float] = {
+    1: 0.0254,  # inches
+    2: 0.3048,  # feet
+    3: 1609.344,  # miles
+    4: 1e-3,  # millimetres
+    5: 1e-2,  # centimetres
+    6: 1.0,  # metres
+    7: 1e3,  # kilometres
+    8: 2.54e-8,  # microinches
+    9: 2.54e-5,  # mils
+    10: 0.9144,  # yards
+    11: 1e-10,  # ångströms
+    12: 1e-9,  # nanometres
+    13: 1e-6,  # microns
+    14: 1e-1,  # decimetres
+    15: 1e1,  # decametres
+    16: 1e2,  # hectometres
+    21: 1200.0 / 3937.0,  # US survey feet
+    22: 100.0 / 3937.0,  # US survey inches
+    23: 3600.0 / 3937.0,  # US survey yards
+    24: 6336000.0 / 3937.0,  # US survey miles
+}
+
+#: metres per unit for the names accepted by ``read_dxf(units=...)``
+UNITS_M: dict[str, float] = {
+    "m": 1.0,
+    "cm": 1e-2,
+    "mm": 1e-3,
+    "um": 1e-6,
+    "µm": 1e-6,
+    "micron": 1e-6,
+    "nm": 1e-9,
+    "in": 0.0254,
+    "inch": 0.0254,
+    "mil": 2.54e-5,
+    "ft": 0.3048,
+    "foot": 0.3048,
+}
+
+_MAX_DEPTH = 32  # block nesting depth; deeper means a recursive block definition
+_FLAT_RTOL = 1e-9  # relative tolerance on z and on the extrusion's tilt
+_TWO_PI = 2.0 * math.pi
+
+_SKIP_REASONS: dict[str, str] = {
+    **dict.fromkeys(
+        ("TEXT", "MTEXT", "ATTRIB", "ATTDEF"),
+        "text is not imported; convert it to outlines (explode) in the CAD program",
+    ),
+    **dict.fromkeys(
+        ("HATCH", "MPOLYGON", "SOLID", "TRACE", "WIPEOUT"),
+        "filled areas are not imported; draw the boundary as a polyline",
+    ),
+    **dict.fromkeys(
+        ("DIMENSION", "ARC_DIMENSION", "LARGE_RADIAL_DIMENSION", "LEADER", "MLEADER",
+         "MULTILEADER", "TOLERANCE"),
+        "annotations are not imported",
+    ),
+    "POINT": "a point has no length",
+    **dict.fromkeys(
+        ("3DFACE", "3DSOLID", "MESH", "REGION", "BODY", "SURFACE", "EXTRUDEDSURFACE",
+         "LOFTEDSURFACE", "REVOLVEDSURFACE", "SWEPTSURFACE", "PLANESURFACE"),
+        "surface and solid geometry is not imported",
+    ),
+    **dict.fromkeys(
+        ("IMAGE", "UNDERLAY", "PDFUNDERLAY", "DWFUNDERLAY", "DGNUNDERLAY", "OLE2FRAME"),
+        "images and underlays are not imported",
+    ),
+    **dict.fromkeys(("RAY", "XLINE"), "infinite lines are not imported"),
+}  # fmt: skip
+
+
+class _SkipEntityError(Exception):
+    """Raised by an entity handler: the entity is skipped for the given reason."""
+
+
+def _unit_factor(doc: object, units: str | None, name: str) -> float:
+    """Metres per drawing unit, from the override or the header's ``$INSUNITS``."""
+    accepted = ", ".join(repr(u) for u in UNITS_M)
+    if units is not None:
+        key = str(units).strip().lower()
+        if key not in UNITS_M:
+            raise ValueError(f"unknown units {units!r}; accepted units are {accepted}")
+        return UNITS_M[key]
+    raw = doc.header.get("$INSUNITS", 0)  # type: ignore[attr-defined]
+    try:
+        code = int(raw if raw is not None else 0)
+    except (TypeError, ValueError):
+        code = -1
+    if code in INSUNITS_M:
+        return INSUNITS_M[code]
+    what = (
+        "has no units ($INSUNITS = 0, unitless)"
+        if code == 0
+        else (f"has unsupported units ($INSUNITS = {raw!r})")
+    )
+    raise ValueError(
+        f"{name}: the drawing {what}; pass units= (one of {accepted}), "
+        "e.g. read_dxf(..., units='mm') or on the command line --units mm"
+    )
+
+
+def _plane_sign(entity: object) -> float:
+    """+1 or -1: the sign of an entity's extrusion z; raise _SkipEntityError if it is tilted."""
+    ex, ey, ez = (float(v) for v in entity.dxf.extrusion)  # type: ignore[attr-defined]
+    norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if not norm > 0 or math.hypot(ex, ey) > _FLAT_RTOL * norm:
+        raise _SkipEntityError(
+            f"not in the XY plane: extrusion ({ex:.6g}, {ey:.6g}, {ez:.6g}) is not ±z"
+        )
+    return 1.0 if ez > 0 else -1.0
+
+
+def _check_flat(z: Sequence[float], size: float, what: str = "points") -> None:
+    """Raise _SkipEntityError unless the z values agree (a plane parallel to XY)."""
+    lo, hi = min(z), max(z)
+    scale = max(size, abs(lo), abs(hi))
+    if hi - lo > _FLAT_RTOL * scale:
+        raise _SkipEntityError(
+            f"not in a plane parallel to XY: its {what} have z from {lo:.6g} to {hi:.6g} "
+            "drawing units"
+        )
+
+
+def _is_plus_z(entity: object) -> bool:
+    e = entity.dxf.extrusion  # type: ignore[attr-defined]
+    return e[0] == 0 and e[1] == 0 and e[2] > 0
+
+
+class _Reader:
+    """Turns entities into segments (metres) and skip records."""
+
+    def __init__(self, k: float, flatten_blocks: bool) -> None:
+        self.k = k
+        self.flatten_blocks = flatten_blocks
+        self.segments: list[Segment] = []
+        self.skipped: list[Skipped] = []
+        self.handlers: dict[str, Callable[[object], list[Segment]]] = {
+            "LINE": self.line,
+            "ARC": self.arc,
+            "CIRCLE": self.arc,
+            "LWPOLYLINE": self.lwpolyline,
+            "POLYLINE": self.polyline,
+            "SPLINE": self.spline,
+            "ELLIPSE": self.ellipse,
+        }
+
+    # ------------------------------------------------------------------ dispatch
+    def entity(self, e: object, parent_ref: str, depth: int) -> None:
+        kind = e.dxftype()  # type: ignore[attr-defined]
+        handle = e.dxf.get("handle")  # type: ignore[attr-defined]
+        ref = handle if handle else parent_ref
+        if kind in ("INSERT", "MINSERT"):
+            self.insert(e, ref, depth)
+            return
+        handler = self.handlers.get(kind)
+        if handler is None:
+            reason = _SKIP_REASONS.get(kind, "unsupported entity type")
+            self.skipped.append(Skipped(kind, reason, ref))
+            return
+        try:
+            segs = handler(e)
+        except _SkipEntityError as exc:
+            self.skipped.append(Skipped(kind, str(exc), ref))
+            return
+        except (ValueError, ArithmeticError) as exc:
+            # corrupt values (NaN coordinates, a curve that does not fit, ...)
+            self.skipped.append(Skipped(kind, f"invalid geometry: {exc}", ref))
+            return
+        self.segments.extend(segs)
+
+    def insert(self, e: object, ref: str, depth: int) -> None:
+        name = str(e.dxf.name)  # type: ignore[attr-defined]
+        if not self.flatten_blocks:
+            self.skipped.append(
+                Skipped("INSERT", f"block {name!r} not expanded (flatten_blocks=False)", ref)
+            )
+            return
+        if depth >= _MAX_DEPTH:
+            self.skipped.append(
+                Skipped(
+                    "INSERT",
+                    f"block {name!r} nested deeper than {_MAX_DEPTH} levels "
+                    "(recursive block definition?)",
+                    ref,
+                )
+            )
+            return
+        inner_ref = f"{ref}:{name}"
+        for att in getattr(e, "attribs", ()):
+            att_ref = att.dxf.get("handle") or inner_ref
+            self.skipped.append(Skipped("ATTRIB", _SKIP_REASONS["ATTRIB"], att_ref))
+
+        def on_skip(entity: object, reason: str) -> None:
+            self.skipped.append(
+                Skipped(
+                    entity.dxftype(),  # type: ignore[attr-defined]
+                    f"cannot be transformed by the block reference: {reason}",
+                    inner_ref,
+                )
+            )
+
+        try:
+            refs = list(e.multi_insert()) if e.mcount > 1 else [e]  # type: ignore[attr-defined]
+            for ins in refs:
+                for v in ins.virtual_entities(skipped_entity_callback=on_skip):
+                    self.entity(v, inner_ref, depth + 1)
+        except Exception as exc:  # ezdxf raises various errors for odd block transforms
+            self.skipped.append(
+                Skipped("INSERT", f"block {name!r} could not be expanded: {exc}", ref)
+            )
+
+    # ------------------------------------------------------------------ entities
+    def line(self, e: object) -> list[Segment]:
+        s, t = e.dxf.start, e.dxf.end  # type: ignore[attr-defined]
+        size = math.hypot(t.x - s.x, t.y - s.y)
+        _check_flat((s.z, t.z), size, "end points")
+        if size == 0:
+            raise _SkipEntityError("zero length")
+        k = self.k
+        return [LineSegment((s.x * k, s.y * k), (t.x * k, t.y * k))]
+
+    def arc(self, e: object) -> list[Segment]:
+        sign = _plane_sign(e)
+        c = e.dxf.center  # type: ignore[attr-defined]
+        r = float(e.dxf.radius)  # type: ignore[attr-defined]
+        if not (math.isfinite(r) and r > 0):
+            raise _SkipEntityError(f"radius must be positive, got {r} drawing units")
+        if e.dxftype() == "CIRCLE":  # type: ignore[attr-defined]
+            a0, sweep = 0.0, _TWO_PI
+        else:
+            a0 = math.radians(float(e.dxf.start_angle))  # type: ignore[attr-defined]
+            span = (float(e.dxf.end_angle) - float(e.dxf.start_angle)) % 360.0  # type: ignore[attr-defined]
+            sweep = math.radians(span) if span > 0 else _TWO_PI  # equal angles: full circle
+        if _is_plus_z(e):
+            cx, cy, theta0 = c.x, c.y, a0
+        else:
+            # OCS -> WCS: the arc runs counter-clockwise about the extrusion, i.e.
+            # clockwise seen from +z when the extrusion points down
+            ocs = e.ocs()  # type: ignore[attr-defined]
+            cw = ocs.to_wcs(c)
+            p0 = ocs.to_wcs((c.x + r * math.cos(a0), c.y + r * math.sin(a0), c.z))
+            cx, cy = cw.x, cw.y
+            theta0 = math.atan2(p0.y - cw.y, p0.x - cw.x)
+        k = self.k
+        return [ArcSegment((cx * k, cy * k), r * k, theta0, sign * sweep)]
+
+    def _poly(
+        self, xy: Sequence[tuple[float, float]], bulges: Sequence[float], closed: bool
+    ) -> list[Segment]:
+        """Lines and bulge arcs through vertices (drawing units) scaled to metres."""
+        if len(xy) < 2:
+            raise _SkipEntityError(f"fewer than two vertices ({len(xy)})")
+        k = self.k
+        n = len(xy)
+        edges = range(n if closed else n - 1)
+        out: list[Segment] = []
+        for i in edges:
+            (x0, y0), (x1, y1) = xy[i], xy[(i + 1) % n]
+            if x0 == x1 and y0 == y1:
+                continue
+            p0, p1 = (x0 * k, y0 * k), (x1 * k, y1 * k)
+            b = bulges[i]
+            out.append(LineSegment(p0, p1) if b == 0 else ArcSegment.from_bulge(p0, p1, b))
+        if not out:
+            raise _SkipEntityError("all vertices coincide (zero length)")
+        return out
+
+    def lwpolyline(self, e: object) -> list[Segment]:
+        sign = _plane_sign(e)
+        pts = e.get_points("xyb")  # type: ignore[attr-defined]
+        bulges = [float(b) * sign for _, _, b in pts]
+        if _is_plus_z(e):
+            xy = [(float(x), float(y)) for x, y, _ in pts]
+        else:
+            elev = float(e.dxf.elevation)  # type: ignore[attr-defined]
+            w = list(e.ocs().points_to_wcs([(x, y, elev) for x, y, _ in pts]))  # type: ignore[attr-defined]
+            xy = [(p.x, p.y) for p in w]
+        return self._poly(xy, bulges, bool(e.closed))  # type: ignore[attr-defined]
+
+    def polyline(self, e: object) -> list[Segment]:
+        from ezdxf.lldxf.const import VTX_SPLINE_FRAME_CONTROL_POINT
+
+        if e.is_poly_face_mesh or e.is_polygon_mesh:  # type: ignore[attr-defined]
+            raise _SkipEntityError("polyface and polygon meshes are surfaces, not contours")
+        verts = [
+            v
+            for v in e.vertices  # type: ignore[attr-defined]
+            if not (v.dxf.flags & VTX_SPLINE_FRAME_CONTROL_POINT)
+        ]
+        closed = bool(e.is_closed)  # type: ignore[attr-defined]
+        if e.is_3d_polyline:  # type: ignore[attr-defined]
+            loc = [v.dxf.location for v in verts]
+            if loc:
+                xs, ys = [p.x for p in loc], [p.y for p in loc]
+                size = max(max(xs) - min(xs), max(ys) - min(ys))
+                _check_flat([p.z for p in loc], size, "vertices")
+            return self._poly([(p.x, p.y) for p in loc], [0.0] * len(loc), closed)
+        sign = _plane_sign(e)
+        bulges = [float(v.dxf.bulge) * sign for v in verts]
+        elev = float(e.dxf.elevation.z)  # type: ignore[attr-defined]
+        pts = [(v.dxf.location.x, v.dxf.location.y, elev) for v in verts]
+        if _is_plus_z(e):
+            xy = [(x, y) for x, y, _ in pts]
+        else:
+            xy = [(p.x, p.y) for p in e.ocs().points_to_wcs(pts)]  # type: ignore[attr-defined]
+        return self._poly(xy, bulges, closed)
+
+    def spline(self, e: object) -> list[Segment]:
+        try:
+            bs = e.construction_tool()  # type: ignore[attr-defined]
+        except Exception as exc:  # ezdxf: no control/fit points, bad knots, ...
+            raise _SkipEntityError(f"invalid spline: {exc}") from exc
+        cp = np.asarray(bs.control_points, dtype=float).reshape(-1, 3)
+        if cp.shape[0] < 2 or not np.all(np.isfinite(cp)):
+            raise _SkipEntityError("invalid spline: needs at least two finite control points")
+        _check_flat(cp[:, 2], float(np.max(np.ptp(cp[:, :2], axis=0))), "control points")
+        k = self.k
+        if not bs.is_rational and bs.is_clamped:
+            return [
+                CurveSegment.from_bezier(np.asarray(b, dtype=float)[:, :2] * k)
+                for b in bs.bezier_decomposition()
+            ]
+        # rational (NURBS) or unclamped: fit each knot span, where the curve is smooth
+        p, knots = bs.degree, np.asarray(bs.knots(), dtype=float)
+        lo, hi = knots[p], knots[bs.count]
+        brk = np.unique(knots[(knots >= lo) & (knots <= hi)])
+        out: list[Segment] = []
+        for a, b in itertools.pairwise(brk.tolist()):
+            if b - a <= 1e-12 * (hi - lo):
+                continue
+
+            def f(u: np.ndarray, a: float = a, b: float = b) -> np.ndarray:
+                t = np.clip(a + (b - a) * np.asarray(u, dtype=float), a, b)
+                pts = np.asarray(list(bs.points(t.tolist())), dtype=float).reshape(-1, 3)
+                return pts[:, :2] * k
+
+            out.extend(CurveSegment.from_function(f))
+        if not out:
+            raise _SkipEntityError("invalid spline: empty parameter range")
+        return out
+
+    def ellipse(self, e: object) -> list[Segment]:
+        _plane_sign(e)
+        ce = e.construction_tool()  # type: ignore[attr-defined]
+        c, M, m = ce.center, ce.major_axis, ce.minor_axis
+        a = math.hypot(M.x, M.y)
+        if not (a > 0 and ce.ratio > 0):
+            raise _SkipEntityError("degenerate ellipse (zero axis)")
+        _check_flat((0.0, M.z, m.z), a, "axes")
+        t0 = float(ce.start_param)
+        span = (float(ce.end_param) - t0) % _TWO_PI
+        if span <= 1e-12:
+            span = _TWO_PI  # start = end: the full ellipse
+        k = self.k
+        cxy = np.array([c.x, c.y]) * k
+        Mxy = np.array([M.x, M.y]) * k
+        mxy = np.array([m.x, m.y]) * k
+
+        def f(u: np.ndarray) -> np.ndarray:
+            t = t0 + span * np.asarray(u, dtype=float)
+            return cxy + np.cos(t)[:, None] * Mxy + np.sin(t)[:, None] * mxy
+
+        return list(CurveSegment.from_function(f))
+
+
+@contextlib.contextmanager
+def _gc_paused() -> Iterator[None]:
+    """Pause the cyclic garbage collector (restored afterwards).
+
+    A large drawing allocates some ten objects per entity; the collector's full passes
+    over them would cost about a third of the reading time.
+    """
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
+def _extent(segments: Sequence[Segment]) -> float:
+    """Largest side of a box around the segments' end points and arcs' circles, m."""
+    starts, ends = segment_endpoints(segments)
+    pts = [starts, ends]
+    arcs = [s for s in segments if isinstance(s, ArcSegment)]
+    if arcs:
+        c = np.array([s.center for s in arcs])
+        r = np.array([s.radius for s in arcs])[:, None]
+        pts += [c - r, c + r]
+    curves = [s for s in segments if isinstance(s, CurveSegment)]
+    if curves:
+        pts.append(np.array([s.point(np.array([0.5]))[0] for s in curves]))
+    allp = np.vstack(pts)
+    return float(np.max(np.ptp(allp, axis=0)))
+
+
+def read_dxf(
+    path: str | os.PathLike[str],
+    *,
+    units: str | None = None,
+    tol: float | None = None,
+    flatten_blocks: bool = True,
+) -> Layer:
+    """Read the planar geometry of a DXF file as contours in metres.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The DXF file (ASCII or binary, any version ezdxf reads).
+    units : str, optional
+        The drawing unit, overriding the header's ``$INSUNITS``: one of ``"m"``,
+        ``"cm"``, ``"mm"``, ``"um"`` (``"µm"``, ``"micron"``), ``"nm"``, ``"in"``
+        (``"inch"``), ``"mil"``, ``"ft"`` (``"foot"``). Needed when the drawing is
+        unitless.
+    tol : float, optional
+        Chaining tolerance, m: segment ends closer than this are joined (and snapped,
+        see :func:`~microfab.geometry.chain.chain_segments`). Default 1e-6 of the
+        drawing's size, at least 1e-9 m.
+    flatten_blocks : bool
+        Expand block references (INSERT) into their geometry; if False they are
+        reported as skipped.
+
+    Returns
+    -------
+    Layer
+        The chained contours (closed and open) in drawing order of their first piece,
+        what was skipped and why, and ``source`` = the file name.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file does not exist.
+    ValueError
+        If the file is not a readable DXF file, its units are unknown (pass ``units``),
+        ``units`` or ``tol`` is invalid, or it holds no importable geometry.
+    """
+    import ezdxf
+
+    fs = FsPath(path)
+    name = fs.name
+    if not fs.exists():
+        raise FileNotFoundError(f"DXF file not found: {str(fs)!r}")
+    if not fs.is_file():
+        raise ValueError(f"{str(fs)!r} is not a file")
+    if tol is not None and not (math.isfinite(tol) and tol > 0):
+        raise ValueError(f"chaining tolerance tol must be positive and finite, got {tol} m")
+    with _gc_paused():
+        try:
+            doc = ezdxf.readfile(fs)
+        except (OSError, ezdxf.DXFError, UnicodeDecodeError, ValueError) as exc:
+            raise ValueError(f"{name}: not a readable DXF file ({exc})") from exc
+        reader = _Reader(_unit_factor(doc, units, name), flatten_blocks)
+        for e in doc.modelspace():
+            reader.entity(e, "", 0)
+        del doc
+
+    if not reader.segments:
+        counts = Counter(s.kind for s in reader.skipped)
+        what = ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items())) or (
+            "nothing (the modelspace is empty)"
+        )
+        raise ValueError(f"{name}: no importable geometry; skipped: {what}")
+    if tol is None:
+        tol = max(1e-6 * _extent(reader.segments), 1e-9)
+    with _gc_paused():
+        contours = chain_segments(reader.segments, tol)
+    return Layer(tuple(contours), tuple(reader.skipped), name)
