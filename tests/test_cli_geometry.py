@@ -64,7 +64,7 @@ def test_trajectory_time_optimal_writes_a_limit_safe_reference(tmp_path: Path) -
     assert np.abs(a).max() <= 5 * (1 + 1e-9)
     assert np.abs(v).max() > 0.15  # the limit is actually used somewhere
     assert set(np.unique(cols["laser"])) <= {0.0, 1.0}
-    assert out.with_suffix(".png").exists()
+    assert (tmp_path / "ref_profile.png").exists()
 
 
 def test_trajectory_constant_speed_is_refused_with_advice(tmp_path: Path) -> None:

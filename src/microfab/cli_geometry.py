@@ -107,7 +107,9 @@ def trajectory_cmd(
     out: Annotated[Path, typer.Option(help="Reference file: .csv, .h5 or .mat.")] = Path(
         "reference.csv"
     ),
-    plot: Annotated[Path | None, typer.Option(help="Profile PNG (default: next to --out).")] = None,
+    plot: Annotated[
+        Path | None, typer.Option(help="Profile PNG (default: <out stem>_profile.png).")
+    ] = None,
     units: UnitsOpt = None,
     chord: ChordOpt = 0.1,
     text_height: HeightOpt = 0.01,
@@ -173,7 +175,7 @@ def trajectory_cmd(
         cols["laser"] = on
     try:
         write_columns(out, cols, unit="m")
-        target = plot or out.with_suffix(".png")
+        target = plot or out.with_name(out.stem + "_profile.png")
         save_figure(fig_profile(traj, limits), target)
     except (OSError, ValueError) as exc:
         fail(f"cannot write the reference: {exc}")
