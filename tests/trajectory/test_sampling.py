@@ -59,3 +59,15 @@ def test_periodic_input_errors() -> None:
         constant_speed(circle(0.01), rate_hz=1000)
     with pytest.raises(ValueError, match="speed must be positive"):
         constant_speed(circle(0.01), rate_hz=1000, speed=-1)
+
+
+def test_samples_per_period() -> None:
+    from microfab.trajectory.periodic import samples_per_period, square_scan
+
+    assert samples_per_period(1e6, 400) == 2500
+    with pytest.raises(ValueError, match="whole number"):
+        samples_per_period(1000, 3)
+    with pytest.raises(ValueError, match="sample rate must be positive"):
+        samples_per_period(-1, 3)
+    with pytest.raises(ValueError, match="repetition rate must be positive"):
+        square_scan(0.0, (1.0, 1.0), 1e6)

@@ -4,7 +4,29 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["square_scan"]
+__all__ = ["samples_per_period", "square_scan"]
+
+
+def samples_per_period(fs_hz: float, rate_hz: float) -> int:
+    """Samples in one period of a signal repeated ``rate_hz`` times per second.
+
+    Raises
+    ------
+    ValueError
+        If a rate is not positive, or a period is not a whole number (>= 8) of samples.
+    """
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"repetition rate must be positive, got {rate_hz} Hz")
+    if not (np.isfinite(fs_hz) and fs_hz > 0):
+        raise ValueError(f"sample rate must be positive, got {fs_hz} Hz")
+    n_float = fs_hz / rate_hz
+    n = round(n_float)
+    if n < 8 or abs(n - n_float) > 1e-9 * n_float:
+        raise ValueError(
+            f"one period must be a whole number (>= 8) of samples: {fs_hz:g} Hz / "
+            f"{rate_hz:g} per s = {n_float:.6g}"
+        )
+    return n
 
 
 def square_scan(
@@ -37,16 +59,7 @@ def square_scan(
     ----------
     Seed 000 §4: square trajectory, 0.6 × 0.6 mm, 100/200/400 features/s.
     """
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise ValueError(f"rate_hz must be positive, got {rate_hz} Hz")
-    if not (np.isfinite(fs_hz) and fs_hz > 0):
-        raise ValueError(f"fs_hz must be positive, got {fs_hz} Hz")
-    n_float = fs_hz / rate_hz
-    n = round(n_float)
-    if n < 8 or abs(n - n_float) > 1e-9 * n_float:
-        raise ValueError(
-            f"one period must be a whole number (>= 8) of samples: fs/rate = {n_float:.6g}"
-        )
+    n = samples_per_period(fs_hz, rate_hz)
     a, b = (float(h) for h in half_sizes)
     if a <= 0 or b <= 0:
         raise ValueError(f"half sizes must be positive, got {half_sizes}")

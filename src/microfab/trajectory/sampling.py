@@ -11,6 +11,7 @@ import numpy as np
 
 from microfab.geometry.path import Path
 from microfab.trajectory.base import Trajectory
+from microfab.trajectory.periodic import samples_per_period
 
 __all__ = ["constant_speed", "periodic"]
 
@@ -99,16 +100,7 @@ def periodic(path: Path, *, features_per_s: float, rate_hz: float) -> Trajectory
     """
     if not path.closed:
         raise ValueError("periodic repetition needs a closed path")
-    if not (np.isfinite(features_per_s) and features_per_s > 0):
-        raise ValueError(f"features_per_s must be positive, got {features_per_s} 1/s")
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise ValueError(f"rate_hz must be positive, got {rate_hz} Hz")
-    n_float = rate_hz / features_per_s
-    n = round(n_float)
-    if n < 8 or abs(n - n_float) > 1e-9 * n_float:
-        raise ValueError(
-            f"one period must be a whole number (>= 8) of samples: rate/features = {n_float:.6g}"
-        )
+    n = samples_per_period(rate_hz, features_per_s)
     L = path.length
     speed = L * features_per_s
     s = np.arange(n) * (L / n)
