@@ -15,16 +15,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
+from microfab.arrays import readonly
 from microfab.geometry.layer import Layer
 from microfab.geometry.path import Path
 
 __all__ = ["ScanVectors", "hatch", "layer_polygon"]
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,16 +42,16 @@ class ScanVectors:
     initial_jump: np.ndarray | None = field(default=None)
 
     def __post_init__(self) -> None:
-        m = _frozen(self.marks).reshape(-1, 2, 2)
-        j = _frozen(self.jumps).reshape(-1, 2, 2)
+        m = readonly(self.marks).reshape(-1, 2, 2)
+        j = readonly(self.jumps).reshape(-1, 2, 2)
         if j.shape[0] != max(m.shape[0] - 1, 0):
             raise ValueError(
                 f"{m.shape[0]} marks need {max(m.shape[0] - 1, 0)} jumps, got {j.shape[0]}"
             )
-        object.__setattr__(self, "marks", _frozen(m))
-        object.__setattr__(self, "jumps", _frozen(j))
+        object.__setattr__(self, "marks", readonly(m))
+        object.__setattr__(self, "jumps", readonly(j))
         if self.initial_jump is not None:
-            object.__setattr__(self, "initial_jump", _frozen(self.initial_jump).reshape(2, 2))
+            object.__setattr__(self, "initial_jump", readonly(self.initial_jump).reshape(2, 2))
 
     def __len__(self) -> int:
         return int(self.marks.shape[0])

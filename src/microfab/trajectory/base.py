@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from microfab.arrays import readonly
 from microfab.io.trace import Trace
 
 __all__ = ["Trajectory"]
@@ -14,12 +15,11 @@ __all__ = ["Trajectory"]
 def _readonly(a: np.ndarray | None, shape: tuple[int, ...], name: str) -> np.ndarray | None:
     if a is None:
         return None
-    arr = np.array(a, dtype=float)
+    arr = readonly(a)
     if arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} holds NaN or inf")
-    arr.setflags(write=False)
     return arr
 
 

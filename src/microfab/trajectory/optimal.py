@@ -87,6 +87,7 @@ import numpy as np
 from scipy import sparse
 from scipy.optimize import brentq, linprog, minimize_scalar
 
+from microfab.arrays import readonly
 from microfab.machines.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.trajectory.base import Trajectory
 from microfab.trajectory.spline import TimeSpline
@@ -866,10 +867,10 @@ def time_optimal(
         raise PlanningError(f"time_optimal could not stay within the limits: {err}") from err
     reports = _segment_reports(g, spline, traj, t_new, segs, scales, limits, feed)
     return TimeOptimalResult(
-        s=_ro(g.s),
-        sdot=_ro(sdot),
-        t_knots=_ro(t_new),
-        stops=_ro(np.flatnonzero(g.stop)),
+        s=readonly(g.s, dtype=None),
+        sdot=readonly(sdot, dtype=None),
+        t_knots=readonly(t_new, dtype=None),
+        stops=readonly(np.flatnonzero(g.stop), dtype=None),
         spline=spline,
         trajectory=traj,
         duration=float(t_new[-1]),
@@ -878,12 +879,6 @@ def time_optimal(
         segments=tuple(reports),
         meta={"margin": float(margin), "feed": feed, "jerk_limited": prob.has_jerk},
     )
-
-
-def _ro(a: np.ndarray) -> np.ndarray:
-    out = np.array(a)
-    out.setflags(write=False)
-    return out
 
 
 def _check_workspace(q: np.ndarray, limits: MachineLimits) -> None:

@@ -29,17 +29,12 @@ from itertools import pairwise
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator, make_interp_spline
 
+from microfab.arrays import readonly
 from microfab.trajectory.base import Trajectory
 
 __all__ = ["SplineMaxima", "TimeSpline"]
 
 _BCS = ("clamped", "natural", "periodic", "rest")
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    arr = np.array(a, dtype=float)
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -108,8 +103,8 @@ class TimeSpline:
                 raise ValueError(f"{name} must have shape {shape}, got {c.shape}")
             if not np.all(np.isfinite(c)):
                 raise ValueError(f"{name} holds NaN or inf ({unit})")
-            object.__setattr__(self, name, _frozen(c))
-        object.__setattr__(self, "knots", _frozen(knots))
+            object.__setattr__(self, name, readonly(c))
+        object.__setattr__(self, "knots", readonly(knots))
         if self.bc not in _BCS:
             raise ValueError(f"bc must be one of {_BCS}, got {self.bc!r}")
 
@@ -373,12 +368,12 @@ class TimeSpline:
         cols = np.arange(v.shape[1])
         iv, ia, ij = (np.argmax(x, axis=0) for x in (v, a, j))
         return SplineMaxima(
-            velocity=_frozen(v[iv, cols]),
-            velocity_time=_frozen(t_v[iv, cols]),
-            acceleration=_frozen(a[ia, cols]),
-            acceleration_time=_frozen(t_a[ia, cols]),
-            jerk=_frozen(j[ij, cols]),
-            jerk_time=_frozen(t_j[ij, cols]),
+            velocity=readonly(v[iv, cols]),
+            velocity_time=readonly(t_v[iv, cols]),
+            acceleration=readonly(a[ia, cols]),
+            acceleration_time=readonly(t_a[ia, cols]),
+            jerk=readonly(j[ij, cols]),
+            jerk_time=readonly(t_j[ij, cols]),
         )
 
     def scaled_time(self, factor: float) -> TimeSpline:
