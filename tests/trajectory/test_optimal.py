@@ -9,12 +9,12 @@ import pytest
 from scipy.optimize import brentq
 
 from microfab.machines.limits import LimitViolation, MachineLimits, check_trajectory
+from microfab.report.geometry import fig_profile
 from microfab.trajectory.base import Trajectory
 from microfab.trajectory.optimal import (
     HighsLP,
     PlanningError,
     TimeOptimalResult,
-    plot_profile,
     time_optimal,
 )
 
@@ -384,7 +384,7 @@ def test_result_fields_and_plot() -> None:
     assert res.trajectory.s[-1] == pytest.approx(path.length)
     assert len(res.segments) == 4
     assert res.utilisation.shape == (4,)
-    fig = plot_profile(res, STAGE, path)
+    fig = fig_profile(res.trajectory, STAGE, knots=(res.s, res.sdot))
     assert isinstance(fig, Figure)
     assert len(fig.axes) == 2
 

@@ -53,8 +53,18 @@ def fig_layer(layer: Layer, *, title: str | None = None, arrows_per_contour: int
     return fig
 
 
-def fig_profile(traj: Trajectory, limits: MachineLimits, *, title: str = "") -> Figure:
-    """Path speed, per-axis acceleration and jerk against ``s`` (or t), limits dashed."""
+def fig_profile(
+    traj: Trajectory,
+    limits: MachineLimits,
+    *,
+    title: str = "",
+    knots: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Figure:
+    """Path speed, per-axis acceleration and jerk against ``s`` (or t), limits dashed.
+
+    ``knots = (s, sdot)`` (m, m/s) adds a planner's grid speeds as dots, e.g.
+    ``(result.s, result.sdot)`` of :func:`~microfab.trajectory.optimal.time_optimal`.
+    """
     x = traj.s * 1e3 if traj.s is not None else traj.time
     xlabel = "path progress s (mm)" if traj.s is not None else "time (s)"
     dt = traj.dt
@@ -67,6 +77,8 @@ def fig_profile(traj: Trajectory, limits: MachineLimits, *, title: str = "") -> 
     axs = fig.subplots(rows, 1, sharex=True)
     colours = ("tab:red", "tab:blue", "tab:green")
     axs[0].plot(x, np.linalg.norm(vel, axis=1), color="black", lw=1.2, label="path speed")
+    if knots is not None and traj.s is not None:
+        axs[0].plot(np.asarray(knots[0]) * 1e3, knots[1], ".", color="0.5", ms=2, label="grid ṡ")
     for k, ax_name in enumerate(traj.axes):
         axs[0].plot(x, np.abs(vel[:, k]), color=colours[k % 3], lw=0.8, label=f"|v_{ax_name}|")
         axs[0].axhline(limits.velocity[k], color=colours[k % 3], ls="--", lw=0.8)

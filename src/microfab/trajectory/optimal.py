@@ -93,7 +93,7 @@ from microfab.trajectory.base import Trajectory
 from microfab.trajectory.spline import TimeSpline
 
 if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+    pass
 
 __all__ = [
     "HighsLP",
@@ -102,7 +102,6 @@ __all__ = [
     "PlanningError",
     "SegmentReport",
     "TimeOptimalResult",
-    "plot_profile",
     "time_optimal",
 ]
 
@@ -934,51 +933,3 @@ def _segment_reports(
             )
         )
     return out
-
-
-def plot_profile(
-    result: TimeOptimalResult, limits: MachineLimits, path: PathLike | None = None
-) -> Figure:
-    """Path speed and per-axis acceleration against arc length, with the limits drawn.
-
-    Parameters
-    ----------
-    result : TimeOptimalResult
-        Planner output.
-    limits : MachineLimits
-        The limits it was planned for.
-    path : PathLike, optional
-        The path; when given, the speed cap ``min_i v_i / |q'_i|`` is drawn too.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        A new figure (no pyplot state).
-    """
-    from matplotlib.figure import Figure
-
-    traj = result.trajectory
-    assert traj.s is not None and traj.acceleration is not None and traj.velocity is not None
-    fig = Figure(figsize=(7.0, 5.0), layout="constrained")
-    ax_v, ax_a = fig.subplots(2, 1, sharex=True)
-    s_mm = np.asarray(traj.s) * 1e3
-    ax_v.plot(s_mm, np.linalg.norm(traj.velocity, axis=1), label="path speed")
-    ax_v.plot(np.asarray(result.s) * 1e3, result.sdot, ".", ms=2, label="grid ṡ")
-    if path is not None:
-        d1 = np.asarray(path.evaluate(np.asarray(result.s), 1)[1])
-        with np.errstate(divide="ignore"):
-            cap = np.min(np.asarray(limits.velocity)[None, :] / np.abs(d1), axis=1)
-        ax_v.plot(np.asarray(result.s) * 1e3, cap, "k--", lw=0.8, label="velocity cap")
-    feed = result.meta.get("feed")
-    if isinstance(feed, float):
-        ax_v.axhline(feed, color="k", ls=":", lw=0.8, label="feed")
-    ax_v.set_ylabel("speed (m/s)")
-    ax_v.legend(loc="best", fontsize="small")
-    for k, name in enumerate(limits.axes):
-        line = ax_a.plot(s_mm, traj.acceleration[:, k], label=f"a_{name}")[0]
-        for sign in (1, -1):
-            ax_a.axhline(sign * limits.acceleration[k], color=line.get_color(), ls="--", lw=0.8)
-    ax_a.set_xlabel("arc length s (mm)")
-    ax_a.set_ylabel("acceleration (m/s²)")
-    ax_a.legend(loc="best", fontsize="small")
-    return fig
