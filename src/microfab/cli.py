@@ -30,9 +30,6 @@ app.add_typer(calibrate_app, name="calibrate")
 app.add_typer(path_app, name="path")
 app.command("trajectory")(trajectory_cmd)
 
-_fail = fail
-_progress = progress
-
 
 @app.command()
 def run(
@@ -50,11 +47,11 @@ def run(
     try:
         job = load_job(job_file) if job_file is not None else default_job()
     except (OSError, ValueError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
     out_dir = out or job.out
     rates = sorted(set(job.learning_rates) | {job.rate_hz})
     runs: dict[float, Any] = {}
-    with _progress() as prog:
+    with progress() as prog:
         for r in rates:
             task = prog.add_task(f"ILC at {r} features/s", total=job.iterations)
             runs[r] = run_msl_ilc(
@@ -109,7 +106,7 @@ def reproduce_msl_ilc(
     from microfab.experiments.msl_ilc import reproduce_tables
     from microfab.io.atomic import atomic_write_json
 
-    with _progress() as prog:
+    with progress() as prog:
         task = prog.add_task("runs", total=len(seed000.RATES))
         tables, _ = reproduce_tables(
             iterations=iterations,
@@ -210,7 +207,7 @@ def ilc_step_cmd(
             limits = {a: lim for a in read_trial_file(trial).axes}
         rep = ilc_step(trial, state, out, config=config, limits=limits)
     except (OSError, ValueError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
     rms = ", ".join(f"{a} {v:.4g}" for a, v in rep.rms.items())
     console.print(
         f"iteration {rep.iteration}: RMS error {rms}; harmonics "

@@ -64,9 +64,6 @@ _RATE_MARKERS = ("o", "s", "^", "D", "v", "P")
 _MIN_SPEED_M_S = 1e-6
 
 
-_new_figure = new_figure
-
-
 def _rate_label(rate_hz: float) -> str:
     return f"{rate_hz:g} features/s"
 
@@ -102,7 +99,7 @@ def fig_xy(result: MSLRunResult) -> Figure:
     if len(result.axes) < 2:
         raise ValueError(f"fig_xy needs two axes, the result has {result.axes}")
     n = _n_trials(result)
-    fig = _new_figure(5.6, 5.2)
+    fig = new_figure(5.6, 5.2)
     ax = fig.add_subplot()
     curves = (
         (result.reference, "desired $y_d$", _DESIRED),
@@ -139,7 +136,7 @@ def fig_time(result: MSLRunResult) -> Figure:
     n = _n_trials(result)
     t_ms = np.arange(result.reference.shape[0]) * result.dt * 1e3
     n_axes = len(result.axes)
-    fig = _new_figure(7.0, 2.4 * n_axes + 0.6)
+    fig = new_figure(7.0, 2.4 * n_axes + 0.6)
     axs = fig.subplots(n_axes, 1, sharex=True, squeeze=False)[:, 0]
     for a, (ax, name) in enumerate(zip(axs, result.axes, strict=True)):
         ax.plot(t_ms, result.reference[:, a], label="desired $y_d$", **_DESIRED)
@@ -190,7 +187,7 @@ def fig_psd(
     band = (fb.freq_hz > 0) & (fb.freq_hz <= f_top)
     harm = fb.harmonic_freq_hz <= f_top
     n_axes = len(result.axes)
-    fig = _new_figure(7.0, 2.7 * n_axes + 0.6)
+    fig = new_figure(7.0, 2.7 * n_axes + 0.6)
     axs = fig.subplots(n_axes, 1, sharex=True, squeeze=False)[:, 0]
     for a, (ax, name) in enumerate(zip(axs, result.axes, strict=True)):
         for spec, tag, style, marker in ((fb, "FB", _FB, "D"), (ilc, "ILC", _ILC, "o")):
@@ -265,7 +262,7 @@ def fig_learning(results: Mapping[float, MSLRunResult] | MSLRunResult) -> Figure
     if not runs:
         raise ValueError("fig_learning needs at least one run")
     rates = sorted(runs)
-    fig = _new_figure(3.4 * len(rates) + 0.6, 3.6)
+    fig = new_figure(3.4 * len(rates) + 0.6, 3.6)
     axs = fig.subplots(1, len(rates), sharey=True, squeeze=False)[0, :]
     for i, (ax, rate) in enumerate(zip(axs, rates, strict=True)):
         r = runs[rate]
@@ -328,7 +325,7 @@ def fig_velocity(result: MSLRunResult, *, cmap: str = "turbo", n_arrows: int = 4
     lo = min(float(s.min()) for _, _, s in paths.values())
     hi = max(float(s.max()) for _, _, s in paths.values())
     norm = Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
-    fig = _new_figure(10.0, 5.4)
+    fig = new_figure(10.0, 5.4)
     axs = fig.subplots(1, 2, sharex=True, sharey=True)
     lc = None
     for ax, (tag, (title, p, speed)) in zip(axs, paths.items(), strict=True):
@@ -391,7 +388,7 @@ def fig_line_width(
     """
     params = result.velocity_params()
     t_ms = np.arange(result.reference.shape[0]) * result.dt * 1e3
-    fig = _new_figure(7.0, 4.2)
+    fig = new_figure(7.0, 4.2)
     ax = fig.add_subplot()
     for signal, tag, style in ((result.fb_output, "FB", _FB), (result.ilc_output, "ILC", _ILC)):
         bv = beam_velocity(signal, result.dt, params, periodic=True)
