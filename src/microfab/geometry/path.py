@@ -351,15 +351,11 @@ class Path:
         """
         t_start, t_end = self._end_tangents()
         n = len(self.segments)
-        pairs = [(i, i + 1) for i in range(n - 1)]
-        if self.closed:
-            pairs.append((n - 1, 0))
-        out = []
-        for a, b in pairs:
-            cosang = float(np.clip(np.dot(t_end[a], t_start[b]), -1.0, 1.0))
-            if np.arccos(cosang) > angle_tol:
-                out.append(0.0 if b == 0 else float(self.breaks[b]))
-        return np.array(sorted(out))
+        a = np.arange(n - 1 + int(self.closed))
+        b = (a + 1) % n  # the closing junction pairs the last segment with the first
+        cosang = np.clip(np.einsum("ij,ij->i", t_end[a], t_start[b]), -1.0, 1.0)
+        turned = b[np.arccos(cosang) > angle_tol]
+        return np.sort(np.where(turned == 0, 0.0, self.breaks[turned]))
 
     # ----------------------------------------------------------------- sampling
     def resample(self, n: int | None = None, ds: float | None = None) -> np.ndarray:
