@@ -1,0 +1,323 @@
+"""From drive voltage to droplet: waveform → printhead acoustics → slender-jet breakup.
+
+The pipeline of seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``): the
+waveform drives the dispenser's acoustic model (:mod:`.acoustics`), whose orifice
+velocity pushes liquid into the one-dimensional jet model (:mod:`.jet`), scaled by the
+nozzle radius and the capillary time. The jet is followed through its first breakup
+(time, position, mode) and for a while after it, long enough to count satellites.
+
+Coupling is one way: the jet outside does not load the acoustics.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from microfab.process.inkjet.acoustics import NozzleFlow, Printhead, default_printhead, nozzle_flow
+from microfab.process.inkjet.breakup import BreakupMode
+from microfab.process.inkjet.dimensionless import Dimensionless, numbers
+from microfab.process.inkjet.fluids import Fluid
+from microfab.process.inkjet.jet import Body, JetModel, JetRun, Numerics, run_jet
+from microfab.process.inkjet.shadowgraph import Silhouette
+from microfab.process.inkjet.waveform import Waveform, seed003_waveform
+
+__all__ = ["BREAKUP_RADIUS_M", "DropletResult", "Scales", "simulate_droplet"]
+
+#: A neck counts as broken below this radius: half a pixel of the 2 µm/pixel camera
+#: assumed in :mod:`.shadowgraph` (assumption; the seed measured breakup "from the
+#: captured pictures", so a gap is what the camera can resolve).
+BREAKUP_RADIUS_M = 1.0e-6
+
+
+@dataclass(frozen=True)
+class Scales:
+    """Units of the dimensionless jet model: nozzle radius and capillary time."""
+
+    length_m: float
+    time_s: float
+
+    @classmethod
+    def of(cls, fluid: Fluid, radius_m: float) -> Scales:
+        """Capillary scales ``R`` and ``sqrt(rho R^3 / sigma)``."""
+        t_c = math.sqrt(fluid.density_kg_m3 * radius_m**3 / fluid.surface_tension_n_m)
+        return cls(length_m=radius_m, time_s=t_c)
+
+    @property
+    def velocity_m_s(self) -> float:
+        """Velocity unit ``R / t_c``."""
+        return self.length_m / self.time_s
+
+    def model(self, fluid: Fluid) -> JetModel:
+        """Dimensionless fluid parameters (Ohnesorge numbers, Deborah number, L²)."""
+        visc = math.sqrt(fluid.density_kg_m3 * fluid.surface_tension_n_m * self.length_m)
+        polymer = not fluid.is_newtonian
+        return JetModel(
+            ohnesorge=fluid.solvent_viscosity_pa_s / visc,
+            polymer_ohnesorge=fluid.polymer_viscosity_pa_s / visc if polymer else 0.0,
+            deborah=fluid.relaxation_time_s / self.time_s if polymer else 0.0,
+            extensibility_l2=fluid.extensibility_l2,
+        )
+
+
+@dataclass(frozen=True)
+class _ScaledInflow:
+    flow: NozzleFlow
+    scales: Scales
+
+    def velocity(self, t: float) -> float:
+        return float(self.flow.velocity(t * self.scales.time_s)) / self.scales.velocity_m_s
+
+    def displacement(self, t: float) -> float:
+        return float(self.flow.displacement(t * self.scales.time_s)) / self.scales.length_m
+
+
+@dataclass(frozen=True, kw_only=True)
+class DropletResult:
+    """What a drop-on-demand simulation predicts.
+
+    Attributes
+    ----------
+    fluid, waveform, printhead : Fluid, Waveform, Printhead
+        Inputs.
+    flow : NozzleFlow
+        Orifice velocity from the acoustic model.
+    breakup_time_s : float or None
+        First pinch-off, from the start of the drive pulse (None: no breakup).
+    breakup_mode : {"front", "exit", "middle"} or None
+        Where the first pinch-off happened (:func:`.breakup.classify_pinch`).
+    breakup_z_m : float or None
+        Its distance from the nozzle exit.
+    jet_length_m : float or None
+        Nozzle exit to head tip at the first breakup.
+    satellites : int
+        Detached bodies other than the head drop at the end of the run.
+    head_speed_m_s : float
+        Mean speed of the leading tip from the first breakup (or its last 30 µs before) to
+        the end of the run.
+    drop_volume_m3 : float
+        Volume of the leading body at the end.
+    outcome : str
+        "breakup", "no breakup within the simulated time" or "no ejection".
+    silhouettes : tuple of Silhouette
+        Snapshots for images and figures.
+    scales : Scales
+        Units of the dimensionless run.
+    run : JetRun
+        The dimensionless solver output (history, events, statistics).
+    numbers : Dimensionless
+        Oh, We, Re, De, Ec, Z at the head speed (or the peak orifice speed if none).
+    """
+
+    fluid: Fluid
+    waveform: Waveform
+    printhead: Printhead
+    flow: NozzleFlow
+    breakup_time_s: float | None
+    breakup_mode: BreakupMode | None
+    breakup_z_m: float | None
+    jet_length_m: float | None
+    satellites: int
+    head_speed_m_s: float
+    drop_volume_m3: float
+    outcome: str
+    silhouettes: tuple[Silhouette, ...]
+    scales: Scales
+    run: JetRun = field(repr=False)
+    numbers: Dimensionless
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary; keys carry their units."""
+        return {
+            "breakup_time_s": self.breakup_time_s,
+            "breakup_mode": self.breakup_mode,
+            "breakup_z_m": self.breakup_z_m,
+            "satellites": self.satellites,
+            "head_speed_m_s": self.head_speed_m_s,
+            "drop_volume_m3": self.drop_volume_m3,
+            "drop_diameter_m": (6.0 * self.drop_volume_m3 / math.pi) ** (1.0 / 3.0),
+            "jet_length_at_breakup_m": self.jet_length_m,
+            "outcome": self.outcome,
+            "fluid": self.fluid.name,
+            "concentration_pct": self.fluid.concentration_pct,
+            "voltage_v": self.waveform.amplitude_v,
+            "waveform": self.waveform.kind,
+            "peak_orifice_velocity_m_s": self.flow.peak_velocity_m_s,
+            "ohnesorge": self.numbers.ohnesorge,
+            "weber": self.numbers.weber,
+            "reynolds": self.numbers.reynolds,
+            "deborah": self.numbers.deborah,
+            "elastocapillary": self.numbers.elastocapillary,
+            "z_number": self.numbers.z_number,
+            "solver_steps": self.run.steps,
+            "solver_rejected_steps": self.run.rejected,
+        }
+
+
+def simulate_droplet(
+    fluid: Fluid,
+    waveform: Waveform | None = None,
+    *,
+    printhead: Printhead | None = None,
+    duration_s: float = 400e-6,
+    after_breakup_s: float = 60e-6,
+    frame_interval_s: float = 10e-6,
+    breakup_radius_m: float = BREAKUP_RADIUS_M,
+    numerics: Numerics | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> DropletResult:
+    """Simulate one drop-on-demand ejection.
+
+    Parameters
+    ----------
+    fluid : Fluid
+        The ink (e.g. :func:`.fluids.naalg`).
+    waveform : Waveform, optional
+        Drive voltage (default: the seed's 50 V bipolar waveform).
+    printhead : Printhead, optional
+        Dispenser model (default: :func:`.acoustics.default_printhead`).
+    duration_s : float, optional
+        Longest simulated time from the start of the pulse.
+    after_breakup_s : float, optional
+        How long the bodies are followed after the first breakup (satellites).
+    frame_interval_s : float, optional
+        Spacing of the stored silhouettes.
+    breakup_radius_m : float, optional
+        Neck radius that counts as broken.
+    numerics : Numerics, optional
+        Solver settings (``h_break`` is set from ``breakup_radius_m``).
+    progress : callable, optional
+        Called with the simulated time in s as the run advances.
+
+    Returns
+    -------
+    DropletResult
+
+    Raises
+    ------
+    ValueError
+        For non-positive durations or a breakup radius not below the nozzle radius.
+
+    Examples
+    --------
+    >>> from microfab.process.inkjet.fluids import naalg
+    >>> res = simulate_droplet(naalg(0.15))  # doctest: +SKIP
+    >>> res.breakup_mode  # doctest: +SKIP
+    'front'
+    """
+    waveform = waveform or seed003_waveform(50.0)
+    printhead = printhead or default_printhead()
+    for name, value in (
+        ("duration_s", duration_s),
+        ("after_breakup_s", after_breakup_s),
+        ("frame_interval_s", frame_interval_s),
+    ):
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f"{name} must be a positive time, got {value} s")
+    radius = printhead.nozzle_radius_m
+    if not 0.0 < breakup_radius_m < radius:
+        raise ValueError(
+            f"breakup radius {breakup_radius_m} m must lie between 0 and the nozzle radius "
+            f"{radius} m"
+        )
+    flow = nozzle_flow(
+        printhead,
+        waveform,
+        density_kg_m3=fluid.density_kg_m3,
+        viscosity_pa_s=fluid.zero_shear_viscosity_pa_s,
+        surface_tension_n_m=fluid.surface_tension_n_m,
+        duration_s=duration_s + 1e-6,
+    )
+    sc = Scales.of(fluid, radius)
+    base = numerics or Numerics()
+    nu = Numerics(
+        resolution=base.resolution,
+        dz_min=base.dz_min,
+        dz_max=base.dz_max,
+        rtol=base.rtol,
+        atol=base.atol,
+        h_break=breakup_radius_m / radius,
+        max_steps=base.max_steps,
+        max_nodes=base.max_nodes,
+    )
+    frames = np.arange(0.0, duration_s + 0.5 * frame_interval_s, frame_interval_s)
+    run = run_jet(
+        [],
+        sc.model(fluid),
+        nu,
+        t_end=duration_s / sc.time_s,
+        inflow=_ScaledInflow(flow, sc),
+        on_pinch="split",
+        snapshot_times=frames / sc.time_s,
+        after_first_pinch=after_breakup_s / sc.time_s,
+        progress=None if progress is None else (lambda t: progress(t * sc.time_s)),
+    )
+    return _summarise(fluid, waveform, printhead, flow, sc, run)
+
+
+def _silhouette(t: float, bodies: Sequence[Body], sc: Scales) -> Silhouette:
+    out = []
+    for b in bodies:
+        z, r = b.profile()
+        out.append((z * sc.length_m, r * sc.length_m))
+    return Silhouette(time_s=t * sc.time_s, bodies=tuple(out), nozzle_radius_m=sc.length_m)
+
+
+def _summarise(
+    fluid: Fluid,
+    waveform: Waveform,
+    printhead: Printhead,
+    flow: NozzleFlow,
+    sc: Scales,
+    run: JetRun,
+) -> DropletResult:
+    t_s = run.t * sc.time_s
+    tip_z = run.tip_z * sc.length_m
+    first = run.events[0] if run.events else None
+    bodies = run.bodies
+    lead = max(bodies, key=lambda b: b.z[-1]) if bodies else None
+    if first is not None:
+        t_b = first.t * sc.time_s
+        window = t_s >= t_b - 30e-6
+        outcome = "breakup"
+    else:
+        window = t_s >= t_s[-1] - 30e-6
+        out = bool(bodies) and lead is not None and lead.z[-1] > 1.0
+        outcome = "no breakup within the simulated time" if out else "no ejection"
+    moving = window & (tip_z > 0.0)
+    if np.count_nonzero(moving) >= 2 and np.ptp(t_s[moving]) > 0:
+        head_speed = float(np.polyfit(t_s[moving], tip_z[moving], 1)[0])
+    else:
+        head_speed = 0.0
+    satellites = 0
+    drop_volume = 0.0
+    if lead is not None:
+        drop_volume = math.pi * lead.volume * sc.length_m**3
+        tiny = (BREAKUP_RADIUS_M / sc.length_m) ** 3
+        satellites = sum(1 for b in bodies if b is not lead and b.left == "tip" and b.volume > tiny)
+    speed_for_numbers = head_speed if head_speed > 0 else flow.peak_velocity_m_s
+    silhouettes = tuple(_silhouette(t, b, sc) for t, b in run.snapshots)
+    return DropletResult(
+        fluid=fluid,
+        waveform=waveform,
+        printhead=printhead,
+        flow=flow,
+        breakup_time_s=None if first is None else first.t * sc.time_s,
+        breakup_mode=None if first is None else first.mode,
+        breakup_z_m=None if first is None else first.z * sc.length_m,
+        jet_length_m=None if first is None else (first.z_tip - first.z_tail) * sc.length_m,
+        satellites=satellites,
+        head_speed_m_s=head_speed,
+        drop_volume_m3=drop_volume,
+        outcome=outcome,
+        silhouettes=silhouettes,
+        scales=sc,
+        run=run,
+        numbers=numbers(
+            fluid, nozzle_radius_m=printhead.nozzle_radius_m, speed_m_s=speed_for_numbers
+        ),
+    )
