@@ -25,6 +25,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sim.py
 	$(BIN)/python benchmarks/bench_dxf.py
 	$(BIN)/python benchmarks/bench_topp.py
+	$(BIN)/python benchmarks/bench_droplet.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples

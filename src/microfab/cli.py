@@ -17,6 +17,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
+from microfab.cli_droplet import droplet_app
 from microfab.cli_geometry import path_app, trajectory_cmd
 from microfab.clikit import console, fail, progress
 
@@ -28,6 +29,7 @@ app.add_typer(reproduce_app, name="reproduce")
 app.add_typer(ilc_app, name="ilc")
 app.add_typer(calibrate_app, name="calibrate")
 app.add_typer(path_app, name="path")
+app.add_typer(droplet_app, name="droplet")
 app.command("trajectory")(trajectory_cmd)
 
 

@@ -1,0 +1,58 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from typer.testing import CliRunner
+
+from microfab.cli import app
+
+runner = CliRunner()
+
+
+def test_simulate_writes_report_and_json(tmp_path: Path) -> None:
+    out = tmp_path / "rep"
+    js = tmp_path / "d.json"
+    res = runner.invoke(
+        app,
+        [
+            "droplet",
+            "simulate",
+            "--concentration",
+            "0.15",
+            "--duration",
+            "70",
+            "--out",
+            str(out),
+            "--json",
+            str(js),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    data = json.loads(js.read_text())
+    for key in ("breakup_time_s", "breakup_mode", "breakup_z_m", "satellites", "head_speed_m_s"):
+        assert key in data
+    assert (out / "nozzle_flow.png").stat().st_size > 0
+    assert (out / "silhouettes.png").stat().st_size > 0
+
+
+def test_simulate_refuses_bad_input() -> None:
+    res = runner.invoke(app, ["droplet", "simulate", "--concentration", "-1"])
+    assert res.exit_code == 2 and "outside the table" in res.output
+    res = runner.invoke(app, ["droplet", "simulate", "--voltage", "90"])
+    assert res.exit_code == 2 and "40 to 70 V" in res.output
+
+
+def test_analyze_errors(tmp_path: Path) -> None:
+    from microfab.process.inkjet.shadowgraph import Camera, write_frames
+
+    res = runner.invoke(app, ["droplet", "analyze", str(tmp_path)])
+    assert res.exit_code == 2
+    cam = Camera(width_px=40, height_px=60)
+    frames = np.full((2, 60, 40), 0.85)
+    frames[:, :20, 10:30] = 0.1
+    write_frames(frames, tmp_path / "f", camera=cam, frame_interval_s=1e-5)
+    (tmp_path / "f" / "frames.json").unlink()
+    res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f")])
+    assert res.exit_code == 2 and "pixel size" in res.output
