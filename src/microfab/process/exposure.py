@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from microfab.validate import check_positive
+
 __all__ = [
     "ENVISIONTEC_R11_ASSUMED",
     "SEED000_BEAM",
@@ -36,11 +38,6 @@ __all__ = [
     "ResinParams",
     "line_profile",
 ]
-
-
-def _check_positive(name: str, value: float, unit: str) -> None:
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be positive and finite, got {value} {unit}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,8 +60,8 @@ class ResinParams:
     critical_exposure_j_m2: float
 
     def __post_init__(self) -> None:
-        _check_positive("penetration_depth_m", self.penetration_depth_m, "m")
-        _check_positive("critical_exposure_j_m2", self.critical_exposure_j_m2, "J/m²")
+        check_positive("penetration_depth_m", self.penetration_depth_m, "m")
+        check_positive("critical_exposure_j_m2", self.critical_exposure_j_m2, "J/m²")
 
 
 #: Envisiontec R11 (the resin of seed 000 §4.3) with ASSUMED working-curve parameters.
@@ -103,9 +100,9 @@ class BeamParams:
     wavelength_m: float = 405e-9  # seed 000 §2: 405 nm diode laser
 
     def __post_init__(self) -> None:
-        _check_positive("power_w", self.power_w, "W")
-        _check_positive("waist_radius_m", self.waist_radius_m, "m")
-        _check_positive("wavelength_m", self.wavelength_m, "m")
+        check_positive("power_w", self.power_w, "W")
+        check_positive("waist_radius_m", self.waist_radius_m, "m")
+        check_positive("wavelength_m", self.wavelength_m, "m")
 
 
 #: The writing beam of seed 000 §4.3 (30 mW at 405 nm, assumed 5 µm spot radius).

@@ -101,6 +101,7 @@ from matplotlib.figure import Figure
 
 from microfab.process.inkjet.waveform import SEED003_DWELL_S, Waveform, seed003_waveform
 from microfab.report.canvas import new_figure
+from microfab.validate import check_positive
 
 __all__ = [
     "REFERENCE_DENSITY_KG_M3",
@@ -130,11 +131,6 @@ REFERENCE_SURFACE_TENSION_N_M = 0.072
 #: Effective wave speed, m/s. Assumption: the compliant glass/PZT wall lowers the speed of
 #: sound of water (about 1480 m/s) to roughly 1200 m/s (Korteweg-type correction).
 _WAVE_SPEED_M_S = 1200.0
-
-
-def _check_positive(name: str, value: float, unit: str) -> None:
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be positive and finite, got {value} {unit}")
 
 
 def _check_nonnegative(name: str, value: float, unit: str) -> None:
@@ -220,9 +216,9 @@ class Printhead:
             "channel_radius_m",
             "channel_length_m",
         ):
-            _check_positive(name, getattr(self, name), "m")
-        _check_positive("wave_speed_m_s", self.wave_speed_m_s, "m/s")
-        _check_positive("gain_m3_per_v", self.gain_m3_per_v, "m³/V")
+            check_positive(name, getattr(self, name), "m")
+        check_positive("wave_speed_m_s", self.wave_speed_m_s, "m/s")
+        check_positive("gain_m3_per_v", self.gain_m3_per_v, "m³/V")
         _check_nonnegative("inlet_impedance_ratio", self.inlet_impedance_ratio, "(dimensionless)")
         if not self.nozzle_radius_m < self.channel_radius_m:
             raise ValueError(
@@ -252,7 +248,7 @@ class Printhead:
 
 
 def _check_fluid(density_kg_m3: float, viscosity_pa_s: float, surface_tension_n_m: float) -> None:
-    _check_positive("density_kg_m3", density_kg_m3, "kg/m³")
+    check_positive("density_kg_m3", density_kg_m3, "kg/m³")
     _check_nonnegative("viscosity_pa_s", viscosity_pa_s, "Pa s")
     _check_nonnegative("surface_tension_n_m", surface_tension_n_m, "N/m")
 
@@ -391,7 +387,7 @@ class NozzleFlow:
     nozzle_radius_m: float
 
     def __post_init__(self) -> None:
-        _check_positive("nozzle_radius_m", self.nozzle_radius_m, "m")
+        check_positive("nozzle_radius_m", self.nozzle_radius_m, "m")
         arrays = {}
         for name in ("t_s", "velocity_m_s", "displacement_m"):
             arr = np.array(getattr(self, name), dtype=float)
@@ -672,8 +668,8 @@ def nozzle_flow(
     True
     """
     _check_fluid(density_kg_m3, viscosity_pa_s, surface_tension_n_m)
-    _check_positive("duration_s", duration_s, "s")
-    _check_positive("dt_s", dt_s, "s")
+    check_positive("duration_s", duration_s, "s")
+    check_positive("dt_s", dt_s, "s")
     n = math.floor(duration_s / dt_s + 1e-9) + 1
     if n < 2:
         raise ValueError(
@@ -746,7 +742,7 @@ def calibrate_gain(
     ...                   viscosity_pa_s=1e-3, surface_tension_n_m=0.072).peak_velocity_m_s, 9)
     5.0
     """
-    _check_positive("target_peak_velocity_m_s", target_peak_velocity_m_s, "m/s")
+    check_positive("target_peak_velocity_m_s", target_peak_velocity_m_s, "m/s")
     unit = dataclasses.replace(printhead, gain_m3_per_v=1.0)
     peak = nozzle_flow(
         unit,

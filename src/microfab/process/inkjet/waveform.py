@@ -42,6 +42,8 @@ from typing import Literal
 
 import numpy as np
 
+from microfab.validate import check_positive
+
 __all__ = [
     "MAX_AMPLITUDE_V",
     "SEED003_DWELL_S",
@@ -73,11 +75,6 @@ SEED003_ECHO_S = 30e-6  # seed 003 part 1, Table 1
 SEED003_FREQUENCY_HZ = 50.0  # seed 003 part 1, Table 1
 
 _KINDS = ("unipolar", "bipolar", "tripolar")
-
-
-def _check_positive(name: str, value: float, unit: str) -> None:
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be positive and finite, got {value} {unit}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,20 +133,20 @@ class Waveform:
     def __post_init__(self) -> None:
         if self.kind not in _KINDS:
             raise ValueError(f"kind must be one of {_KINDS}, got {self.kind!r}")
-        _check_positive("amplitude_v", self.amplitude_v, "V")
+        check_positive("amplitude_v", self.amplitude_v, "V")
         if self.amplitude_v > MAX_AMPLITUDE_V:
             raise ValueError(
                 f"amplitude_v must not exceed the driver range of {MAX_AMPLITUDE_V} V, "
                 f"got {self.amplitude_v} V"
             )
         for name in ("rise_s", "fall_s", "dwell_s", "echo_s", "final_s"):
-            _check_positive(name, getattr(self, name), "s")
+            check_positive(name, getattr(self, name), "s")
         if not (math.isfinite(self.final_ratio) and 0.0 < self.final_ratio <= 1.0):
             raise ValueError(
                 f"final_ratio must lie in (0, 1] (fraction of amplitude_v), "
                 f"got {self.final_ratio} (dimensionless)"
             )
-        _check_positive("frequency_hz", self.frequency_hz, "Hz")
+        check_positive("frequency_hz", self.frequency_hz, "Hz")
         if not self.period_s > self.duration_s:
             raise ValueError(
                 f"period 1/frequency_hz = {self.period_s} s must be longer than the "
@@ -284,9 +281,9 @@ class Waveform:
         >>> v.tolist()
         [0.0, 3.0, 6.0, 9.0, 9.0, 9.0, 9.0]
         """
-        _check_positive("rate_hz", rate_hz, "Hz")
+        check_positive("rate_hz", rate_hz, "Hz")
         span = self.duration_s if duration_s is None else duration_s
-        _check_positive("duration_s", span, "s")
+        check_positive("duration_s", span, "s")
         n = math.floor(span * rate_hz + 1e-9) + 1
         t = np.arange(n) / rate_hz
         return t, self.voltage(t)
