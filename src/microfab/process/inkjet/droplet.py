@@ -11,6 +11,7 @@ Coupling is one way: the jet outside does not load the acoustics.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -239,16 +240,7 @@ def simulate_droplet(
     )
     sc = Scales.of(fluid, radius)
     base = numerics or DOD_NUMERICS
-    nu = Numerics(
-        resolution=base.resolution,
-        dz_min=base.dz_min,
-        dz_max=base.dz_max,
-        rtol=base.rtol,
-        atol=base.atol,
-        h_break=breakup_radius_m / radius,
-        max_steps=base.max_steps,
-        max_nodes=base.max_nodes,
-    )
+    nu = dataclasses.replace(base, h_break=breakup_radius_m / radius)
     frames = np.arange(0.0, duration_s + 0.5 * frame_interval_s, frame_interval_s)
     run = run_jet(
         [],
