@@ -6,7 +6,9 @@ velocity pushes liquid into the one-dimensional jet model (:mod:`.jet`), scaled 
 nozzle radius and the capillary time. The jet is followed through its first breakup
 (time, position, mode) and for a while after it, long enough to count satellites.
 
-Coupling is one way: the jet outside does not load the acoustics.
+Coupling is one way: the jet outside does not load the acoustics, and the jet is fed only
+by outflow beyond everything pushed out before (:func:`jet_inflow`); the retraction of
+the meniscus into the bore is left to the acoustic model.
 """
 
 from __future__ import annotations
@@ -27,7 +29,14 @@ from microfab.process.inkjet.jet import Body, JetModel, JetRun, Numerics, run_je
 from microfab.process.inkjet.shadowgraph import Silhouette
 from microfab.process.inkjet.waveform import Waveform, seed003_waveform
 
-__all__ = ["BREAKUP_RADIUS_M", "DOD_NUMERICS", "DropletResult", "Scales", "simulate_droplet"]
+__all__ = [
+    "BREAKUP_RADIUS_M",
+    "DOD_NUMERICS",
+    "DropletResult",
+    "Scales",
+    "jet_inflow",
+    "simulate_droplet",
+]
 
 #: A neck counts as broken below this radius: half a pixel of the 2 µm/pixel camera
 #: assumed in :mod:`.shadowgraph` (assumption; the seed measured breakup "from the
@@ -238,6 +247,7 @@ def simulate_droplet(
         surface_tension_n_m=fluid.surface_tension_n_m,
         duration_s=duration_s + 1e-6,
     )
+    flow_jet = jet_inflow(flow)
     sc = Scales.of(fluid, radius)
     base = numerics or DOD_NUMERICS
     nu = dataclasses.replace(base, h_break=breakup_radius_m / radius)
@@ -247,13 +257,55 @@ def simulate_droplet(
         sc.model(fluid),
         nu,
         t_end=duration_s / sc.time_s,
-        inflow=_ScaledInflow(flow, sc),
+        inflow=_ScaledInflow(flow_jet, sc),
         on_pinch="split",
         snapshot_times=frames / sc.time_s,
         after_first_pinch=after_breakup_s / sc.time_s,
         progress=None if progress is None else (lambda t: progress(t * sc.time_s)),
     )
     return _summarise(fluid, waveform, printhead, flow, sc, run)
+
+
+def jet_inflow(flow: NozzleFlow) -> NozzleFlow:
+    """The part of the orifice flow that feeds the jet outside the nozzle.
+
+    While the liquid column is pushed out, it all goes into the jet. When the acoustics
+    draw liquid back, the model lets the meniscus inside the bore take the retraction:
+    the jet's root stays at the rim with zero velocity, and later outflow first refills
+    the bore before it pushes the jet again. The jet's inflow displacement is therefore
+    the running maximum of the orifice displacement. This is an ASSUMPTION: a pinned
+    rim that imposes the suction on the 1D jet empties the root cell within a few µs and
+    pinches every fluid at the rim at the same moment, whatever its viscoelasticity.
+
+    Parameters
+    ----------
+    flow : NozzleFlow
+        Orifice flow from :func:`.acoustics.nozzle_flow`.
+
+    Returns
+    -------
+    NozzleFlow
+        Same time grid; velocity zero while the orifice displacement is below its
+        running maximum, displacement integrated from that velocity.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(5) * 1e-6
+    >>> flow = NozzleFlow(t_s=t, velocity_m_s=np.array([0.0, 2.0, -2.0, 2.0, 2.0]),
+    ...                   displacement_m=np.array([0.0, 1.0, 1.0, 1.0, 3.0]) * 1e-6,
+    ...                   nozzle_radius_m=60e-6)
+    >>> jet_inflow(flow).velocity_m_s.tolist()
+    [0.0, 2.0, 0.0, 2.0, 2.0]
+    """
+    d = flow.displacement_m
+    high = np.maximum.accumulate(d)
+    at_high = d >= high - 1e-9 * max(float(np.abs(d).max()), flow.nozzle_radius_m)
+    v = np.where(at_high & (flow.velocity_m_s > 0.0), flow.velocity_m_s, 0.0)
+    disp = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * flow.dt_s)))
+    return NozzleFlow(
+        t_s=flow.t_s, velocity_m_s=v, displacement_m=disp, nozzle_radius_m=flow.nozzle_radius_m
+    )
 
 
 def _silhouette(t: float, bodies: Sequence[Body], sc: Scales) -> Silhouette:

@@ -616,11 +616,11 @@ def run_jet(
     -------
     JetRun
 
-    Raises
-    ------
-    RuntimeError
-        If the step size collapses. A grid outgrowing ``numerics.max_nodes`` or too many
-        steps end the run early, with the reason in ``stop_reason``.
+    Notes
+    -----
+    A collapsing step size, a grid outgrowing ``numerics.max_nodes`` or too many steps end
+    the run early; what was computed up to then is returned, with the reason in
+    ``stop_reason``.
     """
     nu = numerics or Numerics()
     stepper = _Stepper(model, nu, a_nozzle)
@@ -701,7 +701,8 @@ def run_jet(
                 rejected += 1
                 h *= 0.25 if y_new is None else max(0.2, 0.9 / math.sqrt(err))
                 if h < 1e-14:
-                    raise RuntimeError(f"time step collapsed at t = {t:.6g} (dimensionless)")
+                    stop_reason = f"time step collapsed at t = {t:.6g}"
+                    break
                 continue
             steps += 1
             t += h
@@ -894,7 +895,9 @@ def _tidy(
     if nb > 1:
         z_end = st.y[st.starts[1:] - 1, 0]
         z_begin = st.y[st.starts[:-1], 0]
-        touching = np.nonzero(z_end[:-1] >= z_begin[1:] - 0.02)[0]
+        closing = st.y[st.starts[1:-1] - 1, 1] > st.y[st.starts[1:-1], 1]
+        # touching and closing in: the two ends of a fresh cut move apart
+        touching = np.nonzero((z_end[:-1] >= z_begin[1:] - 0.02) & closing)[0]
         if touching.size:
             st = _coalesce(st, [int(i) for i in touching])
     # a nozzle jet that has drawn back into the nozzle
