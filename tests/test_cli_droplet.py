@@ -56,3 +56,21 @@ def test_analyze_errors(tmp_path: Path) -> None:
     (tmp_path / "f" / "frames.json").unlink()
     res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f")])
     assert res.exit_code == 2 and "pixel size" in res.output
+
+
+def test_sweep_writes_figure_and_resumable_results(tmp_path: Path) -> None:
+    out = tmp_path / "sw"
+    args = ["droplet", "sweep", "--concentrations", "0.15", "--voltages", "", "--duration", "60"]
+    res = runner.invoke(app, [*args, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    saved = json.loads((out / "sweep.json").read_text())
+    assert [r["concentration_pct"] for r in saved["rows"]] == [0.15]
+    assert (out / "breakup_time.png").stat().st_size > 0
+    res = runner.invoke(app, [*args[:-1], "80", "--out", str(out)])
+    assert res.exit_code == 2 and "settings" in res.output
+
+
+def test_sweep_refuses_bad_input(tmp_path: Path) -> None:
+    for extra in (["--voltages", "30"], ["--concentrations", "-1"], ["--concentrations", "a"]):
+        res = runner.invoke(app, ["droplet", "sweep", *extra, "--out", str(tmp_path)])
+        assert res.exit_code == 2, (extra, res.output)

@@ -9,6 +9,11 @@ EXAMPLES = sorted((Path(__file__).parent.parent / "examples").glob("[0-9][0-9]_*
 QUICK = {
     "01_galvo_ilc.py": (["3"], ["iteration  3"], "example_01_xy.png"),
     "02_letters_time_optimal.py": (["150"], ["text:r", "airfoil:e344"], "example_02_profile.png"),
+    "03_droplet_breakup.py": (
+        ["0.15"],
+        ["breakup", "measured from frames"],
+        "example_03_frames.png",
+    ),
 }
 
 

@@ -1,4 +1,4 @@
-"""``microfab droplet simulate|analyze``: drop-on-demand inkjet, predicted and measured."""
+"""``microfab droplet simulate|sweep|calibrate|analyze``: drop-on-demand inkjet."""
 
 from __future__ import annotations
 
@@ -125,3 +125,110 @@ def analyze_cmd(
         frames, _ = load_frames(frames_dir)
         save_figure(fig_analysis(res, frames), out)
     _json(res.to_dict(), json_out)
+
+
+def _floats(text: str, name: str) -> list[float]:
+    try:
+        values = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        fail(f"--{name} must be comma-separated numbers, got {text!r}")
+    if not values:
+        fail(f"--{name} is empty")
+    return values
+
+
+@droplet_app.command("sweep")
+def sweep_cmd(
+    concentrations: Annotated[
+        str, typer.Option(help="NaAlg concentrations at 50 V, % w/v, comma-separated.")
+    ] = "0.15,0.2,0.25,1,1.5,2",
+    voltages: Annotated[
+        str, typer.Option(help="Voltages of the voltage series, V, comma-separated ('' = none).")
+    ] = "40,45,50,55,60,65,70",
+    voltage_concentration: Annotated[
+        float, typer.Option(help="Concentration of the voltage series, % w/v.")
+    ] = 1.0,
+    duration: Annotated[float, typer.Option(help="Simulated time per point, µs.")] = 400.0,
+    out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet-sweep"),
+) -> None:
+    """Redraw Fig. 4 (breakup time against concentration) and the 40-70 V trend.
+
+    Finished points are kept in OUT/sweep.json; running the same sweep again resumes.
+    """
+    from microfab.process.inkjet.calibration import SEED_BREAKUP
+    from microfab.process.inkjet.fluids import naalg
+    from microfab.process.inkjet.sweep import fig_sweep, run_sweep, sweep_points
+    from microfab.report.canvas import save_figure
+
+    cs = _floats(concentrations, "concentrations")
+    vs = _floats(voltages, "voltages") if voltages.strip() else []
+    for v in vs:
+        if not 40.0 <= v <= 70.0:
+            fail(f"voltage {v} V is outside what the model covers (40 to 70 V, seed Table 1)")
+    try:
+        for c in {*cs, voltage_concentration}:
+            naalg(c)
+        points = sweep_points(cs, vs, voltage_concentration_pct=voltage_concentration)
+        with progress() as bar:
+            task = bar.add_task("droplet sweep", total=len(points))
+            rows = run_sweep(
+                points,
+                duration_s=duration * 1e-6,
+                results_path=out / "sweep.json",
+                progress=lambda i, p: bar.update(
+                    task,
+                    completed=i,
+                    description=f"{p.concentration_pct:g} %, {p.voltage_v:g} V",
+                ),
+            )
+            bar.update(task, completed=len(points))
+    except ValueError as exc:
+        fail(str(exc))
+    save_figure(fig_sweep(rows, seed_points=SEED_BREAKUP), out / "breakup_time.png")
+    table = [
+        {
+            k: r[k]
+            for k in (
+                "concentration_pct",
+                "voltage_v",
+                "breakup_time_s",
+                "breakup_mode",
+                "head_speed_m_s",
+                "satellites",
+            )
+        }
+        for r in rows
+    ]
+    console.print_json(json.dumps(table, default=float))
+    console.print(f"wrote {out / 'sweep.json'} and {out / 'breakup_time.png'}")
+
+
+@droplet_app.command("calibrate")
+def calibrate_cmd(
+    write: Annotated[
+        Path | None,
+        typer.Option(help="Store the fitted law in this property table (TOML) file."),
+    ] = None,
+) -> None:
+    """Fit the relaxation law λ(c) to the seed's 95 µs (0.15 %) and 230 µs (1 %) breakups.
+
+    Runs the full model about twenty times (a few minutes).
+    """
+    from microfab.process.inkjet.calibration import calibrate_relaxation, write_relaxation
+
+    with progress() as bar:
+        task = bar.add_task("calibration runs", total=None)
+        fit = calibrate_relaxation(
+            progress=lambda ev: bar.update(
+                task,
+                advance=1,
+                description=f"{ev.concentration_pct:g} %, λ {ev.relaxation_time_s * 1e6:.3g} µs",
+            )
+        )
+    console.print(fit.summary())
+    if write is not None:
+        try:
+            write_relaxation(fit, write, command=f"microfab droplet calibrate --write {write}")
+        except (OSError, ValueError) as exc:
+            fail(str(exc))
+        console.print(f"wrote {write}")

@@ -23,8 +23,8 @@ def test_liquid_out_of_the_nozzle_matches_the_acoustic_displacement(early_jet) -
     run = early_jet.run
     vol = run.volume - run.volume[0]
     assert np.max(np.abs(vol - run.injected)) < 1e-6 * max(run.injected.max(), 1.0)
-    # the jet holds what the acoustics pushed out; once the flow reverses, the meniscus
-    # withdraws into the nozzle as a piston and the liquid stays in the model
+    # the jet holds the most the acoustics ever pushed out: when the flow reverses, the
+    # meniscus in the bore takes the retraction (jet_inflow)
     sc = early_jet.scales
     t = np.linspace(0.0, run.t[-1] * sc.time_s, 2000)
     pushed = float(np.max(early_jet.flow.displacement(t))) / sc.length_m
@@ -33,7 +33,7 @@ def test_liquid_out_of_the_nozzle_matches_the_acoustic_displacement(early_jet) -
 
 def test_head_moves_at_a_few_metres_per_second(early_jet) -> None:
     assert early_jet.outcome == "no breakup within the simulated time"
-    assert 1.0 < early_jet.head_speed_m_s < 15.0
+    assert 2.0 < early_jet.head_speed_m_s < 8.0
 
 
 def test_analyser_recovers_the_simulated_head_speed(early_jet) -> None:
@@ -52,6 +52,15 @@ def test_analyser_recovers_the_simulated_head_speed(early_jet) -> None:
     truth = np.polyfit(times, tips, 1)[0]
     assert res.head_speed_m_s == pytest.approx(truth, rel=0.05)
     assert res.breakup_frame is None
+
+
+def test_fluid_without_relaxation_time_keeps_its_full_viscosity() -> None:
+    fluid = naalg(1.0, relaxation_time_s=0.0)
+    sc = Scales.of(fluid, 60e-6)
+    visc = (fluid.density_kg_m3 * fluid.surface_tension_n_m * 60e-6) ** 0.5
+    model = sc.model(fluid)
+    assert model.ohnesorge == pytest.approx(fluid.zero_shear_viscosity_pa_s / visc)
+    assert model.polymer_ohnesorge == 0.0
 
 
 def test_scales_and_model_numbers() -> None:

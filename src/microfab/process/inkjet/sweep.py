@@ -1,0 +1,230 @@
+"""Breakup time over concentration and voltage: the seed's Fig. 4 and its voltage trend.
+
+A sweep runs :func:`.droplet.simulate_droplet` once per point: the six NaAlg
+concentrations of seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``,
+"Materials") at 50 V (its Fig. 4), and the Table 1 voltages 40-70 V at one concentration.
+Every finished point is written at once (atomically) to a JSON file, and a sweep started
+again with the same file and settings skips the points already there, so an interrupted
+sweep loses at most the point in progress.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from matplotlib.figure import Figure
+
+from microfab.io.atomic import atomic_write_json
+from microfab.report.canvas import new_figure
+
+__all__ = [
+    "SEED_CONCENTRATIONS_PCT",
+    "SEED_VOLTAGES_V",
+    "SweepPoint",
+    "fig_sweep",
+    "run_sweep",
+    "sweep_points",
+]
+
+#: NaAlg concentrations, % w/v (seed 003 part 1, "Materials").
+SEED_CONCENTRATIONS_PCT = (0.15, 0.20, 0.25, 1.0, 1.5, 2.0)
+#: Excitation voltages, V (seed 003 part 1, Table 1).
+SEED_VOLTAGES_V = (40.0, 45.0, 50.0, 55.0, 60.0, 65.0, 70.0)
+#: Voltage of the concentration series, V (seed 003 part 1, Fig. 4).
+FIG4_VOLTAGE_V = 50.0
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One simulation of a sweep."""
+
+    concentration_pct: float
+    voltage_v: float
+
+
+def sweep_points(
+    concentrations_pct: Sequence[float] = SEED_CONCENTRATIONS_PCT,
+    voltages_v: Sequence[float] = SEED_VOLTAGES_V,
+    *,
+    voltage_concentration_pct: float = 1.0,
+) -> list[SweepPoint]:
+    """The concentration series at 50 V, then the voltage series at one concentration.
+
+    Parameters
+    ----------
+    concentrations_pct : sequence of float
+        Concentrations of the 50 V series, % w/v.
+    voltages_v : sequence of float
+        Voltages of the voltage series, V (may be empty).
+    voltage_concentration_pct : float, optional
+        Concentration of the voltage series, % w/v.
+
+    Returns
+    -------
+    list of SweepPoint
+        Without duplicates, in run order.
+
+    Examples
+    --------
+    >>> [(p.concentration_pct, p.voltage_v) for p in sweep_points([0.15, 1.0], [50, 60])]
+    [(0.15, 50.0), (1.0, 50.0), (1.0, 60.0)]
+    """
+    out: list[SweepPoint] = []
+    for c in concentrations_pct:
+        out.append(SweepPoint(float(c), FIG4_VOLTAGE_V))
+    for v in voltages_v:
+        out.append(SweepPoint(float(voltage_concentration_pct), float(v)))
+    return list(dict.fromkeys(out))
+
+
+def run_sweep(
+    points: Sequence[SweepPoint],
+    *,
+    duration_s: float = 400e-6,
+    results_path: str | Path | None = None,
+    simulate: Callable[[SweepPoint, float], dict[str, Any]] | None = None,
+    progress: Callable[[int, SweepPoint], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Simulate every point, saving and resuming through ``results_path``.
+
+    Parameters
+    ----------
+    points : sequence of SweepPoint
+        What to run (:func:`sweep_points`).
+    duration_s : float, optional
+        Simulated time per point, s.
+    results_path : str or Path, optional
+        JSON file holding ``{"settings": ..., "rows": [...]}``. Rows already there for
+        the same settings are reused; the file is rewritten atomically after each point.
+    simulate : callable, optional
+        ``(point, duration_s) → summary dict``; default: :func:`.droplet.simulate_droplet`
+        with the seed's bipolar waveform, ``DropletResult.to_dict()``.
+    progress : callable, optional
+        Called with (index, point) before each simulation that is actually run.
+
+    Returns
+    -------
+    list of dict
+        One summary per point, in the order of ``points``.
+
+    Raises
+    ------
+    ValueError
+        If ``duration_s`` is not positive, or ``results_path`` holds a sweep with other
+        settings (remove it or choose another file).
+    """
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise ValueError(f"duration_s must be a positive time, got {duration_s} s")
+    sim = simulate or _simulate
+    settings = {"duration_s": duration_s}
+    done: dict[tuple[float, float], dict[str, Any]] = {}
+    path = Path(results_path) if results_path is not None else None
+    if path is not None and path.exists():
+        saved = json.loads(path.read_text(encoding="utf-8"))
+        if saved.get("settings") != settings:
+            raise ValueError(
+                f"{path} holds a sweep with settings {saved.get('settings')}, not {settings}; "
+                "remove it or choose another file"
+            )
+        for row in saved.get("rows", []):
+            done[(row["concentration_pct"], row["voltage_v"])] = row
+    rows: list[dict[str, Any]] = []
+    for i, p in enumerate(points):
+        key = (p.concentration_pct, p.voltage_v)
+        if key not in done:
+            if progress is not None:
+                progress(i, p)
+            row = dict(sim(p, duration_s))
+            row.update(asdict(p))
+            done[key] = row
+            if path is not None:
+                atomic_write_json(path, {"settings": settings, "rows": list(done.values())})
+        rows.append(done[key])
+    return rows
+
+
+def _simulate(point: SweepPoint, duration_s: float) -> dict[str, Any]:
+    from microfab.process.inkjet.droplet import simulate_droplet
+    from microfab.process.inkjet.fluids import naalg
+    from microfab.process.inkjet.waveform import seed003_waveform
+
+    res = simulate_droplet(
+        naalg(point.concentration_pct),
+        seed003_waveform(point.voltage_v),
+        duration_s=duration_s,
+        after_breakup_s=20e-6,
+    )
+    return res.to_dict()
+
+
+def fig_sweep(
+    rows: Sequence[dict[str, Any]],
+    *,
+    seed_points: dict[float, tuple[float, str]] | None = None,
+) -> Figure:
+    """Breakup time against concentration (50 V) and against voltage.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        From :func:`run_sweep`.
+    seed_points : dict, optional
+        Concentration → (breakup time s, mode) quoted by the seed, drawn as open markers.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels; points without breakup are drawn at the top of the axis as crosses.
+    """
+    fig = new_figure(9.0, 3.6)
+    ax_c, ax_v = fig.subplots(1, 2)
+    at50 = sorted(
+        (r for r in rows if r["voltage_v"] == FIG4_VOLTAGE_V), key=lambda r: r["concentration_pct"]
+    )
+    by_c: dict[float, list[dict[str, Any]]] = {}
+    for r in rows:
+        by_c.setdefault(r["concentration_pct"], []).append(r)
+    series_c = max(by_c, key=lambda c: len(by_c[c])) if by_c else None
+    at_c = sorted(by_c.get(series_c, []), key=lambda r: r["voltage_v"])
+    for ax, data, key, label in (
+        (ax_c, at50, "concentration_pct", "NaAlg concentration, % w/v"),
+        (ax_v, at_c, "voltage_v", "drive voltage, V"),
+    ):
+        xs = [r[key] for r in data if r["breakup_time_s"] is not None]
+        ys = [r["breakup_time_s"] * 1e6 for r in data if r["breakup_time_s"] is not None]
+        ax.plot(xs, ys, "o-", color="C0", label="model")
+        for r in data:
+            if r["breakup_time_s"] is not None:
+                ax.annotate(
+                    str(r["breakup_mode"]),
+                    (r[key], r["breakup_time_s"] * 1e6),
+                    textcoords="offset points",
+                    xytext=(4, 4),
+                    fontsize=7,
+                )
+        missing = [r[key] for r in data if r["breakup_time_s"] is None]
+        if missing:
+            top = max(max(ys, default=0.0) * 1.1, 1.0)
+            ax.plot(missing, [top] * len(missing), "x", color="C3", label="no breakup")
+        ax.set_xlabel(label)
+        ax.set_ylabel("first breakup time, µs")
+        ax.grid(True, alpha=0.3)
+    if seed_points:
+        cs = sorted(seed_points)
+        ax_c.plot(
+            cs,
+            [seed_points[c][0] * 1e6 for c in cs],
+            "s",
+            mfc="none",
+            color="k",
+            label="seed (Fig. 2)",
+        )
+    ax_c.set_title(f"breakup time at {FIG4_VOLTAGE_V:g} V (cf. seed Fig. 4)")
+    ax_v.set_title("voltage trend" + ("" if series_c is None else f" at {series_c:g} % NaAlg"))
+    ax_c.legend(fontsize=8)
+    return fig

@@ -1,0 +1,59 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from microfab.process.inkjet.sweep import SweepPoint, fig_sweep, run_sweep, sweep_points
+
+
+def _fake(calls: list[SweepPoint]):
+    def sim(p: SweepPoint, duration_s: float) -> dict[str, Any]:
+        calls.append(p)
+        t = None if p.concentration_pct > 1.5 else 1e-4 * (1 + p.concentration_pct)
+        return {"breakup_time_s": t, "breakup_mode": None if t is None else "exit"}
+
+    return sim
+
+
+def test_points_cover_both_series_once() -> None:
+    pts = sweep_points([0.15, 1.0], [45, 50, 55])
+    assert pts == [
+        SweepPoint(0.15, 50.0),
+        SweepPoint(1.0, 50.0),
+        SweepPoint(1.0, 45.0),
+        SweepPoint(1.0, 55.0),
+    ]
+
+
+def test_sweep_saves_each_point_and_resumes(tmp_path: Path) -> None:
+    path = tmp_path / "sweep.json"
+    pts = sweep_points([0.15, 1.0, 2.0], [60])
+    calls: list[SweepPoint] = []
+    rows = run_sweep(pts[:2], results_path=path, simulate=_fake(calls))
+    assert len(calls) == 2 and len(rows) == 2
+    assert len(json.loads(path.read_text())["rows"]) == 2
+    rows = run_sweep(pts, results_path=path, simulate=_fake(calls))
+    assert [c for c in calls[2:]] == pts[2:]  # only the new points ran
+    assert [(r["concentration_pct"], r["voltage_v"]) for r in rows] == [
+        (p.concentration_pct, p.voltage_v) for p in pts
+    ]
+
+
+def test_sweep_refuses_a_file_with_other_settings(tmp_path: Path) -> None:
+    path = tmp_path / "sweep.json"
+    run_sweep([SweepPoint(1.0, 50.0)], results_path=path, simulate=_fake([]))
+    with pytest.raises(ValueError, match="other file"):
+        run_sweep([SweepPoint(1.0, 50.0)], duration_s=1e-4, results_path=path, simulate=_fake([]))
+    with pytest.raises(ValueError, match="duration"):
+        run_sweep([SweepPoint(1.0, 50.0)], duration_s=0.0, simulate=_fake([]))
+
+
+def test_fig_sweep_draws_both_panels() -> None:
+    rows = run_sweep(sweep_points([0.15, 1.0, 2.0], [45, 55]), simulate=_fake([]))
+    fig = fig_sweep(rows, seed_points={0.15: (95e-6, "front"), 1.0: (230e-6, "exit")})
+    ax_c, ax_v = fig.axes
+    assert len(ax_c.lines) == 3  # model, no-breakup crosses, seed
+    assert list(ax_v.lines[0].get_xdata()) == [45.0, 50.0, 55.0]
