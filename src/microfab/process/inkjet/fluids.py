@@ -8,8 +8,8 @@ Sodium alginate (NaAlg) in deionised water is the ink of seed 003 part 1
 2 % w/v through a 120 µm MicroFab orifice. The seed gives no fluid properties, so they live
 in ``microfab/data/naalg.toml`` with a ``*_source`` string for every value. No measured values
 of these solutions could be retrieved (see the file header): all entries are documented
-assumptions, and the relaxation law is a placeholder until it is calibrated from the seed's
-breakup times.
+assumptions, and the relaxation law is calibrated from the seed's two breakup times
+(:mod:`.calibration`, ``microfab droplet calibrate``).
 
 Interpolation between the table points (`naalg`)
 ------------------------------------------------
@@ -402,7 +402,7 @@ def load_table(path: str | os.PathLike[str] | None = None) -> NaAlgTable:
     >>> [float(c) for c in t.concentration_pct]
     [0.15, 0.2, 0.25, 1.0, 1.5, 2.0]
     >>> t.relaxation_status
-    'uncalibrated'
+    'calibrated'
     """
     if path is None:
         text = resources.files("microfab.data").joinpath(_TABLE_FILE).read_text(encoding="utf-8")

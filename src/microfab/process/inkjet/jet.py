@@ -348,7 +348,7 @@ def cap_body(
     Examples
     --------
     >>> b = cap_body(cap_volume(0.5))
-    >>> round(b.z[-1], 12)
+    >>> round(float(b.z[-1]), 12)
     0.5
     """
     if not volume > 0.0:
