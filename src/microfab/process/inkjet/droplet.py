@@ -121,7 +121,8 @@ class DropletResult:
     drop_volume_m3 : float
         Volume of the leading body at the end.
     outcome : str
-        "breakup", "no breakup within the simulated time" or "no ejection".
+        "breakup", "no breakup within the simulated time", "no ejection" or "solver stopped
+        early (reason), no breakup before" (step or grid limit, collapsed step).
     silhouettes : tuple of Silhouette
         Snapshots for images and figures.
     scales : Scales
@@ -174,6 +175,7 @@ class DropletResult:
             "z_number": self.numbers.z_number,
             "solver_steps": self.run.steps,
             "solver_rejected_steps": self.run.rejected,
+            "solver_stop_reason": self.run.stop_reason,
         }
 
 
@@ -341,6 +343,8 @@ def _summarise(
         window = t_s >= t_s[-1] - 30e-6
         out = bool(bodies) and lead is not None and lead.z[-1] > 1.0
         outcome = "no breakup within the simulated time" if out else "no ejection"
+        if run.stop_reason != "end time reached":
+            outcome = f"solver stopped early ({run.stop_reason}), no breakup before"
     moving = window & (tip_z > 0.0)
     if np.count_nonzero(moving) >= 2 and np.ptp(t_s[moving]) > 0:
         head_speed = float(np.polyfit(t_s[moving], tip_z[moving], 1)[0])
