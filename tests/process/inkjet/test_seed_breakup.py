@@ -11,15 +11,14 @@ import itertools
 
 import pytest
 
-from microfab.process.inkjet.calibration import SEED_BREAKUP
-from microfab.process.inkjet.droplet import simulate_droplet
-from microfab.process.inkjet.fluids import load_table, naalg
+from microfab.process.inkjet.calibration import SEED_BREAKUP, simulated_breakup
+from microfab.process.inkjet.fluids import load_table
 from microfab.process.inkjet.sweep import SEED_CONCENTRATIONS_PCT
 
 
 def _breakup(c: float) -> tuple[float | None, str | None]:
-    res = simulate_droplet(naalg(c), duration_s=400e-6, after_breakup_s=2e-6)
-    return res.breakup_time_s, res.breakup_mode
+    # the calibration's own model run, with the stored law's relaxation time
+    return simulated_breakup(c, load_table().relaxation_time_s(c))
 
 
 @pytest.fixture(scope="module")
