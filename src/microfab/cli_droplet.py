@@ -150,6 +150,9 @@ def sweep_cmd(
     ] = 1.0,
     duration: Annotated[float, typer.Option(help="Simulated time per point, µs.")] = 400.0,
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet-sweep"),
+    jobs: Annotated[
+        int, typer.Option(min=1, help="Points simulated side by side (worker processes).")
+    ] = 1,
 ) -> None:
     """Redraw Fig. 4 (breakup time against concentration) and the 40-70 V trend.
 
@@ -175,11 +178,12 @@ def sweep_cmd(
                 points,
                 duration_s=duration * 1e-6,
                 results_path=out / "sweep.json",
-                progress=lambda i, p: bar.update(
+                progress=lambda n, p: bar.update(
                     task,
-                    completed=i,
-                    description=f"{p.concentration_pct:g} %, {p.voltage_v:g} V",
+                    completed=n,
+                    description=f"done {p.concentration_pct:g} %, {p.voltage_v:g} V",
                 ),
+                jobs=jobs,
             )
             bar.update(task, completed=len(points))
     except ValueError as exc:

@@ -18,6 +18,45 @@ def _fake(calls: list[SweepPoint]):
     return sim
 
 
+def _picklable_sim(p: SweepPoint, duration_s: float) -> dict[str, Any]:
+    if p.voltage_v == 66.0:
+        raise ValueError("voltage 66 V: this stand-in model refuses it")
+    return {"breakup_time_s": 1e-4 * p.concentration_pct, "breakup_mode": "exit"}
+
+
+def test_parallel_sweep_keeps_order_and_saves_every_point(tmp_path: Path) -> None:
+    path = tmp_path / "sweep.json"
+    pts = sweep_points([0.15, 1.0, 1.5], [40, 60])
+    seen: list[int] = []
+    rows = run_sweep(
+        pts,
+        results_path=path,
+        simulate=_picklable_sim,
+        jobs=2,
+        progress=lambda n, p: seen.append(n),
+    )
+    assert [(r["concentration_pct"], r["voltage_v"]) for r in rows] == [
+        (p.concentration_pct, p.voltage_v) for p in pts
+    ]
+    assert [r["breakup_time_s"] for r in rows] == [1e-4 * p.concentration_pct for p in pts]
+    assert seen == [1, 2, 3, 4, 5]
+    assert len(json.loads(path.read_text())["rows"]) == len(pts)
+
+
+def test_parallel_sweep_keeps_the_points_that_finished_when_one_fails(tmp_path: Path) -> None:
+    path = tmp_path / "sweep.json"
+    pts = sweep_points([0.15, 1.0], [66])
+    with pytest.raises(ValueError, match="66 V"):
+        run_sweep(pts, results_path=path, simulate=_picklable_sim, jobs=2)
+    saved = json.loads(path.read_text())["rows"]
+    assert sorted((r["concentration_pct"], r["voltage_v"]) for r in saved) == [
+        (0.15, 50.0),
+        (1.0, 50.0),
+    ]
+    with pytest.raises(ValueError, match="jobs"):
+        run_sweep(pts, simulate=_picklable_sim, jobs=0)
+
+
 def test_points_cover_both_series_once() -> None:
     pts = sweep_points([0.15, 1.0], [45, 50, 55])
     assert pts == [

@@ -14,6 +14,7 @@ import dataclasses
 import json
 import math
 from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -94,6 +95,7 @@ def run_sweep(
     results_path: str | Path | None = None,
     simulate: Callable[[SweepPoint, float], dict[str, Any]] | None = None,
     progress: Callable[[int, SweepPoint], None] | None = None,
+    jobs: int = 1,
 ) -> list[dict[str, Any]]:
     """Simulate every point, saving and resuming through ``results_path``.
 
@@ -108,9 +110,14 @@ def run_sweep(
         the same settings are reused; the file is rewritten atomically after each point.
     simulate : callable, optional
         ``(point, duration_s) → summary dict``; default: :func:`.droplet.simulate_droplet`
-        with the seed's bipolar waveform, ``DropletResult.to_dict()``.
+        with the seed's bipolar waveform, ``DropletResult.to_dict()``. With ``jobs > 1``
+        it must be picklable (a module-level function).
     progress : callable, optional
-        Called with (index, point) before each simulation that is actually run.
+        Called with (number of points finished, point) after each simulation that is
+        actually run.
+    jobs : int, optional
+        Worker processes. ``1`` runs the points one after another in this process; more
+        run them side by side, each finished point saved as soon as it comes back.
 
     Returns
     -------
@@ -120,11 +127,13 @@ def run_sweep(
     Raises
     ------
     ValueError
-        If ``duration_s`` is not positive, or ``results_path`` holds a sweep with other
-        settings (remove it or choose another file).
+        If ``duration_s`` is not positive, ``jobs`` is below 1, or ``results_path`` holds
+        a sweep with other settings (remove it or choose another file).
     """
     if not (math.isfinite(duration_s) and duration_s > 0):
         raise ValueError(f"duration_s must be a positive time, got {duration_s} s")
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs}")
     sim = simulate or _simulate
     settings = {"duration_s": duration_s}
     done: dict[tuple[float, float], dict[str, Any]] = {}
@@ -138,19 +147,43 @@ def run_sweep(
             )
         for row in saved.get("rows", []):
             done[(row["concentration_pct"], row["voltage_v"])] = row
-    rows: list[dict[str, Any]] = []
-    for i, p in enumerate(points):
-        key = (p.concentration_pct, p.voltage_v)
-        if key not in done:
-            if progress is not None:
-                progress(i, p)
-            row = dict(sim(p, duration_s))
-            row.update(asdict(p))
-            done[key] = row
-            if path is not None:
-                atomic_write_json(path, {"settings": settings, "rows": list(done.values())})
-        rows.append(done[key])
-    return rows
+    unique = list(dict.fromkeys(points))
+    todo = [p for p in unique if (p.concentration_pct, p.voltage_v) not in done]
+    finished = len(unique) - len(todo)
+
+    def keep(p: SweepPoint, result: dict[str, Any]) -> None:
+        nonlocal finished
+        row = dict(result)
+        row.update(asdict(p))
+        done[(p.concentration_pct, p.voltage_v)] = row
+        if path is not None:
+            atomic_write_json(path, {"settings": settings, "rows": list(done.values())})
+        finished += 1
+        if progress is not None:
+            progress(finished, p)
+
+    if jobs == 1 or len(todo) <= 1:
+        for p in todo:
+            keep(p, sim(p, duration_s))
+    else:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:
+            running: dict[Future[dict[str, Any]], SweepPoint] = {
+                pool.submit(sim, p, duration_s): p for p in todo
+            }
+            failed: BaseException | None = None
+            while running:
+                ready, _ = wait(running, return_when=FIRST_COMPLETED)
+                for fut in ready:
+                    p = running.pop(fut)
+                    try:
+                        result = fut.result()
+                    except Exception as exc:  # keep what the other workers finish
+                        failed = failed or exc
+                        continue
+                    keep(p, result)
+            if failed is not None:
+                raise failed
+    return [done[(p.concentration_pct, p.voltage_v)] for p in points]
 
 
 def _simulate(point: SweepPoint, duration_s: float) -> dict[str, Any]:
