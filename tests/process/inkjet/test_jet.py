@@ -12,6 +12,8 @@ from microfab.process.inkjet.jet import (
     Body,
     JetModel,
     Numerics,
+    _split,
+    _State,
     cap_body,
     cap_volume,
     run_jet,
@@ -124,6 +126,26 @@ def test_mass_is_conserved_through_injection_regrid_and_breakup() -> None:
     assert run.injected.max() > 5 * vol0  # liquid really went through the nozzle
 
 
+@pytest.mark.parametrize(("h_cut", "z_ends"), [(0.01, (3.9, 4.0)), (0.015, (3.0, 5.0))])
+def test_a_cut_removes_the_thin_thread_around_the_neck(
+    h_cut: float, z_ends: tuple[float, float]
+) -> None:
+    # thick on [0, 3] and [5, 8], a 0.012 thread between, its neck (0.008) in cell 39
+    z = np.linspace(0.0, 8.0, 81)
+    mid = 0.5 * (z[1:] + z[:-1])
+    h = np.where((mid > 3.0) & (mid < 5.0), 0.012, 1.0)
+    h[39] = 0.008
+    w = h**2 * np.diff(z)
+    body = Body(
+        z=z, v=np.zeros(81), w=w, a_zz=np.ones(80), a_rr=np.ones(80), left="tip", right="tip"
+    )
+    st, remnant, lost = _split(_State.from_bodies([body]), 39, h_cut)
+    left, right = st.bodies()
+    assert (left.z[-1], right.z[0]) == pytest.approx(z_ends)
+    assert remnant == 0.0 and lost == 0.0
+    assert left.volume + right.volume == pytest.approx(w.sum(), rel=1e-14)
+
+
 def test_model_and_numerics_reject_bad_values() -> None:
     with pytest.raises(ValueError, match="Ohnesorge"):
         JetModel(ohnesorge=0.0)
@@ -133,6 +155,8 @@ def test_model_and_numerics_reject_bad_values() -> None:
         JetModel(ohnesorge=0.1, extensibility_l2=2.0)
     with pytest.raises(ValueError, match="dz_min"):
         Numerics(dz_min=1.0, dz_max=0.5)
+    with pytest.raises(ValueError, match="cut_radius_factor"):
+        Numerics(cut_radius_factor=0.5)
     with pytest.raises(ValueError, match="cap volume"):
         cap_body(0.0)
 
