@@ -71,6 +71,11 @@ def test_sweep_writes_figure_and_resumable_results(tmp_path: Path) -> None:
 
 
 def test_sweep_refuses_bad_input(tmp_path: Path) -> None:
-    for extra in (["--voltages", "30"], ["--concentrations", "-1"], ["--concentrations", "a"]):
+    for extra in (
+        ["--voltages", "30"],
+        ["--concentrations", "-1"],
+        ["--concentrations", "a"],
+        ["--jobs", "0"],
+    ):
         res = runner.invoke(app, ["droplet", "sweep", *extra, "--out", str(tmp_path)])
         assert res.exit_code == 2, (extra, res.output)
