@@ -710,7 +710,7 @@ def run_jet(
                 # damp but that the error estimate cannot tell from truncation error;
                 # the first step on a new grid keeps the step size already controlled.
                 err = min(err, 1.0)
-            if y_new is None or err > 1.0:
+            if y_new is None or not err <= 1.0:  # a NaN error estimate is a failure too
                 rejected += 1
                 h *= 0.25 if y_new is None else max(0.2, 0.9 / math.sqrt(err))
                 if h < 1e-14:
