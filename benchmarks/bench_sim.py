@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from microfab.control.ilc import FrequencyILC, Trial
-from microfab.machines.galvo import galvo_twin
+from microfab.machines.galvo import discrete_controller, galvo_twin
 from microfab.plants.galvo import default_galvo_axes
 from microfab.sim.components import LTIController, LTIPlant
 from microfab.sim.loop import simulate, simulate_python
@@ -44,7 +44,7 @@ def bench_ilc(rate: int, iterations: int = 30) -> tuple[float, float]:
 
 def bench_per_sample(n_fast: int = 1_000_000, n_py: int = 20_000) -> None:
     ax = default_galvo_axes()["x"]
-    plant, ctrl = LTIPlant(ax.discrete_plant()), LTIController(ax.discrete_controller())
+    plant, ctrl = LTIPlant(ax.discrete_plant()), LTIController(discrete_controller(ax))
     rng = np.random.default_rng(0)
     ref = np.tile(square_scan(400, (1.0, 1.44), 1e6)[:, :1], (n_fast // 2500, 1))
     noise = rng.normal(0, ax.noise_rms_v, ref.shape)
@@ -55,7 +55,7 @@ def bench_per_sample(n_fast: int = 1_000_000, n_py: int = 20_000) -> None:
     t0 = time.perf_counter()
     simulate_python(plant, ctrl, ref[:n_py], noise[:n_py])
     t_py = time.perf_counter() - t0
-    loop = LTILoop([ax.discrete_plant()], [ax.discrete_controller()])
+    loop = LTILoop([ax.discrete_plant()], [discrete_controller(ax)])
     loop.run(ref[:100], noise[:100])
     loop.reset()
     t0 = time.perf_counter()

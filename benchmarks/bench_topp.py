@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from microfab.machines.limits import MachineLimits
+from microfab.core.limits import MachineLimits
 from microfab.trajectory.optimal import time_optimal
 
 N_GRID = 1000

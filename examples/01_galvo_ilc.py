@@ -11,8 +11,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from microfab.experiments.msl_ilc import run_msl_ilc
-from microfab.report.figures import fig_xy, save_figure
+from microfab.experiments.seed000_msl.figures import fig_xy, save_figure
+from microfab.experiments.seed000_msl.run import run_msl_ilc
 
 
 def main(iterations: int = 10, out_dir: Path = Path()) -> Path:

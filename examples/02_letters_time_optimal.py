@@ -14,8 +14,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from microfab.core.limits import MachineLimits
 from microfab.geometry.load import load_drawing
-from microfab.machines.limits import MachineLimits
 from microfab.report.canvas import save_figure
 from microfab.report.geometry import fig_profile
 from microfab.trajectory.optimal import time_optimal

@@ -11,10 +11,10 @@ import pytest
 
 import microfab.control.ilc as ilc_mod
 from microfab.control.ilc import FrequencyILC, Trial
+from microfab.core.limits import AxisLimits, LimitViolation
 from microfab.io.trace import read_columns, write_columns
 from microfab.machines.files import TrialFileError, ilc_step
 from microfab.machines.galvo import galvo_twin
-from microfab.machines.limits import AxisLimits, LimitViolation
 from microfab.trajectory.periodic import square_scan
 
 AXES = ("x", "y")

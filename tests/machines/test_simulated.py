@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from microfab.core.limits import AxisLimits, LimitViolation
 from microfab.machines.base import Machine, Measurement
-from microfab.machines.galvo import GALVO_LIMITS, galvo_twin
-from microfab.machines.limits import AxisLimits, LimitViolation
+from microfab.machines.galvo import GALVO_LIMITS, discrete_controller, galvo_twin
 from microfab.machines.simulated import SimulatedMachine
 from microfab.plants.galvo import default_galvo_axes
 from microfab.trajectory.periodic import square_scan
@@ -110,7 +110,7 @@ def test_machine_keeps_running_between_calls(square):
 def test_validation(square):
     axes = default_galvo_axes()
     plants = [a.discrete_plant() for a in axes.values()]
-    ctrls = [a.discrete_controller() for a in axes.values()]
+    ctrls = [discrete_controller(a) for a in axes.values()]
     with pytest.raises(ValueError, match="noise level"):
         SimulatedMachine(plants, ctrls, ("x", "y"), [1e-3], GALVO_LIMITS)
     with pytest.raises(ValueError, match="settle_periods"):

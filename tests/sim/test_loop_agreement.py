@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from microfab.machines.galvo import discrete_controller
 from microfab.plants.galvo import GalvoAxis, default_galvo_axes
 from microfab.plants.lti import DiscreteLTI, block_diag
 from microfab.sim.components import Controller, LTIController, LTIPlant, Plant
@@ -44,7 +45,7 @@ def ref_noise(axes):
 def per_sample(axes):
     """Both axes as one block-diagonal plant and controller for the per-sample loop."""
     plant = LTIPlant(block_diag(*(a.discrete_plant() for a in axes.values())))
-    ctrl = LTIController(block_diag(*(a.discrete_controller() for a in axes.values())))
+    ctrl = LTIController(block_diag(*(discrete_controller(a) for a in axes.values())))
     return plant, ctrl
 
 
@@ -58,7 +59,7 @@ def numba_run(per_sample, ref_noise, names):
 def make_loop(axes, names) -> LTILoop:
     return LTILoop(
         [a.discrete_plant() for a in axes.values()],
-        [a.discrete_controller() for a in axes.values()],
+        [discrete_controller(a) for a in axes.values()],
         names,
     )
 
@@ -145,7 +146,7 @@ def test_lti_loop_validation(axes, names, ref_noise):
     with pytest.raises(ValueError, match="one plant and one controller"):
         LTILoop([axes["x"].discrete_plant()], [], names)
     # a controller with the wrong sign makes the loop unstable
-    c = axes["x"].discrete_controller()
+    c = discrete_controller(axes["x"])
     neg = DiscreteLTI(c.A, c.B, -c.C, -c.D, c.dt)
     with pytest.raises(ValueError, match="unstable"):
         LTILoop([axes["x"].discrete_plant()], [neg])
@@ -176,7 +177,7 @@ def test_block_simulator_matches_direct_recursion():
 
 def test_closed_loop_ss_validation(axes):
     p = axes["x"].discrete_plant()
-    c = axes["x"].discrete_controller()
+    c = discrete_controller(axes["x"])
     with pytest.raises(ValueError, match="strictly proper"):
         closed_loop_ss(c, c)  # the Tustin controller has feed-through
     with pytest.raises(ValueError, match="controller must map"):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from microfab.machines.limits import LimitViolation, MachineLimits, check_trajectory
+from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.report.geometry import fig_profile
 from microfab.trajectory.base import Trajectory
 from microfab.trajectory.optimal import (

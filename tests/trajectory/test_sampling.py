@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.geometry.shapes import circle, rectangle, spiral, square
-from microfab.machines.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.trajectory.sampling import constant_speed, periodic
 
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from microfab.arrays import readonly
+from microfab.core.arrays import readonly
 from microfab.geometry.layer import Layer
 from microfab.geometry.path import Path
 

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
+from microfab.core.limits import AxisLimits, check_command
 from microfab.io.trace import read_columns, write_columns
-from microfab.machines.limits import AxisLimits, check_command
 
 __all__ = ["StepReport", "TrialFileError", "ilc_step", "read_trial_file", "write_input_file"]
 
@@ -147,7 +147,7 @@ def ilc_step(
     TrialFileError
         Bad trial: see `read_trial_file`; also sample time, length or axes that differ from
         the state's, a reference that changed, or a trial already learned from.
-    microfab.machines.limits.LimitViolation
+    microfab.core.limits.LimitViolation
         The next input would exceed the declared limits (nothing is written).
     """
     trial = read_trial_file(trial_path)

@@ -1,14 +1,32 @@
-"""The galvo-scanner MSL twin of seed 000 as a `SimulatedMachine`."""
+"""The galvo-scanner MSL twin of seed 000: each axis stabilised by eq. (1) lead-lag feedback.
+
+The plant (`microfab.plants.galvo.GalvoAxis`) is open loop; this module closes the loop
+with the seed's controller and gives the stabilised scanner that the ILC sees, as
+transfer functions (`open_loop`, `complementary_sensitivity`) and as a `SimulatedMachine`
+(`galvo_twin`).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from microfab.machines.limits import AxisLimits
+import numpy as np
+
+import control
+from microfab.control.leadlag import lead_lag
+from microfab.core.limits import AxisLimits
 from microfab.machines.simulated import SimulatedMachine
 from microfab.plants.galvo import GalvoAxis, default_galvo_axes
+from microfab.plants.lti import DiscreteLTI, discretize
 
-__all__ = ["GALVO_LIMITS", "galvo_twin"]
+__all__ = [
+    "GALVO_LIMITS",
+    "complementary_sensitivity",
+    "controller_tf",
+    "discrete_controller",
+    "galvo_twin",
+    "open_loop",
+]
 
 # Declared command limits of the twin, in encoder volts. Not from the seed: position is the
 # +-10 V range of the DAQ analogue output that feeds the loop (seed 000 §3.2 names a Keysight
@@ -44,10 +62,57 @@ def galvo_twin(
     ax = dict(axes) if axes is not None else default_galvo_axes()
     return SimulatedMachine(
         [a.discrete_plant() for a in ax.values()],
-        [a.discrete_controller() for a in ax.values()],
+        [discrete_controller(a) for a in ax.values()],
         axes=tuple(ax),
         noise_rms=[a.noise_rms_v for a in ax.values()],
         limits=limits if limits is not None else GALVO_LIMITS,
         seed=seed,
         settle_periods=settle_periods,
     )
+
+
+def controller_tf(axis: GalvoAxis) -> control.TransferFunction:
+    """Continuous lead-lag controller of seed 000 eq. (1), designed on the nominal model.
+
+    Parameters
+    ----------
+    axis : GalvoAxis
+        The axis; its ``crossover_hz`` places the crossover (seed 000 §3.1: 2 kHz).
+    """
+    return lead_lag(axis.model(gain_ratio=1.0), axis.crossover_hz)
+
+
+def discrete_controller(axis: GalvoAxis) -> DiscreteLTI:
+    """Tustin-discretised lead-lag controller at the axis' ``fs_hz`` (seed 000 §3.1: 1 MHz)."""
+    return discretize(controller_tf(axis), axis.dt, "tustin")
+
+
+def open_loop(axis: GalvoAxis) -> DiscreteLTI:
+    """Discrete open loop ``L = C G`` (controller then plant), for margins (seed 000 §3.1)."""
+    c = discrete_controller(axis)
+    p = axis.discrete_plant()
+    ser = control.series(control.ss(c.A, c.B, c.C, c.D, c.dt), control.ss(p.A, p.B, p.C, p.D, p.dt))
+    return DiscreteLTI(ser.A, ser.B, ser.C, ser.D, axis.dt)
+
+
+def complementary_sensitivity(axis: GalvoAxis, freq_hz: np.ndarray) -> np.ndarray:
+    """``T = L / (1 + L)`` of the stabilised scanner ``P`` at ``freq_hz`` (complex).
+
+    Parameters
+    ----------
+    axis : GalvoAxis
+        The axis.
+    freq_hz : numpy.ndarray
+        Frequencies, Hz, any shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex response, shape of ``freq_hz``; at DC, where ``L`` has a pole, ``T = 1``.
+    """
+    f = np.asarray(freq_hz, dtype=float)
+    L = open_loop(axis).frequency_response(f)[:, 0, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        T = L / (1.0 + L)
+    T[~np.isfinite(L)] = 1.0
+    return T.reshape(f.shape)

@@ -6,8 +6,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from microfab.core.limits import AxisLimits, check_command
 from microfab.machines.base import Measurement
-from microfab.machines.limits import AxisLimits, check_command
 from microfab.plants.lti import DiscreteLTI
 from microfab.sim.lti_fast import LTILoop
 
@@ -73,7 +73,7 @@ class SimulatedMachine:
 
         Raises
         ------
-        microfab.machines.limits.LimitViolation
+        microfab.core.limits.LimitViolation
             When the command exceeds the declared limits (nothing is run).
         """
         cmd = np.asarray(command, dtype=float)

@@ -6,11 +6,12 @@ Open-loop model, in encoder volts per command volt:
 
 followed by ``delay_samples`` samples of computation delay at 1 MHz. The rigid body
 (``K / s(s + a)``) is marginally stable; ``w_amp`` is the current amplifier; the ``w_i`` are
-the structural resonances the seed measured. The feedback controller is designed with
-eq. (1) on the *nominal* model (``g = 1``); ``g`` is the ratio of true to nominal gain.
+the structural resonances the seed measured. The feedback controller (`microfab.machines.galvo`)
+is designed with eq. (1) on the *nominal* model (``g = 1``); ``g`` is the ratio of true to
+nominal gain.
 ``K`` itself cancels in the loop (eq. (1) normalises by ``|G(j w_c)|``), so the parameters
 that shape the closed loop are ``a``, ``g``, the damping and the delay. ``a`` and ``g`` are
-calibrated against seed Table 1 by `microfab.plants.galvo_calibration`.
+calibrated against seed Table 1 by `microfab.experiments.seed000_msl.calibration`.
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ from importlib import resources
 import numpy as np
 
 import control
-from microfab.control.leadlag import lead_lag
 from microfab.plants.lti import DiscreteLTI, discretize, with_input_delay
 
 __all__ = ["FS_HZ", "GalvoAxis", "default_galvo_axes"]
@@ -33,7 +33,7 @@ NOMINAL_GAIN = (2 * np.pi * 2000.0) ** 2  # K in V/(V s^2); cancels in the loop 
 
 @dataclass(frozen=True, kw_only=True)
 class GalvoAxis:
-    """One galvanometer scanner axis with its lead-lag feedback.
+    """One galvanometer scanner axis and the design data of its lead-lag feedback.
 
     Parameters
     ----------
@@ -123,38 +123,9 @@ class GalvoAxis:
             sys = control.series(sys, mode)
         return sys
 
-    def controller_tf(self) -> control.TransferFunction:
-        """Continuous lead-lag controller of eq. (1), designed on the nominal model."""
-        return lead_lag(self.model(gain_ratio=1.0), self.crossover_hz)
-
     def discrete_plant(self) -> DiscreteLTI:
         """ZOH plant at ``fs_hz`` with the computation delay appended."""
         return with_input_delay(discretize(self.model(), self.dt, "zoh"), self.delay_samples)
-
-    def discrete_controller(self) -> DiscreteLTI:
-        """Tustin-discretised lead-lag controller at ``fs_hz``."""
-        return discretize(self.controller_tf(), self.dt, "tustin")
-
-    def open_loop(self) -> DiscreteLTI:
-        """Discrete open loop ``L = C G`` (controller then plant)."""
-        c = self.discrete_controller()
-        p = self.discrete_plant()
-        ser = control.series(
-            control.ss(c.A, c.B, c.C, c.D, c.dt), control.ss(p.A, p.B, p.C, p.D, p.dt)
-        )
-        return DiscreteLTI(ser.A, ser.B, ser.C, ser.D, self.dt)
-
-    def complementary_sensitivity(self, freq_hz: np.ndarray) -> np.ndarray:
-        """``T = L / (1 + L)`` of the stabilised scanner ``P`` at ``freq_hz`` (complex).
-
-        At DC, where ``L`` has a pole, ``T = 1``.
-        """
-        f = np.asarray(freq_hz, dtype=float)
-        L = self.open_loop().frequency_response(f)[:, 0, 0]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            T = L / (1.0 + L)
-        T[~np.isfinite(L)] = 1.0
-        return T.reshape(f.shape)
 
     def with_calibration(self, **values: float) -> GalvoAxis:
         """A copy with calibrated parameters replaced."""
@@ -190,7 +161,8 @@ def default_galvo_axes() -> dict[str, GalvoAxis]:
     """The calibrated x and y galvo twins (values from ``data/galvo_twin.toml``).
 
     The file is written by ``microfab calibrate galvo`` (see
-    `microfab.plants.galvo_calibration`); it records the fitted values and their residuals.
+    `microfab.experiments.seed000_msl.calibration`); it records the fitted values and their
+    residuals.
     """
     axes = _seed_axes()
     text = resources.files("microfab.data").joinpath("galvo_twin.toml").read_text()

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from microfab.validate import check_positive
+from microfab.core.validate import check_positive
 
 __all__ = [
     "ENVISIONTEC_R11_ASSUMED",

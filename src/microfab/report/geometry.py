@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from microfab.core.limits import MachineLimits
 from microfab.geometry.layer import Layer
-from microfab.machines.limits import MachineLimits
 from microfab.report.canvas import new_figure
 from microfab.trajectory.base import Trajectory
 

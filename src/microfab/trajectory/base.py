@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from microfab.arrays import readonly
+from microfab.core.arrays import readonly
 from microfab.io.trace import Trace
 
 __all__ = ["Trajectory"]
@@ -35,7 +35,7 @@ class Trajectory:
         Positions, m.
     velocity, acceleration, jerk : array_like, shape (n, n_axes), optional
         Analytic derivatives at the samples, m/s, m/s², m/s³. ``None`` where the
-        generator does not know them; :func:`~microfab.machines.limits.check_trajectory`
+        generator does not know them; :func:`~microfab.core.limits.check_trajectory`
         then relies on finite differences of the samples.
     s : array_like, shape (n,), optional
         Path progress (arc length, m) at each sample, where the trajectory traces a path.

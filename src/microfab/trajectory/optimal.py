@@ -65,7 +65,7 @@ two stops gets at least 4 intervals).
   after the last round is removed by stretching that segment's time by
   ``max(r_v, r_a^{1/2}, r_j^{1/3})``, which scales velocity, acceleration and jerk
   exactly. The spline is then sampled at ``rate_hz`` and must pass
-  :func:`~microfab.machines.limits.check_trajectory` (workspace, analytic values and
+  :func:`~microfab.core.limits.check_trajectory` (workspace, analytic values and
   finite differences of the samples), else :class:`PlanningError` is raised.
 * **Margin.** The LP plans with ``(1 - margin) · limit`` for every limit (velocity,
   acceleration, jerk and feed), so the spline has room to overshoot the discrete profile
@@ -87,8 +87,8 @@ import numpy as np
 from scipy import sparse
 from scipy.optimize import brentq, linprog, minimize_scalar
 
-from microfab.arrays import readonly
-from microfab.machines.limits import LimitViolation, MachineLimits, check_trajectory
+from microfab.core.arrays import readonly
+from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.trajectory.base import Trajectory
 from microfab.trajectory.spline import TimeSpline
 

@@ -43,7 +43,7 @@ def constant_speed(
     ``v = S / T`` as in eq. 15). The last sample lands exactly on the end of the path.
 
     The trajectory starts and ends at full speed, so a machine at rest before and after
-    sees a velocity step: :func:`~microfab.machines.limits.check_trajectory` refuses it
+    sees a velocity step: :func:`~microfab.core.limits.check_trajectory` refuses it
     under any finite acceleration limit. It is the baseline of seed 002, and the way to
     repeat a closed contour (see :func:`periodic`); use
     :func:`~microfab.trajectory.optimal.time_optimal` for a reference a machine can run

@@ -29,7 +29,7 @@ from itertools import pairwise
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator, make_interp_spline
 
-from microfab.arrays import readonly
+from microfab.core.arrays import readonly
 from microfab.trajectory.base import Trajectory
 
 __all__ = ["SplineMaxima", "TimeSpline"]

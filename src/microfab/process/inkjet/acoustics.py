@@ -99,9 +99,9 @@ import scipy.linalg
 import scipy.signal
 from matplotlib.figure import Figure
 
+from microfab.core.validate import check_positive
 from microfab.process.inkjet.waveform import SEED003_DWELL_S, Waveform, seed003_waveform
 from microfab.report.canvas import new_figure
-from microfab.validate import check_positive
 
 __all__ = [
     "REFERENCE_DENSITY_KG_M3",

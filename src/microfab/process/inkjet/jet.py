@@ -49,7 +49,7 @@ from typing import Literal, Protocol
 import numpy as np
 from scipy.linalg import lapack
 
-from microfab.arrays import readonly
+from microfab.core.arrays import readonly
 from microfab.process.inkjet import jet_kernels as jk
 from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
 

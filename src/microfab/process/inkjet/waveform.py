@@ -42,7 +42,7 @@ from typing import Literal
 
 import numpy as np
 
-from microfab.validate import check_positive
+from microfab.core.validate import check_positive
 
 __all__ = [
     "MAX_AMPLITUDE_V",

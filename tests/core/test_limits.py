@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.machines.limits import AxisLimits, LimitViolation, check_command
+from microfab.core.limits import AxisLimits, LimitViolation, check_command
 
 DT = 1e-3
 N = 1000  # one period of 1 s
@@ -107,7 +107,7 @@ def test_axis_limits_validation(kwargs, match):
 
 
 # ---------------------------------------------------------------- MachineLimits
-from microfab.machines.limits import MachineLimits, check_trajectory  # noqa: E402
+from microfab.core.limits import MachineLimits, check_trajectory  # noqa: E402
 from microfab.trajectory.base import Trajectory  # noqa: E402
 
 

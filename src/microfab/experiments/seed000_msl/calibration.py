@@ -21,8 +21,9 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from microfab.experiments.seed000 import RATES, TABLE1_MV
+from microfab.experiments.seed000_msl.paper import RATES, TABLE1_MV
 from microfab.io.atomic import atomic_write_text
+from microfab.machines.galvo import complementary_sensitivity
 from microfab.plants.galvo import GalvoAxis, _seed_axes
 from microfab.trajectory.periodic import square_scan
 
@@ -54,7 +55,7 @@ def fb_error(axis: GalvoAxis, rate: int) -> np.ndarray:
     """Steady-state feedback-only tracking error (V) over one period, noise-free."""
     yd = _reference(axis, rate)
     f = np.fft.rfftfreq(yd.size, axis.dt)
-    T = axis.complementary_sensitivity(f)
+    T = complementary_sensitivity(axis, f)
     return np.fft.irfft((T - 1.0) * np.fft.rfft(yd), n=yd.size)
 
 
@@ -110,7 +111,8 @@ def calibrate_galvo(write_to: str | Path | None = None) -> dict[str, AxisCalibra
     if write_to is not None:
         lines = [
             "# Galvo twin calibration, written by `microfab calibrate galvo`",
-            "# (microfab.plants.galvo_calibration). Fitted to seed 000 Table 1 feedback rows;",
+            "# (microfab.experiments.seed000_msl.calibration).",
+            "# Fitted to seed 000 Table 1 feedback rows;",
             "# residual_pct = model/seed - 1 in % for (RMS, PP) at 100, 200, 400 features/s.",
             "",
         ]

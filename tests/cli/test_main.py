@@ -134,7 +134,7 @@ def _job(tmp_path: Path, extra: str = "") -> Path:
 
 
 def test_run_writes_report(tmp_path):
-    pytest.importorskip("microfab.report.html")
+    pytest.importorskip("microfab.experiments.seed000_msl.report")
     res = CliRunner().invoke(app, ["run", str(_job(tmp_path))])
     assert res.exit_code == 0, res.output
     rep = tmp_path / "rep"
@@ -149,11 +149,11 @@ def test_run_unknown_key(tmp_path, monkeypatch):
     # `run` imports the report writer before reading the job; stand in for it if the
     # colleague's module is not there yet, so this test checks only the job validation.
     try:
-        importlib.import_module("microfab.report.html")
+        importlib.import_module("microfab.experiments.seed000_msl.report")
     except ImportError:
-        stub = types.ModuleType("microfab.report.html")
+        stub = types.ModuleType("microfab.experiments.seed000_msl.report")
         stub.write_report = lambda *a, **k: None  # type: ignore[attr-defined]
-        monkeypatch.setitem(sys.modules, "microfab.report.html", stub)
+        monkeypatch.setitem(sys.modules, "microfab.experiments.seed000_msl.report", stub)
     res = CliRunner().invoke(app, ["run", str(_job(tmp_path, "bogus_key = 1"))])
     assert res.exit_code != 0
     assert "bogus_key" in res.output
@@ -162,7 +162,7 @@ def test_run_unknown_key(tmp_path, monkeypatch):
 
 
 def test_run_unknown_key_names_section(tmp_path):
-    pytest.importorskip("microfab.report.html")
+    pytest.importorskip("microfab.experiments.seed000_msl.report")
     res = CliRunner().invoke(app, ["run", str(_job(tmp_path, "bogus_key = 1"))])
     assert res.exit_code != 0
     assert "in [job]" in res.output

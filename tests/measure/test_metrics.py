@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.metrics import (
+from microfab.measure.metrics import (
     ErrorSpectrum,
     ErrorStats,
     error_psd,

@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from microfab.clikit import console, err_console, fail
+from microfab.cli._kit import console, err_console, fail
 
 __all__ = ["path_app", "trajectory_cmd"]
 
@@ -120,8 +120,8 @@ def trajectory_cmd(
     limit); each option overrides one. Nothing is written if the reference would break
     a limit.
     """
+    from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
     from microfab.io.trace import write_columns
-    from microfab.machines.limits import LimitViolation, MachineLimits, check_trajectory
     from microfab.report.canvas import save_figure
     from microfab.report.geometry import fig_profile
     from microfab.trajectory.sampling import constant_speed

@@ -1,8 +1,7 @@
 """Self-contained HTML report of seed 000 runs: figures, Tables 1 and 2, seed comparison.
 
-:func:`write_report` draws the figures of :mod:`microfab.report.figures` for the main
-rate (the learning transient for every rate), writes them as PNGs next to
-``report.html``, and writes the HTML with tables of our numbers and, when given, our
+:func:`write_report` draws the figures of :mod:`.figures` for the main rate (the
+learning transient for every rate), writes them as PNGs next to ``report.html``, and writes the HTML with tables of our numbers and, when given, our
 numbers beside the seed's. All figures are rendered in memory before anything is
 written, and every file is written atomically, so a failure while drawing leaves the
 directory as it was (no partial or new ``report.html``).
@@ -21,10 +20,10 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from microfab.experiments import seed000
-from microfab.experiments.msl_ilc import MSLRunResult
+from microfab.experiments.seed000_msl import figures
+from microfab.experiments.seed000_msl import paper as seed000
+from microfab.experiments.seed000_msl.run import MSLRunResult
 from microfab.io.atomic import atomic_write_bytes, atomic_write_text
-from microfab.report import figures
 
 __all__ = ["FIGURE_FILES", "fmt_mm_s", "fmt_mv", "write_report"]
 
@@ -308,7 +307,7 @@ def _comparison(tables: Mapping[str, Any]) -> str:
         return ""
     return (
         "<h2>Comparison with seed 000</h2>"
-        '<p class="muted">Seed values from microfab.experiments.seed000; '
+        '<p class="muted">Seed values from microfab.experiments.seed000_msl.paper; '
         "&ldquo;ours/seed&rdquo; is the ratio of our value to the published one "
         f"({_DASH} where the seed has no value).</p>" + "".join(parts)
     )
@@ -337,10 +336,10 @@ def write_report(
         Rate whose run is drawn in the other figures; must be a key of ``runs``.
     tables : dict, optional
         Our numbers as returned by
-        :func:`microfab.experiments.msl_ilc.reproduce_tables`: ``{"table1": {axis:
+        :func:`microfab.experiments.seed000_msl.run.reproduce_tables`: ``{"table1": {axis:
         {rate: {"fb_rms", "fb_pp", "ilc_rms", "ilc_pp"}}}, "table2": {rate: {...}},
         "margins": {axis: {"gm_db", "pm_deg"}}}`` with string rate keys. When given,
-        they are shown beside the seed's values (:mod:`microfab.experiments.seed000`)
+        they are shown beside the seed's values (:mod:`microfab.experiments.seed000_msl.paper`)
         with the ratio ours/seed; missing parts are skipped.
     title : str, optional
         Page title and heading.

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.experiments import seed000
-from microfab.experiments.msl_ilc import reproduce_tables, run_msl_ilc
-from microfab.metrics import learning_transient
+from microfab.experiments.seed000_msl import paper as seed000
+from microfab.experiments.seed000_msl.run import reproduce_tables, run_msl_ilc
+from microfab.measure.metrics import learning_transient
 
 AXES = ("x", "y")
 RATES = seed000.RATES  # seed 000 §4: 100, 200, 400 features/s

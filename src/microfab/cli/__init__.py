@@ -17,9 +17,9 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from microfab.cli_droplet import droplet_app
-from microfab.cli_geometry import path_app, trajectory_cmd
-from microfab.clikit import console, fail, progress
+from microfab.cli._kit import console, fail, progress
+from microfab.cli.droplet import droplet_app
+from microfab.cli.geometry import path_app, trajectory_cmd
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
 reproduce_app = typer.Typer(no_args_is_help=True, help="Reproduce a seed paper on the twin.")
@@ -41,10 +41,10 @@ def run(
     out: Annotated[Path | None, typer.Option(help="Report folder (overrides the job's).")] = None,
 ) -> None:
     """Run a job on the digital twin and write its report (report.html + figures + JSON)."""
-    from microfab.experiments.msl_ilc import run_msl_ilc
+    from microfab.experiments.seed000_msl.report import write_report
+    from microfab.experiments.seed000_msl.run import run_msl_ilc
     from microfab.io.atomic import atomic_write_json
     from microfab.io.job import default_job, load_job
-    from microfab.report.html import write_report
 
     try:
         job = load_job(job_file) if job_file is not None else default_job()
@@ -104,8 +104,8 @@ def reproduce_msl_ilc(
     seed: Annotated[int, typer.Option(help="Twin noise seed.")] = 0,
 ) -> None:
     """Seed 000 on the twin: Tables 1 and 2, margins and learning curves beside the seed's."""
-    from microfab.experiments import seed000
-    from microfab.experiments.msl_ilc import reproduce_tables
+    from microfab.experiments.seed000_msl import paper as seed000
+    from microfab.experiments.seed000_msl.run import reproduce_tables
     from microfab.io.atomic import atomic_write_json
 
     with progress() as prog:
@@ -186,9 +186,9 @@ def ilc_step_cmd(
     the galvo twin's (10 V, 5e4 V/s, 2e10 V/s^2) on the first call and are kept in the state.
     """
     from microfab.control.ilc import ILCConfig
+    from microfab.core.limits import AxisLimits
     from microfab.machines.files import ilc_step
     from microfab.machines.galvo import GALVO_LIMITS
-    from microfab.machines.limits import AxisLimits
 
     try:
         config = ILCConfig(cutoff_hz=cutoff_hz, gain=gain)
@@ -223,7 +223,7 @@ def calibrate_galvo_cmd(
     write: Annotated[Path | None, typer.Option(help="Write the calibration TOML here.")] = None,
 ) -> None:
     """Refit the galvo twin (rigid-body pole, gain ratio, noise) to seed 000 Table 1."""
-    from microfab.plants.galvo_calibration import calibrate_galvo
+    from microfab.experiments.seed000_msl.calibration import calibrate_galvo
 
     cal = calibrate_galvo(write)
     for name, c in cal.items():

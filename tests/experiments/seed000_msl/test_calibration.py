@@ -8,10 +8,10 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from microfab.experiments.seed000 import RATES, TABLE1_MV
-from microfab.plants import galvo_calibration
+from microfab.experiments.seed000_msl import calibration as galvo_calibration
+from microfab.experiments.seed000_msl.calibration import calibrate_galvo, fb_error, truncation_error
+from microfab.experiments.seed000_msl.paper import RATES, TABLE1_MV
 from microfab.plants.galvo import default_galvo_axes
-from microfab.plants.galvo_calibration import calibrate_galvo, fb_error, truncation_error
 from microfab.trajectory.periodic import square_scan
 
 FIELDS = ("rigid_pole_hz", "gain_ratio", "noise_rms_v")

@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.clikit import console, fail, progress
+from microfab.cli._kit import console, fail, progress
 from microfab.io.atomic import atomic_write_text
 
 __all__ = ["droplet_app"]

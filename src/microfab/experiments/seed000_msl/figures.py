@@ -1,6 +1,6 @@
 """Figures of seed 000 (galvo MSL with frequency-domain ILC), redrawn from a run result.
 
-Every function takes a :class:`~microfab.experiments.msl_ilc.MSLRunResult` and returns a
+Every function takes a :class:`~microfab.experiments.seed000_msl.run.MSLRunResult` and returns a
 :class:`matplotlib.figure.Figure` attached to an Agg canvas; no pyplot (global) state is
 used, so the functions are safe in scripts, tests and threads. :func:`save_figure` writes
 a figure to PNG atomically.
@@ -25,8 +25,8 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
-from microfab.experiments.msl_ilc import MSLRunResult
-from microfab.metrics import error_psd
+from microfab.experiments.seed000_msl.run import MSLRunResult
+from microfab.measure.metrics import error_psd
 from microfab.process.exposure import (
     ENVISIONTEC_R11_ASSUMED,
     SEED000_BEAM,
@@ -162,7 +162,7 @@ def fig_psd(
 ) -> Figure:
     """Power spectral density of the FB and ILC errors at the harmonics (seed Fig. 5).
 
-    The one-period error is analysed with :func:`microfab.metrics.error_psd` and
+    The one-period error is analysed with :func:`microfab.measure.metrics.error_psd` and
     ``period_s``, so every harmonic of the scan rate falls on a bin.
 
     Parameters

@@ -17,9 +17,9 @@ import numpy as np
 
 from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
 from microfab.control.margins import loop_margins
-from microfab.experiments import seed000
+from microfab.experiments.seed000_msl import paper as seed000
 from microfab.machines.base import Machine
-from microfab.machines.galvo import galvo_twin
+from microfab.machines.galvo import complementary_sensitivity, galvo_twin, open_loop
 from microfab.plants.galvo import GalvoAxis, default_galvo_axes
 from microfab.process.velocity import BeamVelocityParams, beam_velocity
 from microfab.trajectory.periodic import square_scan
@@ -173,7 +173,7 @@ def run_msl_ilc(
     dt = machine.dt
 
     def true_frf(f: np.ndarray) -> np.ndarray:
-        return np.column_stack([axes[a].complementary_sensitivity(f) for a in names])
+        return np.column_stack([complementary_sensitivity(axes[a], f) for a in names])
 
     frf = true_frf if check_convergence else None
     if state_dir is not None and FrequencyILC.exists(state_dir):
@@ -249,7 +249,7 @@ def reproduce_tables(
     table2 = {str(r): runs[r].velocity_stats() for r in rates}
     margins = {}
     for name, ax in axes.items():
-        m = loop_margins(ax.open_loop())
+        m = loop_margins(open_loop(ax))
         margins[name] = {
             "gm_db": m.gm_db,
             "pm_deg": m.pm_deg,

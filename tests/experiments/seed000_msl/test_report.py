@@ -4,10 +4,10 @@ import html
 
 import pytest
 
-from microfab.experiments import seed000
-from microfab.experiments.msl_ilc import run_msl_ilc
-from microfab.report import figures
-from microfab.report.html import FIGURE_FILES, fmt_mm_s, fmt_mv, write_report
+from microfab.experiments.seed000_msl import figures
+from microfab.experiments.seed000_msl import paper as seed000
+from microfab.experiments.seed000_msl.report import FIGURE_FILES, fmt_mm_s, fmt_mv, write_report
+from microfab.experiments.seed000_msl.run import run_msl_ilc
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -8,9 +8,8 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 
-from microfab.experiments.msl_ilc import run_msl_ilc
-from microfab.report import figures
-from microfab.report.figures import (
+from microfab.experiments.seed000_msl import figures
+from microfab.experiments.seed000_msl.figures import (
     fig_learning,
     fig_line_width,
     fig_psd,
@@ -20,6 +19,7 @@ from microfab.report.figures import (
     render_png,
     save_figure,
 )
+from microfab.experiments.seed000_msl.run import run_msl_ilc
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -1,0 +1,1 @@
+"""Foundations shared by every layer: argument checks, arrays, declared limits, signals."""

@@ -1,0 +1,1 @@
+"""Measurements: metrics on measured data, cameras and image analysis."""
