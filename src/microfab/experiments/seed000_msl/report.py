@@ -1,10 +1,11 @@
 """Self-contained HTML report of seed 000 runs: figures, Tables 1 and 2, seed comparison.
 
 :func:`write_report` draws the figures of :mod:`.figures` for the main rate (the
-learning transient for every rate), writes them as PNGs next to ``report.html``, and writes the HTML with tables of our numbers and, when given, our
-numbers beside the seed's. All figures are rendered in memory before anything is
-written, and every file is written atomically, so a failure while drawing leaves the
-directory as it was (no partial or new ``report.html``).
+learning transient for every rate), writes them as PNGs next to ``report.html``, and
+writes the HTML with tables of our numbers and, when given, our numbers beside the
+seed's. All figures are rendered in memory before anything is written, and every file is
+written atomically, so a failure while drawing leaves the directory as it was (no partial
+or new ``report.html``).
 
 References
 ----------
