@@ -94,7 +94,9 @@ def test_ilc_step_limit_refusal(tmp_path):
 
 def test_reproduce_msl_ilc_json(tmp_path):
     out = tmp_path / "tables.json"
-    res = CliRunner().invoke(app, ["reproduce", "msl-ilc", "--json", str(out), "--iterations", "3"])
+    res = CliRunner().invoke(
+        app, ["reproduce", "msl-ilc", "--json", str(out), "--set", "iterations=3"]
+    )
     assert res.exit_code == 0, res.output
     data = json.loads(out.read_text())
     assert set(data) == {"table1", "table2", "margins", "rms_history"}
@@ -140,7 +142,7 @@ def test_run_writes_report(tmp_path):
     rep = tmp_path / "rep"
     assert (rep / "report.html").is_file()
     summary = json.loads((rep / "summary.json").read_text())
-    assert summary["rate_hz"] == 400
+    assert summary["features_per_s"] == 400
     assert summary["iterations"] == 3
     assert set(summary["table1_mV"]) == {"x", "y"}
 

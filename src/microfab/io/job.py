@@ -1,134 +1,252 @@
-"""Job files (TOML): what `microfab run` does.
+"""Job files (TOML): the ``[job]`` header and typed, strictly checked sections.
 
-Example (the shipped default, ``microfab/data/default_job.toml``)::
+A job file names its kind and report folder in ``[job]``; every other section belongs to
+the kind, which declares it as a schema of `Key` entries::
 
     [job]
-    kind = "msl-ilc"          # galvo MSL, feedback vs ILC (seed 000)
+    kind = "msl-ilc"          # a registered job kind (``microfab kinds`` lists them)
+    name = "..."              # report title (optional)
     out = "report"            # report folder, relative to the working directory
 
-    [scan]
-    rate_hz = 400             # features (laps of the 0.6 mm square) per second
-    iterations = 30           # ILC trials; trial 1 is feedback only
-    learning_rates = [100, 200, 400]   # rates whose learning curves are drawn (Fig. 6)
+    [scan]                    # sections and keys of the kind
+    features_per_s = 400
 
-    [ilc]
-    cutoff_hz = 8000.0        # highest learned harmonic, Hz
-    gain = 0.4                # learning gain rho
-
-    [twin]
-    seed = 0                  # encoder-noise seed
+Values are checked, not coerced: an integer key refuses ``400.9`` and ``true``; a float
+key refuses ``true``, ``inf`` and ``nan``; every number is checked against its range;
+unknown sections and keys are refused. Every refusal is one `JobFileError` line naming
+the file, the section, the key, the value and what is allowed.
 """
 
 from __future__ import annotations
 
+import math
 import tomllib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
-from microfab.control.ilc import ILCConfig
+__all__ = ["JobFile", "JobFileError", "Key", "parse_job", "parse_section", "read_job"]
 
-__all__ = ["MSLJob", "default_job", "load_job"]
+KeyType = Literal["int", "float", "str", "bool", "int_list", "float_list"]
 
-_SECTIONS = {
-    "job": {"kind", "out", "name"},
-    "scan": {"rate_hz", "iterations", "learning_rates"},
-    "ilc": {"cutoff_hz", "gain", "snr_min"},
-    "twin": {"seed"},
-}
+
+class JobFileError(ValueError):
+    """A job file is unreadable or holds a value of the wrong type or range."""
 
 
 @dataclass(frozen=True, kw_only=True)
-class MSLJob:
-    """A galvo-MSL ILC job.
+class Key:
+    """One key of a job-file section.
 
     Parameters
     ----------
     name : str
-        Title of the report.
-    out : Path
-        Report folder.
-    rate_hz : int
-        Main scan rate, features/s.
-    iterations : int
-        ILC trials.
-    learning_rates : tuple of int
-        Rates whose learning transients are run and drawn.
-    ilc : ILCConfig
-        Learning settings.
-    seed : int
-        Twin noise seed.
+        Key name in the TOML file.
+    type : {"int", "float", "str", "bool", "int_list", "float_list"}
+        Accepted TOML type; ``float`` also takes integers, nothing takes a bool but
+        ``bool``.
+    default : Any
+        Value when the key is absent.
+    low, high : float, optional
+        Inclusive range of a number (of every element of a list).
+    unit : str
+        Unit, for messages.
+    help : str
+        One line for documentation.
+    alias : str, optional
+        An older name still accepted for this key.
     """
 
-    name: str = "galvo MSL: feedback vs ILC"
-    out: Path = Path("report")
-    rate_hz: int = 400
-    iterations: int = 30
-    learning_rates: tuple[int, ...] = (400,)
-    ilc: ILCConfig = field(default_factory=ILCConfig)
-    seed: int = 0
+    name: str
+    type: KeyType
+    default: Any
+    low: float | None = None
+    high: float | None = None
+    unit: str = ""
+    help: str = ""
+    alias: str | None = None
 
-    def __post_init__(self) -> None:
-        if self.rate_hz <= 0 or 1_000_000 % self.rate_hz:
-            raise ValueError(
-                f"rate_hz must divide the 1 MHz sample rate, got {self.rate_hz} features/s"
-            )
-        if self.iterations < 2:
-            raise ValueError(f"iterations must be >= 2, got {self.iterations}")
-        for r in self.learning_rates:
-            if r <= 0 or 1_000_000 % r:
-                raise ValueError(f"learning rate {r} features/s must divide 1 MHz")
+    def _range(self) -> str:
+        lo = "-inf" if self.low is None else f"{self.low:g}"
+        hi = "inf" if self.high is None else f"{self.high:g}"
+        unit = f" {self.unit}" if self.unit else ""
+        return f"[{lo}, {hi}]{unit}"
+
+    def check(self, value: Any, where: str, as_written: str | None = None) -> Any:
+        """Return ``value`` checked against this key (lists become tuples).
+
+        Parameters
+        ----------
+        value : Any
+            The value read.
+        where : str
+            ``"file [section]"``, for messages.
+        as_written : str, optional
+            The key's name as the file spells it (an alias), for messages.
+
+        Raises
+        ------
+        JobFileError
+            Naming ``where``, the key, the value and what is allowed.
+        """
+        what = f"{where} {as_written or self.name} = {value!r}"
+        if self.type == "str":
+            if not isinstance(value, str) or not value.strip():
+                raise JobFileError(f"{what}: expected a non-empty string")
+            return value
+        if self.type == "bool":
+            if not isinstance(value, bool):
+                raise JobFileError(f"{what}: expected true or false")
+            return value
+        if self.type in ("int_list", "float_list"):
+            if not isinstance(value, list) or not value:
+                raise JobFileError(f"{what}: expected a non-empty list of numbers")
+            scalar = "int" if self.type == "int_list" else "float"
+            return tuple(self._number(v, what, scalar) for v in value)
+        return self._number(value, what, self.type)
+
+    def _number(self, value: Any, what: str, kind: str) -> int | float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise JobFileError(f"{what}: expected {'an integer' if kind == 'int' else 'a number'}")
+        if kind == "int" and not isinstance(value, int):
+            raise JobFileError(f"{what}: expected an integer, not {value!r}")
+        if not math.isfinite(value):
+            raise JobFileError(f"{what}: expected a finite number in {self._range()}")
+        if (self.low is not None and value < self.low) or (
+            self.high is not None and value > self.high
+        ):
+            raise JobFileError(f"{what}: outside the allowed range {self._range()}")
+        return int(value) if kind == "int" else float(value)
 
 
-def _parse(data: dict[str, Any], source: str) -> MSLJob:
-    for sec, body in data.items():
-        if sec not in _SECTIONS:
-            raise ValueError(f"{source}: unknown section [{sec}] (known: {sorted(_SECTIONS)})")
-        if not isinstance(body, dict):
-            raise ValueError(f"{source}: [{sec}] must be a table")
-        unknown = set(body) - _SECTIONS[sec]
+def parse_section(
+    body: Mapping[str, Any], keys: Sequence[Key], source: str, section: str = ""
+) -> dict[str, Any]:
+    """Check one section against its keys; absent keys take their defaults.
+
+    Parameters
+    ----------
+    body : mapping
+        The section as read from TOML.
+    keys : sequence of Key
+        The section's schema.
+    source : str
+        Where the section comes from (file name), for messages.
+    section : str
+        Section name, for messages.
+
+    Returns
+    -------
+    dict
+        Key name to checked value, every key of the schema present.
+
+    Raises
+    ------
+    JobFileError
+        Unknown key, or a value of the wrong type or range.
+    """
+    by_name = {k.name: k for k in keys} | {k.alias: k for k in keys if k.alias}
+    unknown = sorted(set(body) - set(by_name))
+    inside = f" in [{section}]" if section else ""
+    if unknown:
+        known = ", ".join(k.name for k in keys) or "none"
+        raise JobFileError(f"{source}: unknown key(s) {unknown}{inside} (known: {known})")
+    out = {k.name: k.default for k in keys}
+    where = f"{source} [{section}]" if section else source
+    for name, value in body.items():
+        key = by_name[name]
+        out[key.name] = key.check(value, where, name)
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class JobFile:
+    """A parsed job file before its kind interprets the sections.
+
+    Attributes
+    ----------
+    kind : str or None
+        The ``[job] kind``; ``None`` when the file names none (the reader of the
+        registry then takes its default kind).
+    name : str or None
+        Report title, if given.
+    out : pathlib.Path or None
+        Report folder, if given.
+    sections : dict
+        Every other section, as read.
+    source : str
+        Where it came from (for messages).
+    """
+
+    kind: str | None
+    name: str | None
+    out: Path | None
+    sections: dict[str, dict[str, Any]] = field(default_factory=dict)
+    source: str = "<job>"
+
+    def parse(self, schema: Mapping[str, Sequence[Key]]) -> dict[str, dict[str, Any]]:
+        """Check every section against a kind's schema (unknown sections refused).
+
+        Returns
+        -------
+        dict
+            Section name to checked values (all sections of the schema, with defaults).
+        """
+        unknown = sorted(set(self.sections) - set(schema))
         if unknown:
-            raise ValueError(f"{source}: unknown key(s) {sorted(unknown)} in [{sec}]")
-    job = data.get("job", {})
-    kind = job.get("kind", "msl-ilc")
-    if kind != "msl-ilc":
-        raise ValueError(f"{source}: job kind {kind!r} is not supported (known: 'msl-ilc')")
-    scan, ilc, twin = data.get("scan", {}), data.get("ilc", {}), data.get("twin", {})
-    rate = int(scan.get("rate_hz", 400))
-    try:
-        return MSLJob(
-            name=str(job.get("name", MSLJob.name)),
-            out=Path(job.get("out", "report")),
-            rate_hz=rate,
-            iterations=int(scan.get("iterations", 30)),
-            learning_rates=tuple(int(r) for r in scan.get("learning_rates", [rate])),
-            ilc=ILCConfig(**ilc),
-            seed=int(twin.get("seed", 0)),
-        )
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{source}: {exc}") from exc
+            known = ", ".join(["job", *schema])
+            raise JobFileError(
+                f"{self.source}: unknown section(s) {unknown} for kind {self.kind!r} "
+                f"(known: {known})"
+            )
+        return {
+            sec: parse_section(self.sections.get(sec, {}), keys, self.source, sec)
+            for sec, keys in schema.items()
+        }
 
 
-def load_job(path: str | Path) -> MSLJob:
-    """Read and validate a job file.
+_JOB_KEYS = (
+    Key(name="kind", type="str", default=None, help="registered job kind"),
+    Key(name="name", type="str", default=None, help="report title"),
+    Key(name="out", type="str", default=None, help="report folder"),
+)
+
+
+def parse_job(data: Mapping[str, Any], source: str) -> JobFile:
+    """Split TOML data into the ``[job]`` header and the kind's sections.
+
+    Raises
+    ------
+    JobFileError
+        A section that is not a table, or a bad ``[job]`` value.
+    """
+    for sec, body in data.items():
+        if not isinstance(body, dict):
+            raise JobFileError(f"{source}: [{sec}] must be a table, got {body!r}")
+    head = parse_section(data.get("job", {}), _JOB_KEYS, source, "job")
+    return JobFile(
+        kind=head["kind"],
+        name=head["name"],
+        out=None if head["out"] is None else Path(head["out"]),
+        sections={k: dict(v) for k, v in data.items() if k != "job"},
+        source=source,
+    )
+
+
+def read_job(path: str | Path) -> JobFile:
+    """Read a job file.
 
     Raises
     ------
     FileNotFoundError
         No such file.
-    ValueError
-        Invalid TOML, unknown sections or keys, or invalid values.
+    JobFileError
+        Not UTF-8 TOML, or a bad ``[job]`` section.
     """
     p = Path(path)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{p}: not valid TOML: {exc}") from exc
-    return _parse(data, str(p))
-
-
-def default_job() -> MSLJob:
-    """The shipped default job (``microfab/data/default_job.toml``)."""
-    text = resources.files("microfab.data").joinpath("default_job.toml").read_text()
-    return _parse(tomllib.loads(text), "default_job.toml")
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise JobFileError(f"{p}: not valid TOML: {' '.join(str(exc).split())}") from exc
+    return parse_job(data, str(p))

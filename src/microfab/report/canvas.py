@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 from pathlib import Path
 
@@ -10,7 +11,7 @@ from matplotlib.figure import Figure
 
 from microfab.io.atomic import atomic_path
 
-__all__ = ["DPI", "new_figure", "save_figure"]
+__all__ = ["DPI", "new_figure", "render_png", "save_figure"]
 
 DPI = 120
 
@@ -44,3 +45,23 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: int = DPI) ->
     with atomic_path(target) as tmp:
         fig.savefig(tmp, format="png", dpi=dpi)
     return target
+
+
+def render_png(fig: Figure, *, dpi: int = DPI) -> bytes:
+    """Render a figure to PNG bytes in memory.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        Figure to render.
+    dpi : int, optional
+        Resolution, dots per inch (default 120).
+
+    Returns
+    -------
+    bytes
+        The PNG file content.
+    """
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()

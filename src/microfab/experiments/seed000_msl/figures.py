@@ -16,7 +16,6 @@ Seed 000 §4: Fig. 4a (xy plane), Fig. 4b (time axis), Fig. 5 (error PSD), Fig. 
 
 from __future__ import annotations
 
-import io
 from collections.abc import Mapping
 
 import numpy as np
@@ -35,7 +34,7 @@ from microfab.process.exposure import (
     line_profile,
 )
 from microfab.process.velocity import beam_velocity
-from microfab.report.canvas import DPI, new_figure, save_figure
+from microfab.report.canvas import DPI, new_figure, render_png, save_figure
 
 __all__ = [
     "DPI",
@@ -424,23 +423,3 @@ def fig_line_width(
         *ax.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize="small"
     )
     return fig
-
-
-def render_png(fig: Figure, *, dpi: int = DPI) -> bytes:
-    """Render a figure to PNG bytes in memory.
-
-    Parameters
-    ----------
-    fig : matplotlib.figure.Figure
-        Figure to render.
-    dpi : int, optional
-        Resolution, dots per inch (default 120).
-
-    Returns
-    -------
-    bytes
-        The PNG file content.
-    """
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()

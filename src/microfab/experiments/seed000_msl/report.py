@@ -24,7 +24,7 @@ from typing import Any
 from microfab.experiments.seed000_msl import figures
 from microfab.experiments.seed000_msl import paper as seed000
 from microfab.experiments.seed000_msl.run import MSLRunResult
-from microfab.io.atomic import atomic_write_bytes, atomic_write_text
+from microfab.report.page import Figure, page_html, write_page
 
 __all__ = ["FIGURE_FILES", "fmt_mm_s", "fmt_mv", "write_report"]
 
@@ -41,23 +41,6 @@ FIGURE_FILES = (
 _T1_KEYS = ("fb_rms", "fb_pp", "ilc_rms", "ilc_pp")
 _T2_STATS = ("mean", "std", "min", "max")
 _DASH = "&mdash;"
-
-_CSS = """
-body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif;
-       max-width: 1100px; margin: 2em auto; padding: 0 1em; color: #222;
-       line-height: 1.45; }
-h1 { border-bottom: 2px solid #444; padding-bottom: .2em; }
-h2 { margin-top: 2em; border-bottom: 1px solid #bbb; }
-figure { margin: 1.5em 0; }
-figure img { max-width: 100%; border: 1px solid #ddd; }
-figcaption { font-size: .92em; color: #444; margin-top: .3em; }
-table { border-collapse: collapse; margin: .8em 0 1.5em; font-size: .92em; }
-th, td { border: 1px solid #bbb; padding: .25em .6em; }
-th { background: #f0f0f0; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
-caption { caption-side: top; text-align: left; font-weight: bold; padding: .3em 0; }
-.muted { color: #666; }
-"""
 
 
 def fmt_mv(value: float) -> str:
@@ -365,43 +348,18 @@ def write_report(
     main = next((r for k, r in runs.items() if float(k) == float(main_rate)), None)
     if main is None:
         raise ValueError(f"main_rate {main_rate} is not among the runs' rates {sorted(runs)}")
-    out = Path(out_dir)
     pngs = _render_figures(runs, main)  # all drawing before any writing
-    out.mkdir(parents=True, exist_ok=True)
-    for name, data in pngs:
-        atomic_write_bytes(out / name, data)
-
     captions = _captions(main, runs)
-    body = [f"<h1>{html.escape(title)}</h1>"]
+    figs = [Figure(name=name, png=data, caption=captions[name]) for name, data in pngs]
     rates = ", ".join(_rate_str(r) for r in sorted(runs))
     n_trials = ", ".join(f"{_rate_str(r)}: {runs[r].rms_history.shape[0]}" for r in sorted(runs))
-    body.append(
-        f"<p>Seed 000 (galvo micro-stereolithography with frequency-domain ILC). Runs at "
-        f"{html.escape(rates)} features/s; figures at {html.escape(_rate_str(main.rate_hz))} "
-        f"features/s except the learning transient. Trials per rate: "
-        f"{html.escape(n_trials)}.</p>"
+    intro = (
+        f"Seed 000 (galvo micro-stereolithography with frequency-domain ILC). Runs at "
+        f"{rates} features/s; figures at {_rate_str(main.rate_hz)} features/s except the "
+        f"learning transient. Trials per rate: {n_trials}."
     )
-    if notes:
-        items = "".join(f"<li>{html.escape(str(n))}</li>" for n in notes)
-        body.append(f"<h2>Notes</h2><ul>{items}</ul>")
-    body.append("<h2>Figures</h2>")
-    for name, _ in pngs:
-        cap = html.escape(captions[name])
-        body.append(
-            f'<figure><img src="{html.escape(name)}" alt="{cap}">'
-            f"<figcaption>{cap}</figcaption></figure>"
-        )
-    body.append("<h2>Tables</h2>")
-    body.append(_table1_ours(runs))
-    body.append(_table2_ours(runs))
+    sections = ["<h2>Tables</h2>", _table1_ours(runs), _table2_ours(runs)]
     if tables:
-        body.append(_comparison(tables))
-    page = (
-        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        f"<title>{html.escape(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
-        + "\n".join(body)
-        + "\n</body>\n</html>\n"
-    )
-    target = out / "report.html"
-    atomic_write_text(target, page)
-    return target
+        sections.append(_comparison(tables))
+    text = page_html(title, intro=intro, notes=notes, figures=figs, sections=sections)
+    return write_page(out_dir, text, figs)

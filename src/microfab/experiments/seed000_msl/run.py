@@ -8,7 +8,7 @@ numbers of seed Tables 1 and 2 beside ours.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -245,7 +245,30 @@ def reproduce_tables(
         if progress is not None:
             progress(f"{r} features/s")
         runs[r] = run_msl_ilc(r, iterations, axes=axes, seed=seed)
-    table1 = {a: {str(r): runs[r].table1_row(a) for r in rates} for a in axes}
+    return tables_from_runs(runs, axes), runs
+
+
+def tables_from_runs(
+    runs: Mapping[int, MSLRunResult], axes: Mapping[str, GalvoAxis]
+) -> dict[str, Any]:
+    """Our numbers of seed Tables 1 and 2, the loop margins and the learning curves.
+
+    Parameters
+    ----------
+    runs : mapping of int to MSLRunResult
+        Runs by rate, features/s.
+    axes : mapping of str to GalvoAxis
+        The axes whose feedback-loop margins are computed (seed 000 §3.1).
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``table1`` (mV), ``table2`` (mm/s), ``margins`` (dB, deg, Hz) and
+        ``rms_history`` (mV), rates as string keys.
+    """
+    rates = sorted(runs)
+    names = runs[rates[0]].axes
+    table1 = {a: {str(r): runs[r].table1_row(a) for r in rates} for a in names}
     table2 = {str(r): runs[r].velocity_stats() for r in rates}
     margins = {}
     for name, ax in axes.items():
@@ -258,6 +281,6 @@ def reproduce_tables(
         }
     hist = {
         a: {str(r): (runs[r].rms_history[:, i] * 1e3).tolist() for r in rates}
-        for i, a in enumerate(axes)
+        for i, a in enumerate(names)
     }
-    return {"table1": table1, "table2": table2, "margins": margins, "rms_history": hist}, runs
+    return {"table1": table1, "table2": table2, "margins": margins, "rms_history": hist}

@@ -1,0 +1,73 @@
+"""``microfab ilc step``: one ILC step on real hardware through files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from microfab.cli._kit import console, fail
+
+__all__ = ["ilc_app"]
+
+ilc_app = typer.Typer(no_args_is_help=True, help="Iterative learning control on hardware.")
+
+
+@ilc_app.command("step")
+def ilc_step_cmd(
+    trial: Annotated[
+        Path, typer.Argument(help="Measured trial: time, reference_<a>, input_<a>, output_<a>.")
+    ],
+    state: Annotated[Path, typer.Option("--state", help="Learning-state directory.")],
+    out: Annotated[Path, typer.Option("--out", help="Next input file (.csv, .mat, .h5).")],
+    cutoff_hz: Annotated[
+        float, typer.Option(help="Highest learned harmonic [Hz] (first call).")
+    ] = 8000.0,
+    gain: Annotated[float, typer.Option(help="Learning gain rho (first call).")] = 0.4,
+    max_position: Annotated[
+        float | None, typer.Option(help="Declared |input| limit [unit].")
+    ] = None,
+    max_velocity: Annotated[
+        float | None, typer.Option(help="Declared slope limit [unit/s].")
+    ] = None,
+    max_acceleration: Annotated[
+        float | None, typer.Option(help="Declared [unit/s^2] limit.")
+    ] = None,
+) -> None:
+    """Learn from one measured trial and write the next input (state kept in --state).
+
+    The first call takes the inverse model from the trial (seed 000 eq. 7). Limits default to
+    the galvo twin's (10 V, 5e4 V/s, 2e10 V/s^2) on the first call and are kept in the state.
+    """
+    from microfab.control.ilc import ILCConfig
+    from microfab.core.limits import AxisLimits
+    from microfab.machines.files import ilc_step
+    from microfab.machines.galvo import GALVO_LIMITS
+
+    try:
+        config = ILCConfig(cutoff_hz=cutoff_hz, gain=gain)
+        given = (max_position, max_velocity, max_acceleration)
+        limits = None
+        if any(v is not None for v in given) or not (state / "ilc_state.npz").exists():
+            base = GALVO_LIMITS["x"]
+            lim = AxisLimits(
+                position=max_position if max_position is not None else base.position,
+                velocity=max_velocity if max_velocity is not None else base.velocity,
+                acceleration=max_acceleration
+                if max_acceleration is not None
+                else base.acceleration,
+                unit=base.unit,
+            )
+            from microfab.machines.files import read_trial_file
+
+            limits = {a: lim for a in read_trial_file(trial).axes}
+        rep = ilc_step(trial, state, out, config=config, limits=limits)
+    except (OSError, ValueError) as exc:
+        fail(str(exc))
+    rms = ", ".join(f"{a} {v:.4g}" for a, v in rep.rms.items())
+    console.print(
+        f"iteration {rep.iteration}: RMS error {rms}; harmonics "
+        f"{', '.join(f'{a} {n}' for a, n in rep.harmonics.items())}; wrote {rep.out_path}",
+        highlight=False,
+    )
