@@ -40,6 +40,8 @@ from microfab.io.atomic import atomic_save_npz
 __all__ = ["ConvergenceError", "FrequencyILC", "ILCConfig", "Trial"]
 
 STATE_FILE = "ilc_state.npz"
+#: Format of the saved state; `FrequencyILC.load` refuses another.
+STATE_VERSION = 2
 
 
 class ConvergenceError(ValueError):
@@ -183,6 +185,26 @@ class FrequencyILC:
         self.state.inputs = [ref.copy()]  # seed 000 §4: u_1 = y_d
 
     # ----------------------------------------------------------------- basics
+    @property
+    def reference(self) -> np.ndarray:
+        """One period of the desired output ``y_d``, shape (N, n_axes) (a copy)."""
+        return self.state.reference.copy()
+
+    @property
+    def dt(self) -> float:
+        """Sample time, s."""
+        return self.state.dt
+
+    @property
+    def axes(self) -> tuple[str, ...]:
+        """Axis names."""
+        return self.state.axes
+
+    @property
+    def meta(self) -> dict[str, object]:
+        """JSON-ready data saved with the state (the learning loop's record)."""
+        return self.state.meta
+
     @property
     def n_samples(self) -> int:
         """Samples per period ``N``."""
@@ -339,6 +361,7 @@ class FrequencyILC:
         if extra is not None:
             st.meta.update(extra)
         meta = {
+            "version": STATE_VERSION,
             "iteration": st.iteration,
             "dt": st.dt,
             "axes": list(st.axes),
@@ -384,6 +407,13 @@ class FrequencyILC:
                 data = {k: z[k] for k in z.files if k != "meta"}
         except (OSError, ValueError, KeyError) as exc:
             raise ValueError(f"cannot read ILC state {path}: {exc}") from exc
+        version = meta.get("version", 1)
+        if version not in (1, STATE_VERSION):
+            raise ValueError(
+                f"ILC state {path} has format version {version}; this microfab reads "
+                f"{STATE_VERSION}: finish that run with the microfab that wrote it, or start "
+                "a new state directory"
+            )
         obj = cls(
             data["reference"],
             meta["dt"],

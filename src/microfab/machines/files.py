@@ -1,17 +1,21 @@
-"""Real hardware through files: one measured trial in, the next input out.
+"""Real hardware through files: `FileMachine`, and `ilc_step` (trial in, next input out).
 
 A trial file (CSV, MATLAB ``.mat`` or HDF5, same names as variables) holds one period:
 a ``time`` column in s and, per axis ``<a>``, ``reference_<a>``, ``input_<a>`` and
-``output_<a>``. `ilc_step` learns from it with `microfab.control.ilc.FrequencyILC`, keeps
-the learning state in a directory, and writes the next input file (``time`` and
-``input_<a>``). Every check runs before anything is written; the input file is written
-first and the state last, both atomically, so an interrupted or refused step leaves the
-state as it was and repeating the call is safe.
+``output_<a>``. `FileMachine` is the `microfab.machines.base.Machine` of such hardware:
+``run(command)`` writes the command file and returns the measurement read from the trial
+file (waiting for a fresh one when asked to). `ilc_step` is one iteration of the learning
+loop `microfab.machines.learning.learn` on a `FileMachine` that reads the trial the user
+just measured: it learns with `microfab.control.ilc.FrequencyILC`, keeps the learning
+state in a directory, and writes the next input file (``time`` and ``input_<a>``). Every
+check runs before anything is written; the input file is written first and the state
+last, both atomically, so an interrupted or refused step leaves the state as it was and
+repeating the call is safe.
 """
 
 from __future__ import annotations
 
-import hashlib
+import time as _time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,13 +23,22 @@ from pathlib import Path
 import numpy as np
 
 from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
-from microfab.core.limits import AxisLimits, check_command
+from microfab.core.limits import AxisLimits
 from microfab.io.trace import read_columns, write_columns
+from microfab.machines.base import Measurement
+from microfab.machines.learning import TrialError, learn
 
-__all__ = ["StepReport", "TrialFileError", "ilc_step", "read_trial_file", "write_input_file"]
+__all__ = [
+    "FileMachine",
+    "StepReport",
+    "TrialFileError",
+    "ilc_step",
+    "read_trial_file",
+    "write_input_file",
+]
 
 
-class TrialFileError(ValueError):
+class TrialFileError(TrialError):
     """A trial file is unusable (missing columns, NaN, bad timing, changed reference...)."""
 
 
@@ -107,11 +120,100 @@ def write_input_file(
     write_columns(path, cols)
 
 
-def _digest(trial: Trial) -> str:
-    h = hashlib.sha256()
-    for arr in (trial.reference, trial.input, trial.output):
-        h.update(np.ascontiguousarray(arr).tobytes())
-    return h.hexdigest()
+class FileMachine:
+    """A machine reached through files: command file out, trial file in.
+
+    Parameters
+    ----------
+    trial_path : str or Path
+        The measured trial file (see module doc) that ``run`` returns.
+    command_path : str or Path, optional
+        Where ``run`` writes the command (``time`` and ``input_<a>``) first; ``None``
+        writes nothing (the trial was measured already, as in `ilc_step`).
+    timeout_s : float
+        With a ``command_path``: how long ``run`` waits for a trial file newer than the
+        command it wrote (an automated rig: dSpace, Speedgoat, LabVIEW watching a folder),
+        s. ``0`` reads the trial file as it is.
+    poll_s : float
+        Polling interval while waiting, s.
+
+    Notes
+    -----
+    The returned `Measurement` carries the trial's ``input_<a>`` columns as the command
+    actually applied and its ``reference_<a>`` columns as ``reference``, so the learning
+    loop checks them against what it expects.
+    """
+
+    def __init__(
+        self,
+        trial_path: str | Path,
+        command_path: str | Path | None = None,
+        *,
+        timeout_s: float = 0.0,
+        poll_s: float = 0.2,
+    ) -> None:
+        if not (timeout_s >= 0 and poll_s > 0):
+            raise ValueError(f"timeout_s must be >= 0 and poll_s > 0, got {timeout_s}, {poll_s} s")
+        self.trial_path = Path(trial_path)
+        self.command_path = None if command_path is None else Path(command_path)
+        self.timeout_s = float(timeout_s)
+        self.poll_s = float(poll_s)
+        self._trial: Trial | None = None
+
+    def peek(self) -> Trial:
+        """The trial file as it is now (checked, cached until the next ``run``)."""
+        if self._trial is None:
+            self._trial = read_trial_file(self.trial_path)
+        return self._trial
+
+    @property
+    def axes(self) -> tuple[str, ...]:
+        """Axis names of the trial file."""
+        return self.peek().axes
+
+    @property
+    def dt(self) -> float:
+        """Sample time of the trial file, s."""
+        return self.peek().dt
+
+    def run(self, command: np.ndarray) -> Measurement:
+        """Write ``command`` (when a command file is set) and read the measured trial.
+
+        Raises
+        ------
+        TrialFileError
+            Bad trial file (see `read_trial_file`).
+        TimeoutError
+            No fresh trial file within ``timeout_s``.
+        """
+        if self.command_path is not None:
+            trial = self.peek() if self._trial is not None else None
+            dt = trial.dt if trial is not None else self.dt
+            axes = trial.axes if trial is not None else self.axes
+            started = _time.time()
+            write_input_file(self.command_path, dt, np.asarray(command, dtype=float), axes)
+            if self.timeout_s > 0:
+                self._wait_newer_than(started)
+        self._trial = None
+        trial = self.peek()
+        return Measurement(
+            dt=trial.dt,
+            command=trial.input,
+            output=trial.output,
+            axes=trial.axes,
+            reference=trial.reference,
+        )
+
+    def _wait_newer_than(self, t0: float) -> None:
+        deadline = _time.monotonic() + self.timeout_s
+        while _time.monotonic() < deadline:
+            if self.trial_path.is_file() and self.trial_path.stat().st_mtime >= t0:
+                return
+            _time.sleep(self.poll_s)
+        raise TimeoutError(
+            f"no measured trial in {self.trial_path} within {self.timeout_s:g} s of writing "
+            f"{self.command_path}"
+        )
 
 
 def ilc_step(
@@ -150,58 +252,26 @@ def ilc_step(
     microfab.core.limits.LimitViolation
         The next input would exceed the declared limits (nothing is written).
     """
-    trial = read_trial_file(trial_path)
+    machine = FileMachine(trial_path)
+    trial = machine.peek()
     sd = Path(state_dir)
-    digest = _digest(trial)
     if FrequencyILC.exists(sd):
         ilc = FrequencyILC.load(sd)
-        st = ilc.state
-        if trial.axes != st.axes:
-            raise TrialFileError(
-                f"{trial_path}: axes {list(trial.axes)} differ from the state's {list(st.axes)}"
-            )
-        if abs(trial.dt - st.dt) > 1e-6 * st.dt:
-            raise TrialFileError(
-                f"{trial_path}: sample time {trial.dt:.9g} s differs from the state's "
-                f"{st.dt:.9g} s (sample rate changed)"
-            )
-        if trial.reference.shape != st.reference.shape:
-            raise TrialFileError(
-                f"{trial_path}: {trial.reference.shape[0]} samples "
-                f"({trial.reference.shape[0] * trial.dt:.6g} s), but the period in the state "
-                f"is {st.reference.shape[0]} samples ({ilc.period_s:.6g} s)"
-            )
-        tol = 1e-9 * max(1.0, float(np.max(np.abs(st.reference))))
-        diff = np.max(np.abs(trial.reference - st.reference))
-        if diff > tol:
-            raise TrialFileError(
-                f"{trial_path}: the reference changed since the first trial (max difference "
-                f"{diff:.3g}); start a new state directory for a new reference"
-            )
-        if digest in st.meta.get("digests", []):  # type: ignore[operator]
-            raise TrialFileError(f"{trial_path}: this trial was already learned from")
-        stored = st.meta.get("limits")
-        if limits is None and isinstance(stored, dict):
-            limits = {a: AxisLimits(**v) for a, v in stored.items()}
     else:
         ilc = FrequencyILC(trial.reference, trial.dt, trial.axes, config)
-    next_input = ilc.update(trial)
-    if limits is not None:
-        check_command(next_input, trial.dt, limits, trial.axes, periodic=True)
-    write_input_file(out_path, trial.dt, next_input, trial.axes)
-    seen = list(ilc.state.meta.get("digests", []))  # type: ignore[call-overload]
-    extra: dict[str, object] = {"digests": [*seen, digest]}
-    if limits is not None:
-        extra["limits"] = {
-            a: {
-                "position": v.position,
-                "velocity": v.velocity,
-                "acceleration": v.acceleration,
-                "unit": v.unit,
-            }
-            for a, v in limits.items()
-        }
-    ilc.save(sd, extra)
+    try:
+        learn(
+            machine,
+            ilc,
+            iterations=ilc.iteration + 1,
+            state_dir=sd,
+            limits=limits,
+            publish=lambda u: write_input_file(out_path, trial.dt, u, trial.axes),
+        )
+    except TrialError as exc:
+        if isinstance(exc, TrialFileError):
+            raise
+        raise TrialFileError(f"{trial_path}: {exc}") from exc
     rms = ilc.rms_history[-1]
     return StepReport(
         iteration=ilc.iteration,

@@ -15,11 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
+from microfab.control.ilc import FrequencyILC, ILCConfig
 from microfab.control.margins import loop_margins
 from microfab.experiments.seed000_msl import paper as seed000
 from microfab.machines.base import Machine
 from microfab.machines.galvo import complementary_sensitivity, galvo_twin, open_loop
+from microfab.machines.learning import learn
 from microfab.plants.galvo import GalvoAxis, default_galvo_axes
 from microfab.process.velocity import BeamVelocityParams, beam_velocity
 from microfab.trajectory.periodic import square_scan
@@ -184,29 +185,10 @@ def run_msl_ilc(
             raise ValueError(f"the state in {state_dir} belongs to another reference")
     else:
         ilc = FrequencyILC(ref, dt, names, config, true_frf=frf)
-    fb_output = None
-    if state_dir is not None and "fb_output" in ilc.state.meta:
-        fb_output = np.asarray(ilc.state.meta["fb_output"], dtype=float)
-    last_input = ilc.current_input()
-    last_output = None
-    while ilc.iteration < iterations:
-        u = ilc.current_input()
-        meas = machine.run(u)
-        if ilc.iteration == 0:
-            fb_output = meas.output.copy()
-        last_input, last_output = u, meas.output
-        ilc.update(Trial(dt=dt, reference=ref, input=u, output=meas.output, axes=names))
-        if state_dir is not None:
-            extra: dict[str, Any] = {"last_output": last_output.tolist()}
-            if ilc.iteration == 1:
-                extra["fb_output"] = fb_output.tolist()  # type: ignore[union-attr]
-            ilc.save(state_dir, extra)
-        if progress is not None:
-            progress(ilc.iteration, iterations)
-    if last_output is None:  # fully resumed: nothing left to run
-        last_output = np.asarray(ilc.state.meta["last_output"], dtype=float)
-        last_input = ilc.state.inputs[-2]
-    assert fb_output is not None
+    record = learn(machine, ilc, iterations=iterations, state_dir=state_dir, progress=progress)
+    fb_output, last_output = record.first_output, record.last_output
+    last_input = record.last_input if record.last_input is not None else ilc.state.inputs[-2]
+    assert fb_output is not None and last_output is not None
     return MSLRunResult(
         rate_hz=float(rate_hz),
         dt=dt,

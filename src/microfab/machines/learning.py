@@ -1,0 +1,230 @@
+"""One learning loop for the twin and for hardware: `learn`.
+
+`learn` drives a `microfab.control.learning.Learner` on a `microfab.machines.base.Machine`
+for a number of trials: apply the learner's command, measure one period, check the trial,
+learn, check the next command against the machine's declared limits, publish it, save.
+Resume, duplicate-trial detection and limit checks live here and nowhere else, so the
+simulated run (``microfab run``) and the file workflow on hardware (``microfab ilc step``)
+behave the same way.
+
+Order of writes in one iteration: the next command is published first (for hardware, the
+input file), the learner's state last, both atomically. An interruption or a refusal
+therefore leaves the saved state as it was, and repeating the call is safe.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from microfab.control.ilc import Trial
+from microfab.control.learning import Learner
+from microfab.core.limits import AxisLimits, check_command
+from microfab.machines.base import Machine, Measurement
+
+__all__ = ["LearnRecord", "TrialError", "learn", "trial_digest"]
+
+#: Key of the loop's record in the learner's saved ``meta``.
+RECORD_KEY = "learn"
+
+
+class TrialError(ValueError):
+    """A measured trial cannot be learned from (other reference, length, or seen before)."""
+
+
+def trial_digest(trial: Trial) -> str:
+    """SHA-256 of a trial's reference, input and output (to refuse the same trial twice)."""
+    h = hashlib.sha256()
+    for arr in (trial.reference, trial.input, trial.output):
+        h.update(np.ascontiguousarray(arr, dtype=float).tobytes())
+    return h.hexdigest()
+
+
+def _limits_to_json(limits: Mapping[str, AxisLimits]) -> dict[str, dict[str, Any]]:
+    return {
+        a: {
+            "position": v.position,
+            "velocity": v.velocity,
+            "acceleration": v.acceleration,
+            "unit": v.unit,
+        }
+        for a, v in limits.items()
+    }
+
+
+@dataclass(kw_only=True, eq=False)
+class LearnRecord:
+    """What the loop keeps beside the learner's state (saved in its ``meta``).
+
+    Attributes
+    ----------
+    digests : list of str
+        `trial_digest` of every trial learned from.
+    limits : dict of str to AxisLimits or None
+        Declared limits every published command was checked against.
+    first_output : numpy.ndarray or None
+        Measured output of trial 1 (feedback only when ``u_1 = y_d``), shape (N, n_axes).
+    last_output, last_input : numpy.ndarray or None
+        Output and input of the latest trial, shape (N, n_axes).
+    """
+
+    digests: list[str] = field(default_factory=list)
+    limits: dict[str, AxisLimits] | None = None
+    first_output: np.ndarray | None = None
+    last_output: np.ndarray | None = None
+    last_input: np.ndarray | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready form."""
+
+        def arr(a: np.ndarray | None) -> list[list[float]] | None:
+            return None if a is None else np.asarray(a, dtype=float).tolist()
+
+        return {
+            "digests": list(self.digests),
+            "limits": None if self.limits is None else _limits_to_json(self.limits),
+            "first_output": arr(self.first_output),
+            "last_output": arr(self.last_output),
+            "last_input": arr(self.last_input),
+        }
+
+    @classmethod
+    def from_meta(cls, meta: Mapping[str, Any]) -> LearnRecord:
+        """Read the record from a learner's ``meta`` (also the flat layout of format 1)."""
+        raw = meta.get(RECORD_KEY)
+        if not isinstance(raw, Mapping):  # format 1: flat keys
+            raw = {
+                "digests": meta.get("digests", []),
+                "limits": meta.get("limits"),
+                "first_output": meta.get("fb_output"),
+                "last_output": meta.get("last_output"),
+            }
+
+        def arr(v: Any) -> np.ndarray | None:
+            return None if v is None else np.asarray(v, dtype=float)
+
+        lim = raw.get("limits")
+        return cls(
+            digests=list(raw.get("digests") or []),
+            limits=None if not lim else {a: AxisLimits(**v) for a, v in lim.items()},
+            first_output=arr(raw.get("first_output")),
+            last_output=arr(raw.get("last_output")),
+            last_input=arr(raw.get("last_input")),
+        )
+
+
+def _check_trial(learner: Learner, trial: Trial, record: LearnRecord) -> str:
+    ref = learner.reference
+    if trial.axes != learner.axes:
+        raise TrialError(f"axes {list(trial.axes)} differ from the learner's {list(learner.axes)}")
+    if abs(trial.dt - learner.dt) > 1e-6 * learner.dt:
+        raise TrialError(
+            f"sample time {trial.dt:.9g} s differs from the learner's {learner.dt:.9g} s "
+            "(sample rate changed)"
+        )
+    if trial.reference.shape != ref.shape:
+        n = trial.reference.shape[0]
+        raise TrialError(
+            f"{n} samples ({n * trial.dt:.6g} s), but the period being learned is "
+            f"{ref.shape[0]} samples ({ref.shape[0] * learner.dt:.6g} s)"
+        )
+    tol = 1e-9 * max(1.0, float(np.max(np.abs(ref))))
+    diff = float(np.max(np.abs(trial.reference - ref)))
+    if diff > tol:
+        raise TrialError(
+            f"the reference changed since the first trial (max difference {diff:.3g}); "
+            "start a new state directory for a new reference"
+        )
+    digest = trial_digest(trial)
+    if digest in record.digests:
+        raise TrialError("this trial was already learned from")
+    return digest
+
+
+def learn(
+    machine: Machine,
+    learner: Learner,
+    *,
+    iterations: int,
+    state_dir: str | Path | None = None,
+    limits: Mapping[str, AxisLimits] | None = None,
+    publish: Callable[[np.ndarray], None] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    measured: Callable[[int, Measurement], None] | None = None,
+) -> LearnRecord:
+    """Run trials until the learner has learned from ``iterations`` of them.
+
+    Parameters
+    ----------
+    machine : Machine
+        Where each command is played (a twin, or `microfab.machines.files.FileMachine`).
+    learner : Learner
+        The learner, fresh or loaded from ``state_dir``; a learner that has already
+        learned ``iterations`` trials runs nothing.
+    iterations : int
+        Total number of trials to have learned from when the call returns.
+    state_dir : str or Path, optional
+        Where the learner and the loop record are saved after every trial.
+    limits : mapping of str to AxisLimits, optional
+        Declared limits every published command must respect; the saved ones are used
+        when omitted. Stored with the state.
+    publish : callable, optional
+        Called with each next command (shape (N, n_axes)) after its limit check and before
+        the state is saved, e.g. to write the input file for hardware.
+    progress : callable, optional
+        ``progress(done, total)`` after each trial.
+    measured : callable, optional
+        ``measured(iteration, measurement)`` with each raw measurement (1-based).
+
+    Returns
+    -------
+    LearnRecord
+        The loop's record (first and last trial, digests, limits).
+
+    Raises
+    ------
+    TrialError
+        A trial with other axes, sample time, length or reference, or one already learned.
+    microfab.core.limits.LimitViolation
+        The next command would exceed the limits: nothing is published or saved.
+    """
+    if iterations < 1:
+        raise ValueError(f"iterations must be >= 1, got {iterations}")
+    record = LearnRecord.from_meta(learner.meta)
+    if limits is not None:
+        record.limits = dict(limits)
+    while learner.iteration < iterations:
+        u = learner.current_input()
+        meas = machine.run(u)
+        if measured is not None:
+            measured(learner.iteration + 1, meas)
+        trial = Trial(
+            dt=meas.dt,
+            reference=learner.reference if meas.reference is None else meas.reference,
+            input=meas.command,
+            output=meas.output,
+            axes=meas.axes,
+        )
+        digest = _check_trial(learner, trial, record)
+        u_next = learner.update(trial)
+        if record.limits is not None:
+            check_command(u_next, trial.dt, record.limits, trial.axes, periodic=True)
+        if publish is not None:
+            publish(u_next)
+        record.digests.append(digest)
+        if record.first_output is None:
+            record.first_output = np.array(trial.output, dtype=float)
+        record.last_output = np.array(trial.output, dtype=float)
+        record.last_input = np.array(trial.input, dtype=float)
+        if state_dir is not None:
+            learner.save(state_dir, {RECORD_KEY: record.to_json()})
+        else:
+            learner.meta[RECORD_KEY] = record.to_json()
+        if progress is not None:
+            progress(learner.iteration, iterations)
+    return record

@@ -1,0 +1,140 @@
+"""The one learning loop: twin and files give the same learning; resume; refusals."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from microfab.control.ilc import FrequencyILC
+from microfab.control.learning import Learner
+from microfab.core.limits import AxisLimits, LimitViolation
+from microfab.io.trace import read_columns, write_columns
+from microfab.machines.files import FileMachine
+from microfab.machines.galvo import galvo_twin
+from microfab.machines.learning import LearnRecord, TrialError, learn
+from microfab.trajectory.periodic import square_scan
+
+DT = 1e-6
+
+
+@pytest.fixture(scope="module")
+def ref() -> np.ndarray:
+    return square_scan(500, (1.0, 1.44), 1e6)
+
+
+def test_frequency_ilc_is_a_learner(ref):
+    assert isinstance(FrequencyILC(ref, DT, ("x", "y")), Learner)
+
+
+def test_learn_on_the_twin_converges_and_keeps_its_record(ref, tmp_path):
+    ilc = FrequencyILC(ref, DT, ("x", "y"))
+    seen = []
+    rec = learn(
+        galvo_twin(seed=1),
+        ilc,
+        iterations=6,
+        state_dir=tmp_path,
+        progress=lambda d, t: seen.append((d, t)),
+    )
+    assert seen == [(k, 6) for k in range(1, 7)]
+    rms = ilc.rms_history
+    assert rms.shape == (6, 2)
+    assert np.all(rms[-1] < rms[0] / 5)
+    assert len(set(rec.digests)) == 6
+    saved = LearnRecord.from_meta(FrequencyILC.load(tmp_path).meta)
+    np.testing.assert_array_equal(saved.first_output, rec.first_output)
+    np.testing.assert_array_equal(saved.last_input, rec.last_input)
+    # fully learned: a second call runs nothing
+    again = FrequencyILC.load(tmp_path)
+    rec2 = learn(galvo_twin(seed=1), again, iterations=6, state_dir=tmp_path)
+    assert again.iteration == 6 and rec2.digests == rec.digests
+
+
+def test_the_same_trial_twice_is_refused(ref):
+    class Replay:
+        axes, dt = ("x", "y"), DT
+
+        def __init__(self) -> None:
+            self.meas = galvo_twin(seed=2).run(ref)
+
+        def run(self, command):
+            return self.meas
+
+    ilc = FrequencyILC(ref, DT, ("x", "y"))
+    with pytest.raises(TrialError, match="already learned"):
+        learn(Replay(), ilc, iterations=2)
+    assert ilc.iteration == 1
+
+
+def test_a_command_beyond_the_limits_is_never_published(ref, tmp_path):
+    published = []
+    tight = {a: AxisLimits(position=1.2, velocity=5e4, acceleration=2e10) for a in "xy"}
+    ilc = FrequencyILC(ref, DT, ("x", "y"))
+    with pytest.raises(LimitViolation):
+        learn(
+            galvo_twin(seed=0),
+            ilc,
+            iterations=3,
+            state_dir=tmp_path,
+            limits=tight,
+            publish=published.append,
+        )
+    assert published == []
+    assert not FrequencyILC.exists(tmp_path)
+
+
+def _write_trial(path: Path, ref: np.ndarray, u: np.ndarray, y: np.ndarray) -> None:
+    cols = {"time": np.arange(ref.shape[0]) * DT}
+    for i, a in enumerate("xy"):
+        cols |= {f"reference_{a}": ref[:, i], f"input_{a}": u[:, i], f"output_{a}": y[:, i]}
+    write_columns(path, cols)
+
+
+def test_file_machine_in_the_loop_matches_the_twin(ref, tmp_path):
+    """A rig watching a folder: learn() writes the command, the rig answers with a trial."""
+    twin, mirror = galvo_twin(seed=4), galvo_twin(seed=4)
+    cmd, trial = tmp_path / "command.csv", tmp_path / "trial.csv"
+    stop = threading.Event()
+
+    def rig() -> None:
+        last = None
+        while not stop.is_set():
+            if cmd.is_file() and cmd.stat().st_mtime_ns != last:
+                last = cmd.stat().st_mtime_ns
+                c = read_columns(cmd)
+                u = np.column_stack([c["input_x"], c["input_y"]])
+                _write_trial(trial, ref, u, twin.run(u).output)
+            time.sleep(0.01)
+
+    th = threading.Thread(target=rig, daemon=True)
+    th.start()
+    try:
+        _write_trial(trial, ref, ref, np.zeros_like(ref))  # a stale file: must be waited out
+        time.sleep(0.05)
+        files = FileMachine(trial, cmd, timeout_s=20.0, poll_s=0.01)
+        ilc_files = FrequencyILC(ref, DT, ("x", "y"))
+        learn(files, ilc_files, iterations=4)
+    finally:
+        stop.set()
+        th.join()
+    ilc_twin = FrequencyILC(ref, DT, ("x", "y"))
+    learn(mirror, ilc_twin, iterations=4)
+    np.testing.assert_allclose(ilc_files.rms_history, ilc_twin.rms_history, rtol=1e-9)
+
+
+def test_file_machine_times_out_with_a_clear_message(ref, tmp_path):
+    trial = tmp_path / "trial.csv"
+    _write_trial(trial, ref, ref, ref)
+    time.sleep(0.02)
+    fm = FileMachine(trial, tmp_path / "cmd.csv", timeout_s=0.2, poll_s=0.05)
+    fm.peek()
+    old = trial.stat().st_mtime
+    import os
+
+    os.utime(trial, (old - 60, old - 60))
+    with pytest.raises(TimeoutError, match="no measured trial"):
+        fm.run(ref)
