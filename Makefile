@@ -26,10 +26,12 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_dxf.py
 	$(BIN)/python benchmarks/bench_topp.py
 	$(BIN)/python benchmarks/bench_droplet.py
+	$(BIN)/python benchmarks/bench_sweep.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
 	$(BIN)/ruff format --check src tests benchmarks examples
+	$(BIN)/lint-imports
 
 clean:
 	rm -rf $(VENV) report build *.egg-info

@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
+from microfab.experiments.seed003_inkjet.sweep import run_sweep, sweep_points
 from microfab.process.inkjet.droplet import simulate_droplet
 from microfab.process.inkjet.fluids import naalg
 from microfab.process.inkjet.jet import JetModel, Numerics, run_jet, thread_body
-from microfab.process.inkjet.sweep import run_sweep, sweep_points
 
 
 def _thread() -> object:

@@ -13,10 +13,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from microfab.experiments.seed003_inkjet.figures import fig_montage
+from microfab.measure.imaging import analyze
+from microfab.measure.shadowgraph import Camera, render_sequence
 from microfab.process.inkjet.droplet import simulate_droplet
 from microfab.process.inkjet.fluids import naalg
-from microfab.process.inkjet.imaging import analyze
-from microfab.process.inkjet.shadowgraph import Camera, fig_montage, render_sequence
 from microfab.report.canvas import save_figure
 
 

@@ -45,7 +45,7 @@ def test_simulate_refuses_bad_input() -> None:
 
 
 def test_analyze_errors(tmp_path: Path) -> None:
-    from microfab.process.inkjet.shadowgraph import Camera, write_frames
+    from microfab.measure.shadowgraph import Camera, write_frames
 
     res = runner.invoke(app, ["droplet", "analyze", str(tmp_path)])
     assert res.exit_code == 2

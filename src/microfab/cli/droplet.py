@@ -47,7 +47,7 @@ def simulate_cmd(
     """Predict breakup time, position, mode, satellites and head speed; write a report."""
     from microfab.process.inkjet.droplet import simulate_droplet
     from microfab.process.inkjet.fluids import naalg
-    from microfab.process.inkjet.waveform import seed003_waveform
+    from microfab.trajectory.waveform import seed003_waveform
 
     if not 40.0 <= voltage <= 70.0:
         fail(
@@ -79,8 +79,8 @@ def simulate_cmd(
 
 
 def _write_report(res: Any, out: Path) -> None:
-    from microfab.process.inkjet.acoustics import fig_nozzle_flow
-    from microfab.process.inkjet.shadowgraph import Camera, fig_montage, render_sequence
+    from microfab.experiments.seed003_inkjet.figures import fig_montage, fig_nozzle_flow
+    from microfab.measure.shadowgraph import Camera, render_sequence
     from microfab.report.canvas import save_figure
 
     out.mkdir(parents=True, exist_ok=True)
@@ -109,7 +109,8 @@ def analyze_cmd(
     json_out: Annotated[Path | None, typer.Option("--json", help="Write JSON here.")] = None,
 ) -> None:
     """Measure head speed, breakup frame and mode, satellites and drop volume from frames."""
-    from microfab.process.inkjet.imaging import analyze_folder, fig_analysis, load_frames
+    from microfab.experiments.seed003_inkjet.figures import fig_analysis
+    from microfab.measure.imaging import analyze_folder, load_frames
     from microfab.report.canvas import save_figure
 
     try:
@@ -158,9 +159,10 @@ def sweep_cmd(
 
     Finished points are kept in OUT/sweep.json; running the same sweep again resumes.
     """
-    from microfab.process.inkjet.calibration import SEED_BREAKUP
+    from microfab.experiments.seed003_inkjet.figures import fig_sweep
+    from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
+    from microfab.experiments.seed003_inkjet.sweep import run_sweep, sweep_points
     from microfab.process.inkjet.fluids import naalg
-    from microfab.process.inkjet.sweep import fig_sweep, run_sweep, sweep_points
     from microfab.report.canvas import save_figure
 
     cs = _floats(concentrations, "concentrations")
@@ -218,7 +220,10 @@ def calibrate_cmd(
 
     Runs the full model about twenty times (a few minutes).
     """
-    from microfab.process.inkjet.calibration import calibrate_relaxation, write_relaxation
+    from microfab.experiments.seed003_inkjet.calibration import (
+        calibrate_relaxation,
+        write_relaxation,
+    )
 
     with progress() as bar:
         task = bar.add_task("calibration runs", total=None)

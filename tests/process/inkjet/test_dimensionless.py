@@ -7,7 +7,6 @@ import pytest
 
 from microfab.process.inkjet.dimensionless import (
     CATEGORIES,
-    fig_regime_map,
     numbers,
     regime_map,
 )
@@ -129,18 +128,3 @@ def test_regime_map_consistent_with_numbers() -> None:
     assert m.length_m == pytest.approx(120e-6)
     # slowest column never ejects (We < 4 at 0.5 m/s through 120 µm)
     assert np.all(m.category[:, 0] == CATEGORIES.index("no ejection"))
-
-
-def test_fig_regime_map_builds() -> None:
-    cs = np.array([0.15, 0.2, 0.25, 0.5, 1.0, 1.5, 2.0])
-    vs = np.linspace(0.5, 12.0, 7)
-    m = regime_map(cs, vs)
-    fig = fig_regime_map(m, points=[(0.15, 3.0, "seed"), (1.0, 3.0)])
-    assert len(fig.axes) == 2
-    assert fig.axes[0].get_xscale() == "log" and fig.axes[0].get_yscale() == "log"
-    fig2 = fig_regime_map(m, voltages_v=np.linspace(40.0, 70.0, 7), points=[(1.0, 3.0)])
-    assert len(fig2.axes) == 2
-    assert "voltage" in fig2.axes[1].get_xlabel()
-    fig2.canvas.draw()
-    with pytest.raises(ValueError, match="voltages_v"):
-        fig_regime_map(m, voltages_v=[40.0, 50.0])

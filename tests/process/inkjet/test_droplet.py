@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from microfab.measure.imaging import analyze
+from microfab.measure.shadowgraph import Camera, render_sequence
 from microfab.process.inkjet.droplet import Scales, simulate_droplet
 from microfab.process.inkjet.fluids import naalg
-from microfab.process.inkjet.imaging import analyze
-from microfab.process.inkjet.shadowgraph import Camera, render_sequence
 
 
 @pytest.fixture(scope="module")

@@ -19,6 +19,7 @@ from microfab.process.inkjet.jet import (
     run_jet,
     thread_body,
 )
+from microfab.sim.integrators import SDIRK2
 
 
 def _perturbed_thread(k: float, eps: float, cells: int = 60) -> Body:
@@ -167,3 +168,16 @@ def test_sphere_cap_geometry_is_exact() -> None:
     assert b.volume == pytest.approx(cap_volume(0.5), rel=1e-12)
     _, r = b.profile()
     assert r[0] == 1.0 and r[-1] == 0.0
+
+
+def test_the_time_integrator_is_an_object_passed_in() -> None:
+    bodies = [_perturbed_thread(0.6, 0.05)]
+    model, nu = JetModel(ohnesorge=0.5), Numerics(h_break=1e-2)
+    default = run_jet(bodies, model, nu, t_end=1e3)
+    explicit = run_jet(bodies, model, nu, t_end=1e3, integrator=SDIRK2())
+    np.testing.assert_array_equal(default.t, explicit.t)
+    np.testing.assert_array_equal(default.neck_radius, explicit.neck_radius)
+    assert (default.steps, default.rejected) == (explicit.steps, explicit.rejected)
+    cautious = run_jet(bodies, model, nu, t_end=1e3, integrator=SDIRK2(max_factor=1.2))
+    assert cautious.steps > default.steps
+    assert cautious.events[0].t == pytest.approx(default.events[0].t, rel=1e-2)

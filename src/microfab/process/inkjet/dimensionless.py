@@ -34,29 +34,21 @@ too viscous, satellites.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-from matplotlib.colors import ListedColormap
-from matplotlib.figure import Figure
-from matplotlib.patches import Patch
 from numpy.typing import ArrayLike, NDArray
 
-from microfab.process.inkjet.fluids import SEED_CONCENTRATIONS_PCT, Fluid, NaAlgTable, naalg
-from microfab.report.canvas import new_figure
+from microfab.process.inkjet.fluids import Fluid, NaAlgTable, naalg
 
 __all__ = [
     "CATEGORIES",
-    "CATEGORY_COLORS",
     "SPLASH_LIMIT",
     "WEBER_MIN",
     "Z_MAX",
     "Z_MIN",
     "Dimensionless",
     "RegimeMap",
-    "fig_regime_map",
     "numbers",
     "regime_map",
 ]
@@ -78,10 +70,6 @@ CATEGORIES: tuple[str, ...] = (
     "no ejection",
     "splashing",
 )
-#: Colours of the categories in `fig_regime_map`.
-CATEGORY_COLORS: tuple[str, ...] = ("#8c6bb1", "#41ab5d", "#fdae61", "#bdbdbd", "#d7191c")
-
-_DIAMETER_RULE = "nozzle diameter"
 
 
 def _category_code(weber: float, z_number: float, splash: float) -> int:
@@ -358,196 +346,3 @@ def regime_map(
         table=table,
         **out,
     )
-
-
-def _nice_levels(lo: float, hi: float) -> list[float]:
-    """1-3-10 levels strictly inside (lo, hi)."""
-    if not (hi > 0.0 and hi > lo):
-        return []
-    lo = max(lo, hi * 1e-6)
-    levels = []
-    for e in range(math.floor(math.log10(lo)) - 1, math.ceil(math.log10(hi)) + 1):
-        for m in (1.0, 3.0):
-            x = m * 10.0**e
-            if lo < x < hi:
-                levels.append(x)
-    return levels
-
-
-def fig_regime_map(
-    regime_map: RegimeMap,
-    *,
-    voltages_v: Sequence[float] | None = None,
-    points: Iterable[Sequence[Any]] | None = None,
-) -> Figure:
-    """Two-panel printability figure for NaAlg.
-
-    Left: the Oh-We plane (log axes) with Derby's window: Z = 1 and Z = 10 (horizontal
-    lines Oh = 1 and Oh = 0.1), We = 4 and the splashing line We^1/2 Re^1/4 = 50 (i.e.
-    Oh = We^2.5 / 50^4); the six seed concentrations are drawn over the map's speed range.
-    Right: concentration × speed (or voltage) coloured by category, with contours of the
-    intrinsic Deborah number.
-
-    Parameters
-    ----------
-    regime_map : RegimeMap
-        From `regime_map`.
-    voltages_v : sequence of float, optional
-        Drive voltage for each speed (same length as ``regime_map.speeds_m_s``); if given,
-        the right panel's horizontal axis is the voltage.
-    points : iterable of (concentration_pct, speed_m_s[, label]), optional
-        Cases to mark on both panels (e.g. the seed's measurements or simulated runs).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        Agg figure with two axes.
-
-    Raises
-    ------
-    ValueError
-        If ``voltages_v`` does not match the speeds.
-
-    Examples
-    --------
-    >>> fig = fig_regime_map(regime_map([0.15, 0.5, 1.0, 2.0], [0.5, 2.0, 5.0, 10.0]))
-    >>> len(fig.axes)
-    2
-    """
-    m = regime_map
-    vs = m.speeds_m_s
-    if voltages_v is not None:
-        xv = np.asarray(voltages_v, dtype=float)
-        if xv.shape != vs.shape:
-            raise ValueError(
-                f"voltages_v has {xv.size} values, the regime map has {vs.size} speeds"
-            )
-        x_label = "drive voltage (V)"
-    else:
-        xv = vs
-        x_label = "jet speed (m/s)"
-
-    pts = [tuple(p) for p in points] if points is not None else []
-
-    fig = new_figure(11.0, 4.6)
-    ax1, ax2 = fig.subplots(1, 2)
-
-    # ---- panel 1: Oh-We plane ---------------------------------------------------------
-    seed = [naalg(c, table=m.table) for c in SEED_CONCENTRATIONS_PCT]
-    we_all = [m.weber[m.weber > 0]]
-    oh_all = [m.ohnesorge.ravel()]
-    seed_groups = []
-    for f in seed:
-        ds = [
-            numbers(f, nozzle_radius_m=m.nozzle_radius_m, speed_m_s=float(v), length_m=m.length_m)
-            for v in vs
-        ]
-        we = np.array([d.weber for d in ds])
-        oh = np.array([d.ohnesorge for d in ds])
-        seed_groups.append((f, we, oh))
-        we_all.append(we[we > 0])
-        oh_all.append(oh)
-    we_cat = np.concatenate(we_all)
-    oh_cat = np.concatenate(oh_all)
-    we_lo = min(0.5, float(we_cat.min()) / 2.0) if we_cat.size else 0.5
-    we_hi = max(2e3, float(we_cat.max()) * 2.0) if we_cat.size else 2e3
-    oh_lo = min(3e-3, float(oh_cat.min()) / 2.0)
-    oh_hi = max(3.0, float(oh_cat.max()) * 2.0)
-
-    we_line = np.geomspace(we_lo, we_hi, 300)
-    splash_oh = we_line**2.5 / SPLASH_LIMIT**4
-    lower = np.maximum(1.0 / Z_MAX, splash_oh)
-    ok = (we_line > WEBER_MIN) & (lower < 1.0 / Z_MIN)
-    ax1.fill_between(
-        we_line, lower, 1.0 / Z_MIN, where=ok, color=CATEGORY_COLORS[1], alpha=0.2, lw=0
-    )
-    ax1.axhline(1.0 / Z_MIN, color="k", lw=1.0, ls="--")
-    ax1.axhline(1.0 / Z_MAX, color="k", lw=1.0, ls="-.")
-    ax1.axvline(WEBER_MIN, color="0.3", lw=1.0, ls=":")
-    ax1.plot(we_line, splash_oh, color=CATEGORY_COLORS[4], lw=1.2)
-    ax1.text(we_lo * 1.2, 1.0 / Z_MIN * 1.15, "Z = 1 (too viscous above)", fontsize=7)
-    ax1.text(we_lo * 1.2, 1.0 / Z_MAX * 0.7, "Z = 10 (satellites below)", fontsize=7)
-    ax1.text(WEBER_MIN * 1.1, oh_lo * 1.3, "We = 4", fontsize=7, rotation=90, va="bottom")
-    ax1.text(
-        we_hi / 1.5,
-        min(oh_hi, we_hi**2.5 / SPLASH_LIMIT**4) / 1.3,
-        "splashing",
-        fontsize=7,
-        ha="right",
-        va="top",
-        color=CATEGORY_COLORS[4],
-    )
-    for f, we, oh in seed_groups:
-        sel = we > 0
-        marker = "o" if vs.size <= 15 else None
-        ax1.plot(we[sel], oh[sel], marker=marker, ms=3, lw=1.2, label=f"{f.concentration_pct:g} %")
-    for p in pts:
-        f = naalg(float(p[0]), table=m.table)
-        d = numbers(
-            f, nozzle_radius_m=m.nozzle_radius_m, speed_m_s=float(p[1]), length_m=m.length_m
-        )
-        if d.weber > 0:
-            ax1.plot(d.weber, d.ohnesorge, "k*", ms=8)
-            if len(p) > 2:
-                ax1.annotate(
-                    str(p[2]),
-                    (d.weber, d.ohnesorge),
-                    fontsize=7,
-                    xytext=(3, 3),
-                    textcoords="offset points",
-                )
-    ax1.set_xscale("log")
-    ax1.set_yscale("log")
-    ax1.set_xlim(we_lo, we_hi)
-    ax1.set_ylim(oh_lo, oh_hi)
-    length_name = (
-        _DIAMETER_RULE
-        if math.isclose(m.length_m, 2.0 * m.nozzle_radius_m)
-        else f"L = {m.length_m * 1e6:g} µm"
-    )
-    ax1.set_xlabel(f"We = ρv²L/σ  (L = {length_name})")
-    ax1.set_ylabel("Oh = η0/√(ρσL) = 1/Z")
-    ax1.set_title("Derby printability window, NaAlg (seed concentrations)", fontsize=9)
-    ax1.legend(fontsize=7, title="NaAlg w/v", title_fontsize=7, loc="lower right")
-
-    # ---- panel 2: category map --------------------------------------------------------
-    cs = m.concentrations_pct
-    cmap = ListedColormap(list(CATEGORY_COLORS))
-    ax2.pcolormesh(
-        xv, cs, m.category, cmap=cmap, vmin=-0.5, vmax=len(CATEGORIES) - 0.5, shading="nearest"
-    )
-    if cs.size > 1 and xv.size > 1:
-        de = m.deborah
-        levels = _nice_levels(float(de.min()), float(de.max()))
-        if levels:
-            cset = ax2.contour(xv, cs, de, levels=levels, colors="k", linewidths=0.8)
-            ax2.clabel(cset, fmt=lambda x: f"De={x:g}", fontsize=7)
-    for c in SEED_CONCENTRATIONS_PCT:
-        if cs.min() <= c <= cs.max():
-            ax2.axhline(c, color="w", lw=0.6, ls=":")
-    if pts:
-        order = np.argsort(vs)
-        for p in pts:
-            v = float(p[1])
-            x = float(np.interp(v, vs[order], xv[order])) if voltages_v is not None else v
-            ax2.plot(x, float(p[0]), "k*", ms=8)
-            if len(p) > 2:
-                ax2.annotate(
-                    str(p[2]),
-                    (x, float(p[0])),
-                    fontsize=7,
-                    xytext=(3, 3),
-                    textcoords="offset points",
-                )
-    if cs.min() > 0 and cs.max() / cs.min() > 4.0:
-        ax2.set_yscale("log")
-    ax2.set_xlabel(x_label)
-    ax2.set_ylabel("NaAlg concentration (% w/v)")
-    ax2.set_title(
-        f"Regime (nozzle R = {m.nozzle_radius_m * 1e6:g} µm), contours: De = λ/t_c", fontsize=9
-    )
-    handles = [
-        Patch(color=col, label=name) for name, col in zip(CATEGORIES, CATEGORY_COLORS, strict=True)
-    ]
-    ax2.legend(handles=handles, fontsize=7, loc="upper left", framealpha=0.8)
-    return fig

@@ -1,7 +1,8 @@
 """From drive voltage to droplet: waveform → printhead acoustics → slender-jet breakup.
 
 The pipeline of seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``): the
-waveform drives the dispenser's acoustic model (:mod:`.acoustics`), whose orifice
+waveform (:mod:`microfab.trajectory.waveform`) drives the dispenser's acoustic model
+(:mod:`microfab.plants.printhead`, calibrated in :mod:`.dispenser`), whose orifice
 velocity pushes liquid into the one-dimensional jet model (:mod:`.jet`), scaled by the
 nozzle radius and the capillary time. The jet is followed through its first breakup
 (time, position, mode) and for a while after it, long enough to count satellites.
@@ -21,13 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from microfab.process.inkjet.acoustics import NozzleFlow, Printhead, default_printhead, nozzle_flow
+from microfab.plants.printhead import NozzleFlow, Printhead, nozzle_flow
 from microfab.process.inkjet.breakup import BreakupMode
 from microfab.process.inkjet.dimensionless import Dimensionless, numbers
+from microfab.process.inkjet.dispenser import default_printhead
 from microfab.process.inkjet.fluids import Fluid
 from microfab.process.inkjet.jet import Body, JetModel, JetRun, Numerics, run_jet
-from microfab.process.inkjet.shadowgraph import Silhouette
-from microfab.process.inkjet.waveform import Waveform, seed003_waveform
+from microfab.process.inkjet.silhouette import Silhouette
+from microfab.trajectory.waveform import Waveform, seed003_waveform
 
 __all__ = [
     "BREAKUP_RADIUS_M",
@@ -39,7 +41,7 @@ __all__ = [
 ]
 
 #: A neck counts as broken below this radius: half a pixel of the 2 µm/pixel camera
-#: assumed in :mod:`.shadowgraph` (assumption; the seed measured breakup "from the
+#: assumed in :mod:`microfab.measure.shadowgraph` (assumption; the seed measured breakup "from the
 #: captured pictures", so a gap is what the camera can resolve).
 BREAKUP_RADIUS_M = 1.0e-6
 
@@ -200,7 +202,7 @@ def simulate_droplet(
     waveform : Waveform, optional
         Drive voltage (default: the seed's 50 V bipolar waveform).
     printhead : Printhead, optional
-        Dispenser model (default: :func:`.acoustics.default_printhead`).
+        Dispenser model (default: :func:`.dispenser.default_printhead`).
     duration_s : float, optional
         Longest simulated time from the start of the pulse.
     after_breakup_s : float, optional
@@ -286,7 +288,7 @@ def jet_inflow(flow: NozzleFlow) -> NozzleFlow:
     Parameters
     ----------
     flow : NozzleFlow
-        Orifice flow from :func:`.acoustics.nozzle_flow`.
+        Orifice flow from :func:`microfab.plants.printhead.nozzle_flow`.
 
     Returns
     -------

@@ -28,10 +28,14 @@ exactly the volume the printhead pushes out. Cells are split where they grow lon
 ``resolution`` times the local radius and merged where they crowd, which refines the
 grid automatically in a thinning neck.
 
-Time stepping is implicit: a two-stage, L-stable, stiffly accurate SDIRK method
-(Alexander 1977, gamma = 1 - 1/sqrt 2) with an embedded first-order error estimate
-filtered through the Newton matrix (Hairer & Wanner, Solving ODEs II, IV.8), Newton
-iterations on the banded Jacobian from :mod:`.jet_kernels` (LAPACK ``gbtrf``/``gbtrs``).
+Time stepping is implicit and handed to an integrator object
+(:class:`microfab.sim.integrators.SDIRK2` by default: two-stage, L-stable, stiffly
+accurate, Alexander 1977, gamma = 1 - 1/sqrt 2, with an embedded first-order error
+estimate filtered through the Newton matrix, Hairer & Wanner, Solving ODEs II, IV.8). This
+module supplies what is specific to the jet (`microfab.sim.integrators.ImplicitProblem`):
+the right-hand side and the banded Jacobian from :mod:`.jet_kernels`, the Newton matrix
+factored by LAPACK ``gbtrf``/``gbtrs``, the boundary values held as algebraic constraints
+and the error norm that judges cell lengths relatively.
 
 A neck "breaks" when its radius drops below ``h_break``; the crossing time is
 interpolated between steps. The jet may then be split into bodies with free tips that
@@ -52,6 +56,7 @@ from scipy.linalg import lapack
 from microfab.core.arrays import readonly
 from microfab.process.inkjet import jet_kernels as jk
 from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
+from microfab.sim.integrators import SDIRK2, ImplicitIntegrator
 
 __all__ = [
     "Body",
@@ -68,7 +73,6 @@ __all__ = [
 BoundaryKind = Literal["nozzle", "wall", "tip"]
 _BC = {"nozzle": jk.BC_NOZZLE, "wall": jk.BC_WALL, "tip": jk.BC_TIP}
 _BC_NAME = {v: k for k, v in _BC.items()}
-_GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
 
 
 class Inflow(Protocol):
@@ -444,11 +448,10 @@ class _State:
         return tuple(out)
 
 
-class _Stepper:
-    """SDIRK2 stepper on a fixed grid; the driver regrids between steps."""
+class _JetSystem:
+    """Fluid parameters of the kernels, fixed for a run; hands out per-step problems."""
 
     def __init__(self, model: JetModel, numerics: Numerics, a_nozzle: float) -> None:
-        self.m = model
         self.nu = numerics
         self.a_nozzle = a_nozzle
         self.args = (
@@ -459,122 +462,168 @@ class _Stepper:
             0.0 if math.isinf(model.extensibility_l2) else 1.0 / model.extensibility_l2,
         )
 
-    def f(self, st: _State, y: np.ndarray, w: np.ndarray, out: np.ndarray) -> bool:
-        return bool(jk.rhs(y, w, st.starts, st.bcl, st.bcr, *self.args, out))
-
-    def step(
+    def at_step(
         self,
         st: _State,
         t: float,
-        h: float,
         inflow: Inflow | None,
         w0_ref: float,
         u_ref: float,
-        piston: bool = False,
-    ) -> tuple[np.ndarray | None, float]:
-        """One SDIRK2 step; returns (new y or None if Newton failed, error norm)."""
-        y = st.y
-        n = y.size
+        piston: bool,
+    ) -> _JetStep:
+        """The jet on its current grid, as an `ImplicitProblem` for one step from ``t``."""
+        return _JetStep(self, st, t, inflow, w0_ref, u_ref, piston)
+
+
+class _JetStep:
+    """One step of the jet on a fixed grid, seen by the integrator (`ImplicitProblem`).
+
+    The state ``y`` has shape (nodes, 4): position, velocity, and the conformation
+    ``a_zz``, ``a_rr`` of the cell to the right of each node. The nozzle cell's volume
+    follows the inflow over the step (unless the meniscus retracts as a piston), the end
+    nodes of walls and the nozzle are algebraic constraints, and the Newton matrix is
+    the banded ``I - gh J`` factored by LAPACK.
+    """
+
+    def __init__(
+        self,
+        system: _JetSystem,
+        st: _State,
+        t0: float,
+        inflow: Inflow | None,
+        w0_ref: float,
+        u_ref: float,
+        piston: bool,
+    ) -> None:
+        self.sys = system
+        self.st = st
+        self.t0 = t0
+        self.inflow = inflow
+        self.w0_ref = w0_ref
+        self.u_ref = u_ref
+        self.piston = piston
+        self.alg_idx, self._alg_val = _algebraic(st, inflow, u_ref, piston)
+        self._lu: np.ndarray | None = None
+        self._piv: np.ndarray | None = None
+        self._stage_t = math.nan
+        self._stage_w = st.w
+        self._stage_targets = np.zeros(0)
+
+    def _w(self, t: float) -> np.ndarray:
+        """Cell volumes at ``t``: the state's own at the start of the step."""
+        if self.piston or t == self.t0:
+            return self.st.w
+        return _w_at(self.st, t, self.inflow, self.w0_ref, self.u_ref, self.sys.a_nozzle)
+
+    def _stage(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        if t != self._stage_t:
+            self._stage_t = t
+            self._stage_w = self._w(t)
+            self._stage_targets = self._alg_val(t)
+        return self._stage_w, self._stage_targets
+
+    def _f(self, y: np.ndarray, w: np.ndarray, out: np.ndarray) -> bool:
+        st = self.st
+        return bool(jk.rhs(y, w, st.starts, st.bcl, st.bcr, *self.sys.args, out))
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray | None:
+        out = np.empty_like(y)
+        return out if self._f(y, self._w(t), out) else None
+
+    def factor(self, t: float, y: np.ndarray, f: np.ndarray, gh: float) -> bool:
+        st = self.st
         kl = jk.KL
-        f0 = np.empty_like(y)
-        if not self.f(st, y, st.w, f0):
-            return None, math.inf
-        ab = np.empty((3 * kl + 1, n))
-        jk.jacobian_banded(y, st.w, st.starts, st.bcl, st.bcr, *self.args, f0, ab)
-        gh = _GAMMA * h
+        ab = np.empty((3 * kl + 1, y.size))
+        jk.jacobian_banded(y, self._w(t), st.starts, st.bcl, st.bcr, *self.sys.args, f, ab)
         ab *= -gh
         ab[2 * kl, :] += 1.0
         lu, piv, info = lapack.dgbtrf(ab, kl, kl, overwrite_ab=1)
         if info != 0:
-            return None, math.inf
-        alg_idx, alg_val = self._algebraic(st, inflow, u_ref, piston)
+            return False
+        self._lu, self._piv = lu, piv
+        return True
 
-        def solve_stage(ts: float, base: np.ndarray, guess: np.ndarray) -> np.ndarray | None:
-            w = st.w if piston else self._w_at(st, ts, inflow, w0_ref, u_ref)
-            yy = guess.copy()
-            fy = np.empty_like(yy)
-            targets = alg_val(ts)
-            prev = math.inf
-            for _ in range(10):
-                if not self.f(st, yy, w, fy):
-                    return None
-                res = yy - base - gh * fy
-                res_flat = res.ravel()
-                res_flat[alg_idx] = yy.ravel()[alg_idx] - targets
-                delta, info2 = lapack.dgbtrs(lu, kl, kl, -res_flat, piv)
-                if info2 != 0:
-                    return None
-                delta = delta.reshape(yy.shape)
-                yy += delta
-                dn = jk.error_norm(delta, yy, st.starts, self.nu.rtol, self.nu.atol)
-                if not math.isfinite(dn) or (dn > 2.0 * prev and prev < math.inf):
-                    return None
-                if dn < 0.05:
-                    return yy
-                prev = dn
+    def residual(self, t: float, y: np.ndarray, base: np.ndarray, gh: float) -> np.ndarray | None:
+        w, targets = self._stage(t)
+        fy = np.empty_like(y)
+        if not self._f(y, w, fy):
             return None
+        res = y - base - gh * fy
+        res_flat = res.ravel()
+        res_flat[self.alg_idx] = y.ravel()[self.alg_idx] - targets
+        return res
 
-        y1 = solve_stage(t + gh, y, y + gh * f0)
-        if y1 is None:
-            return None, math.inf
-        f1 = (y1 - y) / gh
-        base2 = y + (1.0 - _GAMMA) * h * f1
-        y2 = solve_stage(t + h, base2, y + h * f1)
-        if y2 is None:
-            return None, math.inf
-        f2 = (y2 - base2) / gh
-        est = (h * (0.5 - _GAMMA)) * (f1 - f2)
+    def solve(self, r: np.ndarray) -> np.ndarray | None:
+        kl = jk.KL
+        delta, info = lapack.dgbtrs(self._lu, kl, kl, r.ravel(), self._piv)
+        if info != 0:
+            return None
+        return delta.reshape(r.shape)
+
+    def filter_error(self, est: np.ndarray) -> np.ndarray:
+        kl = jk.KL
         est_flat = est.ravel()
-        est_flat[alg_idx] = 0.0
-        err, _ = lapack.dgbtrs(lu, kl, kl, est_flat, piv)
-        err = err.reshape(y.shape)
-        if np.any(np.diff(y2[:, 0])[self._inner_cells(st)] <= 0.0):
-            return None, math.inf
-        return y2, jk.error_norm(err, y2, st.starts, self.nu.rtol, self.nu.atol)
+        est_flat[self.alg_idx] = 0.0
+        err, _ = lapack.dgbtrs(self._lu, kl, kl, est_flat, self._piv)
+        return err.reshape(est.shape)
 
-    @staticmethod
-    def _inner_cells(st: _State) -> np.ndarray:
-        mask = np.ones(st.y.shape[0] - 1, dtype=bool)
-        mask[st.starts[1:-1] - 1] = False
-        return mask
+    def norm(self, e: np.ndarray, y: np.ndarray) -> float:
+        nu = self.sys.nu
+        return float(jk.error_norm(e, y, self.st.starts, nu.rtol, nu.atol))
 
-    def _w_at(
-        self, st: _State, t: float, inflow: Inflow | None, w0_ref: float, u_ref: float
-    ) -> np.ndarray:
-        if inflow is None or st.bcl.size == 0 or st.bcl[0] != jk.BC_NOZZLE:
-            return st.w
-        w = st.w.copy()
-        w[0] = w0_ref + self.a_nozzle * (inflow.displacement(t) - u_ref)
-        return w
+    def admissible(self, y: np.ndarray) -> bool:
+        return not np.any(np.diff(y[:, 0])[_inner_cells(self.st)] <= 0.0)
 
-    def _algebraic(
-        self, st: _State, inflow: Inflow | None, u_ref: float, piston: bool
-    ) -> tuple[np.ndarray, Callable[[float], np.ndarray]]:
-        idx: list[int] = []
-        const: list[float] = []
-        nozzle_pos = -1
-        for b in range(st.starts.size - 1):
-            k0, k1 = int(st.starts[b]), int(st.starts[b + 1])
-            if st.bcl[b] != jk.BC_TIP:
-                idx += [4 * k0, 4 * k0 + 1]
-                const += [st.y[k0, 0], 0.0]
-                if st.bcl[b] == jk.BC_NOZZLE:
-                    nozzle_pos = len(idx) - 2
-            if st.bcr[b] != jk.BC_TIP:
-                idx += [4 * (k1 - 1), 4 * (k1 - 1) + 1]
-                const += [st.y[k1 - 1, 0], 0.0]
-        base = np.array(const)
 
-        def values(ts: float) -> np.ndarray:
-            if nozzle_pos < 0 or inflow is None:
-                return base
-            out = base.copy()
-            out[nozzle_pos + 1] = inflow.velocity(ts)
-            if piston:
-                out[nozzle_pos] = base[nozzle_pos] + inflow.displacement(ts) - u_ref
-            return out
+def _inner_cells(st: _State) -> np.ndarray:
+    mask = np.ones(st.y.shape[0] - 1, dtype=bool)
+    mask[st.starts[1:-1] - 1] = False
+    return mask
 
-        return np.array(idx, dtype=np.int64), values
+
+def _w_at(
+    st: _State,
+    t: float,
+    inflow: Inflow | None,
+    w0_ref: float,
+    u_ref: float,
+    a_nozzle: float,
+) -> np.ndarray:
+    if inflow is None or st.bcl.size == 0 or st.bcl[0] != jk.BC_NOZZLE:
+        return st.w
+    w = st.w.copy()
+    w[0] = w0_ref + a_nozzle * (inflow.displacement(t) - u_ref)
+    return w
+
+
+def _algebraic(
+    st: _State, inflow: Inflow | None, u_ref: float, piston: bool
+) -> tuple[np.ndarray, Callable[[float], np.ndarray]]:
+    idx: list[int] = []
+    const: list[float] = []
+    nozzle_pos = -1
+    for b in range(st.starts.size - 1):
+        k0, k1 = int(st.starts[b]), int(st.starts[b + 1])
+        if st.bcl[b] != jk.BC_TIP:
+            idx += [4 * k0, 4 * k0 + 1]
+            const += [st.y[k0, 0], 0.0]
+            if st.bcl[b] == jk.BC_NOZZLE:
+                nozzle_pos = len(idx) - 2
+        if st.bcr[b] != jk.BC_TIP:
+            idx += [4 * (k1 - 1), 4 * (k1 - 1) + 1]
+            const += [st.y[k1 - 1, 0], 0.0]
+    base = np.array(const)
+
+    def values(ts: float) -> np.ndarray:
+        if nozzle_pos < 0 or inflow is None:
+            return base
+        out = base.copy()
+        out[nozzle_pos + 1] = inflow.velocity(ts)
+        if piston:
+            out[nozzle_pos] = base[nozzle_pos] + inflow.displacement(ts) - u_ref
+        return out
+
+    return np.array(idx, dtype=np.int64), values
 
 
 def run_jet(
@@ -592,6 +641,7 @@ def run_jet(
     after_first_pinch: float = math.inf,
     progress: Callable[[float], None] | None = None,
     h0: float = 1e-4,
+    integrator: ImplicitIntegrator | None = None,
 ) -> JetRun:
     """Integrate the slender-jet equations from ``t0`` to ``t_end`` (dimensionless).
 
@@ -624,6 +674,11 @@ def run_jet(
         Called with the current time after each step.
     h0 : float, optional
         First time step.
+    integrator : ImplicitIntegrator, optional
+        Time-stepping scheme and step-size control (default:
+        :class:`microfab.sim.integrators.SDIRK2` with its default settings). It is handed
+        the jet on the current grid for each step; regridding, inflow, breakup and
+        coalescence happen between steps.
 
     Returns
     -------
@@ -636,7 +691,8 @@ def run_jet(
     ``stop_reason``.
     """
     nu = numerics or Numerics()
-    stepper = _Stepper(model, nu, a_nozzle)
+    solver = integrator if integrator is not None else SDIRK2()
+    system = _JetSystem(model, nu, a_nozzle)
     st = _State.from_bodies(bodies)
     snaps_t = sorted(float(s) for s in snapshot_times if t0 <= s <= t_end)
     snapshots: list[tuple[float, tuple[Body, ...]]] = []
@@ -704,16 +760,17 @@ def run_jet(
                 and st.bcl[0] == jk.BC_NOZZLE
                 and (st.y[0, 0] < 0.0 or inflow.velocity(t) < 0.0)
             )
-            y_new, err = stepper.step(st, t, h, inflow, w0_ref, u_ref, piston)
+            result = solver.step(system.at_step(st, t, inflow, w0_ref, u_ref, piston), t, st.y, h)
+            y_new, err = result.y, result.error
             if y_new is not None and regridded:
                 # A regrid excites fast viscous transients that the L-stable stages
                 # damp but that the error estimate cannot tell from truncation error;
                 # the first step on a new grid keeps the step size already controlled.
                 err = min(err, 1.0)
-            if y_new is None or not err <= 1.0:  # a NaN error estimate is a failure too
+            if y_new is None or not solver.accepts(err):  # a NaN error fails too
                 rejected += 1
-                h *= 0.25 if y_new is None else max(0.2, 0.9 / math.sqrt(err))
-                if h < 1e-14:
+                h = solver.step_after_rejection(h, None if y_new is None else err)
+                if h < solver.min_step:
                     stop_reason = f"time step collapsed at t = {t:.6g}"
                     break
                 continue
@@ -729,7 +786,7 @@ def run_jet(
                     st.w[0] += a_nozzle * st.y[0, 0]
                     injected += a_nozzle * st.y[0, 0]
                     st.y[0, 0] = 0.0
-            h *= min(3.0, max(0.2, 0.9 / math.sqrt(max(err, 1e-10))))
+            h = solver.step_after_acceptance(h, err)
         if dormant and inflow is not None:
             vol = dormant_volume()
             if vol >= cap_volume(start_cap_height, a_nozzle):

@@ -1,11 +1,14 @@
 """Piezo drive waveforms: unipolar, bipolar and tripolar trapezoidal pulse trains.
 
 A drop-on-demand dispenser is driven by a train of trapezoidal voltage pulses repeated at
-the jetting frequency. Seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``,
-Xu et al., "Method" and Table 1) drives a MicroFab 120 µm dispenser with the *bipolar*
-waveform of Herran & Huang (2012): a positive pulse (the *dwell*) followed by a negative
-pulse (the *echo*) that cancels part of the residual acoustic oscillation, with 3 µs rise
-and fall times, 30 µs dwell, 30 µs echo, 40-70 V and 50 Hz.
+the jetting frequency: the command signal of the printhead plant. `Waveform` satisfies
+:class:`microfab.plants.printhead.DriveSignal` (a ``voltage(t_s)`` method), so it drives
+:func:`microfab.plants.printhead.nozzle_flow` directly. Seed 003 part 1
+(``../shared/seeds/003_4915b267b12a78d4.txt``, Xu et al., "Method" and Table 1) drives a
+MicroFab 120 µm dispenser with the *bipolar* waveform of Herran & Huang (2012): a positive
+pulse (the *dwell*) followed by a negative pulse (the *echo*) that cancels part of the
+residual acoustic oscillation, with 3 µs rise and fall times, 30 µs dwell, 30 µs echo,
+40-70 V and 50 Hz.
 
 Shape
 -----
@@ -43,6 +46,7 @@ from typing import Literal
 import numpy as np
 
 from microfab.core.validate import check_positive
+from microfab.plants.printhead import SEED003_DWELL_S
 
 __all__ = [
     "MAX_AMPLITUDE_V",
@@ -67,8 +71,8 @@ MAX_AMPLITUDE_V = 200.0
 SEED003_VOLTAGES_V = (40.0, 45.0, 50.0, 55.0, 60.0, 65.0, 70.0)  # seed 003 part 1, Table 1
 #: Voltage rise and fall times of the seed, s.
 SEED003_RISE_FALL_S = 3e-6  # seed 003 part 1, Table 1
-#: Dwell time of the seed, s.
-SEED003_DWELL_S = 30e-6  # seed 003 part 1, Table 1
+# SEED003_DWELL_S (30 µs, seed 003 part 1, Table 1) is defined with the printhead, whose
+# default channel length it sets (Bogy & Talke: L = c × dwell), and re-exported here.
 #: Echo time of the seed, s.
 SEED003_ECHO_S = 30e-6  # seed 003 part 1, Table 1
 #: Excitation (jetting) frequency of the seed, Hz.

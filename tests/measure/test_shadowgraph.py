@@ -7,15 +7,14 @@ import numpy as np
 import pytest
 import tifffile
 
-from microfab.process.inkjet.shadowgraph import (
+from microfab.measure.shadowgraph import (
     SIDECAR_NAME,
     Camera,
-    Silhouette,
-    fig_montage,
     render,
     render_sequence,
     write_frames,
 )
+from microfab.process.inkjet.silhouette import Silhouette
 
 NOZ_R = 60e-6
 SHARP = Camera(
@@ -34,35 +33,6 @@ def _darkness(img: np.ndarray, cam: Camera) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ validation
-
-
-@pytest.mark.parametrize(
-    ("bodies", "match"),
-    [
-        (((np.array([0.0, 2e-6, 1e-6]), np.ones(3) * 1e-6),), "strictly ascending"),
-        (((np.array([0.0, 1e-6]), np.array([1e-6, -1e-7])),), "r_m must be >= 0"),
-        (((np.array([0.0, 1e-6, 2e-6]), np.ones(2) * 1e-6),), "equal length"),
-        (((np.array([0.0]), np.array([1e-6])),), "at least 2 samples"),
-        (((np.array([0.0, np.nan]), np.ones(2)),), "finite"),
-        ((np.zeros(3),), "pair"),
-    ],
-)
-def test_silhouette_rejects_bad_bodies(bodies: tuple, match: str) -> None:
-    with pytest.raises(ValueError, match=match):
-        Silhouette(time_s=0.0, bodies=bodies, nozzle_radius_m=NOZ_R)
-
-
-def test_silhouette_rejects_bad_scalars_and_freezes_arrays() -> None:
-    with pytest.raises(ValueError, match="nozzle_radius_m"):
-        Silhouette(time_s=0.0, bodies=(), nozzle_radius_m=0.0)
-    with pytest.raises(ValueError, match="time_s"):
-        Silhouette(time_s=float("nan"), bodies=(), nozzle_radius_m=NOZ_R)
-    z, r = _cylinder(0.0, 10e-6, 1e-6)
-    s = Silhouette(time_s=0.0, bodies=((z, r),), nozzle_radius_m=NOZ_R)
-    r[:] = 5.0  # the silhouette holds a copy
-    assert s.bodies[0][1][0] == 1e-6
-    with pytest.raises(ValueError):
-        s.bodies[0][1][0] = 2.0
 
 
 @pytest.mark.parametrize(
@@ -162,15 +132,3 @@ def test_write_frames_rejects_bad_arguments(tmp_path) -> None:
         write_frames(frames, tmp_path, camera=cam, frame_interval_s=1e-6, fmt="jpg")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="prefix"):
         write_frames(frames, tmp_path, camera=cam, frame_interval_s=1e-6, prefix="../x")
-
-
-def test_fig_montage() -> None:
-    cam = Camera(width_px=30, height_px=90)
-    frames = np.full((4, 90, 30), 0.8)
-    fig = fig_montage(frames, [0.0, 10e-6, 20e-6, 95e-6], cam)
-    assert len(fig.axes) == 4
-    assert [ax.get_title() for ax in fig.axes] == ["0 µs", "10 µs", "20 µs", "95 µs"]
-    texts = [t.get_text() for t in fig.axes[0].texts]
-    assert texts == ["20 µm"]  # 1-2-5 bar not longer than 60 % of the 60 µm frame width
-    with pytest.raises(ValueError, match="one time per frame"):
-        fig_montage(frames, [0.0], cam)

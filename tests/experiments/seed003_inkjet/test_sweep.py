@@ -6,7 +6,7 @@ from typing import Any
 
 import pytest
 
-from microfab.process.inkjet.sweep import SweepPoint, fig_sweep, run_sweep, sweep_points
+from microfab.experiments.seed003_inkjet.sweep import SweepPoint, run_sweep, sweep_points
 
 
 def _fake(calls: list[SweepPoint]):
@@ -88,11 +88,3 @@ def test_sweep_refuses_a_file_with_other_settings(tmp_path: Path) -> None:
         run_sweep([SweepPoint(1.0, 50.0)], duration_s=1e-4, results_path=path, simulate=_fake([]))
     with pytest.raises(ValueError, match="duration"):
         run_sweep([SweepPoint(1.0, 50.0)], duration_s=0.0, simulate=_fake([]))
-
-
-def test_fig_sweep_draws_both_panels() -> None:
-    rows = run_sweep(sweep_points([0.15, 1.0, 2.0], [45, 55]), simulate=_fake([]))
-    fig = fig_sweep(rows, seed_points={0.15: (95e-6, "front"), 1.0: (230e-6, "exit")})
-    ax_c, ax_v = fig.axes
-    assert len(ax_c.lines) == 3  # model, no-breakup crosses, seed
-    assert list(ax_v.lines[0].get_xdata()) == [45.0, 50.0, 55.0]

@@ -1,14 +1,15 @@
 """Calibration of the NaAlg relaxation law from the seed's two breakup times.
 
 The relaxation time is the one fluid property that nothing measured pins down, so the law
-``λ(c) = λ_ref · (c / 1 %)^m`` (:mod:`.fluids`) is inferred from the only two numbers the
-seed quotes (seed 003 part 1, ``../shared/seeds/003_4915b267b12a78d4.txt``, "Typical
-droplet formation process", Fig. 2, 50 V): the first breakup of 0.15 % NaAlg at 95 µs and
-of 1 % NaAlg at 230 µs. Everything else the model predicts (pinch-off modes, the other
+``λ(c) = λ_ref · (c / 1 %)^m`` (:mod:`microfab.process.inkjet.fluids`) is inferred from the
+only two numbers the seed quotes (seed 003 part 1,
+``../shared/seeds/003_4915b267b12a78d4.txt``, "Typical droplet formation process", Fig. 2,
+50 V; :data:`.paper.SEED_BREAKUP`): the first breakup of 0.15 % NaAlg at 95 µs and of 1 %
+NaAlg at 230 µs. Everything else the model predicts (pinch-off modes, the other
 four concentrations, the voltage trend) is then checked, not fitted.
 
 The procedure is deterministic and runs the full drop-on-demand model
-(:func:`.droplet.simulate_droplet`):
+(:func:`microfab.process.inkjet.droplet.simulate_droplet`):
 
 1. ``λ_ref`` from the 1 % time alone (at 1 % the law gives ``λ = λ_ref`` whatever ``m``).
    The breakup time is not monotone in λ: a larger λ means a smaller polymer modulus
@@ -36,29 +37,18 @@ from pathlib import Path
 
 from scipy import optimize
 
+from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP, SEED_VOLTAGE_V
 from microfab.io.atomic import atomic_write_text
 from microfab.process.inkjet.breakup import BreakupMode
 from microfab.process.inkjet.fluids import NaAlgTable, _parse_table, load_table, naalg
 
 __all__ = [
-    "SEED_BREAKUP",
     "Evaluation",
     "RelaxationFit",
     "calibrate_relaxation",
     "simulated_breakup",
     "write_relaxation",
 ]
-
-#: First breakup at 50 V: concentration % w/v → (time s, mode). Seed 003 part 1,
-#: "Typical droplet formation process" and Fig. 2: 0.15 % at 95 µs by front-pinching,
-#: 1 % at 230 µs by exit-pinching.
-SEED_BREAKUP: dict[float, tuple[float, BreakupMode]] = {
-    0.15: (95e-6, "front"),
-    1.0: (230e-6, "exit"),
-}
-
-#: Drive voltage of the seed's quoted breakup times, V (seed 003 part 1, Fig. 2 and 4).
-SEED_VOLTAGE_V = 50.0
 
 #: Simulated time per calibration run, s: long enough for a breakup 70 % later than the
 #: latest target.
@@ -85,7 +75,7 @@ def simulated_breakup(
         Breakup time in s and mode; ``(None, None)`` without breakup in 400 µs.
     """
     from microfab.process.inkjet.droplet import simulate_droplet
-    from microfab.process.inkjet.waveform import seed003_waveform
+    from microfab.trajectory.waveform import seed003_waveform
 
     res = simulate_droplet(
         naalg(concentration_pct, relaxation_time_s=relaxation_time_s),
@@ -312,8 +302,9 @@ def write_relaxation(fit: RelaxationFit, path: str | Path, *, command: str) -> N
         f"reference_pct = {fit.reference_pct:g}\n"
         f"exponent = {fit.exponent:.3f}\n"
         'status = "calibrated"\n'
-        f'note = """fitted by `{command}` (microfab.process.inkjet.calibration) to the seed\'s '
-        f"first-breakup times at 50 V (seed 003 part 1, Fig. 2: {seed}). Model with the fit: "
+        f'note = """fitted by `{command}` (microfab.experiments.seed003_inkjet.calibration) '
+        f"to the seed's first-breakup times at 50 V (seed 003 part 1, Fig. 2: {seed}). "
+        "Model with the fit: "
         f'{model}.{bound}"""\n\n'
     )
     new = _BLOCK.sub(lambda _: "[relaxation]\n" + block, text, count=1)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from microfab.process.inkjet.waveform import (
+from microfab.trajectory.waveform import (
     MAX_AMPLITUDE_V,
     SEED003_VOLTAGES_V,
     Waveform,

@@ -1,11 +1,13 @@
 """Breakup time over concentration and voltage: the seed's Fig. 4 and its voltage trend.
 
-A sweep runs :func:`.droplet.simulate_droplet` once per point: the six NaAlg
-concentrations of seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``,
-"Materials") at 50 V (its Fig. 4), and the Table 1 voltages 40-70 V at one concentration.
-Every finished point is written at once (atomically) to a JSON file, and a sweep started
+A sweep runs :func:`microfab.process.inkjet.droplet.simulate_droplet` once per point:
+the six NaAlg concentrations of seed 003 part 1
+(``../shared/seeds/003_4915b267b12a78d4.txt``, "Materials") at 50 V (its Fig. 4), and the
+Table 1 voltages 40-70 V at one concentration (numbers in :mod:`.paper`). Every finished
+point is written at once (atomically) to a JSON file, and a sweep started
 again with the same file and settings skips the points already there, so an interrupted
-sweep loses at most the point in progress.
+sweep loses at most the point in progress. The figure is
+:func:`microfab.experiments.seed003_inkjet.figures.fig_sweep`.
 """
 
 from __future__ import annotations
@@ -19,31 +21,25 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from matplotlib.figure import Figure
-
+from microfab.experiments.seed003_inkjet.paper import (
+    FIG4_VOLTAGE_V,
+    SEED_CONCENTRATIONS_PCT,
+    SEED_VOLTAGES_V,
+)
 from microfab.io.atomic import atomic_write_json
-from microfab.report.canvas import new_figure
 
 __all__ = [
-    "SEED_CONCENTRATIONS_PCT",
-    "SEED_VOLTAGES_V",
+    "SWEEP_MAX_STEPS",
     "SweepPoint",
-    "fig_sweep",
     "run_sweep",
     "sweep_points",
 ]
 
-#: NaAlg concentrations, % w/v (seed 003 part 1, "Materials").
-SEED_CONCENTRATIONS_PCT = (0.15, 0.20, 0.25, 1.0, 1.5, 2.0)
-#: Excitation voltages, V (seed 003 part 1, Table 1).
-SEED_VOLTAGES_V = (40.0, 45.0, 50.0, 55.0, 60.0, 65.0, 70.0)
-#: Voltage of the concentration series, V (seed 003 part 1, Fig. 4).
-FIG4_VOLTAGE_V = 50.0
 #: Step budget per sweep point, a safeguard: the seed's points take 1 200 to 11 600 steps
 #: each (1 % at 65 V the most). Before a cut removed the thin thread beside the neck
-#: (`.jet.Numerics.cut_radius_factor`), the 1 % run at 45 V ground on for more than 10
-#: minutes; a point that runs out ends with its ``solver_stop_reason`` in the row
-#: instead of holding up the sweep.
+#: (`microfab.process.inkjet.jet.Numerics.cut_radius_factor`), the 1 % run at 45 V
+#: ground on for more than 10 minutes; a point that runs out ends with its
+#: ``solver_stop_reason`` in the row instead of holding up the sweep.
 SWEEP_MAX_STEPS = 60_000
 
 
@@ -111,8 +107,9 @@ def run_sweep(
         JSON file holding ``{"settings": ..., "rows": [...]}``. Rows already there for
         the same settings are reused; the file is rewritten atomically after each point.
     simulate : callable, optional
-        ``(point, duration_s) → summary dict``; default: :func:`.droplet.simulate_droplet`
-        with the seed's bipolar waveform, ``DropletResult.to_dict()``. With ``jobs > 1``
+        ``(point, duration_s) → summary dict``; default:
+        :func:`microfab.process.inkjet.droplet.simulate_droplet` with the seed's bipolar
+        waveform, ``DropletResult.to_dict()``. With ``jobs > 1``
         it must be picklable (a module-level function).
     progress : callable, optional
         Called with (number of points finished, point) after each simulation that is
@@ -191,7 +188,7 @@ def run_sweep(
 def _simulate(point: SweepPoint, duration_s: float) -> dict[str, Any]:
     from microfab.process.inkjet.droplet import DOD_NUMERICS, simulate_droplet
     from microfab.process.inkjet.fluids import naalg
-    from microfab.process.inkjet.waveform import seed003_waveform
+    from microfab.trajectory.waveform import seed003_waveform
 
     res = simulate_droplet(
         naalg(point.concentration_pct),
@@ -201,71 +198,3 @@ def _simulate(point: SweepPoint, duration_s: float) -> dict[str, Any]:
         numerics=dataclasses.replace(DOD_NUMERICS, max_steps=SWEEP_MAX_STEPS),
     )
     return res.to_dict()
-
-
-def fig_sweep(
-    rows: Sequence[dict[str, Any]],
-    *,
-    seed_points: dict[float, tuple[float, str]] | None = None,
-) -> Figure:
-    """Breakup time against concentration (50 V) and against voltage.
-
-    Parameters
-    ----------
-    rows : sequence of dict
-        From :func:`run_sweep`.
-    seed_points : dict, optional
-        Concentration → (breakup time s, mode) quoted by the seed, drawn as open markers.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        Two panels; points without breakup are drawn at the top of the axis as crosses.
-    """
-    fig = new_figure(9.0, 3.6)
-    ax_c, ax_v = fig.subplots(1, 2)
-    at50 = sorted(
-        (r for r in rows if r["voltage_v"] == FIG4_VOLTAGE_V), key=lambda r: r["concentration_pct"]
-    )
-    by_c: dict[float, list[dict[str, Any]]] = {}
-    for r in rows:
-        by_c.setdefault(r["concentration_pct"], []).append(r)
-    series_c = max(by_c, key=lambda c: len(by_c[c])) if by_c else None
-    at_c = sorted(by_c.get(series_c, []), key=lambda r: r["voltage_v"])
-    for ax, data, key, label in (
-        (ax_c, at50, "concentration_pct", "NaAlg concentration, % w/v"),
-        (ax_v, at_c, "voltage_v", "drive voltage, V"),
-    ):
-        xs = [r[key] for r in data if r["breakup_time_s"] is not None]
-        ys = [r["breakup_time_s"] * 1e6 for r in data if r["breakup_time_s"] is not None]
-        ax.plot(xs, ys, "o-", color="C0", label="model")
-        for r in data:
-            if r["breakup_time_s"] is not None:
-                ax.annotate(
-                    str(r["breakup_mode"]),
-                    (r[key], r["breakup_time_s"] * 1e6),
-                    textcoords="offset points",
-                    xytext=(4, 4),
-                    fontsize=7,
-                )
-        missing = [r[key] for r in data if r["breakup_time_s"] is None]
-        if missing:
-            top = max(max(ys, default=0.0) * 1.1, 1.0)
-            ax.plot(missing, [top] * len(missing), "x", color="C3", label="no breakup")
-        ax.set_xlabel(label)
-        ax.set_ylabel("first breakup time, µs")
-        ax.grid(True, alpha=0.3)
-    if seed_points:
-        cs = sorted(seed_points)
-        ax_c.plot(
-            cs,
-            [seed_points[c][0] * 1e6 for c in cs],
-            "s",
-            mfc="none",
-            color="k",
-            label="seed (Fig. 2)",
-        )
-    ax_c.set_title(f"breakup time at {FIG4_VOLTAGE_V:g} V (cf. seed Fig. 4)")
-    ax_v.set_title("voltage trend" + ("" if series_c is None else f" at {series_c:g} % NaAlg"))
-    ax_c.legend(fontsize=8)
-    return fig

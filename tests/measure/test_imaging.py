@@ -21,20 +21,19 @@ import numpy as np
 import pytest
 import tifffile
 
-from microfab.process.inkjet.imaging import (
+from microfab.measure.imaging import (
     DropletAnalysis,
     analyze,
     analyze_folder,
-    fig_analysis,
     load_frames,
     natural_key,
 )
-from microfab.process.inkjet.shadowgraph import (
+from microfab.measure.shadowgraph import (
     Camera,
-    Silhouette,
     render_sequence,
     write_frames,
 )
+from microfab.process.inkjet.silhouette import Silhouette
 
 PX = 2e-6
 NOZ_R = 60e-6
@@ -221,15 +220,6 @@ def test_no_breakup_and_head_leaving_the_view(rendered: dict[str, np.ndarray]) -
     assert res.satellites == 2  # the head has left; both satellites still in view
     assert res.drop_volume_m3 == pytest.approx(HEAD_VOLUME, rel=0.10)  # last full view
     assert res.breakup_mode == "front"
-
-
-def test_fig_analysis(rendered: dict[str, np.ndarray]) -> None:
-    res = analyze(rendered["front"], pixel_size_m=PX, frame_interval_s=DT)
-    fig = fig_analysis(res, rendered["front"])
-    assert len(fig.axes) == 2
-    assert "front-pinching" in fig.axes[1].get_title()
-    with pytest.raises(ValueError, match="frames"):
-        fig_analysis(res, rendered["front"][:3])
 
 
 # ------------------------------------------------------------------ loading and errors

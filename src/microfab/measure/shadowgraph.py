@@ -5,9 +5,10 @@ droplet formation of alginate solutions from a MicroFab 120 µm dispenser with a
 strobed camera: the liquid appears as a dark silhouette on a bright background (seed
 Fig. 2, a time-resolved strip of such frames; Fig. 3, the features of a forming droplet:
 nozzle, ligament, head, pinch-off). This module turns the radius profiles ``r(z)`` of the
-axisymmetric liquid bodies computed by a 1D jet solver into such frames, so that the
-image analyser (:mod:`microfab.process.inkjet.imaging`) can be run on simulated and on
-measured sequences alike, and checked against known ground truth.
+axisymmetric liquid bodies computed by a 1D jet solver
+(:class:`microfab.process.inkjet.silhouette.Silhouette`) into such frames, so that the
+image analyser (:mod:`microfab.measure.imaging`) can be run on simulated and on measured
+sequences alike, and checked against known ground truth.
 
 Image model (all ASSUMPTIONS of an idealised back-lit microscope, not from the seed):
 
@@ -36,22 +37,17 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 from scipy import ndimage
 
 from microfab.io.atomic import atomic_path, atomic_write_json
-from microfab.report.canvas import new_figure
-
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+from microfab.process.inkjet.silhouette import Silhouette
 
 __all__ = [
     "SIDECAR_NAME",
     "Camera",
-    "Silhouette",
-    "fig_montage",
     "render",
     "render_sequence",
     "write_frames",
@@ -59,8 +55,6 @@ __all__ = [
 
 #: Name of the JSON file written next to the frames (read by ``imaging.analyze_folder``).
 SIDECAR_NAME = "frames.json"
-
-Body = tuple[np.ndarray, np.ndarray]
 
 
 def _check_positive(name: str, value: float, unit: str) -> None:
@@ -71,70 +65,6 @@ def _check_positive(name: str, value: float, unit: str) -> None:
 def _check_int(name: str, value: int, minimum: int) -> None:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r} px")
-
-
-def _check_body(index: int, body: object) -> Body:
-    try:
-        z_raw, r_raw = body  # type: ignore[misc]
-    except (TypeError, ValueError):
-        raise ValueError(f"body {index} must be a pair (z_m, r_m) of arrays") from None
-    z = np.array(z_raw, dtype=float)
-    r = np.array(r_raw, dtype=float)
-    if z.ndim != 1 or r.ndim != 1 or z.shape != r.shape:
-        raise ValueError(
-            f"body {index}: z_m and r_m must be 1-D arrays of equal length, "
-            f"got shapes {z.shape} and {r.shape}"
-        )
-    if z.size < 2:
-        raise ValueError(f"body {index}: needs at least 2 samples, got {z.size}")
-    if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
-        raise ValueError(f"body {index}: z_m and r_m must be finite")
-    if np.any(np.diff(z) <= 0):
-        k = int(np.argmax(np.diff(z) <= 0))
-        raise ValueError(
-            f"body {index}: z_m must be strictly ascending, got {z[k]} m then {z[k + 1]} m"
-        )
-    if np.any(r < 0):
-        k = int(np.argmax(r < 0))
-        raise ValueError(f"body {index}: r_m must be >= 0, got {r[k]} m at z = {z[k]} m")
-    z.setflags(write=False)
-    r.setflags(write=False)
-    return z, r
-
-
-@dataclass(frozen=True, kw_only=True)
-class Silhouette:
-    """Axisymmetric liquid bodies at one instant, as a 1D jet solver describes them.
-
-    Attributes
-    ----------
-    time_s : float
-        Time of the snapshot in s (finite; e.g. since the start of the drive pulse).
-    bodies : tuple of (numpy.ndarray, numpy.ndarray)
-        One ``(z_m, r_m)`` pair per liquid body: axial positions in m downstream of the
-        nozzle exit plane (strictly ascending) and the local radius in m (>= 0). The body
-        attached to the nozzle starts at ``z = 0`` with ``r`` equal to the nozzle radius.
-        Between samples the radius is interpolated linearly; outside its ``z`` range a body
-        is absent. Arrays are copied and made read-only. May be empty (no liquid out).
-    nozzle_radius_m : float
-        Radius of the nozzle orifice in m (> 0); 60 µm for the seed's 120 µm orifice.
-
-    Raises
-    ------
-    ValueError
-        If a value is not finite/positive or a body is malformed (lengths, order, sign).
-    """
-
-    time_s: float
-    bodies: tuple[Body, ...]
-    nozzle_radius_m: float
-
-    def __post_init__(self) -> None:
-        if not (isinstance(self.time_s, int | float | np.number) and math.isfinite(self.time_s)):
-            raise ValueError(f"time_s must be finite, got {self.time_s!r} s")
-        _check_positive("nozzle_radius_m", self.nozzle_radius_m, "m")
-        checked = tuple(_check_body(i, b) for i, b in enumerate(self.bodies))
-        object.__setattr__(self, "bodies", checked)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -405,65 +335,7 @@ def write_frames(
             "bit_depth": camera.bit_depth,
             "n_frames": len(paths),
             "files": [p.name for p in paths],
-            "source": "microfab.process.inkjet.shadowgraph (synthetic)",
+            "source": "microfab.measure.shadowgraph (synthetic)",
         },
     )
     return paths
-
-
-def _nice_length(max_m: float) -> float:
-    """Largest 1-2-5 x 10^k length not above ``max_m``."""
-    exponent = math.floor(math.log10(max_m))
-    for mant in (5.0, 2.0, 1.0):
-        if mant * 10.0**exponent <= max_m:
-            return mant * 10.0**exponent
-    return 10.0 ** (exponent - 1) * 5.0
-
-
-def fig_montage(frames: np.ndarray, times_s: Sequence[float], camera: Camera) -> Figure:
-    """Horizontal strip of frames with time labels and a scale bar (like seed Fig. 2).
-
-    Parameters
-    ----------
-    frames : numpy.ndarray
-        Frames ``(n, h, w)``, float in [0, 1] (or any gray levels).
-    times_s : sequence of float
-        Time of each frame, s; shown in µs above the frames.
-    camera : Camera
-        Provides the pixel size for the scale bar (drawn on the first frame).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        The montage (Agg canvas, no pyplot).
-
-    Examples
-    --------
-    >>> cam = Camera(width_px=32, height_px=64)
-    >>> fig = fig_montage(np.full((3, 64, 32), 0.8), [0.0, 1e-5, 2e-5], cam)
-    >>> len(fig.axes)
-    3
-    """
-    data = np.asarray(frames, dtype=float)
-    if data.ndim == 2:
-        data = data[None]
-    if data.ndim != 3 or len(data) == 0:
-        raise ValueError(f"frames must have shape (n, h, w) with n >= 1, got {data.shape}")
-    times = np.asarray(times_s, dtype=float)
-    if times.shape != (len(data),):
-        raise ValueError(f"need one time per frame: {len(data)} frames, {times.size} times")
-    n, h, w = data.shape
-    panel_h = 4.0
-    fig = new_figure(max(2.0, n * panel_h * w / h + 0.3), panel_h + 0.5)
-    axes = fig.subplots(1, n, squeeze=False)[0]
-    for ax, frame, t in zip(axes, data, times, strict=True):
-        ax.imshow(frame, cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
-        ax.set_title(f"{t * 1e6:.4g} µs", fontsize=9)
-        ax.set_xticks([])
-        ax.set_yticks([])
-    bar_m = _nice_length(0.6 * w * camera.pixel_size_m)
-    bar_px = bar_m / camera.pixel_size_m
-    x0, y0 = 0.1 * w, 0.95 * h
-    axes[0].plot([x0, x0 + bar_px], [y0, y0], color="black", linewidth=3, solid_capstyle="butt")
-    axes[0].text(x0, y0 - 0.015 * h, f"{bar_m * 1e6:g} µm", fontsize=8, va="bottom")
-    return fig

@@ -11,9 +11,9 @@ import itertools
 
 import pytest
 
-from microfab.process.inkjet.calibration import SEED_BREAKUP, simulated_breakup
+from microfab.experiments.seed003_inkjet.calibration import simulated_breakup
+from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP, SEED_CONCENTRATIONS_PCT
 from microfab.process.inkjet.fluids import load_table
-from microfab.process.inkjet.sweep import SEED_CONCENTRATIONS_PCT
 
 
 def _breakup(c: float) -> tuple[float | None, str | None]:

@@ -1,4 +1,4 @@
-"""1D lossy acoustics of a squeeze-tube dispenser: drive voltage -> orifice flow.
+"""Printhead plant: 1D lossy squeeze-tube acoustics, drive voltage -> orifice flow.
 
 A MicroFab dispenser (seed 003 part 1, ``../shared/seeds/003_4915b267b12a78d4.txt``,
 "Method": 120 µm orifice) is a liquid-filled glass capillary squeezed by a tubular PZT.
@@ -63,9 +63,10 @@ Discretisation: finite volumes on a staggered grid, ``cells`` pressure cells of 
 ``Δz = L / cells`` with pressures at the cell centres and flows at the faces; face 0
 sits on the reservoir end (half-cell inertance and resistance to the boundary), the last
 face is the nozzle flow ``q_n`` (its inertance includes the half cell next to the
-nozzle). The state is ``[p_0..p_{N-1}, q_0..q_{N-1}, q_n, V_m]`` (Pa, m³/s, m³). The
-drive waveforms of `microfab.process.inkjet.waveform` are piecewise linear, so their
-slope is piecewise constant and the zero-order-hold discretisation is exact when the
+nozzle). The state is ``[p_0..p_{N-1}, q_0..q_{N-1}, q_n, V_m]`` (Pa, m³/s, m³). Any
+drive with a ``voltage(t_s)`` method (`DriveSignal`) can be applied; the trapezoidal
+waveforms of :mod:`microfab.trajectory.waveform` are piecewise linear, so their slope is
+piecewise constant and the zero-order-hold discretisation is exact when the
 sample grid hits the corners (it does for the seed's waveform at the default 50 ns).
 The response is the convolution of the input with the ZOH Markov parameters, evaluated
 from the eigen-decomposition of the (diagonally balanced) system matrix, or by matrix
@@ -90,48 +91,46 @@ H. Wijshoff, "The dynamics of the piezo inkjet printhead operation", Phys. Rep. 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import scipy.linalg
 import scipy.signal
-from matplotlib.figure import Figure
 
 from microfab.core.validate import check_positive
-from microfab.process.inkjet.waveform import SEED003_DWELL_S, Waveform, seed003_waveform
-from microfab.report.canvas import new_figure
 
 __all__ = [
-    "REFERENCE_DENSITY_KG_M3",
-    "REFERENCE_PEAK_VELOCITY_M_S",
-    "REFERENCE_SURFACE_TENSION_N_M",
-    "REFERENCE_VISCOSITY_PA_S",
+    "SEED003_DWELL_S",
+    "DriveSignal",
     "NozzleFlow",
     "Printhead",
     "calibrate_gain",
-    "default_printhead",
-    "fig_nozzle_flow",
     "nozzle_flow",
     "printhead_state_space",
 ]
 
-#: Peak mean orifice velocity of the reference jetting condition, m/s. Assumption: MicroFab
-#: dispensers at about 50 V give jet-head speeds of a few m/s. With 6 m/s at the orifice
-#: the drop-on-demand model (:mod:`.droplet`) moves the head at about 4 m/s for the
-#: water-like 0.15 % NaAlg; 8 m/s gave nearly 8 m/s, faster than "a few".
-REFERENCE_PEAK_VELOCITY_M_S = 6.0
-#: Density of the water-like reference liquid, kg/m³ (assumption: water at 20 °C).
-REFERENCE_DENSITY_KG_M3 = 1000.0
-#: Viscosity of the water-like reference liquid, Pa s (assumption: water at 20 °C).
-REFERENCE_VISCOSITY_PA_S = 1.0e-3
-#: Surface tension of the water-like reference liquid, N/m (assumption: water at 20 °C).
-REFERENCE_SURFACE_TENSION_N_M = 0.072
+#: Dwell time of the seed's bipolar drive, s. It sets the default channel length (Bogy &
+#: Talke: the optimal dwell is the acoustic travel time ``L / c``) and is re-exported by
+#: :mod:`microfab.trajectory.waveform` as a default of the waveform.
+SEED003_DWELL_S = 30e-6  # seed 003 part 1, Table 1
 
 #: Effective wave speed, m/s. Assumption: the compliant glass/PZT wall lowers the speed of
 #: sound of water (about 1480 m/s) to roughly 1200 m/s (Korteweg-type correction).
 _WAVE_SPEED_M_S = 1200.0
+
+
+class DriveSignal(Protocol):
+    """A drive voltage that can be evaluated at any time (e.g. a trapezoidal waveform).
+
+    :class:`microfab.trajectory.waveform.Waveform` is one; any object with this method
+    will do (a sampled record wrapped in ``numpy.interp``, a test stand-in).
+    """
+
+    def voltage(self, t_s: np.ndarray | float) -> np.ndarray:
+        """Drive voltage in V at the times ``t_s`` (s, any shape); same shape as ``t_s``."""
+        ...
 
 
 def _check_nonnegative(name: str, value: float, unit: str) -> None:
@@ -181,9 +180,11 @@ class Printhead:
         tube, fill-before-fire; see the module docstring).
     gain_m3_per_v : float
         Volume displaced by the PZT per volt in m³/V, > 0. The default 9.67e-15 m³/V is
-        the calibrated value rounded to three digits (`default_printhead` recomputes it
-        exactly): the gain that gives `REFERENCE_PEAK_VELOCITY_M_S` with the seed's 50 V
-        bipolar waveform and water. For comparison, a free thin PZT tube (``d31 ≈
+        the calibrated value rounded to three digits
+        (:func:`microfab.process.inkjet.dispenser.default_printhead` recomputes it
+        exactly): the gain that gives a 6 m/s peak orifice velocity
+        (``REFERENCE_PEAK_VELOCITY_M_S`` there) with the seed's 50 V bipolar waveform and
+        water. For comparison, a free thin PZT tube (``d31 ≈
         -270 pm/V``, mean radius 0.5 mm, wall 0.25 mm, 22 mm long) would displace about
         ``2 π r² l |d31| / t ≈ 4e-14 m³/V``; the glass wall and the liquid take part of it.
     cells : int
@@ -207,7 +208,7 @@ class Printhead:
     actuator_end_fraction: float = 0.8  # assumption: PZT sleeve on the middle part
     inlet_impedance_ratio: float = 0.3  # assumption: partly absorbing reservoir connection
     positive_voltage_expands: bool = True  # fill-before-fire convention
-    gain_m3_per_v: float = 9.67e-15  # calibrated (default_printhead), rounded
+    gain_m3_per_v: float = 9.67e-15  # calibrated (process.inkjet.dispenser), rounded
     cells: int = 60
 
     def __post_init__(self) -> None:
@@ -615,7 +616,7 @@ def _markov_doubling(
 
 def nozzle_flow(
     printhead: Printhead,
-    waveform: Waveform,
+    drive: DriveSignal,
     *,
     density_kg_m3: float,
     viscosity_pa_s: float,
@@ -623,14 +624,15 @@ def nozzle_flow(
     duration_s: float = 300e-6,
     dt_s: float = 50e-9,
 ) -> NozzleFlow:
-    """Mean orifice velocity produced by a drive waveform, starting from rest.
+    """Mean orifice velocity produced by a drive voltage, starting from rest.
 
     Parameters
     ----------
     printhead : Printhead
         Dispenser model.
-    waveform : Waveform
-        Drive voltage; the record starts with a pulse train at ``t = 0``.
+    drive : DriveSignal
+        Drive voltage (e.g. a :class:`microfab.trajectory.waveform.Waveform`), evaluated
+        at the sample times; the record starts at ``t = 0`` with the model at rest.
     density_kg_m3 : float
         Liquid density in kg/m³, > 0.
     viscosity_pa_s : float
@@ -662,7 +664,7 @@ def nozzle_flow(
 
     Examples
     --------
-    >>> from microfab.process.inkjet.waveform import seed003_waveform
+    >>> from microfab.trajectory.waveform import seed003_waveform
     >>> flow = nozzle_flow(Printhead(), seed003_waveform(50.0), density_kg_m3=1000.0,
     ...                    viscosity_pa_s=1e-3, surface_tension_n_m=0.072)
     >>> 1.0 < flow.peak_velocity_m_s < 20.0
@@ -677,7 +679,7 @@ def nozzle_flow(
             f"duration_s ({duration_s} s) must span at least one step of dt_s ({dt_s} s)"
         )
     t = np.arange(n) * dt_s
-    u = np.diff(waveform.voltage(t)) / dt_s  # mean slope over each step, V/s, shape (n-1,)
+    u = np.diff(drive.voltage(t)) / dt_s  # mean slope over each step, V/s, shape (n-1,)
     a_bal, b_bal, c_bal = _balanced_model(
         printhead, density_kg_m3, viscosity_pa_s, surface_tension_n_m
     )
@@ -699,14 +701,14 @@ def nozzle_flow(
 
 def calibrate_gain(
     printhead: Printhead,
-    waveform: Waveform,
+    drive: DriveSignal,
     *,
     density_kg_m3: float,
     viscosity_pa_s: float,
     surface_tension_n_m: float,
     target_peak_velocity_m_s: float,
 ) -> Printhead:
-    """Set the actuator gain so that a waveform gives a target peak orifice velocity.
+    """Set the actuator gain so that a drive gives a target peak orifice velocity.
 
     The model is linear in the gain: one run at unit gain (1 m³/V) gives the peak
     velocity per unit gain, and the gain is the ratio of the target to it.
@@ -715,8 +717,8 @@ def calibrate_gain(
     ----------
     printhead : Printhead
         Dispenser model; everything but ``gain_m3_per_v`` is kept.
-    waveform : Waveform
-        Reference drive waveform.
+    drive : DriveSignal
+        Reference drive voltage (e.g. the seed's 50 V bipolar waveform).
     density_kg_m3, viscosity_pa_s, surface_tension_n_m : float
         Reference liquid: kg/m³ (> 0), Pa s (>= 0), N/m (>= 0).
     target_peak_velocity_m_s : float
@@ -731,11 +733,11 @@ def calibrate_gain(
     Raises
     ------
     ValueError
-        If the target is not positive or the waveform produces no outward flow.
+        If the target is not positive or the drive produces no outward flow.
 
     Examples
     --------
-    >>> from microfab.process.inkjet.waveform import seed003_waveform
+    >>> from microfab.trajectory.waveform import seed003_waveform
     >>> head = calibrate_gain(Printhead(), seed003_waveform(50.0), density_kg_m3=1000.0,
     ...                       viscosity_pa_s=1e-3, surface_tension_n_m=0.072,
     ...                       target_peak_velocity_m_s=5.0)
@@ -747,93 +749,14 @@ def calibrate_gain(
     unit = dataclasses.replace(printhead, gain_m3_per_v=1.0)
     peak = nozzle_flow(
         unit,
-        waveform,
+        drive,
         density_kg_m3=density_kg_m3,
         viscosity_pa_s=viscosity_pa_s,
         surface_tension_n_m=surface_tension_n_m,
     ).peak_velocity_m_s
     if not peak > 0:
         raise ValueError(
-            f"the waveform gives no outward orifice flow (peak velocity {peak} m/s at unit "
+            f"the drive gives no outward orifice flow (peak velocity {peak} m/s at unit "
             "gain), so no gain can reach the target"
         )
     return dataclasses.replace(printhead, gain_m3_per_v=target_peak_velocity_m_s / peak)
-
-
-@functools.lru_cache(maxsize=1)
-def default_printhead() -> Printhead:
-    """The default `Printhead`, calibrated with the seed's waveform and water.
-
-    The gain is set so that the seed's 50 V bipolar waveform (seed 003 part 1, Table 1)
-    gives `REFERENCE_PEAK_VELOCITY_M_S` with the water-like reference liquid
-    (`REFERENCE_DENSITY_KG_M3`, `REFERENCE_VISCOSITY_PA_S`,
-    `REFERENCE_SURFACE_TENSION_N_M`, all assumptions). Cached.
-
-    Returns
-    -------
-    Printhead
-        The calibrated dispenser model.
-
-    Examples
-    --------
-    >>> head = default_printhead()
-    >>> 1e-15 < head.gain_m3_per_v < 1e-12
-    True
-    """
-    return calibrate_gain(
-        Printhead(),
-        seed003_waveform(50.0),  # seed 003 part 1, Table 1 (50 V: the voltage of Fig. 2)
-        density_kg_m3=REFERENCE_DENSITY_KG_M3,
-        viscosity_pa_s=REFERENCE_VISCOSITY_PA_S,
-        surface_tension_n_m=REFERENCE_SURFACE_TENSION_N_M,
-        target_peak_velocity_m_s=REFERENCE_PEAK_VELOCITY_M_S,
-    )
-
-
-def fig_nozzle_flow(flow: NozzleFlow, waveform: Waveform) -> Figure:
-    """Drive voltage and mean orifice velocity against time.
-
-    Parameters
-    ----------
-    flow : NozzleFlow
-        Orifice velocity history.
-    waveform : Waveform
-        The drive waveform that produced it.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        Two stacked axes sharing the time axis in µs: voltage (V) on top, velocity (m/s)
-        below, with the peak marked.
-
-    Examples
-    --------
-    >>> from microfab.process.inkjet.waveform import seed003_waveform
-    >>> w = seed003_waveform()
-    >>> flow = nozzle_flow(Printhead(), w, density_kg_m3=1000.0, viscosity_pa_s=1e-3,
-    ...                    surface_tension_n_m=0.072, duration_s=100e-6)
-    >>> len(fig_nozzle_flow(flow, w).axes)
-    2
-    """
-    t_us = flow.t_s * 1e6
-    fig = new_figure(6.4, 4.6)
-    ax_v, ax_u = fig.subplots(2, 1, sharex=True)
-    ax_v.plot(t_us, waveform.voltage(flow.t_s), color="black")
-    ax_v.set_ylabel("voltage (V)")
-    ax_v.set_title(f"{waveform.kind} drive, {waveform.amplitude_v:g} V")
-    ax_v.grid(True, alpha=0.3)
-    ax_u.plot(t_us, flow.velocity_m_s, color="tab:blue")
-    k = int(np.argmax(flow.velocity_m_s))
-    ax_u.plot(t_us[k], flow.velocity_m_s[k], "o", color="tab:red")
-    ax_u.annotate(
-        f"peak {flow.velocity_m_s[k]:.2f} m/s",
-        (t_us[k], flow.velocity_m_s[k]),
-        textcoords="offset points",
-        xytext=(6, -4),
-        fontsize=8,
-    )
-    ax_u.axhline(0.0, color="gray", lw=0.8)
-    ax_u.set_xlabel("time (µs)")
-    ax_u.set_ylabel("orifice velocity (m/s)")
-    ax_u.grid(True, alpha=0.3)
-    return fig

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import pytest
 
-from microfab.process.inkjet.calibration import (
-    SEED_BREAKUP,
+from microfab.experiments.seed003_inkjet.calibration import (
     calibrate_relaxation,
     write_relaxation,
 )
+from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
 from microfab.process.inkjet.fluids import load_table
 
 

@@ -4,7 +4,7 @@ Seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``, Xu et al.) measur
 first breakup (pinch-off) time of alginate jets "from the captured pictures" of a JetXpert
 strobed camera and names the pinch-off mode by where the jet first breaks (front- or
 exit-pinching, seed Figs. 2 and 3). This module does that measurement automatically on a
-folder of frames, real or rendered by :mod:`microfab.process.inkjet.shadowgraph`:
+folder of frames, real or rendered by :mod:`microfab.measure.shadowgraph`:
 
 1. **Loading** (:func:`load_frames`): PNG/TIFF files (8/16-bit, gray or RGB(A), multi-page
    TIFF stacks) in natural order (``frame_2`` before ``frame_10``), as gray floats.
@@ -57,16 +57,12 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
 
 from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
-from microfab.report.canvas import new_figure
-
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -74,7 +70,7 @@ __all__ = [
     "DropletAnalysis",
     "analyze",
     "analyze_folder",
-    "fig_analysis",
+    "as_frames",
     "load_frames",
     "natural_key",
 ]
@@ -399,7 +395,26 @@ def _check_positive(name: str, value: float | None, unit: str, what: str, hint: 
     return float(value)
 
 
-def _as_frames(frames: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
+def as_frames(frames: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
+    """Frames as a validated gray float stack, as :func:`analyze` reads them.
+
+    Parameters
+    ----------
+    frames : numpy.ndarray or sequence of numpy.ndarray
+        Gray frames ``(n, h, w)`` or one ``(h, w)`` frame, or RGB(A) frames
+        ``(n, h, w, 3 | 4)``; integer or float gray levels.
+
+    Returns
+    -------
+    numpy.ndarray
+        Float frames of shape ``(n, h, w)``: integers divided by their dtype's maximum,
+        floats divided by their maximum if it exceeds 1, RGB(A) converted to gray.
+
+    Raises
+    ------
+    ValueError
+        For another shape, frames smaller than 3 x 3 px, or NaN/inf values.
+    """
     arr = np.asarray(frames)
     if arr.ndim == 4 and arr.shape[-1] in (3, 4):
         arr = _rgb_to_gray(_to_float(arr))
@@ -695,7 +710,7 @@ def analyze(
         raise ValueError(f"min_area_px must be an integer >= 1, got {min_area_px!r} px")
     if not (math.isfinite(smooth_px) and smooth_px >= 0):
         raise ValueError(f"smooth_px must be >= 0, got {smooth_px!r} px")
-    data = _as_frames(frames)
+    data = as_frames(frames)
     n, h, _w = data.shape
     names = tuple(frame_names) if frame_names is not None else ()
     if names and len(names) != n:
@@ -889,81 +904,3 @@ def analyze_folder(
         smooth_px=smooth_px,
         frame_names=names,
     )
-
-
-# ---------------------------------------------------------------------------- figure
-
-
-def fig_analysis(analysis: DropletAnalysis, frames: np.ndarray) -> Figure:
-    """Head position vs time with the fit and breakup, and the breakup frame with its gap.
-
-    Parameters
-    ----------
-    analysis : DropletAnalysis
-        Result of :func:`analyze` on ``frames``.
-    frames : numpy.ndarray
-        The analysed frames ``(n, h, w)``; the breakup frame (or the last one if there is
-        no breakup) is shown.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        Two panels (Agg canvas, no pyplot).
-
-    Examples
-    --------
-    >>> res = analyze(frames, pixel_size_m=2e-6, frame_interval_s=1e-5)  # doctest: +SKIP
-    >>> save_figure(fig_analysis(res, frames), "analysis.png")  # doctest: +SKIP
-    """
-    data = _as_frames(frames)
-    if data.shape[0] != analysis.n_frames:
-        raise ValueError(f"got {data.shape[0]} frames for an analysis of {analysis.n_frames}")
-    fig = new_figure(9.0, 4.5)
-    ax_t, ax_img = fig.subplots(1, 2, width_ratios=[1.6, 1.0])
-    t_us = analysis.times_s * 1e6
-    z_um = analysis.head_z_m * 1e6
-    fit = analysis.fit_frames
-    ax_t.plot(t_us[fit], z_um[fit], "o", color="C0", label="head tip (fit)")
-    other = np.isfinite(z_um) & ~fit
-    if other.any():
-        ax_t.plot(t_us[other], z_um[other], "o", mfc="none", color="C0", label="head tip")
-    if analysis.head_speed_m_s is not None and analysis.head_z0_m is not None and fit.any():
-        tt = analysis.times_s[fit][[0, -1]]
-        ax_t.plot(
-            tt * 1e6,
-            (analysis.head_z0_m + analysis.head_speed_m_s * tt) * 1e6,
-            "-",
-            color="C1",
-            label=f"fit: {analysis.head_speed_m_s:.2f} m/s",
-        )
-    k = analysis.breakup_frame
-    if k is not None:
-        lo, hi = analysis.breakup_window_s
-        if lo is not None and hi is not None:
-            ax_t.axvspan(lo * 1e6, hi * 1e6, color="C3", alpha=0.15, label="breakup window")
-        ax_t.axvline(t_us[k], color="C3", ls="--", label=f"breakup frame {k}")
-    ax_t.set_xlabel("time (µs)")
-    ax_t.set_ylabel("head position z (µm)")
-    ax_t.legend(fontsize=8, loc="upper left")
-    ax_t.grid(True, alpha=0.3)
-
-    shown = k if k is not None else analysis.n_frames - 1
-    img = data[shown]
-    h, w = img.shape
-    px_um = analysis.pixel_size_m * 1e6
-    first = analysis.nozzle_row + 1
-    extent = (-w / 2 * px_um, w / 2 * px_um, (h - first) * px_um, -first * px_um)
-    ax_img.imshow(img, cmap="gray", extent=extent, interpolation="nearest")
-    ax_img.axhline(0.0, color="C2", ls=":", lw=1, label="nozzle exit")
-    title = f"frame {shown}"
-    if k is not None and analysis.breakup_z_m is not None:
-        ax_img.axhline(analysis.breakup_z_m * 1e6, color="C3", lw=1.5, label="breakup gap")
-        mode = analysis.breakup_mode or "?"
-        title += f": {mode}-pinching at {analysis.breakup_z_m * 1e6:.0f} µm"
-    else:
-        title += " (no breakup)"
-    ax_img.set_title(title, fontsize=9)
-    ax_img.set_xlabel("x (µm)")
-    ax_img.set_ylabel("z (µm)")
-    ax_img.legend(fontsize=7, loc="lower right")
-    return fig

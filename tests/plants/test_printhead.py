@@ -6,23 +6,20 @@ import math
 
 import numpy as np
 import pytest
-from matplotlib.figure import Figure
 from scipy import signal
 from scipy.integrate import cumulative_trapezoid, solve_ivp
 from scipy.optimize import brentq
 
-from microfab.process.inkjet import acoustics
-from microfab.process.inkjet.acoustics import (
-    REFERENCE_PEAK_VELOCITY_M_S,
+from microfab.plants import printhead as acoustics
+from microfab.plants.printhead import (
     NozzleFlow,
     Printhead,
     calibrate_gain,
-    default_printhead,
-    fig_nozzle_flow,
     nozzle_flow,
     printhead_state_space,
 )
-from microfab.process.inkjet.waveform import Waveform, seed003_waveform
+from microfab.process.inkjet.dispenser import default_printhead
+from microfab.trajectory.waveform import Waveform, seed003_waveform
 
 US = 1e-6
 WATER = {"density_kg_m3": 1000.0, "viscosity_pa_s": 1e-3, "surface_tension_n_m": 0.072}
@@ -250,15 +247,6 @@ def test_calibrate_gain_hits_the_target() -> None:
     assert peak == pytest.approx(5.5, rel=1e-9)
 
 
-def test_default_printhead_is_calibrated_and_cached() -> None:
-    head = default_printhead()
-    assert default_printhead() is head
-    peak = nozzle_flow(head, seed003_waveform(50.0), **WATER).peak_velocity_m_s
-    assert peak == pytest.approx(REFERENCE_PEAK_VELOCITY_M_S, rel=1e-9)
-    # the class default is the same gain, rounded to three digits
-    assert Printhead().gain_m3_per_v == pytest.approx(head.gain_m3_per_v, rel=5e-3)
-
-
 # --- (g) seed operating point -----------------------------------------------------------
 
 
@@ -400,20 +388,6 @@ def test_nozzle_flow_record_validation() -> None:
     flow = NozzleFlow(t_s=t, **ok)
     with pytest.raises(ValueError):
         flow.velocity_m_s[0] = 1.0  # read-only
-
-
-# --- figure -----------------------------------------------------------------------------
-
-
-def test_fig_nozzle_flow() -> None:
-    wave = seed003_waveform()
-    flow = nozzle_flow(default_printhead(), wave, **WATER, duration_s=100 * US)
-    fig = fig_nozzle_flow(flow, wave)
-    assert isinstance(fig, Figure)
-    ax_v, ax_u = fig.axes
-    np.testing.assert_allclose(ax_u.lines[0].get_ydata(), flow.velocity_m_s)
-    np.testing.assert_allclose(ax_v.lines[0].get_xdata(), flow.t_s * 1e6)
-    assert "µs" in ax_u.get_xlabel()
 
 
 def test_near_defective_model_uses_the_doubling_route_accurately() -> None:
