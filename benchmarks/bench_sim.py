@@ -6,6 +6,10 @@ Prints, in one run on this machine:
    simulated seconds per wall second, per scan rate. Goal: >= 20x real time.
 2. Per-sample simulator (numba) steps/s against a pure-Python loop of the same plant and
    controller, and the vectorised lifted LTI path, on one galvo axis.
+3. The galvo twin (`SimulatedMachine`, both axes) forced down each of its three paths,
+   the same plant and controller: samples/s of `run` and the compiled-over-Python ratio.
+
+Timings are the best of a few repeats (the machine may be shared).
 
 Run: ``make bench`` or ``python benchmarks/bench_sim.py``.
 """
@@ -13,13 +17,16 @@ Run: ``make bench`` or ``python benchmarks/bench_sim.py``.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 
+from microfab.control.base import LTIController
 from microfab.control.ilc import FrequencyILC, Trial
 from microfab.machines.galvo import discrete_controller, galvo_twin
+from microfab.machines.simulated import SimPath
+from microfab.plants.base import LTIPlant
 from microfab.plants.galvo import default_galvo_axes
-from microfab.sim.components import LTIController, LTIPlant
 from microfab.sim.loop import simulate, simulate_python
 from microfab.sim.lti_fast import LTILoop
 from microfab.trajectory.periodic import square_scan
@@ -42,6 +49,16 @@ def bench_ilc(rate: int, iterations: int = 30) -> tuple[float, float]:
     return sim_s, wall
 
 
+def best_of(fn: Callable[[], object], repeats: int = 3) -> float:
+    """Shortest wall time of ``repeats`` calls, s."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
 def bench_per_sample(n_fast: int = 1_000_000, n_py: int = 20_000) -> None:
     ax = default_galvo_axes()["x"]
     plant, ctrl = LTIPlant(ax.discrete_plant()), LTIController(discrete_controller(ax))
@@ -49,23 +66,43 @@ def bench_per_sample(n_fast: int = 1_000_000, n_py: int = 20_000) -> None:
     ref = np.tile(square_scan(400, (1.0, 1.44), 1e6)[:, :1], (n_fast // 2500, 1))
     noise = rng.normal(0, ax.noise_rms_v, ref.shape)
     simulate(plant, ctrl, ref[:100], noise[:100])  # compile
-    t0 = time.perf_counter()
-    simulate(plant, ctrl, ref, noise)
-    t_numba = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    simulate_python(plant, ctrl, ref[:n_py], noise[:n_py])
-    t_py = time.perf_counter() - t0
+    t_numba = best_of(lambda: simulate(plant, ctrl, ref, noise))
+    t_py = best_of(lambda: simulate_python(plant, ctrl, ref[:n_py], noise[:n_py]))
     loop = LTILoop([ax.discrete_plant()], [discrete_controller(ax)])
     loop.run(ref[:100], noise[:100])
-    loop.reset()
-    t0 = time.perf_counter()
-    loop.run(ref, noise, with_command=False)
-    t_vec = time.perf_counter() - t0
+
+    def vec() -> None:
+        loop.reset()
+        loop.run(ref, noise, with_command=False)
+
+    t_vec = best_of(vec)
     s_numba, s_py, s_vec = n_fast / t_numba, n_py / t_py, n_fast / t_vec
     print("\nper-sample simulator, one galvo axis (12 states), steps/s")
     print(f"  pure-Python loop          {s_py:12.3g}   (baseline)")
     print(f"  numba per-sample loop     {s_numba:12.3g}   {s_numba / s_py:8.0f}x Python")
     print(f"  vectorised lifted LTI     {s_vec:12.3g}   {s_vec / s_py:8.0f}x Python")
+
+
+def bench_paths(rate: int = 400) -> None:
+    """The galvo twin down each path: same plant, controller, noise; one `run` each."""
+    ref = square_scan(rate, (1.0, 1.44), 1e6)
+    speed = {}
+    for path in SimPath:
+        m = galvo_twin(seed=0, path=path)
+        m.run(ref)  # warm-up (numba compile, caches)
+        n0 = m.samples_simulated
+        wall = best_of(lambda m=m: m.run(ref, with_actuator=True), 2 if path == "python" else 5)
+        per_run = (m.samples_simulated - n0) // (2 if path == "python" else 5)
+        speed[path] = per_run * len(m.axes) / wall  # axis-samples per s
+    print(f"\ngalvo twin, {rate} f/s square, run() with actuator, both axes: axis-samples/s")
+    print(f"  {'python':<10} {speed[SimPath.PYTHON]:12.3g}   (baseline)")
+    for path in (SimPath.COMPILED, SimPath.LIFTED):
+        ratio = speed[path] / speed[SimPath.PYTHON]
+        print(f"  {path.value:<10} {speed[path]:12.3g}   {ratio:8.0f}x Python")
+    print(
+        "  compiled per-sample loop / Python loop, same controller: "
+        f"{speed[SimPath.COMPILED] / speed[SimPath.PYTHON]:.0f}x"
+    )
 
 
 def main() -> None:
@@ -75,6 +112,7 @@ def main() -> None:
         sim_s, wall = bench_ilc(rate)
         print(f"  {rate:>8} f/s {sim_s:12.3f} {wall:8.3f} {sim_s / wall:12.1f}")
     bench_per_sample()
+    bench_paths()
 
 
 if __name__ == "__main__":

@@ -126,6 +126,17 @@ def test_file_machine_in_the_loop_matches_the_twin(ref, tmp_path):
     np.testing.assert_allclose(ilc_files.rms_history, ilc_twin.rms_history, rtol=1e-9)
 
 
+def test_file_machine_is_a_machine(ref, tmp_path):
+    from microfab.machines.base import Machine
+
+    trial = tmp_path / "trial.csv"
+    _write_trial(trial, ref, ref, ref)
+    fm = FileMachine(trial)
+    assert isinstance(fm, Machine)
+    assert fm.axes == ("x", "y") and fm.dt == pytest.approx(DT)
+    np.testing.assert_array_equal(fm.run_once(ref).reference, ref)
+
+
 def test_file_machine_times_out_with_a_clear_message(ref, tmp_path):
     trial = tmp_path / "trial.csv"
     _write_trial(trial, ref, ref, ref)

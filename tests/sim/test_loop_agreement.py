@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from microfab.control.base import Controller, LTIController
 from microfab.machines.galvo import discrete_controller
+from microfab.plants.base import LTIPlant, Plant
 from microfab.plants.galvo import GalvoAxis, default_galvo_axes
 from microfab.plants.lti import DiscreteLTI, block_diag
-from microfab.sim.components import Controller, LTIController, LTIPlant, Plant
-from microfab.sim.loop import has_kernels, simulate, simulate_python
+from microfab.sim.loop import LoopState, is_compiled, simulate, simulate_python
 from microfab.sim.lti_fast import BlockSimulator, LTILoop, closed_loop_ss
 from microfab.trajectory.periodic import square_scan
 
@@ -66,7 +67,7 @@ def make_loop(axes, names) -> LTILoop:
 
 def test_components_have_kernels(per_sample):
     plant, ctrl = per_sample
-    assert has_kernels(plant, ctrl)
+    assert is_compiled(plant, ctrl)
     assert isinstance(plant, Plant)
     assert isinstance(ctrl, Controller)
 
@@ -104,10 +105,18 @@ def test_numba_loop_continues_from_final_state(per_sample, ref_noise, numba_run)
     ref, noise = ref_noise
     k = 3333
     first = simulate(plant, ctrl, ref[:k], noise[:k])
+    assert isinstance(first.final_state, LoopState)
+    kept = first.final_state.copy()
     second = simulate(plant, ctrl, ref[k:], noise[k:], state=first.final_state)
     for sig in SIGNALS:
         joined = np.vstack([getattr(first, sig), getattr(second, sig)])
         np.testing.assert_array_equal(joined, getattr(numba_run, sig))
+    # continuing does not modify the state it continues from
+    np.testing.assert_array_equal(first.final_state.plant, kept.plant)
+    np.testing.assert_array_equal(first.final_state.controller, kept.controller)
+    # and the Python loop continues from the compiled loop's state alike
+    py = simulate_python(plant, ctrl, ref[k : k + 500], noise[k : k + 500], first.final_state)
+    assert rel_diff(py.output, second.output[:500]) <= 1e-12
 
 
 @pytest.mark.parametrize("split", [5001, 4992, 7])
@@ -212,7 +221,7 @@ def test_plant_without_kernels_runs_through_python_fallback():
     ctrl = LTIController(
         DiscreteLTI(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[kp]], dt)
     )
-    assert not has_kernels(plant, ctrl)
+    assert not is_compiled(plant, ctrl)
     n = 400
     ref = np.where(np.arange(n) < n // 2, 1.0, -0.2)  # steps beyond the saturation
     rng = np.random.default_rng(7)
@@ -230,7 +239,7 @@ def test_plant_without_kernels_runs_through_python_fallback():
     # the nonlinearity is exercised: the output sits on the limit for a while
     assert np.isclose(res.output.max(), limit)
     assert np.sum(np.isclose(res.output[:, 0], limit)) > 50
-    assert res.final_state[0][0] == pytest.approx(x)
+    assert res.final_state.plant[0] == pytest.approx(x)
     assert res.axes == ("s",)
 
 

@@ -204,6 +204,14 @@ class FileMachine:
             reference=trial.reference,
         )
 
+    def run_once(self, command: np.ndarray, *, settle_s: float | None = None) -> Measurement:
+        """One-shot run through files: write ``command``, read the recorded trial.
+
+        The rig plays the command from rest and holds it; how long it records the hold is
+        the rig's setting (``settle_s`` is not used). The trial file holds the whole record.
+        """
+        return self.run(command)
+
     def _wait_newer_than(self, t0: float) -> None:
         deadline = _time.monotonic() + self.timeout_s
         while _time.monotonic() < deadline:

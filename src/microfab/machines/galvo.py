@@ -13,9 +13,11 @@ from collections.abc import Mapping
 import numpy as np
 
 import control
+from microfab.control.base import LTIController
 from microfab.control.leadlag import lead_lag
 from microfab.core.limits import AxisLimits
-from microfab.machines.simulated import SimulatedMachine
+from microfab.machines.simulated import EncoderNoise, SimPath, SimulatedMachine
+from microfab.plants.base import LTIPlant
 from microfab.plants.galvo import GalvoAxis, default_galvo_axes
 from microfab.plants.lti import DiscreteLTI, discretize
 
@@ -45,8 +47,13 @@ def galvo_twin(
     seed: int = 0,
     settle_periods: int = 1,
     limits: Mapping[str, AxisLimits] | None = None,
+    path: SimPath | None = None,
 ) -> SimulatedMachine:
     """The calibrated two-axis galvo twin with lead-lag feedback and encoder noise.
+
+    One SISO loop per axis (`LTIPlant` of ``axis.discrete_plant()`` with an
+    `LTIController` of `discrete_controller`), so the machine runs on the lifted LTI path
+    unless ``path`` says otherwise.
 
     Parameters
     ----------
@@ -58,16 +65,18 @@ def galvo_twin(
         Periods played before the recorded one at each run.
     limits : mapping of str to AxisLimits, optional
         Declared limits; `GALVO_LIMITS` when omitted.
+    path : SimPath, optional
+        Force a simulator (``compiled`` or ``python`` give the same numbers, slower).
     """
     ax = dict(axes) if axes is not None else default_galvo_axes()
     return SimulatedMachine(
-        [a.discrete_plant() for a in ax.values()],
-        [discrete_controller(a) for a in ax.values()],
+        [LTIPlant(a.discrete_plant()) for a in ax.values()],
+        [LTIController(discrete_controller(a)) for a in ax.values()],
+        EncoderNoise(rms=tuple(a.noise_rms_v for a in ax.values()), seed=seed),
         axes=tuple(ax),
-        noise_rms=[a.noise_rms_v for a in ax.values()],
         limits=limits if limits is not None else GALVO_LIMITS,
-        seed=seed,
         settle_periods=settle_periods,
+        path=path,
     )
 
 

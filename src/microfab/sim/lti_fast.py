@@ -168,16 +168,26 @@ class BlockSimulator:
 
 
 class LTILoop:
-    """Multi-axis LTI feedback loop, one SISO plant and controller per axis, vectorised.
+    """Multi-axis LTI feedback loop: independent plant/controller pairs, vectorised.
+
+    Each pair is one closed loop (SISO or MIMO) that takes the next ``n_outputs`` columns of
+    the reference and noise; the pairs are simulated independently, each in lifted blocks.
 
     Parameters
     ----------
     plants, controllers : sequence of DiscreteLTI
-        One strictly proper SISO plant and one SISO error-feedback controller per axis.
+        One strictly proper plant and its error-feedback controller per pair (the
+        controller maps the plant's ``n_outputs`` errors to its ``n_inputs`` commands).
     axes : tuple of str
-        Axis names.
+        Names of the output columns, all pairs together.
     block : int
         Lifting block length in samples.
+
+    Raises
+    ------
+    ValueError
+        When the lists differ in length or are empty, sample times differ, or a closed
+        loop is unstable.
     """
 
     def __init__(
@@ -190,16 +200,30 @@ class LTILoop:
         if len(plants) != len(controllers) or not plants:
             raise ValueError("give one plant and one controller per axis")
         self.dt = plants[0].dt
-        self.axes = axes or tuple(f"a{i}" for i in range(len(plants)))
+        if any(abs(p.dt - self.dt) > 1e-12 * self.dt for p in plants):
+            raise ValueError(
+                f"all plants must share one sample time, got {[p.dt for p in plants]} s"
+            )
         self.loops = []
+        self._cols: list[slice] = []
+        self._sizes: list[tuple[int, int]] = []
+        start = 0
         for p, c in zip(plants, controllers, strict=True):
             cl = closed_loop_ss(p, c)
-            if np.max(np.abs(cl.poles())) >= 1.0:
+            if np.max(np.abs(cl.poles()), initial=0.0) >= 1.0:
                 raise ValueError("the closed loop is unstable: a pole lies on or outside |z|=1")
             self.loops.append(BlockSimulator(cl, block))
+            self._cols.append(slice(start, start + p.n_outputs))
+            self._sizes.append((p.n_outputs, p.n_inputs))
+            start += p.n_outputs
+        self.n_outputs = start
+        self.n_inputs = sum(nu for _, nu in self._sizes)
+        if axes and len(axes) != start:
+            raise ValueError(f"give {start} axis names (one per output), got {len(axes)}")
+        self.axes = axes or tuple(f"a{i}" for i in range(start))
 
     def reset(self) -> None:
-        """Return every axis to rest."""
+        """Return every loop to rest."""
         for lp in self.loops:
             lp.reset()
 
@@ -214,7 +238,7 @@ class LTILoop:
         Parameters
         ----------
         reference : numpy.ndarray
-            Loop reference, shape (n_samples, n_axes).
+            Loop reference, shape (n_samples, n_outputs).
         noise : numpy.ndarray, optional
             Measurement noise, same shape.
         with_command : bool
@@ -224,22 +248,24 @@ class LTILoop:
         ref = np.asarray(reference, dtype=float)
         if ref.ndim == 1:
             ref = ref[:, None]
-        if ref.shape[1] != len(self.loops):
-            raise ValueError(f"reference needs {len(self.loops)} columns, got {ref.shape[1]}")
+        if ref.shape[1] != self.n_outputs:
+            raise ValueError(f"reference needs {self.n_outputs} columns, got {ref.shape[1]}")
         nz = np.zeros_like(ref) if noise is None else np.asarray(noise, dtype=float)
         if nz.shape != ref.shape:
             raise ValueError(f"noise must be shaped {ref.shape}, got {nz.shape}")
-        sel = (0, 2) if with_command else (0,)
-        outs = [
-            lp.run(np.column_stack([ref[:, a], nz[:, a]]), sel) for a, lp in enumerate(self.loops)
-        ]
-        y = np.column_stack([o[:, 0] for o in outs])
+        ys, us = [], []
+        for lp, cols, (ny, nu) in zip(self.loops, self._cols, self._sizes, strict=True):
+            sel = tuple(range(ny)) + (tuple(range(2 * ny, 2 * ny + nu)) if with_command else ())
+            out = lp.run(np.column_stack([ref[:, cols], nz[:, cols]]), sel)
+            ys.append(out[:, :ny])
+            us.append(out[:, ny:])
+        y = np.column_stack(ys)
         return SimResult(
             dt=self.dt,
             reference=ref,
             output=y,
             measured=y + nz,
-            command=np.column_stack([o[:, 1] for o in outs]) if with_command else None,
+            command=np.column_stack(us) if with_command else None,
             axes=self.axes,
             final_state=[lp.state.copy() for lp in self.loops],
         )
