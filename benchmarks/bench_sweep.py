@@ -50,7 +50,8 @@ def _timed(label: str, fn: Any) -> float:
     wall = time.perf_counter() - t0
     ran = [r for r in res.rows if r["index"] not in {p.index for p in res.skipped}]
     share = sum(r["cpu_s"] for r in ran) / max(sum(r["wall_s"] for r in ran), 1e-9)
-    note = f"  (tasks got {share:4.0%} of a core)" if ran else ""
+    mean = sum(r["wall_s"] for r in ran) / max(len(ran), 1)
+    note = f"  (task {mean:4.2f} s each, {share:4.0%} of a core)" if ran else ""
     print(f"{label:<52s} {wall:7.2f} s{note}")
     return wall
 

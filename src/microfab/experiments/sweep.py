@@ -2,31 +2,28 @@
 
 A *point* is a frozen dataclass instance whose fields hold JSON values; a *task* is a
 picklable module-level callable ``task(point) -> dict`` of JSON values. :func:`run_sweep`
-knows nothing about what the task does (droplet breakup over concentration and voltage,
-controller gains, layers of a build: all just grids). Layout of ``results_dir``, every
-file written by :func:`microfab.io.atomic.atomic_write_json` (absent or complete)::
+knows nothing about what the task computes. ``results_dir`` holds, each file written by
+:func:`microfab.io.atomic.atomic_write_json` (so absent or complete)::
 
     settings.json       {"format": 1, "settings": {...}, "points": [{fields}, ...]}
     points/<key>.json   {"key": ..., "point": {fields}, "row": {...}}  (one per finished point)
 
-``settings`` is what the caller says the results depend on besides the point; a rerun
-with other settings is refused, one with the same settings skips the points whose file
-exists (the grid may grow). ``points`` lists every point asked for, in the order first
-asked: the order of :func:`load_results`. A file per point, written as the point
-finishes, makes each save O(1) and loses at most the points in progress; one runner per
-directory at a time.
+``settings`` is what the results depend on besides the point: a rerun with other settings
+is refused, one with the same skips the points whose file exists (the grid may grow).
+``points`` lists every point asked for, in the order first asked (that of
+:func:`load_results`). A file per point, written as it finishes, makes each save O(1) and
+loses at most the points in progress. One runner per directory at a time.
 
 The key (:func:`point_key`) is ``name=value`` per field (strings bare, other values as
-JSON), joined by ``,``, every character outside ``[A-Za-z0-9._=,+-]`` replaced by ``_``,
-cut to 80 characters, then ``-`` and 12 hex digits of the SHA-256 of the fields as
-compact sorted JSON: stable across runs and machines, a safe file name, and distinct for
-distinct points. JSON tells ``50`` from ``50.0``: give fields one type (``float(...)``).
+JSON) joined by ``,``, characters outside ``[A-Za-z0-9._=,+-]`` replaced by ``_``, cut to
+80 characters, then ``-`` and 12 hex digits of the SHA-256 of the fields as compact sorted
+JSON: stable, file-name safe, distinct per point. JSON tells ``50`` from ``50.0``.
 
 ``workers=1`` with neither ``scheduler`` nor ``client`` runs the points one after another
 in this process, without Dask (the cheap path for callers' tests). Otherwise a
 ``LocalCluster`` of ``workers`` single-threaded processes is started and closed around the
-sweep, or the given cluster is used. Workers are *spawned* processes: a script running a
-sweep on them needs an ``if __name__ == "__main__":`` guard.
+sweep, or the given cluster is used. Workers are *spawned*: a script running a sweep on
+them needs an ``if __name__ == "__main__":`` guard.
 """
 
 from __future__ import annotations
@@ -130,7 +127,7 @@ def grid(point_type: type[P], /, **values: Iterable[Any]) -> list[P]:
     Parameters
     ----------
     point_type : type
-        A dataclass; fields not named keep their defaults.
+        A dataclass; fields not named keep their defaults, unknown names raise TypeError.
     **values : iterable
         Values of each named field. The last name varies fastest.
 
@@ -140,12 +137,6 @@ def grid(point_type: type[P], /, **values: Iterable[Any]) -> list[P]:
         Without duplicates; empty if a list is empty. E.g. ``grid(Pt, c=[1, 2], v=[40])``
         gives ``[Pt(c=1, v=40), Pt(c=2, v=40)]``.
     """
-    names = {f.name for f in dataclasses.fields(point_type)}  # type: ignore[arg-type]
-    unknown = sorted(set(values) - names)
-    if unknown:
-        raise TypeError(
-            f"{point_type.__name__} has no field(s) {unknown}; its fields are {sorted(names)}"
-        )
     combos = itertools.product(*(list(v) for v in values.values()))
     return list(dict.fromkeys(point_type(**dict(zip(values, c, strict=True))) for c in combos))
 
@@ -227,7 +218,8 @@ def _open_dir(path: Path, settings: dict[str, Any], fields: list[dict[str, Any]]
                 f"use another results directory, or remove {path} to start over"
             )
         known = saved["points"]
-    merged = known + [f for f in fields if f not in known]
+    seen = {_key(f) for f in known}
+    merged = known + [f for f in fields if _key(f) not in seen]
     if not meta.exists() or merged != known:
         atomic_write_json(meta, {"format": _FORMAT, "settings": settings, "points": merged})
 
@@ -410,7 +402,8 @@ def _run_on_cluster(
     import cloudpickle  # a dependency of distributed
 
     try:
-        payloads = {p: cloudpickle.dumps((task, p)) for p in todo}
+        blob = cloudpickle.dumps(task)  # once: a big closure is not pickled per point
+        payloads = {p: cloudpickle.dumps(p) for p in todo}
     except Exception as exc:
         raise TypeError(
             f"cannot send the task {task!r} or its points to worker processes ({exc}); "
@@ -433,7 +426,7 @@ def _run_on_cluster(
             client = stack.enter_context(Client(stack.enter_context(cluster)))
         # pure=False: never reuse a result cached by the scheduler (a failed point retried
         # on the same client must run again).
-        running = {client.submit(_run_payload, payloads[p], pure=False): p for p in todo}
+        running = {client.submit(_run_pickled, blob, payloads[p], pure=False): p for p in todo}
         try:
             for fut in as_completed(list(running)):
                 p = running.pop(fut)
@@ -448,10 +441,9 @@ def _run_on_cluster(
                 client.cancel(list(running))
 
 
-def _run_payload(payload: bytes) -> Any:
+def _run_pickled(task: bytes, point: bytes) -> Any:
     # On a worker. Task and point travel as cloudpickle bytes and are unpickled here, so a
     # worker that cannot import the task's module fails that point (reported) instead of
     # its connection to the scheduler (a hang), and modules registered with
     # cloudpickle.register_pickle_by_value (e.g. test modules) travel by value.
-    task, point = pickle.loads(payload)
-    return task(point)
+    return pickle.loads(task)(pickle.loads(point))
