@@ -152,16 +152,33 @@ def sweep_cmd(
     duration: Annotated[float, typer.Option(help="Simulated time per point, µs.")] = 400.0,
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet-sweep"),
     jobs: Annotated[
-        int, typer.Option(min=1, help="Points simulated side by side (worker processes).")
+        int,
+        typer.Option(
+            "--jobs",
+            "--workers",
+            min=1,
+            max=256,
+            help="Points simulated side by side (local Dask worker processes).",
+        ),
     ] = 1,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="Run on this Dask scheduler (tcp://host:8786) instead."),
+    ] = None,
 ) -> None:
     """Redraw Fig. 4 (breakup time against concentration) and the 40-70 V trend.
 
-    Finished points are kept in OUT/sweep.json; running the same sweep again resumes.
+    Finished points are kept in OUT/sweep/ as they come back; running the same sweep
+    again resumes. ``microfab run examples/droplet_sweep.toml`` runs the same sweep as a
+    job and writes a report with the seed's numbers beside ours.
     """
     from microfab.experiments.seed003_inkjet.figures import fig_sweep
     from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
-    from microfab.experiments.seed003_inkjet.sweep import run_sweep, sweep_points
+    from microfab.experiments.seed003_inkjet.sweep import (
+        DropletSettings,
+        droplet_sweep,
+        sweep_points,
+    )
     from microfab.process.inkjet.fluids import naalg
     from microfab.report.canvas import save_figure
 
@@ -170,43 +187,54 @@ def sweep_cmd(
     for v in vs:
         if not 40.0 <= v <= 70.0:
             fail(f"voltage {v} V is outside what the model covers (40 to 70 V, seed Table 1)")
+    if not (math.isfinite(duration) and 10.0 <= duration <= 5000.0):
+        fail(f"--duration must be between 10 and 5000 µs, got {duration}")
     try:
         for c in {*cs, voltage_concentration}:
             naalg(c)
         points = sweep_points(cs, vs, voltage_concentration_pct=voltage_concentration)
         with progress() as bar:
             task = bar.add_task("droplet sweep", total=len(points))
-            rows = run_sweep(
+            res = droplet_sweep(
                 points,
-                duration_s=duration * 1e-6,
-                results_path=out / "sweep.json",
-                progress=lambda n, p: bar.update(
+                settings=DropletSettings(duration_s=duration / 1e6),
+                results_dir=out / "sweep",
+                progress=lambda n, total, p, ok: bar.update(
                     task,
                     completed=n,
-                    description=f"done {p.concentration_pct:g} %, {p.voltage_v:g} V",
+                    description=f"{'done' if ok else 'FAILED'} {p.concentration_pct:g} %, "
+                    f"{p.voltage_v:g} V",
                 ),
-                jobs=jobs,
+                workers=jobs,
+                scheduler=scheduler,
+                raise_on_failure=False,
             )
             bar.update(task, completed=len(points))
-    except ValueError as exc:
+    except (OSError, ValueError) as exc:
         fail(str(exc))
-    save_figure(fig_sweep(rows, seed_points=SEED_BREAKUP), out / "breakup_time.png")
-    table = [
-        {
-            k: r[k]
-            for k in (
-                "concentration_pct",
-                "voltage_v",
-                "breakup_time_s",
-                "breakup_mode",
-                "head_speed_m_s",
-                "satellites",
-            )
-        }
-        for r in rows
-    ]
-    console.print_json(json.dumps(table, default=float))
-    console.print(f"wrote {out / 'sweep.json'} and {out / 'breakup_time.png'}")
+    rows = list(res.rows)
+    atomic_write_text(out / "sweep.json", json.dumps({"rows": rows}, indent=2) + "\n")
+    if rows:
+        save_figure(fig_sweep(rows, seed_points=SEED_BREAKUP), out / "breakup_time.png")
+    keys = (
+        "concentration_pct",
+        "voltage_v",
+        "breakup_time_s",
+        "breakup_mode",
+        "head_speed_m_s",
+        "satellites",
+    )
+    console.print_json(json.dumps([{k: r.get(k) for k in keys} for r in rows], default=float))
+    console.print(
+        f"wrote {out / 'sweep.json'}" + (f" and {out / 'breakup_time.png'}" if rows else "")
+    )
+    if res.failed:
+        first = res.failed[0]
+        fail(
+            f"{len(res.failed)} point(s) failed (running the sweep again retries them); first: "
+            f"{first.point.concentration_pct:g} %, {first.point.voltage_v:g} V: {first.error}",
+            code=1,
+        )
 
 
 @droplet_app.command("calibrate")

@@ -31,12 +31,22 @@ def run_cmd(
     except (OSError, ValueError) as exc:
         fail(str(exc))
     out_dir = out or job.out
-    with progress() as prog:
-        result = job.kind.run(job.config, out_dir, reporter(prog))
+    try:
+        with progress() as prog:
+            result = job.kind.run(job.config, out_dir, reporter(prog))
+    except (OSError, ValueError) as exc:  # e.g. a results folder of another job
+        fail(str(exc))
     path = job.kind.write_report(result, out_dir, job.title)
     for table in result.comparison():
         print_table(table)
     console.print(f"report: {path}", highlight=False)
+    failed = result.failures()
+    if failed:
+        fail(
+            f"{len(failed)} part(s) of the job failed, the rest is in the report "
+            f"(running the job again retries them); first: {failed[0]}",
+            code=1,
+        )
 
 
 def kinds_cmd() -> None:

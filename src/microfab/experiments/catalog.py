@@ -13,6 +13,7 @@ from typing import Any
 
 from microfab.experiments.kinds import JobKind, Reproduction
 from microfab.experiments.seed000_msl.job import MSL_ILC, MSL_ILC_REPRODUCTION
+from microfab.experiments.seed003_inkjet.job import DROPLET_FIG4_REPRODUCTION, DROPLET_SWEEP
 from microfab.io.job import JobFile, JobFileError, parse_job, read_job
 
 __all__ = [
@@ -27,9 +28,11 @@ __all__ = [
 ]
 
 #: Every job kind, by name.
-JOB_KINDS: dict[str, JobKind] = {k.name: k for k in (MSL_ILC,)}
+JOB_KINDS: dict[str, JobKind] = {k.name: k for k in (MSL_ILC, DROPLET_SWEEP)}
 #: Every reproduction, by name.
-REPRODUCTIONS: dict[str, Reproduction] = {r.name: r for r in (MSL_ILC_REPRODUCTION,)}
+REPRODUCTIONS: dict[str, Reproduction] = {
+    r.name: r for r in (MSL_ILC_REPRODUCTION, DROPLET_FIG4_REPRODUCTION)
+}
 
 
 #: The kind of a job file whose ``[job]`` names none (job files written before kinds).

@@ -50,6 +50,10 @@ class KindResult(Protocol):
         """Our numbers beside the seed's, as tables (terminal and report)."""
         ...
 
+    def failures(self) -> tuple[str, ...]:
+        """One line per part of the job that failed (kept going; empty when all ran)."""
+        ...
+
 
 @dataclass(frozen=True, kw_only=True)
 class JobKind:

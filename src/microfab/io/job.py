@@ -56,6 +56,8 @@ class Key:
         One line for documentation.
     alias : str, optional
         An older name still accepted for this key.
+    allow_empty : bool
+        A list key that accepts ``[]`` (default: a list must hold a value).
     """
 
     name: str
@@ -66,6 +68,7 @@ class Key:
     unit: str = ""
     help: str = ""
     alias: str | None = None
+    allow_empty: bool = False
 
     def _range(self) -> str:
         lo = "-inf" if self.low is None else f"{self.low:g}"
@@ -100,8 +103,9 @@ class Key:
                 raise JobFileError(f"{what}: expected true or false")
             return value
         if self.type in ("int_list", "float_list"):
-            if not isinstance(value, list) or not value:
-                raise JobFileError(f"{what}: expected a non-empty list of numbers")
+            if not isinstance(value, list) or not (value or self.allow_empty):
+                empty = "" if self.allow_empty else "non-empty "
+                raise JobFileError(f"{what}: expected a {empty}list of numbers")
             scalar = "int" if self.type == "int_list" else "float"
             return tuple(self._number(v, what, scalar) for v in value)
         return self._number(value, what, self.type)

@@ -99,6 +99,7 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
+from microfab.core.threads import single_threaded
 from microfab.core.validate import check_positive
 
 __all__ = [
@@ -614,6 +615,7 @@ def _markov_doubling(
     return rows @ c_bal
 
 
+@single_threaded
 def nozzle_flow(
     printhead: Printhead,
     drive: DriveSignal,

@@ -16,7 +16,12 @@ from microfab.experiments.seed003_inkjet.figures import (
     fig_regime_map,
     fig_sweep,
 )
-from microfab.experiments.seed003_inkjet.sweep import SweepPoint, run_sweep, sweep_points
+from microfab.experiments.seed003_inkjet.sweep import (
+    DropletSettings,
+    SweepPoint,
+    droplet_sweep,
+    sweep_points,
+)
 from microfab.measure.imaging import analyze
 from microfab.measure.shadowgraph import Camera, render_sequence
 from microfab.plants.printhead import nozzle_flow
@@ -103,7 +108,7 @@ def rendered() -> dict[str, np.ndarray]:
 
 
 def _fake(calls: list[SweepPoint]):
-    def sim(p: SweepPoint, duration_s: float) -> dict[str, Any]:
+    def sim(p: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
         calls.append(p)
         t = None if p.concentration_pct > 1.5 else 1e-4 * (1 + p.concentration_pct)
         return {"breakup_time_s": t, "breakup_mode": None if t is None else "exit"}
@@ -159,7 +164,7 @@ def test_fig_analysis(rendered: dict[str, np.ndarray]) -> None:
 
 
 def test_fig_sweep_draws_both_panels() -> None:
-    rows = run_sweep(sweep_points([0.15, 1.0, 2.0], [45, 55]), simulate=_fake([]))
+    rows = droplet_sweep(sweep_points([0.15, 1.0, 2.0], [45, 55]), simulate=_fake([])).rows
     fig = fig_sweep(rows, seed_points={0.15: (95e-6, "front"), 1.0: (230e-6, "exit")})
     ax_c, ax_v = fig.axes
     assert len(ax_c.lines) == 3  # model, no-breakup crosses, seed

@@ -1,16 +1,28 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from microfab.experiments.seed003_inkjet.sweep import SweepPoint, run_sweep, sweep_points
+from microfab.experiments.seed003_inkjet.sweep import (
+    DropletSettings,
+    SweepPoint,
+    droplet_sweep,
+    sweep_points,
+)
+from microfab.experiments.sweep import SweepError, load_results
+
+cloudpickle = pytest.importorskip("cloudpickle")
+# The stand-in simulation below travels to the worker processes by value (this test
+# module is not importable there).
+cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
 
 def _fake(calls: list[SweepPoint]):
-    def sim(p: SweepPoint, duration_s: float) -> dict[str, Any]:
+    def sim(p: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
         calls.append(p)
         t = None if p.concentration_pct > 1.5 else 1e-4 * (1 + p.concentration_pct)
         return {"breakup_time_s": t, "breakup_mode": None if t is None else "exit"}
@@ -18,43 +30,10 @@ def _fake(calls: list[SweepPoint]):
     return sim
 
 
-def _picklable_sim(p: SweepPoint, duration_s: float) -> dict[str, Any]:
-    if p.voltage_v == 66.0:
-        raise ValueError("voltage 66 V: this stand-in model refuses it")
-    return {"breakup_time_s": 1e-4 * p.concentration_pct, "breakup_mode": "exit"}
-
-
-def test_parallel_sweep_keeps_order_and_saves_every_point(tmp_path: Path) -> None:
-    path = tmp_path / "sweep.json"
-    pts = sweep_points([0.15, 1.0, 1.5], [40, 60])
-    seen: list[int] = []
-    rows = run_sweep(
-        pts,
-        results_path=path,
-        simulate=_picklable_sim,
-        jobs=2,
-        progress=lambda n, p: seen.append(n),
-    )
-    assert [(r["concentration_pct"], r["voltage_v"]) for r in rows] == [
-        (p.concentration_pct, p.voltage_v) for p in pts
-    ]
-    assert [r["breakup_time_s"] for r in rows] == [1e-4 * p.concentration_pct for p in pts]
-    assert seen == [1, 2, 3, 4, 5]
-    assert len(json.loads(path.read_text())["rows"]) == len(pts)
-
-
-def test_parallel_sweep_keeps_the_points_that_finished_when_one_fails(tmp_path: Path) -> None:
-    path = tmp_path / "sweep.json"
-    pts = sweep_points([0.15, 1.0], [66])
-    with pytest.raises(ValueError, match="66 V"):
-        run_sweep(pts, results_path=path, simulate=_picklable_sim, jobs=2)
-    saved = json.loads(path.read_text())["rows"]
-    assert sorted((r["concentration_pct"], r["voltage_v"]) for r in saved) == [
-        (0.15, 50.0),
-        (1.0, 50.0),
-    ]
-    with pytest.raises(ValueError, match="jobs"):
-        run_sweep(pts, simulate=_picklable_sim, jobs=0)
+def _picklable_sim(p: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
+    if p.voltage_v == 65.0:
+        raise ValueError("voltage 65 V: this stand-in model refuses it")
+    return {"breakup_time_s": 1e-4 * p.concentration_pct, "duration_s": settings.duration_s}
 
 
 def test_points_cover_both_series_once() -> None:
@@ -68,23 +47,62 @@ def test_points_cover_both_series_once() -> None:
 
 
 def test_sweep_saves_each_point_and_resumes(tmp_path: Path) -> None:
-    path = tmp_path / "sweep.json"
     pts = sweep_points([0.15, 1.0, 2.0], [60])
     calls: list[SweepPoint] = []
-    rows = run_sweep(pts[:2], results_path=path, simulate=_fake(calls))
-    assert len(calls) == 2 and len(rows) == 2
-    assert len(json.loads(path.read_text())["rows"]) == 2
-    rows = run_sweep(pts, results_path=path, simulate=_fake(calls))
-    assert [c for c in calls[2:]] == pts[2:]  # only the new points ran
-    assert [(r["concentration_pct"], r["voltage_v"]) for r in rows] == [
+    res = droplet_sweep(pts[:2], results_dir=tmp_path, simulate=_fake(calls))
+    assert len(calls) == 2 and len(res.rows) == 2
+    assert len(list((tmp_path / "points").glob("*.json"))) == 2
+    res = droplet_sweep(pts, results_dir=tmp_path, simulate=_fake(calls))
+    assert calls[2:] == pts[2:]  # only the new points ran
+    assert res.skipped == tuple(pts[:2])
+    assert [(r["concentration_pct"], r["voltage_v"]) for r in res.rows] == [
         (p.concentration_pct, p.voltage_v) for p in pts
     ]
+    assert load_results(tmp_path) == list(res.rows)
 
 
-def test_sweep_refuses_a_file_with_other_settings(tmp_path: Path) -> None:
-    path = tmp_path / "sweep.json"
-    run_sweep([SweepPoint(1.0, 50.0)], results_path=path, simulate=_fake([]))
-    with pytest.raises(ValueError, match="other file"):
-        run_sweep([SweepPoint(1.0, 50.0)], duration_s=1e-4, results_path=path, simulate=_fake([]))
-    with pytest.raises(ValueError, match="duration"):
-        run_sweep([SweepPoint(1.0, 50.0)], duration_s=0.0, simulate=_fake([]))
+def test_sweep_refuses_a_folder_with_other_settings(tmp_path: Path) -> None:
+    droplet_sweep([SweepPoint(1.0, 50.0)], results_dir=tmp_path, simulate=_fake([]))
+    with pytest.raises(ValueError, match=r"duration_s: saved 0.0004, now 0.0001"):
+        droplet_sweep(
+            [SweepPoint(1.0, 50.0)],
+            settings=DropletSettings(duration_s=1e-4),
+            results_dir=tmp_path,
+            simulate=_fake([]),
+        )
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"duration_s": 0.0}, "duration_s"),
+        ({"after_breakup_s": float("nan")}, "after_breakup_s"),
+        ({"max_steps": 0}, "max_steps"),
+    ],
+)
+def test_settings_refuse_bad_values(kwargs: dict[str, Any], match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        DropletSettings(**kwargs)
+
+
+def test_sweep_on_worker_processes_keeps_order_and_isolates_a_failure(tmp_path: Path) -> None:
+    pts = sweep_points([0.15, 1.0, 1.5], [40, 65])
+    seen: list[tuple[int, bool]] = []
+    with pytest.raises(SweepError, match=r"(?s)1 sweep point\(s\) failed.*65 V") as err:
+        droplet_sweep(
+            pts,
+            settings=DropletSettings(duration_s=3e-4),
+            results_dir=tmp_path,
+            simulate=_picklable_sim,
+            workers=2,
+            progress=lambda n, total, p, ok: seen.append((n, ok)),
+        )
+    rows = err.value.result.rows
+    assert [(r["concentration_pct"], r["voltage_v"]) for r in rows] == [
+        (p.concentration_pct, p.voltage_v) for p in pts if p.voltage_v != 65.0
+    ]
+    assert all(r["duration_s"] == 3e-4 for r in rows)  # settings reach the workers
+    assert sorted(n for n, _ in seen) == [1, 2, 3, 4, 5]
+    assert sum(not ok for _, ok in seen) == 1
+    saved = [json.loads(f.read_text())["point"] for f in (tmp_path / "points").glob("*.json")]
+    assert len(saved) == 4 and {"concentration_pct": 1.0, "voltage_v": 65.0} not in saved

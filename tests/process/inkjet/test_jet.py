@@ -116,7 +116,9 @@ def test_mass_is_conserved_through_injection_regrid_and_breakup() -> None:
         [cap_body(cap_volume(0.3))],
         JetModel(ohnesorge=0.05, polymer_ohnesorge=0.1, deborah=1.0),
         Numerics(h_break=0.05, resolution=0.8),
-        t_end=6.0,
+        # The first pinch-off comes at t ≈ 7.8 with numpy 2.4 / scipy 1.17 / numba 0.68 (it
+        # came before 6 with earlier builds: breakup timing is sensitive to rounding).
+        t_end=10.0,
         inflow=_Pulse(4.0, 1.5),
         on_pinch="split",
     )

@@ -138,6 +138,10 @@ class MSLJobResult:
         """Tables 1 and 2 and the margins, ours / seed 000 (`comparison_tables`)."""
         return comparison_tables(self.numbers)
 
+    def failures(self) -> tuple[str, ...]:
+        """Nothing: a failing rate stops the job (its learning state is kept)."""
+        return ()
+
     def summary(self) -> dict[str, Any]:
         """Main-rate Table 1 and 2 rows, the loop margins, ours beside the seed's."""
         main = self.runs[self.config.features_per_s]

@@ -3,35 +3,41 @@
 A sweep runs :func:`microfab.process.inkjet.droplet.simulate_droplet` once per point:
 the six NaAlg concentrations of seed 003 part 1
 (``../shared/seeds/003_4915b267b12a78d4.txt``, "Materials") at 50 V (its Fig. 4), and the
-Table 1 voltages 40-70 V at one concentration (numbers in :mod:`.paper`). Every finished
-point is written at once (atomically) to a JSON file, and a sweep started
-again with the same file and settings skips the points already there, so an interrupted
-sweep loses at most the point in progress. The figure is
+Table 1 voltages 40-70 V at one concentration (numbers in :mod:`.paper`). The points run
+on the project's generic runner, :func:`microfab.experiments.sweep.run_sweep`: in this
+process, on a local Dask cluster of worker processes, or on a running Dask scheduler.
+Every finished point is saved at once (atomically) in the results directory, and a sweep
+started again with the same directory and settings skips the points already there, so
+an interrupted sweep loses at most the points in progress. The figure is
 :func:`microfab.experiments.seed003_inkjet.figures.fig_sweep`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
-import math
-from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import asdict, dataclass
+import functools
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from microfab.core.validate import check_positive
 from microfab.experiments.seed003_inkjet.paper import (
     FIG4_VOLTAGE_V,
     SEED_CONCENTRATIONS_PCT,
     SEED_VOLTAGES_V,
 )
-from microfab.io.atomic import atomic_write_json
+from microfab.experiments.sweep import SweepResult, run_sweep
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 __all__ = [
     "SWEEP_MAX_STEPS",
+    "DropletSettings",
     "SweepPoint",
-    "run_sweep",
+    "droplet_sweep",
+    "simulate_point",
     "sweep_points",
 ]
 
@@ -45,10 +51,39 @@ SWEEP_MAX_STEPS = 60_000
 
 @dataclass(frozen=True)
 class SweepPoint:
-    """One simulation of a sweep."""
+    """One simulation of a sweep: NaAlg concentration (% w/v) and drive amplitude (V)."""
 
     concentration_pct: float
     voltage_v: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class DropletSettings:
+    """What every point of a sweep shares; a saved sweep is resumed only with the same.
+
+    Parameters
+    ----------
+    duration_s : float
+        Simulated time per point, s.
+    after_breakup_s : float
+        How long the bodies are followed after the first breakup, s.
+    max_steps : int
+        Solver step budget per point (`SWEEP_MAX_STEPS`).
+    """
+
+    duration_s: float = 400e-6
+    after_breakup_s: float = 20e-6
+    max_steps: int = SWEEP_MAX_STEPS
+
+    def __post_init__(self) -> None:
+        check_positive("duration_s", self.duration_s, "s")
+        check_positive("after_breakup_s", self.after_breakup_s, "s")
+        if isinstance(self.max_steps, bool) or self.max_steps < 1:
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready settings (what `run_sweep` checks on resume)."""
+        return dataclasses.asdict(self)
 
 
 def sweep_points(
@@ -86,106 +121,14 @@ def sweep_points(
     return list(dict.fromkeys(out))
 
 
-def run_sweep(
-    points: Sequence[SweepPoint],
-    *,
-    duration_s: float = 400e-6,
-    results_path: str | Path | None = None,
-    simulate: Callable[[SweepPoint, float], dict[str, Any]] | None = None,
-    progress: Callable[[int, SweepPoint], None] | None = None,
-    jobs: int = 1,
-) -> list[dict[str, Any]]:
-    """Simulate every point, saving and resuming through ``results_path``.
-
-    Parameters
-    ----------
-    points : sequence of SweepPoint
-        What to run (:func:`sweep_points`).
-    duration_s : float, optional
-        Simulated time per point, s.
-    results_path : str or Path, optional
-        JSON file holding ``{"settings": ..., "rows": [...]}``. Rows already there for
-        the same settings are reused; the file is rewritten atomically after each point.
-    simulate : callable, optional
-        ``(point, duration_s) → summary dict``; default:
-        :func:`microfab.process.inkjet.droplet.simulate_droplet` with the seed's bipolar
-        waveform, ``DropletResult.to_dict()``. With ``jobs > 1``
-        it must be picklable (a module-level function).
-    progress : callable, optional
-        Called with (number of points finished, point) after each simulation that is
-        actually run.
-    jobs : int, optional
-        Worker processes. ``1`` runs the points one after another in this process; more
-        run them side by side, each finished point saved as soon as it comes back.
+def simulate_point(point: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
+    """Simulate one point with the seed's bipolar waveform (Table 1); the summary row.
 
     Returns
     -------
-    list of dict
-        One summary per point, in the order of ``points``.
-
-    Raises
-    ------
-    ValueError
-        If ``duration_s`` is not positive, ``jobs`` is below 1, or ``results_path`` holds
-        a sweep with other settings (remove it or choose another file).
+    dict
+        :meth:`microfab.process.inkjet.droplet.DropletResult.to_dict`.
     """
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise ValueError(f"duration_s must be a positive time, got {duration_s} s")
-    if jobs < 1:
-        raise ValueError(f"jobs must be at least 1, got {jobs}")
-    sim = simulate or _simulate
-    settings = {"duration_s": duration_s}
-    done: dict[tuple[float, float], dict[str, Any]] = {}
-    path = Path(results_path) if results_path is not None else None
-    if path is not None and path.exists():
-        saved = json.loads(path.read_text(encoding="utf-8"))
-        if saved.get("settings") != settings:
-            raise ValueError(
-                f"{path} holds a sweep with settings {saved.get('settings')}, not {settings}; "
-                "remove it or choose another file"
-            )
-        for row in saved.get("rows", []):
-            done[(row["concentration_pct"], row["voltage_v"])] = row
-    unique = list(dict.fromkeys(points))
-    todo = [p for p in unique if (p.concentration_pct, p.voltage_v) not in done]
-    finished = len(unique) - len(todo)
-
-    def keep(p: SweepPoint, result: dict[str, Any]) -> None:
-        nonlocal finished
-        row = dict(result)
-        row.update(asdict(p))
-        done[(p.concentration_pct, p.voltage_v)] = row
-        if path is not None:
-            atomic_write_json(path, {"settings": settings, "rows": list(done.values())})
-        finished += 1
-        if progress is not None:
-            progress(finished, p)
-
-    if jobs == 1 or len(todo) <= 1:
-        for p in todo:
-            keep(p, sim(p, duration_s))
-    else:
-        with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:
-            running: dict[Future[dict[str, Any]], SweepPoint] = {
-                pool.submit(sim, p, duration_s): p for p in todo
-            }
-            failed: BaseException | None = None
-            while running:
-                ready, _ = wait(running, return_when=FIRST_COMPLETED)
-                for fut in ready:
-                    p = running.pop(fut)
-                    try:
-                        result = fut.result()
-                    except Exception as exc:  # keep what the other workers finish
-                        failed = failed or exc
-                        continue
-                    keep(p, result)
-            if failed is not None:
-                raise failed
-    return [done[(p.concentration_pct, p.voltage_v)] for p in points]
-
-
-def _simulate(point: SweepPoint, duration_s: float) -> dict[str, Any]:
     from microfab.process.inkjet.droplet import DOD_NUMERICS, simulate_droplet
     from microfab.process.inkjet.fluids import naalg
     from microfab.trajectory.waveform import seed003_waveform
@@ -193,8 +136,72 @@ def _simulate(point: SweepPoint, duration_s: float) -> dict[str, Any]:
     res = simulate_droplet(
         naalg(point.concentration_pct),
         seed003_waveform(point.voltage_v),
-        duration_s=duration_s,
-        after_breakup_s=20e-6,
-        numerics=dataclasses.replace(DOD_NUMERICS, max_steps=SWEEP_MAX_STEPS),
+        duration_s=settings.duration_s,
+        after_breakup_s=settings.after_breakup_s,
+        numerics=dataclasses.replace(DOD_NUMERICS, max_steps=settings.max_steps),
     )
     return res.to_dict()
+
+
+def droplet_sweep(
+    points: Sequence[SweepPoint],
+    *,
+    settings: DropletSettings | None = None,
+    results_dir: str | Path | None = None,
+    simulate: Callable[[SweepPoint, DropletSettings], Mapping[str, Any]] = simulate_point,
+    progress: Callable[[int, int, SweepPoint, bool], None] | None = None,
+    workers: int = 1,
+    scheduler: str | None = None,
+    client: Client | None = None,
+    raise_on_failure: bool = True,
+) -> SweepResult[SweepPoint]:
+    """Simulate every point, saving each as it finishes and resuming from ``results_dir``.
+
+    Parameters
+    ----------
+    points : sequence of SweepPoint
+        What to run (:func:`sweep_points`); duplicates run once.
+    settings : DropletSettings, optional
+        Shared by every point; default ``DropletSettings()``.
+    results_dir : str or Path, optional
+        Folder of the saved points (:mod:`microfab.experiments.sweep`); a rerun with the
+        same settings skips the points found there, one with other settings is refused.
+    simulate : callable, optional
+        ``(point, settings) -> summary dict``; default :func:`simulate_point`. Off the
+        in-process path it must be picklable (a module-level function).
+    progress : callable, optional
+        ``progress(done, total, point, ok)`` as each point that runs completes.
+    workers : int, optional
+        Worker processes of a local Dask cluster; ``1`` runs in this process.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``) to run on instead.
+    client : distributed.Client, optional
+        A Dask client to run on (left open).
+    raise_on_failure : bool, optional
+        Raise `microfab.experiments.sweep.SweepError` if a point failed (default), or
+        return the failures in the result.
+
+    Returns
+    -------
+    SweepResult
+        Rows (point fields, then the summary) of the finished points in point order.
+
+    Raises
+    ------
+    ValueError
+        ``workers < 1``, or ``results_dir`` holds a sweep with other settings.
+    microfab.experiments.sweep.SweepError
+        A point failed (the others are saved; a rerun retries it).
+    """
+    settings = settings or DropletSettings()
+    return run_sweep(
+        functools.partial(simulate, settings=settings),
+        points,
+        results_dir=results_dir,
+        settings=settings.to_dict(),
+        workers=workers,
+        scheduler=scheduler,
+        client=client,
+        progress=progress,
+        raise_on_failure=raise_on_failure,
+    )

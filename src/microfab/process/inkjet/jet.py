@@ -54,6 +54,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from microfab.core.arrays import readonly
+from microfab.core.threads import single_threaded
 from microfab.process.inkjet import jet_kernels as jk
 from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
 from microfab.sim.integrators import SDIRK2, ImplicitIntegrator
@@ -626,6 +627,7 @@ def _algebraic(
     return np.array(idx, dtype=np.int64), values
 
 
+@single_threaded
 def run_jet(
     bodies: Sequence[Body],
     model: JetModel,

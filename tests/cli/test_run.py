@@ -1,0 +1,35 @@
+"""``microfab kinds`` and ``microfab run`` over the registry (the msl-ilc runs are in test_main)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from microfab.cli import app
+
+runner = CliRunner()
+
+
+def test_kinds_lists_every_kind_and_reproduction() -> None:
+    res = runner.invoke(app, ["kinds"])
+    assert res.exit_code == 0, res.output
+    for name in ("msl-ilc", "droplet-sweep", "droplet-fig4", "examples/droplet_sweep.toml"):
+        assert name in res.output
+
+
+def test_run_droplet_sweep_job(tmp_path: Path) -> None:
+    job = tmp_path / "j.toml"
+    job.write_text(
+        '[job]\nkind = "droplet-sweep"\n[sweep]\nconcentrations_pct = [0.15]\n'
+        "voltages_v = []\nduration_us = 120\n",
+        encoding="utf-8",
+    )
+    res = runner.invoke(app, ["run", str(job), "--out", str(tmp_path / "r")])
+    assert res.exit_code == 0, res.output
+    assert "First breakup at 50 V" in res.output
+    assert (tmp_path / "r" / "report.html").exists()
+    job.write_text(job.read_text().replace("120", "150"), encoding="utf-8")
+    res = runner.invoke(app, ["run", str(job), "--out", str(tmp_path / "r")])
+    assert res.exit_code == 2
+    assert "other settings" in res.output and "Traceback" not in res.output

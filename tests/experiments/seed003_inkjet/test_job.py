@@ -1,0 +1,137 @@
+"""The droplet-sweep job kind: its file, its tables beside the seed, its run and report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
+from microfab.experiments.seed003_inkjet import job as droplet_job
+from microfab.experiments.seed003_inkjet.job import (
+    DropletSweepConfig,
+    breakup_tables,
+)
+from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint
+from microfab.experiments.sweep import SweepResult
+from microfab.io.job import JobFileError
+
+EXAMPLES = Path(__file__).parents[3] / "examples"
+
+
+def _write(tmp_path: Path, sweep: str, run: str = "") -> Path:
+    p = tmp_path / "job.toml"
+    p.write_text(
+        f'[job]\nkind = "droplet-sweep"\nout = "{tmp_path / "out"}"\n[sweep]\n{sweep}\n'
+        + (f"[run]\n{run}\n" if run else ""),
+        encoding="utf-8",
+    )
+    return p
+
+
+def test_example_is_the_seed_sweep() -> None:
+    job = load_job(EXAMPLES / "droplet_sweep.toml")
+    assert job.kind is JOB_KINDS["droplet-sweep"]
+    cfg = job.config
+    assert cfg.concentrations_pct == (0.15, 0.2, 0.25, 1.0, 1.5, 2.0)
+    assert len(cfg.points) == 6 + 6  # 50 V at 1 % is in both series, run once
+    assert cfg.settings == DropletSettings(duration_s=400e-6, after_breakup_s=20e-6)
+    assert cfg.workers == 2 and cfg.scheduler is None
+
+
+def test_job_file_values_are_checked(tmp_path: Path) -> None:
+    with pytest.raises(JobFileError, match=r"\[sweep\] voltages_v = \[30\].*\[40, 70\] V"):
+        load_job(_write(tmp_path, "voltages_v = [30]"))
+    with pytest.raises(JobFileError, match=r"concentrations_pct = \[2.5\].*\[0, 2\] % w/v"):
+        load_job(_write(tmp_path, "concentrations_pct = [2.5]"))
+    with pytest.raises(JobFileError, match=r"\[run\] workers = 0"):
+        load_job(_write(tmp_path, "", "workers = 0"))
+    with pytest.raises(JobFileError, match=r"duration_us = inf"):
+        load_job(_write(tmp_path, "duration_us = inf"))
+    cfg = load_job(_write(tmp_path, "concentrations_pct = [0.15]\nvoltages_v = []")).config
+    assert cfg.points == [SweepPoint(0.15, 50.0)]
+
+
+def _row(c: float, v: float, t: float | None, mode: str | None = "exit") -> dict[str, Any]:
+    return {
+        "concentration_pct": c,
+        "voltage_v": v,
+        "breakup_time_s": t,
+        "breakup_mode": mode if t is not None else None,
+        "breakup_z_m": None if t is None else 1e-4,
+        "head_speed_m_s": 3.0,
+        "satellites": 1,
+        "drop_diameter_m": 80e-6,
+    }
+
+
+def test_tables_put_the_seed_beside_ours_and_judge_the_trend() -> None:
+    rows = [_row(0.15, 50, 96e-6), _row(1.0, 50, 258e-6), _row(1.0, 60, 200e-6)]
+    first, trend, volts = breakup_tables(rows)
+    assert first.rows[0][:3] == ("0.15", "96 / 95", "exit / front")
+    assert first.rows[1][:3] == ("1", "258 / 230", "exit / exit")
+    assert trend.rows == (("breakup time rises with concentration", "yes", "yes"),)
+    assert [r[0] for r in volts.rows] == ["50", "60"]
+
+    falling = [_row(0.15, 50, 96e-6), _row(1.0, 50, 258e-6), _row(1.5, 50, 133e-6)]
+    assert breakup_tables(falling)[1].rows[0][1] == "no: falls from 1 % → 1.5 %"
+    missing = [_row(0.15, 50, 96e-6), _row(2.0, 50, None)]
+    tables = breakup_tables(missing)
+    assert tables[1].rows[0][1] == "no: no breakup at 2 %"
+    assert tables[0].rows[1][1] == "— / —"
+    assert len(tables) == 2  # no voltage series in these rows
+
+
+def test_run_writes_report_summary_and_resumes(tmp_path: Path) -> None:
+    """A real one-point job: 0.15 % at 50 V (seed: 95 µs)."""
+    job = load_job(
+        _write(tmp_path, "concentrations_pct = [0.15]\nvoltages_v = []\nduration_us = 120")
+    )
+    out = tmp_path / "out"
+    seen: list[tuple[str, int, int | None]] = []
+    result = job.kind.run(job.config, out, lambda *a: seen.append(a))
+    assert seen[-1] == ("droplet sweep", 1, 1)
+    (row,) = result.rows
+    assert 80e-6 < row["breakup_time_s"] < 120e-6
+    summary = (out / "summary.json").read_text()
+    assert '"breakup_at_50V"' in summary and result.failures() == ()
+    report = job.kind.write_report(result, out, job.title).read_text()
+    assert "95" in report and f"{row['breakup_time_s'] * 1e6:.0f} / 95" in report
+    assert (out / "breakup_time.png").stat().st_size > 0
+    again = job.kind.run(job.config, out, lambda *a: None)
+    assert again.rows == result.rows  # resumed from out/sweep, not run again
+
+
+def test_a_failed_point_is_reported_and_the_rest_kept(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def flaky(p: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
+        if p.concentration_pct == 2.0:
+            raise RuntimeError("solver diverged")
+        return _row(p.concentration_pct, p.voltage_v, 1e-4)
+
+    real = droplet_job.droplet_sweep
+
+    def sweep(*args: Any, **kwargs: Any) -> SweepResult[SweepPoint]:
+        return real(*args, simulate=flaky, **kwargs)
+
+    monkeypatch.setattr(droplet_job, "droplet_sweep", sweep)
+    job = load_job(_write(tmp_path, "concentrations_pct = [0.15, 2.0]\nvoltages_v = []"))
+    result = job.kind.run(job.config, tmp_path / "out", lambda *a: None)
+    assert [r["concentration_pct"] for r in result.rows] == [0.15]
+    assert result.failures() == ("2 %, 50 V: RuntimeError: solver diverged",)
+    report = job.kind.write_report(result, tmp_path / "out", "t").read_text()
+    assert "Failed point: 2 %, 50 V: RuntimeError: solver diverged" in report
+
+
+def test_config_refuses_an_empty_sweep() -> None:
+    with pytest.raises(ValueError, match="no points"):
+        DropletSweepConfig(concentrations_pct=(), voltages_v=())
+
+
+def test_fig4_reproduction_options() -> None:
+    rep = REPRODUCTIONS["droplet-fig4"]
+    assert rep.parse_options({}) == {"duration_us": 400.0, "workers": 1}
+    with pytest.raises(JobFileError, match="workers"):
+        rep.parse_options({"workers": 0})
