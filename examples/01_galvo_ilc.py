@@ -16,7 +16,7 @@ from microfab.experiments.seed000_msl.run import run_msl_ilc
 
 
 def main(iterations: int = 10, out_dir: Path = Path()) -> Path:
-    result = run_msl_ilc(rate_hz=400, iterations=iterations)
+    result = run_msl_ilc(features_per_s=400, iterations=iterations)
     for i, (ex, ey) in enumerate(result.rms_history * 1e3, start=1):
         print(f"iteration {i:2d}: RMS error x {ex:7.2f} mV, y {ey:7.2f} mV")
     return save_figure(fig_xy(result), out_dir / "example_01_xy.png")

@@ -33,7 +33,7 @@ def main(n_grid: int = 400, out_dir: Path = Path()) -> Path:
     profile = None
     for spec in ("text:u", "text:r", "text:c", "text:h", "airfoil:e344"):
         path = load_drawing(spec, text_height=0.05, chord=0.1)[0]
-        res = time_optimal(path, limits, n_grid=n_grid, rate_hz=1000.0)
+        res = time_optimal(path, limits, n_grid=n_grid, sample_rate_hz=1000.0)
         print(
             f"{spec:13s} length {path.length * 1e3:7.2f} mm, time-optimal {res.duration:6.3f} s,"
             f" {len(res.segments)} segments, utilisation min {res.utilisation.min():.3f}"

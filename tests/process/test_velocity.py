@@ -15,16 +15,16 @@ FS = 1e6  # 1 MHz sampling
 DT = 1.0 / FS
 
 
-def _circle(radius_v: float, rate_hz: float) -> np.ndarray:
-    n = round(FS / rate_hz)
+def _circle(radius_v: float, features_per_s: float) -> np.ndarray:
+    n = round(FS / features_per_s)
     t = np.arange(n) * DT
-    w = 2 * np.pi * rate_hz
+    w = 2 * np.pi * features_per_s
     return np.column_stack([radius_v * np.cos(w * t), radius_v * np.sin(w * t)])
 
 
-def _square(half_side_v: float, rate_hz: float) -> np.ndarray:
+def _square(half_side_v: float, features_per_s: float) -> np.ndarray:
     """Square traced once per period at constant speed: trapezoidal x(t), y(t)."""
-    n = round(FS / rate_hz)
+    n = round(FS / features_per_s)
     s = np.arange(n) / n * 4.0  # edge coordinate in [0, 4)
     corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]], dtype=float)
     x = np.interp(s, np.arange(5), corners[:, 0])

@@ -355,8 +355,8 @@ def test_bad_input_is_refused() -> None:
     path = LinePath((0, 0), (0.01, 0))
     with pytest.raises(ValueError, match="n_grid"):
         time_optimal(path, STAGE, n_grid=5)
-    with pytest.raises(ValueError, match=r"rate_hz .* Hz"):
-        time_optimal(path, STAGE, rate_hz=0.0)
+    with pytest.raises(ValueError, match=r"sample_rate_hz .* Hz"):
+        time_optimal(path, STAGE, sample_rate_hz=0.0)
     with pytest.raises(ValueError, match=r"feed .* m/s"):
         time_optimal(path, STAGE, feed=-1.0)
     with pytest.raises(ValueError, match="margin"):

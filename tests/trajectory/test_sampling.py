@@ -12,7 +12,7 @@ from microfab.trajectory.sampling import constant_speed, periodic
 
 def test_constant_speed_follows_the_path_at_the_speed_asked() -> None:
     p = spiral(0.005, 0.0, 4 * np.pi)
-    tr = constant_speed(p, rate_hz=10_000, speed=0.05)
+    tr = constant_speed(p, sample_rate_hz=10_000, speed=0.05)
     assert tr.duration == pytest.approx(p.length / 0.05, rel=1e-3)
     assert np.allclose(tr.position[0], p.start) and np.allclose(tr.position[-1], p.end)
     speed = np.linalg.norm(tr.velocity, axis=1)
@@ -27,38 +27,38 @@ def test_constant_speed_follows_the_path_at_the_speed_asked() -> None:
 
 def test_duration_form_of_eq15() -> None:
     p = square(0.01)
-    tr = constant_speed(p, rate_hz=1000, duration=0.8)
+    tr = constant_speed(p, sample_rate_hz=1000, duration=0.8)
     assert tr.meta["speed_m_s"] == pytest.approx(p.length / 0.8)
     assert tr.n_samples == 801
 
 
 def test_constant_speed_from_rest_is_refused_by_the_limit_check() -> None:
-    tr = constant_speed(circle(0.01), rate_hz=10_000, speed=0.1)
+    tr = constant_speed(circle(0.01), sample_rate_hz=10_000, speed=0.1)
     with pytest.raises(LimitViolation, match=r"axis y: acceleration .* at t = 0 s"):
         check_trajectory(tr, MachineLimits.seed002_stage())
 
 
 def test_periodic_circle_passes_and_square_corner_is_refused() -> None:
     lim = MachineLimits.seed002_stage()
-    tr = periodic(circle(0.01), features_per_s=10, rate_hz=10_000)
+    tr = periodic(circle(0.01), features_per_s=10, sample_rate_hz=10_000)
     assert not tr.at_rest and tr.n_samples == 1000
     check_trajectory(tr, lim)  # centripetal 0.01*(2π·10)² ≈ 39.5 m/s² < 40
-    too_fast = periodic(circle(0.01), features_per_s=10.1, rate_hz=10_100)
+    too_fast = periodic(circle(0.01), features_per_s=10.1, sample_rate_hz=10_100)
     with pytest.raises(LimitViolation, match="acceleration"):
         check_trajectory(too_fast, lim)
     with pytest.raises(LimitViolation, match=r"axis x: acceleration .* t = 0\.0125 s"):
-        check_trajectory(periodic(square(0.01), features_per_s=10, rate_hz=10_000), lim)
+        check_trajectory(periodic(square(0.01), features_per_s=10, sample_rate_hz=10_000), lim)
 
 
 def test_periodic_input_errors() -> None:
     with pytest.raises(ValueError, match="closed"):
-        periodic(spiral(), features_per_s=1, rate_hz=1000)
+        periodic(spiral(), features_per_s=1, sample_rate_hz=1000)
     with pytest.raises(ValueError, match="whole number"):
-        periodic(rectangle(0.01, 0.02), features_per_s=3, rate_hz=1000)
+        periodic(rectangle(0.01, 0.02), features_per_s=3, sample_rate_hz=1000)
     with pytest.raises(ValueError, match="exactly one"):
-        constant_speed(circle(0.01), rate_hz=1000)
+        constant_speed(circle(0.01), sample_rate_hz=1000)
     with pytest.raises(ValueError, match="speed must be positive"):
-        constant_speed(circle(0.01), rate_hz=1000, speed=-1)
+        constant_speed(circle(0.01), sample_rate_hz=1000, speed=-1)
 
 
 def test_samples_per_period() -> None:

@@ -187,7 +187,7 @@ def test_bad_input_is_refused() -> None:
     with pytest.raises(ValueError, match="rest_breaks"):
         TimeSpline.fit(t, p, bc="rest", rest_breaks=(t[2], t[-2]))
     sp = TimeSpline.fit(t, p)
-    with pytest.raises(ValueError, match="rate_hz"):
+    with pytest.raises(ValueError, match="sample_rate_hz"):
         sp.sample(0.0)
     with pytest.raises(ValueError, match="order"):
         sp.evaluate(t, 4)

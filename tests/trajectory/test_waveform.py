@@ -177,7 +177,7 @@ def test_validation_message_names_value_and_unit() -> None:
 
 def test_sample_validation() -> None:
     w = seed003_waveform()
-    with pytest.raises(ValueError, match="rate_hz"):
+    with pytest.raises(ValueError, match="sample_rate_hz"):
         w.sample(0.0)
     with pytest.raises(ValueError, match="duration_s"):
         w.sample(1e6, -1.0)

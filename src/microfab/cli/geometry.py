@@ -153,12 +153,12 @@ def trajectory_cmd(
 
             with console.status("planning the time-optimal profile"):
                 try:
-                    res = plan(path, limits, n_grid=n_grid, rate_hz=rate, feed=feed)
+                    res = plan(path, limits, n_grid=n_grid, sample_rate_hz=rate, feed=feed)
                 except PlanningError as exc:
                     fail(str(exc))
             traj = res.trajectory
         else:
-            traj = constant_speed(path, rate_hz=rate, speed=speed)
+            traj = constant_speed(path, sample_rate_hz=rate, speed=speed)
         check_trajectory(traj, limits)
     except LimitViolation as exc:
         fail(

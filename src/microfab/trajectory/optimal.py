@@ -64,7 +64,7 @@ two stops gets at least 4 intervals).
   problem is solved again, for at most ``max_rounds`` rounds. Whatever still exceeds
   after the last round is removed by stretching that segment's time by
   ``max(r_v, r_a^{1/2}, r_j^{1/3})``, which scales velocity, acceleration and jerk
-  exactly. The spline is then sampled at ``rate_hz`` and must pass
+  exactly. The spline is then sampled at ``sample_rate_hz`` and must pass
   :func:`~microfab.core.limits.check_trajectory` (workspace, analytic values and
   finite differences of the samples), else :class:`PlanningError` is raised.
 * **Margin.** The LP plans with ``(1 - margin) · limit`` for every limit (velocity,
@@ -242,7 +242,7 @@ class TimeOptimalResult:
     spline : TimeSpline
         The reference, a time-based spline through ``q(s_k)`` at ``t_k``.
     trajectory : Trajectory
-        The spline sampled at ``rate_hz``, with ``s``; it passed ``check_trajectory``.
+        The spline sampled at ``sample_rate_hz``, with ``s``; it passed ``check_trajectory``.
     duration : float
         ``t_knots[-1]``, s.
     iterations : int
@@ -717,7 +717,7 @@ def time_optimal(
     limits: MachineLimits,
     *,
     n_grid: int = 1000,
-    rate_hz: float = 10_000.0,
+    sample_rate_hz: float = 10_000.0,
     feed: float | None = None,
     margin: float = 0.01,
     solver: LPSolver | None = None,
@@ -737,7 +737,7 @@ def time_optimal(
         limit is infinite get no jerk constraint.
     n_grid : int
         Number of uniform grid nodes (corners and junctions are added), >= 10.
-    rate_hz : float
+    sample_rate_hz : float
         Sample rate of the emitted trajectory, Hz.
     feed : float, optional
         Path speed cap, m/s.
@@ -766,8 +766,8 @@ def time_optimal(
     """
     if isinstance(n_grid, bool) or not isinstance(n_grid, int | np.integer) or n_grid < 10:
         raise ValueError(f"n_grid must be an integer >= 10, got {n_grid!r}")
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise ValueError(f"rate_hz must be positive, got {rate_hz} Hz")
+    if not (np.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+        raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz} Hz")
     if feed is not None and not (np.isfinite(feed) and feed > 0):
         raise ValueError(f"feed must be positive, got {feed} m/s")
     if not (np.isfinite(margin) and 0 <= margin < 0.5):
@@ -859,7 +859,7 @@ def time_optimal(
         bc=joined.bc,
         meta={"generator": "time_optimal", "margin": float(margin)},
     )
-    traj = spline.sample(rate_hz, s_knots=g.s, s_times=t_new)
+    traj = spline.sample(sample_rate_hz, s_knots=g.s, s_times=t_new)
     try:
         check_trajectory(traj, limits)
     except LimitViolation as err:

@@ -7,30 +7,42 @@ import numpy as np
 __all__ = ["samples_per_period", "square_scan"]
 
 
-def samples_per_period(fs_hz: float, rate_hz: float) -> int:
-    """Samples in one period of a signal repeated ``rate_hz`` times per second.
+def samples_per_period(fs_hz: float, features_per_s: float) -> int:
+    """Samples in one period of a signal repeated ``features_per_s`` times per second.
+
+    Parameters
+    ----------
+    fs_hz : float
+        Sample rate, Hz.
+    features_per_s : float
+        Repetition rate, features/s (periods per second).
+
+    Returns
+    -------
+    int
+        ``fs_hz / features_per_s``, a whole number >= 8.
 
     Raises
     ------
     ValueError
         If a rate is not positive, or a period is not a whole number (>= 8) of samples.
     """
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise ValueError(f"repetition rate must be positive, got {rate_hz} Hz")
+    if not (np.isfinite(features_per_s) and features_per_s > 0):
+        raise ValueError(f"repetition rate must be positive, got {features_per_s} features/s")
     if not (np.isfinite(fs_hz) and fs_hz > 0):
         raise ValueError(f"sample rate must be positive, got {fs_hz} Hz")
-    n_float = fs_hz / rate_hz
+    n_float = fs_hz / features_per_s
     n = round(n_float)
     if n < 8 or abs(n - n_float) > 1e-9 * n_float:
         raise ValueError(
             f"one period must be a whole number (>= 8) of samples: {fs_hz:g} Hz / "
-            f"{rate_hz:g} per s = {n_float:.6g}"
+            f"{features_per_s:g} features/s = {n_float:.6g}"
         )
     return n
 
 
 def square_scan(
-    rate_hz: float,
+    features_per_s: float,
     half_sizes: tuple[float, float],
     fs_hz: float,
 ) -> np.ndarray:
@@ -42,24 +54,25 @@ def square_scan(
 
     Parameters
     ----------
-    rate_hz : float
-        Features (laps of the square) per second; seed 000 §4 uses 100, 200 and 400.
+    features_per_s : float
+        Repetition rate, features/s (laps of the square per second); seed 000 §4 uses
+        100, 200 and 400.
     half_sizes : tuple of float
         Half side lengths ``(a, b)`` in the signal's unit (seed 000 §4.3: 1 V and 1.44 V
         encoder signal for the 0.6 mm square).
     fs_hz : float
-        Sample rate in Hz; ``fs_hz / rate_hz`` must be an integer number of samples.
+        Sample rate in Hz; ``fs_hz / features_per_s`` must be an integer number of samples.
 
     Returns
     -------
     numpy.ndarray
-        Shape (N, 2), ``N = fs_hz / rate_hz``.
+        Shape (N, 2), ``N = fs_hz / features_per_s``.
 
     References
     ----------
     Seed 000 §4: square trajectory, 0.6 × 0.6 mm, 100/200/400 features/s.
     """
-    n = samples_per_period(fs_hz, rate_hz)
+    n = samples_per_period(fs_hz, features_per_s)
     a, b = (float(h) for h in half_sizes)
     if a <= 0 or b <= 0:
         raise ValueError(f"half sizes must be positive, got {half_sizes}")

@@ -33,11 +33,11 @@ def _sample(path: Path, s: np.ndarray, speed: float, dt: float, at_rest: bool) -
 def constant_speed(
     path: Path,
     *,
-    rate_hz: float,
+    sample_rate_hz: float,
     speed: float | None = None,
     duration: float | None = None,
 ) -> Trajectory:
-    """Sample ``ρ(t) = Ξ(v t)`` at ``rate_hz`` (seed 002 eq. 15).
+    """Sample ``ρ(t) = Ξ(v t)`` at ``sample_rate_hz`` (seed 002 eq. 15).
 
     Give the path speed ``speed`` (m/s) or the traversal time ``duration`` (s, then
     ``v = S / T`` as in eq. 15). The last sample lands exactly on the end of the path.
@@ -53,7 +53,7 @@ def constant_speed(
     ----------
     path : Path
         The target geometry Ξ.
-    rate_hz : float
+    sample_rate_hz : float
         Sample rate, Hz.
     speed : float, optional
         Path speed, m/s.
@@ -65,8 +65,8 @@ def constant_speed(
     Trajectory
         Marked ``at_rest=True`` (the machine holds still before and after).
     """
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise ValueError(f"rate_hz must be positive, got {rate_hz} Hz")
+    if not (np.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+        raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz} Hz")
     if (speed is None) == (duration is None):
         raise ValueError("give exactly one of speed (m/s) or duration (s)")
     L = path.length
@@ -77,7 +77,7 @@ def constant_speed(
     assert duration is not None
     if not (np.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be positive, got {duration} s")
-    n = max(round(duration * rate_hz) + 1, 2)
+    n = max(round(duration * sample_rate_hz) + 1, 2)
     dt = duration / (n - 1)
     v = L / duration
     s = np.linspace(0.0, L, n)
@@ -86,11 +86,21 @@ def constant_speed(
     return _sample(path, s, v, dt, at_rest=True)
 
 
-def periodic(path: Path, *, features_per_s: float, rate_hz: float) -> Trajectory:
+def periodic(path: Path, *, features_per_s: float, sample_rate_hz: float) -> Trajectory:
     """One period of a closed path repeated at ``features_per_s`` laps per second.
 
     Seed 000 §4 repeats a square at 100, 200 and 400 features/s; the path speed is
     ``length × features_per_s``. One period must be a whole number of samples.
+
+    Parameters
+    ----------
+    path : Path
+        The closed target geometry Ξ.
+    features_per_s : float
+        Repetition rate, features/s (laps of the path per second).
+    sample_rate_hz : float
+        Sample rate, Hz; ``sample_rate_hz / features_per_s`` must be a whole number
+        (>= 8) of samples.
 
     Returns
     -------
@@ -100,8 +110,8 @@ def periodic(path: Path, *, features_per_s: float, rate_hz: float) -> Trajectory
     """
     if not path.closed:
         raise ValueError("periodic repetition needs a closed path")
-    n = samples_per_period(rate_hz, features_per_s)
+    n = samples_per_period(sample_rate_hz, features_per_s)
     L = path.length
     speed = L * features_per_s
     s = np.arange(n) * (L / n)
-    return _sample(path, s, speed, 1.0 / rate_hz, at_rest=False)
+    return _sample(path, s, speed, 1.0 / sample_rate_hz, at_rest=False)

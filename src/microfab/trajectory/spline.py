@@ -399,23 +399,23 @@ class TimeSpline:
     # ------------------------------------------------------------------ sampling
     def sample(
         self,
-        rate_hz: float,
+        sample_rate_hz: float,
         s_knots: np.ndarray | None = None,
         s_times: np.ndarray | None = None,
     ) -> Trajectory:
         """Sample on a uniform time grid, with analytic velocity, acceleration and jerk.
 
-        The samples are exactly ``dt = 1 / rate_hz`` apart (a machine's controller runs
+        The samples are exactly ``dt = 1 / sample_rate_hz`` apart (a machine's controller runs
         at its own rate) from ``knots[0]`` until the first sample at or after the last
-        knot, ``n = ceil(T * rate_hz) + 1`` samples; a sample past the end holds the end
+        knot, ``n = ceil(T * sample_rate_hz) + 1`` samples; a sample past the end holds the end
         point (the spline is evaluated at ``knots[-1]``), so the machine ends exactly on
         the last point. For ``bc="periodic"`` the trajectory is one period: ``n =
-        round(T * rate_hz)`` samples, ``dt = T / n`` (one period must span whole samples),
+        round(T * sample_rate_hz)`` samples, ``dt = T / n`` (one period must span whole samples),
         the end (equal to the start) left out, and ``at_rest`` is ``False``.
 
         Parameters
         ----------
-        rate_hz : float
+        sample_rate_hz : float
             Nominal sample rate, Hz.
         s_knots : array_like, optional
             Path progress (m) at ``s_times``, interpolated monotonically (PCHIP) onto the
@@ -427,17 +427,17 @@ class TimeSpline:
         -------
         microfab.trajectory.base.Trajectory
         """
-        if not (np.isfinite(rate_hz) and rate_hz > 0):
-            raise ValueError(f"rate_hz must be positive, got {rate_hz} Hz")
+        if not (np.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+            raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz} Hz")
         T = self.duration
         periodic = self.bc == "periodic"
         if periodic:
-            n = max(round(T * rate_hz), 1)
+            n = max(round(T * sample_rate_hz), 1)
             dt = T / n
             t = self.knots[0] + np.arange(n) * dt
         else:
-            dt = 1.0 / rate_hz
-            n = max(int(np.ceil(T * rate_hz * (1 - 1e-12))), 1) + 1
+            dt = 1.0 / sample_rate_hz
+            n = max(int(np.ceil(T * sample_rate_hz * (1 - 1e-12))), 1) + 1
             t = np.minimum(self.knots[0] + np.arange(n) * dt, self.knots[-1])
         s = None
         if s_knots is not None:
@@ -460,5 +460,9 @@ class TimeSpline:
             s=s,
             axes=self.axes,
             at_rest=at_rest,
-            meta={"generator": "TimeSpline", "bc": self.bc, "rate_hz": float(rate_hz)},
+            meta={
+                "generator": "TimeSpline",
+                "bc": self.bc,
+                "sample_rate_hz": float(sample_rate_hz),
+            },
         )

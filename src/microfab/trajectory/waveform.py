@@ -259,14 +259,14 @@ class Waveform:
         return seg_slope[idx]
 
     def sample(
-        self, rate_hz: float, duration_s: float | None = None
+        self, sample_rate_hz: float, duration_s: float | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Sample the voltage on a uniform grid.
 
         Parameters
         ----------
-        rate_hz : float
-            Sample rate in Hz, > 0; the samples are ``t_k = k / rate_hz`` exactly.
+        sample_rate_hz : float
+            Sample rate in Hz, > 0; the samples are ``t_k = k / sample_rate_hz`` exactly.
         duration_s : float, optional
             Length of the record in s, > 0 (default: the pulse train, `duration_s`). The
             last sample is the last grid time not after ``duration_s`` (within 1e-9 of a
@@ -285,11 +285,11 @@ class Waveform:
         >>> v.tolist()
         [0.0, 3.0, 6.0, 9.0, 9.0, 9.0, 9.0]
         """
-        check_positive("rate_hz", rate_hz, "Hz")
+        check_positive("sample_rate_hz", sample_rate_hz, "Hz")
         span = self.duration_s if duration_s is None else duration_s
         check_positive("duration_s", span, "s")
-        n = math.floor(span * rate_hz + 1e-9) + 1
-        t = np.arange(n) / rate_hz
+        n = math.floor(span * sample_rate_hz + 1e-9) + 1
+        t = np.arange(n) / sample_rate_hz
         return t, self.voltage(t)
 
 

@@ -71,7 +71,7 @@ def test_fig_psd_lines_floor_and_cutoff(result):
         assert any(np.allclose(x, 8e3) for x in xs)
         # harmonic markers sit on multiples of the scan rate
         fh = np.asarray(ax.lines[1].get_xdata())
-        np.testing.assert_allclose(fh / result.rate_hz, np.round(fh / result.rate_hz))
+        np.testing.assert_allclose(fh / result.features_per_s, np.round(fh / result.features_per_s))
         assert "V²/Hz" in ax.get_ylabel()
 
 

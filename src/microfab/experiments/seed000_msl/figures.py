@@ -63,8 +63,8 @@ _RATE_MARKERS = ("o", "s", "^", "D", "v", "P")
 _MIN_SPEED_M_S = 1e-6
 
 
-def _rate_label(rate_hz: float) -> str:
-    return f"{rate_hz:g} features/s"
+def _rate_label(features_per_s: float) -> str:
+    return f"{features_per_s:g} features/s"
 
 
 def _to_mm(result: MSLRunResult, signal: np.ndarray) -> np.ndarray:
@@ -112,7 +112,7 @@ def fig_xy(result: MSLRunResult) -> Figure:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel(f"{result.axes[0]} position (mm)")
     ax.set_ylabel(f"{result.axes[1]} position (mm)")
-    ax.set_title(f"Beam path at {_rate_label(result.rate_hz)}")
+    ax.set_title(f"Beam path at {_rate_label(result.features_per_s)}")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="center", fontsize="small", framealpha=0.9)
     return fig
@@ -144,7 +144,7 @@ def fig_time(result: MSLRunResult) -> Figure:
         ax.plot(t_ms, result.ilc_input[:, a], label=f"ILC input ($u_{{{n}}}$)", **_INPUT)
         ax.set_ylabel(f"{name} encoder (V)")
         ax.grid(True, alpha=0.3)
-    axs[0].set_title(f"One period at {_rate_label(result.rate_hz)}")
+    axs[0].set_title(f"One period at {_rate_label(result.features_per_s)}")
     fig.legend(
         *axs[0].get_legend_handles_labels(),
         loc="outside lower center",
@@ -230,7 +230,8 @@ def fig_psd(
         ax.set_ylabel(f"{name} error PSD (V²/Hz)")
         ax.grid(True, which="both", alpha=0.25)
     axs[0].set_title(
-        f"Error PSD at {_rate_label(result.rate_hz)} (harmonics of {1 / result.period_s:g} Hz)"
+        f"Error PSD at {_rate_label(result.features_per_s)} "
+        f"(harmonics of {1 / result.period_s:g} Hz)"
     )
     fig.legend(
         *axs[0].get_legend_handles_labels(),
@@ -257,7 +258,7 @@ def fig_learning(results: Mapping[float, MSLRunResult] | MSLRunResult) -> Figure
         One axes per rate (shared log y axis, mV), each with one line per scan axis
         (x red, y blue as in the seed).
     """
-    runs = {results.rate_hz: results} if isinstance(results, MSLRunResult) else dict(results)
+    runs = {results.features_per_s: results} if isinstance(results, MSLRunResult) else dict(results)
     if not runs:
         raise ValueError("fig_learning needs at least one run")
     rates = sorted(runs)
@@ -353,7 +354,7 @@ def fig_velocity(result: MSLRunResult, *, cmap: str = "turbo", n_arrows: int = 4
         )
         ax.grid(True, alpha=0.3)
     axs[0].set_ylabel(f"{result.axes[1]} position (mm)")
-    fig.suptitle(f"Beam speed at {_rate_label(result.rate_hz)}")
+    fig.suptitle(f"Beam speed at {_rate_label(result.features_per_s)}")
     fig.colorbar(lc, ax=list(axs), label="beam speed (mm/s)", shrink=0.9)
     return fig
 
@@ -414,7 +415,7 @@ def fig_line_width(
     ax.set_ylabel("cured line width (µm)")
     ax.set_xlim(t_ms[0], t_ms[-1])
     ax.set_title(
-        f"Predicted line width at {_rate_label(result.rate_hz)} "
+        f"Predicted line width at {_rate_label(result.features_per_s)} "
         f"({beam.power_w * 1e3:g} mW, w0 = {beam.waist_radius_m * 1e6:g} µm)",
         fontsize="medium",
     )

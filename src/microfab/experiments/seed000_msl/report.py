@@ -103,7 +103,7 @@ def _render_figures(
 
 
 def _captions(main: MSLRunResult, runs: Mapping[float, MSLRunResult]) -> dict[str, str]:
-    rate = f"{_rate_str(main.rate_hz)} features/s"
+    rate = f"{_rate_str(main.features_per_s)} features/s"
     n = main.rms_history.shape[0]
     all_rates = ", ".join(_rate_str(r) for r in sorted(runs))
     return {
@@ -355,7 +355,7 @@ def write_report(
     n_trials = ", ".join(f"{_rate_str(r)}: {runs[r].rms_history.shape[0]}" for r in sorted(runs))
     intro = (
         f"Seed 000 (galvo micro-stereolithography with frequency-domain ILC). Runs at "
-        f"{rates} features/s; figures at {_rate_str(main.rate_hz)} features/s except the "
+        f"{rates} features/s; figures at {_rate_str(main.features_per_s)} features/s except the "
         f"learning transient. Trials per rate: {n_trials}."
     )
     sections = ["<h2>Tables</h2>", _table1_ours(runs), _table2_ours(runs)]

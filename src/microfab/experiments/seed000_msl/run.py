@@ -38,8 +38,8 @@ class MSLRunResult:
 
     Attributes
     ----------
-    rate_hz : float
-        Features (laps of the square) per second.
+    features_per_s : float
+        Scan rate, features/s (laps of the square per second).
     dt : float
         Sample time, s.
     axes : tuple of str
@@ -62,7 +62,7 @@ class MSLRunResult:
         Learned harmonic numbers per axis.
     """
 
-    rate_hz: float
+    features_per_s: float
     dt: float
     axes: tuple[str, ...]
     reference: np.ndarray
@@ -119,13 +119,13 @@ class MSLRunResult:
         }
 
 
-def _square_reference(axes: dict[str, GalvoAxis], rate_hz: float) -> np.ndarray:
+def _square_reference(axes: dict[str, GalvoAxis], features_per_s: float) -> np.ndarray:
     ax = list(axes.values())
-    return square_scan(rate_hz, (ax[0].amplitude_v, ax[1].amplitude_v), ax[0].fs_hz)
+    return square_scan(features_per_s, (ax[0].amplitude_v, ax[1].amplitude_v), ax[0].fs_hz)
 
 
 def run_msl_ilc(
-    rate_hz: float = 400,
+    features_per_s: float = 400,
     iterations: int = 30,
     *,
     machine: Machine | None = None,
@@ -140,8 +140,9 @@ def run_msl_ilc(
 
     Parameters
     ----------
-    rate_hz : float
-        Features per second (seed 000: 100, 200, 400).
+    features_per_s : float
+        Scan rate, features/s (laps of the square per second; seed 000: 100, 200, 400);
+        one period must be a whole number (>= 8) of samples at the axes' sample rate.
     iterations : int
         Number of trials (seed 000 §4: 30). Trial 1 is feedback only (``u_1 = y_d``).
     machine : Machine, optional
@@ -170,7 +171,7 @@ def run_msl_ilc(
     axes = axes or default_galvo_axes()
     names = tuple(axes)
     machine = machine or galvo_twin(axes, seed=seed)
-    ref = _square_reference(axes, rate_hz)
+    ref = _square_reference(axes, features_per_s)
     dt = machine.dt
 
     def true_frf(f: np.ndarray) -> np.ndarray:
@@ -190,7 +191,7 @@ def run_msl_ilc(
     last_input = record.last_input if record.last_input is not None else ilc.state.inputs[-2]
     assert fb_output is not None and last_output is not None
     return MSLRunResult(
-        rate_hz=float(rate_hz),
+        features_per_s=float(features_per_s),
         dt=dt,
         axes=names,
         reference=ref,
