@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from microfab.core.validate import check_positive
+
 __all__ = ["samples_per_period", "square_scan"]
 
 
@@ -15,10 +17,8 @@ def samples_per_period(fs_hz: float, rate_hz: float) -> int:
     ValueError
         If a rate is not positive, or a period is not a whole number (>= 8) of samples.
     """
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise ValueError(f"repetition rate must be positive, got {rate_hz} Hz")
-    if not (np.isfinite(fs_hz) and fs_hz > 0):
-        raise ValueError(f"sample rate must be positive, got {fs_hz} Hz")
+    check_positive("repetition rate", rate_hz, "Hz")
+    check_positive("sample rate", fs_hz, "Hz")
     n_float = fs_hz / rate_hz
     n = round(n_float)
     if n < 8 or abs(n - n_float) > 1e-9 * n_float:
