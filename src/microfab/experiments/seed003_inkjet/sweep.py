@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from microfab.core.validate import check_positive
 from microfab.experiments.seed003_inkjet.paper import (
     FIG4_VOLTAGE_V,
     SEED_CONCENTRATIONS_PCT,
@@ -129,8 +129,7 @@ def run_sweep(
         If ``duration_s`` is not positive, ``jobs`` is below 1, or ``results_path`` holds
         a sweep with other settings (remove it or choose another file).
     """
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise ValueError(f"duration_s must be a positive time, got {duration_s} s")
+    check_positive("duration_s", duration_s, "s")
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
     sim = simulate or _simulate
