@@ -106,7 +106,7 @@ def test_delay_feedforward():
     np.testing.assert_array_equal(out.s[:3], 0.0)
     assert out.acceleration is None
     assert Delay(samples=0).apply(traj) is traj
-    with pytest.raises(ValueError, match="whole number"):
+    with pytest.raises(ValueError, match="delay must be an integer >= 0"):
         Delay(samples=-1)
 
 
@@ -141,7 +141,7 @@ def test_loop_is_data_and_validates():
         Loop(controller=c, observer=object())  # type: ignore[arg-type]
     bad = _PreviewOnly()
     bad.preview = 0
-    with pytest.raises(ValueError, match="preview must be a whole number >= 1"):
+    with pytest.raises(ValueError, match="preview must be an integer >= 1"):
         Loop(controller=bad)
     with pytest.raises(AttributeError):
         lp.controller = c  # type: ignore[misc]  # frozen

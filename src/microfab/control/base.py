@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from microfab.core.compiled import Compiled, lti_dims, pack_lti
+from microfab.core.validate import check_int
 from microfab.plants.lti import DiscreteLTI
 from microfab.trajectory.base import Trajectory
 
@@ -340,8 +341,7 @@ class Delay:
     samples: int
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.samples, int) and self.samples >= 0):
-            raise ValueError(f"delay must be a whole number >= 0 of samples, got {self.samples}")
+        check_int("delay", self.samples, 0, "samples")
 
     def apply(self, trajectory: Trajectory) -> Trajectory:
         """The delayed trajectory, ``n_samples + samples`` long."""
@@ -400,8 +400,7 @@ class Loop:
                 f"{type(self.controller).__name__}"
             )
         p = self.controller.preview
-        if not (isinstance(p, int | np.integer) and p >= 1):
-            raise ValueError(f"controller preview must be a whole number >= 1 of samples, got {p}")
+        check_int("controller preview", p, 1, "samples")
         if self.feedforward is not None and not isinstance(self.feedforward, Feedforward):
             raise TypeError(
                 f"feedforward must have apply(trajectory); got {type(self.feedforward).__name__}"

@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from microfab.core.validate import check_in_range, check_positive
 from microfab.io.atomic import atomic_save_npz
 
 __all__ = ["ConvergenceError", "FrequencyILC", "ILCConfig", "Trial"]
@@ -70,10 +71,8 @@ class ILCConfig:
     content_tol: float = 1e-6
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
-            raise ValueError(f"cutoff_hz must be positive, got {self.cutoff_hz} Hz")
-        if not (np.isfinite(self.gain) and 0 < self.gain <= 2):
-            raise ValueError(f"gain must lie in (0, 2], got {self.gain}")
+        check_positive("cutoff_hz", self.cutoff_hz, "Hz")
+        check_in_range("gain", self.gain, 0.0, 2.0, low_closed=False)
         if not (self.snr_min >= 0 and self.content_tol >= 0):
             raise ValueError("snr_min and content_tol must be >= 0")
 
@@ -176,8 +175,7 @@ class FrequencyILC:
             raise ValueError("reference holds NaN or inf")
         if len(axes) != ref.shape[1]:
             raise ValueError(f"{ref.shape[1]} reference columns but {len(axes)} axis names")
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive number of seconds, got {dt} s")
+        check_positive("dt", dt, "s")
         self.config = config or ILCConfig()
         self.model = model
         self.true_frf = true_frf

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import control
+from microfab.core.validate import check_positive
 
 __all__ = ["lead_lag"]
 
@@ -58,8 +59,7 @@ def lead_lag(
         ("integrator_ratio", integrator_ratio, ""),
         ("lead_ratio", lead_ratio, ""),
     ):
-        if not (np.isfinite(val) and val > 0):
-            raise ValueError(f"{name} must be positive, got {val} {unit}".rstrip())
+        check_positive(name, val, unit)
     wc = 2 * np.pi * crossover_hz
     wi = wc / integrator_ratio  # seed 000 §3.1: w_i = w_c/10
     wd = wc / lead_ratio  # seed 000 §3.1: w_d = w_c/3

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from microfab.core.validate import check_positive
+
 if TYPE_CHECKING:
     from microfab.trajectory.base import Trajectory
 
@@ -152,13 +154,12 @@ class MachineLimits:
         for name, vals, unit in (
             ("velocity", self.velocity, "m/s"),
             ("acceleration", self.acceleration, "m/s^2"),
-            ("jerk", self.jerk, "m/s^3"),
         ):
             for ax, v in zip(self.axes, vals, strict=True):
-                if not v > 0 or np.isnan(v):
-                    raise ValueError(f"{name} limit of axis {ax} must be positive, got {v} {unit}")
-        if not all(np.isfinite(v) for v in (*self.velocity, *self.acceleration)):
-            raise ValueError("velocity and acceleration limits must be finite")
+                check_positive(f"{name} limit of axis {ax}", v, unit)
+        for ax, v in zip(self.axes, self.jerk, strict=True):
+            if not v > 0:  # refuses NaN; inf is allowed: no jerk limit declared
+                raise ValueError(f"jerk limit of axis {ax} must be positive, got {v} m/s^3")
 
     @classmethod
     def seed002_stage(cls) -> MachineLimits:

@@ -35,6 +35,7 @@ from importlib import resources
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from microfab.core.validate import check_positive
 from microfab.geometry.path import Path
 from microfab.geometry.segments import CurveSegment, LineSegment, Segment
 
@@ -249,9 +250,7 @@ def _layout(
     Returns ``(knots, ctrl, (k, x_le), i_le)`` where a data point ``p`` maps to
     ``k (p − (x_le, 0))`` and piece ``i_le`` of ``ctrl`` starts at the leading edge.
     """
-    c = float(chord)
-    if not (np.isfinite(c) and c > 0):
-        raise ValueError(f"chord must be a positive length, got {chord} m")
+    c = check_positive("chord", chord, "m")
     P = _points(points_or_name, n_max)
     ctrl = _bezier_pieces(P)
     (x_lo, i_lo, u_lo), (x_hi, _, _) = _extrema_x(ctrl)

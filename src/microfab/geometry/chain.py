@@ -40,6 +40,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from microfab.core.validate import check_positive
 from microfab.geometry.path import Path
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
 
@@ -231,9 +232,7 @@ def chain_segments(segments: Sequence[Segment], tol: float) -> list[Path]:
     >>> [p.closed for p in chain_segments(sq, 1e-9)]
     [True]
     """
-    tol = float(tol)
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"chaining tolerance tol must be positive and finite, got {tol} m")
+    tol = check_positive("chaining tolerance tol", tol, "m")
     segs = [s for s in segments if s.length > 0]
     n = len(segs)
     if n == 0:

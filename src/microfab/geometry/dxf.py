@@ -44,6 +44,7 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
+from microfab.core.validate import check_positive
 from microfab.geometry.chain import chain_segments, segment_endpoints
 from microfab.geometry.layer import Layer, Skipped
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
@@ -496,8 +497,8 @@ def read_dxf(
         raise FileNotFoundError(f"DXF file not found: {str(fs)!r}")
     if not fs.is_file():
         raise ValueError(f"{str(fs)!r} is not a file")
-    if tol is not None and not (math.isfinite(tol) and tol > 0):
-        raise ValueError(f"chaining tolerance tol must be positive and finite, got {tol} m")
+    if tol is not None:
+        check_positive("chaining tolerance tol", tol, "m")
     with _gc_paused():
         try:
             doc = ezdxf.readfile(fs)

@@ -16,6 +16,7 @@ import numpy as np
 import shapely
 
 from microfab.core.arrays import readonly
+from microfab.core.validate import check_finite, check_positive
 from microfab.geometry.layer import Layer
 from microfab.geometry.path import Path
 
@@ -211,14 +212,11 @@ def hatch(
         If ``spacing`` is not a positive length, ``angle``/``offset`` are not finite, or
         the layer has open contours or none.
     """
-    h = float(spacing)
-    if not (np.isfinite(h) and h > 0):
-        raise ValueError(f"hatch spacing must be a positive length, got {spacing} m")
-    if not (np.isfinite(angle) and np.isfinite(offset)):
-        raise ValueError(f"hatch angle ({angle} rad) and offset ({offset} m) must be finite")
+    h = check_positive("hatch spacing", spacing, "m")
+    check_finite("hatch angle", angle, "rad")
+    check_finite("hatch offset", offset, "m")
     tol = h * 1e-3 if tol is None else float(tol)
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"flattening tolerance must be positive, got {tol} m")
+    check_positive("flattening tolerance", tol, "m")
     geom = layer_polygon(layer, tol)
     c, s = np.cos(angle), np.sin(angle)
     R = np.array([[c, -s], [s, c]])  # scan frame (u along the lines, v across) -> xy

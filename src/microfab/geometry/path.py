@@ -16,6 +16,7 @@ from functools import cached_property
 
 import numpy as np
 
+from microfab.core.validate import check_positive
 from microfab.geometry.segments import (
     GL_W,
     GL_X,
@@ -367,8 +368,7 @@ class Path:
         if (n is None) == (ds is None):
             raise ValueError("give exactly one of n or ds")
         if ds is not None:
-            if not (np.isfinite(ds) and ds > 0):
-                raise ValueError(f"ds must be positive, got {ds} m")
+            check_positive("ds", ds, "m")
             n = max(int(np.ceil(self.length / ds)) + (0 if self.closed else 1), 2)
         assert n is not None
         if n < 2:
@@ -391,8 +391,7 @@ class Path:
         """
         if tol is None:
             tol = 1e-4 * max(float(np.max(np.ptp(self._coarse, axis=0))), 1e-12)
-        if not (np.isfinite(tol) and tol > 0):
-            raise ValueError(f"tol must be positive, got {tol} m")
+        check_positive("tol", tol, "m")
         counts = np.ones(len(self.segments), dtype=np.int64)
         for i, seg in enumerate(self.segments):
             if isinstance(seg, ArcSegment):

@@ -25,6 +25,8 @@ from functools import cached_property
 import numpy as np
 from numpy.polynomial import chebyshev as cheb
 
+from microfab.core.validate import check_positive
+
 __all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment"]
 
 GL_X, GL_W = np.polynomial.legendre.leggauss(10)
@@ -116,9 +118,7 @@ class ArcSegment:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "center", _vec2(self.center, "center"))
-        r, s = float(self.radius), float(self.sweep)
-        if not (np.isfinite(r) and r > 0):
-            raise ValueError(f"arc radius must be positive, got {self.radius} m")
+        r, s = check_positive("arc radius", self.radius, "m"), float(self.sweep)
         if not (np.isfinite(s) and s != 0 and abs(s) <= 2 * np.pi * (1 + 1e-12)):
             raise ValueError(f"arc sweep must be nonzero and within ±2π, got {self.sweep} rad")
         object.__setattr__(self, "radius", r)

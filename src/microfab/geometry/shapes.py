@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from microfab.core.validate import check_in_range, check_positive
 from microfab.geometry.path import Path
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
 
@@ -28,13 +29,6 @@ __all__ = [
     "spiral_length",
     "square",
 ]
-
-
-def _positive(name: str, value: float, unit: str = "m") -> float:
-    v = float(value)
-    if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be positive, got {value} {unit}")
-    return v
 
 
 def rectangle(
@@ -56,10 +50,8 @@ def rectangle(
     center : tuple of float
         Centre, m.
     """
-    w, h = _positive("width", width), _positive("height", height)
-    r = float(corner_radius)
-    if not (np.isfinite(r) and 0 <= r <= 0.5 * min(w, h)):
-        raise ValueError(f"corner_radius must be in [0, {0.5 * min(w, h):.6g}] m, got {r} m")
+    w, h = check_positive("width", width, "m"), check_positive("height", height, "m")
+    r = check_in_range("corner_radius", corner_radius, 0.0, 0.5 * min(w, h), "m")
     cx, cy = (float(c) for c in center)
     a, b = w / 2, h / 2
     corners = [(a, -b), (a, b), (-a, b), (-a, -b)]
@@ -94,7 +86,7 @@ def square(
 
 def circle(radius: float, *, center: tuple[float, float] = (0.0, 0.0), theta0: float = 0.0) -> Path:
     """A circle, counter-clockwise from angle ``theta0`` (rad)."""
-    r = _positive("radius", radius)
+    r = check_positive("radius", radius, "m")
     return Path((ArcSegment(center, r, theta0, 2 * np.pi),), closed=True)
 
 
@@ -105,7 +97,7 @@ def regular_polygon(
     n = int(n_sides)
     if n < 3 or n != n_sides:
         raise ValueError(f"n_sides must be an integer >= 3, got {n_sides}")
-    r = _positive("radius", radius)
+    r = check_positive("radius", radius, "m")
     th = theta0 + 2 * np.pi * np.arange(n) / n
     pts = np.column_stack([center[0] + r * np.cos(th), center[1] + r * np.sin(th)])
     return Path.polyline(pts, closed=True)
@@ -136,7 +128,7 @@ def spiral(b: float = 50e-3 / (2 * np.pi), theta0: float = 0.0, theta1: float = 
     theta0, theta1 : float
         Angle range, rad, ``0 <= theta0 < theta1``.
     """
-    b = _positive("b", b, "m/rad")
+    b = check_positive("b", b, "m/rad")
     if not (0 <= theta0 < theta1 and np.isfinite(theta1)):
         raise ValueError(f"need 0 <= theta0 < theta1, got [{theta0}, {theta1}] rad")
     # split by turns so each piece stays low-degree
@@ -167,7 +159,7 @@ def ellipse(
     a: float, b: float, *, center: tuple[float, float] = (0.0, 0.0), angle: float = 0.0
 ) -> Path:
     """An ellipse with semi-axes ``a`` (along ``angle``) and ``b``, counter-clockwise."""
-    a, b = _positive("a", a), _positive("b", b)
+    a, b = check_positive("a", a, "m"), check_positive("b", b, "m")
     c, s = np.cos(angle), np.sin(angle)
 
     def f(u: np.ndarray) -> np.ndarray:
@@ -186,7 +178,7 @@ def lissajous(
     ``fx`` and ``fy`` are coprime integers; the curve crosses itself but is one closed
     contour.
     """
-    ax, ay = _positive("ax", ax), _positive("ay", ay)
+    ax, ay = check_positive("ax", ax, "m"), check_positive("ay", ay, "m")
     if int(fx) != fx or int(fy) != fy or fx < 1 or fy < 1 or np.gcd(int(fx), int(fy)) != 1:
         raise ValueError(f"fx and fy must be coprime positive integers, got {fx}, {fy}")
 
@@ -202,7 +194,7 @@ def butterfly(scale: float = 0.005) -> Path:
 
     ``x = sin t (e^{cos t} − 2 cos 4t − sin⁵(t/12))``, ``y = cos t (…)``; closed.
     """
-    k = _positive("scale", scale)
+    k = check_positive("scale", scale, "m")
 
     def f(u: np.ndarray) -> np.ndarray:
         t = 12 * np.pi * u

@@ -33,6 +33,7 @@ import numpy as np
 import svgpathtools
 from svgpathtools.parser import parse_transform
 
+from microfab.core.validate import check_positive
 from microfab.geometry.layer import Layer, Skipped
 from microfab.geometry.path import Path
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
@@ -211,13 +212,6 @@ def _parse_d(d: str, A: np.ndarray, b: np.ndarray, ref: str) -> tuple[list[Path]
     return contours, skipped
 
 
-def _check_scale(scale: float) -> float:
-    s = float(scale)
-    if not (math.isfinite(s) and s > 0):
-        raise ValueError(f"scale must be a positive number of metres per user unit, got {scale}")
-    return s
-
-
 def parse_svg_path(d: str, *, scale: float = 1e-3, flip_y: bool = True) -> Layer:
     """Contours of SVG path data (the ``d`` attribute of a ``<path>``).
 
@@ -245,7 +239,7 @@ def parse_svg_path(d: str, *, scale: float = 1e-3, flip_y: bool = True) -> Layer
     """
     if not isinstance(d, str):
         raise TypeError(f"path data must be a string, got {type(d).__name__}")
-    s = _check_scale(scale)
+    s = check_positive("scale", scale, "m per user unit")
     A = np.diag([s, -s if flip_y else s])
     contours, skipped = _parse_d(d, A, np.zeros(2), "")
     return Layer(tuple(contours), tuple(skipped), source="svg path data")
@@ -405,7 +399,7 @@ def read_svg(path: str | os.PathLike[str], *, scale: float | None = None) -> Lay
     if _local(root.tag) != "svg":
         raise ValueError(f"{fname}: the root element is <{_local(root.tag)}>, not <svg>")
     unit, vb = _user_unit(root)
-    s = _check_scale(scale) if scale is not None else unit
+    s = check_positive("scale", scale, "m per user unit") if scale is not None else unit
     x0 = vb[0] if vb else 0.0
     if vb is not None:
         y_bottom = vb[1] + vb[3]

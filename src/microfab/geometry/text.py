@@ -13,6 +13,7 @@ from matplotlib.font_manager import FontProperties, findfont
 from matplotlib.path import Path as MplPath
 from matplotlib.textpath import TextPath
 
+from microfab.core.validate import check_positive
 from microfab.geometry.layer import Layer
 from microfab.geometry.path import Path
 from microfab.geometry.segments import CurveSegment, LineSegment, Segment
@@ -107,9 +108,7 @@ def text_layer(
         raise TypeError(f"text must be a string, got {type(text).__name__}")
     if not text.strip():
         raise ValueError(f"text {text!r} has no visible characters; give at least one glyph")
-    h = float(height)
-    if not (np.isfinite(h) and h > 0):
-        raise ValueError(f"text height must be a positive length, got {height} m")
+    h = check_positive("text height", height, "m")
     prop = FontProperties(family=font, weight=weight)
     try:
         findfont(prop, fallback_to_default=False)

@@ -18,7 +18,6 @@ Feedforward filters run before the loop on every path.
 from __future__ import annotations
 
 import enum
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -26,6 +25,7 @@ import numpy as np
 
 from microfab.control.base import Controller, Loop, LTIController, as_loop
 from microfab.core.limits import AxisLimits, check_command
+from microfab.core.validate import check_int, check_nonnegative, check_positive
 from microfab.machines.base import Measurement
 from microfab.plants.base import LTIPlant, Plant
 from microfab.sim.loop import LoopState, filter_reference, is_compiled, simulate, simulate_python
@@ -64,12 +64,10 @@ class EncoderNoise:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.seed, int | np.integer) and self.seed >= 0):
-            raise ValueError(f"seed must be a whole number >= 0, got {self.seed}")
+        check_int("seed", self.seed, 0)
         rms = tuple(float(r) for r in self.rms)
         for i, r in enumerate(rms):
-            if not (math.isfinite(r) and r >= 0):
-                raise ValueError(f"noise rms of axis {i} must be finite and >= 0, got {r}")
+            check_nonnegative(f"noise rms of axis {i}", r, "(output unit)")
         object.__setattr__(self, "rms", rms)
 
     def draw(self, rng: np.random.Generator, n_samples: int) -> np.ndarray:
@@ -102,12 +100,9 @@ class Settling:
     max_hold_s: float = 0.1
 
     def __post_init__(self) -> None:
-        for name, val in (("tolerance", self.tolerance), ("dwell_s", self.dwell_s)):
-            if not (math.isfinite(val) and val > 0):
-                unit = " s" if name.endswith("_s") else " (output unit)"
-                raise ValueError(f"{name} must be positive and finite, got {val}{unit}")
-        if not (math.isfinite(self.max_hold_s) and self.max_hold_s >= 0):
-            raise ValueError(f"max_hold_s must be finite and >= 0, got {self.max_hold_s} s")
+        check_positive("tolerance", self.tolerance, "(output unit)")
+        check_positive("dwell_s", self.dwell_s, "s")
+        check_nonnegative("max_hold_s", self.max_hold_s, "s")
 
 
 def _lifted_ok(plant: Plant, loop: Loop) -> bool:
@@ -200,8 +195,7 @@ class SimulatedMachine:
             raise ValueError(f"give one axis name per plant output ({n_out}), got {axes}")
         if noise is not None and len(noise.rms) != n_out:
             raise ValueError(f"give one noise level per axis ({n_out}), got {len(noise.rms)}")
-        if not (isinstance(settle_periods, int) and settle_periods >= 0):
-            raise ValueError(f"settle_periods must be a whole number >= 0, got {settle_periods}")
+        check_int("settle_periods", settle_periods, 0, "periods")
         self.axes = tuple(axes)
         self.noise = noise
         self.limits = dict(limits)
@@ -332,9 +326,11 @@ class SimulatedMachine:
             When the command exceeds the declared limits (nothing is run).
         """
         cmd = self._command(command)
-        max_hold = self.settling.max_hold_s if settle_s is None else float(settle_s)
-        if not (math.isfinite(max_hold) and max_hold >= 0):
-            raise ValueError(f"settle_s must be finite and >= 0, got {settle_s} s")
+        max_hold = (
+            self.settling.max_hold_s
+            if settle_s is None
+            else check_nonnegative("settle_s", settle_s, "s")
+        )
         rest = self.rest_output()[None, :]
         check_command(np.vstack([rest, cmd]), self.dt, self.limits, self.axes, periodic=False)
         refs = self._references(cmd, periodic=False)

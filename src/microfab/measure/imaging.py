@@ -62,6 +62,13 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
+from microfab.core.validate import (
+    check_finite,
+    check_in_range,
+    check_int,
+    check_nonnegative,
+    check_positive,
+)
 from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
 
 __all__ = [
@@ -385,16 +392,6 @@ class DropletAnalysis:
 # ---------------------------------------------------------------------------- analysis
 
 
-def _check_positive(name: str, value: float | None, unit: str, what: str, hint: str) -> float:
-    if value is None:
-        raise ValueError(f"{what} is required: {hint}")
-    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
-        raise ValueError(f"{name} must be a number in {unit}, got {value!r}")
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be positive and finite, got {value!r} {unit}")
-    return float(value)
-
-
 def as_frames(frames: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
     """Frames as a validated gray float stack, as :func:`analyze` reads them.
 
@@ -688,28 +685,24 @@ def analyze(
     >>> res.breakup_time_s, res.breakup_mode  # doctest: +SKIP
     (6e-05, 'front')
     """
-    px = _check_positive(
-        "pixel_size_m",
-        pixel_size_m,
-        "m",
-        "pixel size",
-        "pass --pixel-size or pixel_size_m=<m per pixel in the object plane>",
+    if pixel_size_m is None:
+        raise ValueError(
+            "pixel size is required: "
+            "pass --pixel-size or pixel_size_m=<m per pixel in the object plane>"
+        )
+    px = check_positive("pixel_size_m", pixel_size_m, "m")
+    if frame_interval_s is None:
+        raise ValueError(
+            "frame interval is required: "
+            "pass --frame-interval or frame_interval_s=<s between frames>"
+        )
+    dt = check_positive("frame_interval_s", frame_interval_s, "s")
+    check_finite("t0_s", t0_s, "s")
+    check_in_range(
+        "threshold_fraction", threshold_fraction, 0.0, 1.0, low_closed=False, high_closed=False
     )
-    dt = _check_positive(
-        "frame_interval_s",
-        frame_interval_s,
-        "s",
-        "frame interval",
-        "pass --frame-interval or frame_interval_s=<s between frames>",
-    )
-    if not math.isfinite(t0_s):
-        raise ValueError(f"t0_s must be finite, got {t0_s!r} s")
-    if not 0.0 < threshold_fraction < 1.0:
-        raise ValueError(f"threshold_fraction must be in (0, 1), got {threshold_fraction!r}")
-    if isinstance(min_area_px, bool) or not isinstance(min_area_px, int) or min_area_px < 1:
-        raise ValueError(f"min_area_px must be an integer >= 1, got {min_area_px!r} px")
-    if not (math.isfinite(smooth_px) and smooth_px >= 0):
-        raise ValueError(f"smooth_px must be >= 0, got {smooth_px!r} px")
+    check_int("min_area_px", min_area_px, 1, "px")
+    check_nonnegative("smooth_px", smooth_px, "px")
     data = as_frames(frames)
     n, h, _w = data.shape
     names = tuple(frame_names) if frame_names is not None else ()

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 
+from microfab.core.validate import check_positive
+
 __all__ = [
     "ErrorSpectrum",
     "ErrorStats",
@@ -201,8 +203,7 @@ def error_psd(error: np.ndarray, dt: float, period_s: float | None = None) -> Er
     Seed 000 §4.1, Fig. 5 (PSD of the error at the harmonic frequencies).
     """
     e = _as_2d(error, "error")
-    if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be a positive sample period, got {dt} s")
+    check_positive("dt", dt, "s")
     n = e.shape[0]
     fs = 1.0 / dt
     if period_s is None:
@@ -217,8 +218,7 @@ def error_psd(error: np.ndarray, dt: float, period_s: float | None = None) -> Er
             harmonic_freq_hz=np.zeros(0),
             harmonic_psd=np.zeros((0, n_axes)),
         )
-    if not (np.isfinite(period_s) and period_s > 0):
-        raise ValueError(f"period_s must be positive, got {period_s} s")
+    check_positive("period_s", period_s, "s")
     n_periods_f = n * dt / period_s
     n_periods = round(n_periods_f)
     if n_periods < 1 or abs(n_periods_f - n_periods) > _PERIOD_REL_TOL * n_periods_f:

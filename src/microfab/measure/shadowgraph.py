@@ -32,7 +32,6 @@ acts as a lens); it is not modelled here, but the analyser fills such holes.
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -42,6 +41,12 @@ from typing import Literal
 import numpy as np
 from scipy import ndimage
 
+from microfab.core.validate import (
+    check_in_range,
+    check_int,
+    check_nonnegative,
+    check_positive,
+)
 from microfab.io.atomic import atomic_path, atomic_write_json
 from microfab.process.inkjet.silhouette import Silhouette
 
@@ -55,16 +60,6 @@ __all__ = [
 
 #: Name of the JSON file written next to the frames (read by ``imaging.analyze_folder``).
 SIDECAR_NAME = "frames.json"
-
-
-def _check_positive(name: str, value: float, unit: str) -> None:
-    if not (isinstance(value, int | float | np.number) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be positive and finite, got {value!r} {unit}")
-
-
-def _check_int(name: str, value: int, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r} px")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -114,21 +109,19 @@ class Camera:
     vignette: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_positive("pixel_size_m", self.pixel_size_m, "m")
-        _check_int("width_px", self.width_px, 2)
-        _check_int("height_px", self.height_px, 2)
-        _check_int("supersample", self.supersample, 1)
-        _check_int("nozzle_rows", self.nozzle_rows, 1)
+        check_positive("pixel_size_m", self.pixel_size_m, "m")
+        check_int("width_px", self.width_px, 2, "px")
+        check_int("height_px", self.height_px, 2, "px")
+        check_int("supersample", self.supersample, 1, "(sub-rows per pixel row)")
+        check_int("nozzle_rows", self.nozzle_rows, 1, "px")
         if self.nozzle_rows >= self.height_px:
             raise ValueError(
                 f"nozzle_rows must be < height_px = {self.height_px} px, got {self.nozzle_rows} px"
             )
-        for name, value in (("blur_px", self.blur_px), ("noise_std", self.noise_std)):
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be >= 0 and finite, got {value!r}")
-        if not 0.0 <= self.vignette < 1.0:
-            raise ValueError(f"vignette must be in [0, 1), got {self.vignette!r}")
-        _check_positive("nozzle_outer_factor", self.nozzle_outer_factor, "(nozzle radii)")
+        check_nonnegative("blur_px", self.blur_px, "px")
+        check_nonnegative("noise_std", self.noise_std, "(fraction of full scale)")
+        check_in_range("vignette", self.vignette, 0.0, 1.0, "(fraction)", high_closed=False)
+        check_positive("nozzle_outer_factor", self.nozzle_outer_factor, "(nozzle radii)")
         if not (0.0 <= self.shadow < self.background <= 1.0):
             raise ValueError(
                 "intensities must satisfy 0 <= shadow < background <= 1, got "
@@ -298,7 +291,7 @@ def write_frames(
     >>> [p.name for p in paths]  # doctest: +SKIP
     ['frame_0000.png', 'frame_0001.png', 'frame_0002.png']
     """
-    _check_positive("frame_interval_s", frame_interval_s, "s")
+    check_positive("frame_interval_s", frame_interval_s, "s")
     if fmt not in ("png", "tiff"):
         raise ValueError(f"fmt must be 'png' or 'tiff', got {fmt!r}")
     if not re.fullmatch(r"[A-Za-z0-9_.\-]*", prefix) or prefix.startswith("."):

@@ -23,6 +23,7 @@ from importlib import resources
 import numpy as np
 
 import control
+from microfab.core.validate import check_nonnegative, check_positive
 from microfab.plants.lti import DiscreteLTI, discretize, with_input_delay
 
 __all__ = ["FS_HZ", "GalvoAxis", "default_galvo_axes"]
@@ -77,20 +78,17 @@ class GalvoAxis:
     fs_hz: float = FS_HZ
 
     def __post_init__(self) -> None:
-        checks = (
-            ("rigid_pole_hz", self.rigid_pole_hz, "Hz", 0.0),
-            ("gain_ratio", self.gain_ratio, "", None),
-            ("resonance_damping", self.resonance_damping, "", None),
-            ("amplifier_bandwidth_hz", self.amplifier_bandwidth_hz, "Hz", None),
-            ("amplitude_v", self.amplitude_v, "V", None),
-            ("scale_mm_per_v", self.scale_mm_per_v, "mm/V", None),
-            ("crossover_hz", self.crossover_hz, "Hz", None),
-            ("fs_hz", self.fs_hz, "Hz", None),
-        )
-        for label, val, unit, low in checks:
-            ok = np.isfinite(val) and (val >= low if low is not None else val > 0)
-            if not ok:
-                raise ValueError(f"{label} must be positive, got {val} {unit}".rstrip())
+        check_nonnegative("rigid_pole_hz", self.rigid_pole_hz, "Hz")
+        for name, unit in (
+            ("gain_ratio", ""),
+            ("resonance_damping", ""),
+            ("amplifier_bandwidth_hz", "Hz"),
+            ("amplitude_v", "V"),
+            ("scale_mm_per_v", "mm/V"),
+            ("crossover_hz", "Hz"),
+            ("fs_hz", "Hz"),
+        ):
+            check_positive(name, getattr(self, name), unit)
         if any(not (0 < f < self.fs_hz / 2) for f in self.resonances_hz):
             raise ValueError(f"resonances must lie in (0, fs/2), got {self.resonances_hz} Hz")
         if self.noise_rms_v < 0:

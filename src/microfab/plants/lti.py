@@ -15,6 +15,7 @@ import numpy as np
 import scipy.linalg
 
 import control
+from microfab.core.validate import check_positive
 
 __all__ = ["DiscreteLTI", "block_diag", "discretize", "freqresp_ss", "with_input_delay"]
 
@@ -98,8 +99,7 @@ class DiscreteLTI:
             )
         if D.shape != (C.shape[0], B.shape[1]):
             raise ValueError(f"D must have shape {(C.shape[0], B.shape[1])}, got {D.shape}")
-        if not (np.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be a positive number of seconds, got {self.dt} s")
+        check_positive("dt", self.dt, "s")
         for name, m in zip("ABCD", (A, B, C, D), strict=True):
             if not np.all(np.isfinite(m)):
                 raise ValueError(f"state-space matrix {name} holds NaN or inf")
@@ -177,8 +177,7 @@ def discretize(
     method : {"zoh", "tustin", "foh"}
         ZOH for plants driven by a DAC, Tustin for controllers.
     """
-    if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be a positive number of seconds, got {dt} s")
+    check_positive("dt", dt, "s")
     ss = control.ss(sys)
     d = control.c2d(ss, dt, method=method)
     return DiscreteLTI(d.A, d.B, d.C, d.D, dt)

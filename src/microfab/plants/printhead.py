@@ -100,7 +100,7 @@ import scipy.linalg
 import scipy.signal
 
 from microfab.core.threads import single_threaded
-from microfab.core.validate import check_positive
+from microfab.core.validate import check_int, check_nonnegative, check_positive
 
 __all__ = [
     "SEED003_DWELL_S",
@@ -132,11 +132,6 @@ class DriveSignal(Protocol):
     def voltage(self, t_s: np.ndarray | float) -> np.ndarray:
         """Drive voltage in V at the times ``t_s`` (s, any shape); same shape as ``t_s``."""
         ...
-
-
-def _check_nonnegative(name: str, value: float, unit: str) -> None:
-    if not (math.isfinite(value) and value >= 0):
-        raise ValueError(f"{name} must be non-negative and finite, got {value} {unit}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -222,7 +217,7 @@ class Printhead:
             check_positive(name, getattr(self, name), "m")
         check_positive("wave_speed_m_s", self.wave_speed_m_s, "m/s")
         check_positive("gain_m3_per_v", self.gain_m3_per_v, "m³/V")
-        _check_nonnegative("inlet_impedance_ratio", self.inlet_impedance_ratio, "(dimensionless)")
+        check_nonnegative("inlet_impedance_ratio", self.inlet_impedance_ratio, "(dimensionless)")
         if not self.nozzle_radius_m < self.channel_radius_m:
             raise ValueError(
                 f"nozzle_radius_m ({self.nozzle_radius_m} m) must be smaller than "
@@ -234,10 +229,7 @@ class Printhead:
                 "actuator fractions must satisfy 0 <= start < end <= 1 (fractions of "
                 f"channel_length_m), got start {start} and end {end} (dimensionless)"
             )
-        if isinstance(self.cells, bool) or not isinstance(self.cells, int | np.integer):
-            raise ValueError(f"cells must be an integer, got {self.cells!r} (count)")
-        if self.cells < 4:
-            raise ValueError(f"cells must be at least 4, got {self.cells} (count)")
+        check_int("cells", self.cells, 4, "(count)")
 
     @property
     def travel_time_s(self) -> float:
@@ -252,8 +244,8 @@ class Printhead:
 
 def _check_fluid(density_kg_m3: float, viscosity_pa_s: float, surface_tension_n_m: float) -> None:
     check_positive("density_kg_m3", density_kg_m3, "kg/m³")
-    _check_nonnegative("viscosity_pa_s", viscosity_pa_s, "Pa s")
-    _check_nonnegative("surface_tension_n_m", surface_tension_n_m, "N/m")
+    check_nonnegative("viscosity_pa_s", viscosity_pa_s, "Pa s")
+    check_nonnegative("surface_tension_n_m", surface_tension_n_m, "N/m")
 
 
 def printhead_state_space(

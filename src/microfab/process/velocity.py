@@ -12,11 +12,12 @@ Evaluation", Fig. 7 and Table 2.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.signal
+
+from microfab.core.validate import check_int, check_positive
 
 __all__ = [
     "SEED000_BEAM_VELOCITY",
@@ -55,20 +56,13 @@ class BeamVelocityParams:
     scale_mm_per_v: tuple[float, ...] = (0.3, 0.3)  # seed 000 §4.2: scaled by 0.3 mm/V
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
-            raise ValueError(f"cutoff_hz must be positive and finite, got {self.cutoff_hz} Hz")
-        if (
-            isinstance(self.order, bool)
-            or not isinstance(self.order, int | np.integer)
-            or self.order < 1
-        ):
-            raise ValueError(f"order must be an integer >= 1, got {self.order}")
+        check_positive("cutoff_hz", self.cutoff_hz, "Hz")
+        check_int("order", self.order, 1)
         scale = tuple(float(s) for s in np.atleast_1d(self.scale_mm_per_v))
         if len(scale) == 0:
             raise ValueError("scale_mm_per_v must hold at least one value, got () mm/V")
         for i, s in enumerate(scale):
-            if not (math.isfinite(s) and s > 0):
-                raise ValueError(f"scale_mm_per_v[{i}] must be positive and finite, got {s} mm/V")
+            check_positive(f"scale_mm_per_v[{i}]", s, "mm/V")
         object.__setattr__(self, "order", int(self.order))
         object.__setattr__(self, "scale_mm_per_v", scale)
 
@@ -133,8 +127,7 @@ class BeamVelocity:
             ``max |speed - target| / target``, dimensionless (seed 000 §4.2 reports
             45.8 % with feedback and 14.6 % with ILC at 400 features/s).
         """
-        if not (math.isfinite(target_mm_s) and target_mm_s > 0):
-            raise ValueError(f"target_mm_s must be positive, got {target_mm_s} mm/s")
+        check_positive("target_mm_s", target_mm_s, "mm/s")
         return float(np.max(np.abs(self.speed_mm_s - target_mm_s)) / target_mm_s)
 
 
@@ -199,8 +192,7 @@ def beam_velocity(
         raise ValueError(f"positions must have shape (n_samples, n_axes), got {pos.shape}")
     if not np.all(np.isfinite(pos)):
         raise ValueError("positions must be finite; found NaN or inf")
-    if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be a positive sample period, got {dt} s")
+    check_positive("dt", dt, "s")
     fs = 1.0 / dt
     if params.cutoff_hz >= fs / 2:
         raise ValueError(
@@ -251,10 +243,6 @@ def target_speed_mm_s(side_mm: float, rate_features_per_s: float) -> float:
     ----------
     Seed 000 §4.2.
     """
-    if not (math.isfinite(side_mm) and side_mm > 0):
-        raise ValueError(f"side_mm must be positive, got {side_mm} mm")
-    if not (math.isfinite(rate_features_per_s) and rate_features_per_s > 0):
-        raise ValueError(
-            f"rate_features_per_s must be positive, got {rate_features_per_s} features/s"
-        )
+    check_positive("side_mm", side_mm, "mm")
+    check_positive("rate_features_per_s", rate_features_per_s, "features/s")
     return 4.0 * side_mm * rate_features_per_s

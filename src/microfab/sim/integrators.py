@@ -45,6 +45,8 @@ from typing import ClassVar, Protocol
 
 import numpy as np
 
+from microfab.core.validate import check_int
+
 __all__ = [
     "SDIRK2",
     "ButcherTableau",
@@ -226,10 +228,7 @@ class SDIRK2:
     min_step: float = 1e-14
 
     def __post_init__(self) -> None:
-        if isinstance(self.newton_max_iter, bool) or not isinstance(self.newton_max_iter, int):
-            raise ValueError(f"newton_max_iter must be an integer, got {self.newton_max_iter!r}")
-        if self.newton_max_iter < 1:
-            raise ValueError(f"newton_max_iter must be >= 1, got {self.newton_max_iter}")
+        check_int("newton_max_iter", self.newton_max_iter, 1)
         checks = (
             ("newton_tol", self.newton_tol > 0.0, "> 0"),
             ("newton_divergence", self.newton_divergence > 1.0, "> 1"),

@@ -29,6 +29,7 @@ from microfab.control.base import (
     ReferenceWindow,
     as_loop,
 )
+from microfab.core.validate import check_int
 from microfab.plants.base import CompiledPlant, Plant
 from microfab.sim.kernels import passthrough_step, run_loop
 from microfab.sim.result import SimResult
@@ -147,8 +148,7 @@ def reference_array(
                 f"{name} must be shaped like the reference {pos.shape}, got {arr.shape}"
             )
         orders.append(arr)
-    if not (isinstance(preview, int | np.integer) and preview >= 1):
-        raise ValueError(f"preview must be a whole number >= 1 of samples, got {preview}")
+    check_int("preview", preview, 1, "samples")
     n = pos.shape[0]
     R = np.empty((n + preview - 1, len(orders), pos.shape[1]))
     for d, arr in enumerate(orders):

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from microfab.core.arrays import readonly
+from microfab.core.validate import check_positive
 from microfab.io.trace import Trace
 
 __all__ = ["Trajectory"]
@@ -58,8 +59,7 @@ class Trajectory:
     meta: dict[str, object] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be positive, got {self.dt} s")
+        check_positive("dt", self.dt, "s")
         pos = np.array(self.position, dtype=float)
         if pos.ndim != 2 or pos.shape[1] != len(self.axes) or pos.shape[0] < 1:
             raise ValueError(f"position must have shape (n, {len(self.axes)}), got {pos.shape}")

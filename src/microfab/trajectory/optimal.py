@@ -89,6 +89,7 @@ from scipy.optimize import brentq, linprog, minimize_scalar
 
 from microfab.core.arrays import readonly
 from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
+from microfab.core.validate import check_in_range, check_int, check_nonnegative, check_positive
 from microfab.trajectory.base import Trajectory
 from microfab.trajectory.spline import TimeSpline
 
@@ -217,10 +218,8 @@ class SegmentReport:
             raise ValueError(
                 f"segment must end after it starts, got [{self.s_start}, {self.s_end}] m"
             )
-        if not (np.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"segment duration must be positive, got {self.duration} s")
-        if not (np.isfinite(self.utilisation) and self.utilisation >= 0):
-            raise ValueError(f"utilisation must be >= 0, got {self.utilisation} (fraction)")
+        check_positive("segment duration", self.duration, "s")
+        check_nonnegative("utilisation", self.utilisation, "(fraction)")
         if not self.time_scale >= 1.0:
             raise ValueError(f"time_scale must be >= 1, got {self.time_scale}")
 
@@ -277,8 +276,7 @@ class TimeOptimalResult:
             object.__setattr__(self, name, arr)
         if np.any(self.sdot < 0):
             raise ValueError(f"sdot must be >= 0 m/s, got {float(np.min(self.sdot))} m/s")
-        if not (np.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"duration must be positive, got {self.duration} s")
+        check_positive("duration", self.duration, "s")
 
     @property
     def utilisation(self) -> np.ndarray:
@@ -764,23 +762,16 @@ def time_optimal(
     PlanningError
         No trajectory within the limits could be produced.
     """
-    if isinstance(n_grid, bool) or not isinstance(n_grid, int | np.integer) or n_grid < 10:
-        raise ValueError(f"n_grid must be an integer >= 10, got {n_grid!r}")
-    if not (np.isfinite(sample_rate_hz) and sample_rate_hz > 0):
-        raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz} Hz")
-    if feed is not None and not (np.isfinite(feed) and feed > 0):
-        raise ValueError(f"feed must be positive, got {feed} m/s")
-    if not (np.isfinite(margin) and 0 <= margin < 0.5):
-        raise ValueError(f"margin must lie in [0, 0.5), got {margin} (fraction of each limit)")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
-        raise ValueError(f"max_iter must be a positive integer, got {max_iter!r}")
-    if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 1:
-        raise ValueError(f"max_rounds must be a positive integer, got {max_rounds!r}")
+    check_int("n_grid", n_grid, 10)
+    check_positive("sample_rate_hz", sample_rate_hz, "Hz")
+    if feed is not None:
+        check_positive("feed", feed, "m/s")
+    check_in_range("margin", margin, 0.0, 0.5, "(fraction of each limit)", high_closed=False)
+    check_int("max_iter", max_iter, 1)
+    check_int("max_rounds", max_rounds, 1)
     if not isinstance(limits, MachineLimits):
         raise ValueError(f"limits must be MachineLimits, got {type(limits).__name__}")
-    L = float(path.length)
-    if not (np.isfinite(L) and L > 0):
-        raise ValueError(f"path length must be positive, got {L} m")
+    check_positive("path length", path.length, "m")
     n_axes = len(limits.axes)
     probe = path.evaluate(np.array([0.0]), 0)[0]
     if np.shape(probe)[-1] != n_axes:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from microfab.core.validate import check_positive
+
 __all__ = ["samples_per_period", "square_scan"]
 
 
@@ -27,10 +29,8 @@ def samples_per_period(fs_hz: float, features_per_s: float) -> int:
     ValueError
         If a rate is not positive, or a period is not a whole number (>= 8) of samples.
     """
-    if not (np.isfinite(features_per_s) and features_per_s > 0):
-        raise ValueError(f"repetition rate must be positive, got {features_per_s} features/s")
-    if not (np.isfinite(fs_hz) and fs_hz > 0):
-        raise ValueError(f"sample rate must be positive, got {fs_hz} Hz")
+    check_positive("repetition rate", features_per_s, "features/s")
+    check_positive("sample rate", fs_hz, "Hz")
     n_float = fs_hz / features_per_s
     n = round(n_float)
     if n < 8 or abs(n - n_float) > 1e-9 * n_float:

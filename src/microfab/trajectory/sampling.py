@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from microfab.core.validate import check_positive
 from microfab.geometry.path import Path
 from microfab.trajectory.base import Trajectory
 from microfab.trajectory.periodic import samples_per_period
@@ -65,18 +66,15 @@ def constant_speed(
     Trajectory
         Marked ``at_rest=True`` (the machine holds still before and after).
     """
-    if not (np.isfinite(sample_rate_hz) and sample_rate_hz > 0):
-        raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz} Hz")
+    check_positive("sample_rate_hz", sample_rate_hz, "Hz")
     if (speed is None) == (duration is None):
         raise ValueError("give exactly one of speed (m/s) or duration (s)")
     L = path.length
     if speed is not None:
-        if not (np.isfinite(speed) and speed > 0):
-            raise ValueError(f"speed must be positive, got {speed} m/s")
+        check_positive("speed", speed, "m/s")
         duration = L / speed
     assert duration is not None
-    if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be positive, got {duration} s")
+    check_positive("duration", duration, "s")
     n = max(round(duration * sample_rate_hz) + 1, 2)
     dt = duration / (n - 1)
     v = L / duration

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator, make_interp_spline
 
 from microfab.core.arrays import readonly
+from microfab.core.validate import check_positive
 from microfab.trajectory.base import Trajectory
 
 __all__ = ["SplineMaxima", "TimeSpline"]
@@ -382,9 +383,7 @@ class TimeSpline:
         Velocity scales by ``1/factor``, acceleration by ``1/factor²``, jerk by
         ``1/factor³``.
         """
-        if not (np.isfinite(factor) and factor > 0):
-            raise ValueError(f"time scale factor must be positive, got {factor}")
-        f = float(factor)
+        f = check_positive("time scale factor", factor)
         return TimeSpline(
             knots=self.knots[0] + (self.knots - self.knots[0]) * f,
             alpha=self.alpha / f**3,
@@ -427,8 +426,7 @@ class TimeSpline:
         -------
         microfab.trajectory.base.Trajectory
         """
-        if not (np.isfinite(sample_rate_hz) and sample_rate_hz > 0):
-            raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz} Hz")
+        check_positive("sample_rate_hz", sample_rate_hz, "Hz")
         T = self.duration
         periodic = self.bc == "periodic"
         if periodic:

@@ -45,7 +45,7 @@ from typing import Literal
 
 import numpy as np
 
-from microfab.core.validate import check_positive
+from microfab.core.validate import check_in_range, check_positive
 from microfab.plants.printhead import SEED003_DWELL_S
 
 __all__ = [
@@ -145,11 +145,9 @@ class Waveform:
             )
         for name in ("rise_s", "fall_s", "dwell_s", "echo_s", "final_s"):
             check_positive(name, getattr(self, name), "s")
-        if not (math.isfinite(self.final_ratio) and 0.0 < self.final_ratio <= 1.0):
-            raise ValueError(
-                f"final_ratio must lie in (0, 1] (fraction of amplitude_v), "
-                f"got {self.final_ratio} (dimensionless)"
-            )
+        check_in_range(
+            "final_ratio", self.final_ratio, 0.0, 1.0, "(fraction of amplitude_v)", low_closed=False
+        )
         check_positive("frequency_hz", self.frequency_hz, "Hz")
         if not self.period_s > self.duration_s:
             raise ValueError(

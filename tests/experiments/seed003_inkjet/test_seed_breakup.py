@@ -44,7 +44,7 @@ def test_the_relaxation_law_is_calibrated() -> None:
             1.0,
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="known gap: run single-threaded (one answer on every machine), the "
+                reason="known gap: run single-threaded (one answer whatever the core count), the "
                 "refitted law gives 1 % NaAlg a breakup at 112 µs, not 230 µs; the breakup "
                 "time is not continuous in λ (the earlier fit, 254 µs, held only with two "
                 "OpenBLAS threads)",

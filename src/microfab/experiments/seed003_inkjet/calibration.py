@@ -37,6 +37,7 @@ from pathlib import Path
 
 from scipy import optimize
 
+from microfab.core.validate import check_in_range
 from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP, SEED_VOLTAGE_V
 from microfab.io.atomic import atomic_write_text
 from microfab.process.inkjet.breakup import BreakupMode
@@ -180,8 +181,7 @@ def calibrate_relaxation(
     """
     if not scan_factor > 1.0:
         raise ValueError(f"scan_factor must be > 1, got {scan_factor}")
-    if not 0.0 < rtol < 0.5:
-        raise ValueError(f"rtol must lie in (0, 0.5), got {rtol}")
+    check_in_range("rtol", rtol, 0.0, 0.5, low_closed=False, high_closed=False)
     t = table or load_table()
     evals: list[Evaluation] = []
     cache: dict[tuple[float, float], tuple[float | None, BreakupMode | None]] = {}

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from microfab.core.validate import check_nonnegative, check_positive
 from microfab.process.inkjet.fluids import Fluid, NaAlgTable, naalg
 
 __all__ = [
@@ -205,15 +206,9 @@ def numbers(
     >>> abs(d.ohnesorge - d.weber**0.5 / d.reynolds) < 1e-12
     True
     """
-    r = float(nozzle_radius_m)
-    if not (math.isfinite(r) and r > 0.0):
-        raise ValueError(f"nozzle radius must be positive and finite, got {nozzle_radius_m!r} m")
-    length = 2.0 * r if length_m is None else float(length_m)
-    if not (math.isfinite(length) and length > 0.0):
-        raise ValueError(f"length must be positive and finite, got {length_m!r} m")
-    v = float(speed_m_s)
-    if not (math.isfinite(v) and v >= 0.0):
-        raise ValueError(f"jet speed must be non-negative and finite, got {speed_m_s!r} m/s")
+    r = check_positive("nozzle radius", nozzle_radius_m, "m")
+    length = check_positive("length", 2.0 * r if length_m is None else length_m, "m")
+    v = check_nonnegative("jet speed", speed_m_s, "m/s")
     rho = fluid.density_kg_m3
     sigma = fluid.surface_tension_n_m
     eta0 = fluid.zero_shear_viscosity_pa_s

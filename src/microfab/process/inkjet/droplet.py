@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from microfab.core.validate import check_positive
 from microfab.plants.printhead import NozzleFlow, Printhead, nozzle_flow
 from microfab.process.inkjet.breakup import BreakupMode
 from microfab.process.inkjet.dimensionless import Dimensionless, numbers
@@ -239,8 +240,7 @@ def simulate_droplet(
         ("after_breakup_s", after_breakup_s),
         ("frame_interval_s", frame_interval_s),
     ):
-        if not (math.isfinite(value) and value > 0.0):
-            raise ValueError(f"{name} must be a positive time, got {value} s")
+        check_positive(name, value, "s")
     radius = printhead.nozzle_radius_m
     if not 0.0 < breakup_radius_m < radius:
         raise ValueError(

@@ -44,6 +44,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from microfab.core.validate import check_finite, check_nonnegative, check_positive
+
 __all__ = [
     "SEED_CONCENTRATIONS_PCT",
     "WATER",
@@ -59,14 +61,6 @@ __all__ = [
 SEED_CONCENTRATIONS_PCT: tuple[float, ...] = (0.15, 0.20, 0.25, 1.0, 1.5, 2.0)
 
 _TABLE_FILE = "naalg.toml"
-
-
-def _check(name: str, value: float, unit: str, *, positive: bool = True) -> None:
-    """Raise ValueError unless ``value`` is finite and > 0 (or >= 0 if not ``positive``)."""
-    ok = math.isfinite(value) and (value > 0.0 if positive else value >= 0.0)
-    if not ok:
-        need = "positive and finite" if positive else "non-negative and finite"
-        raise ValueError(f"{name} must be {need}, got {value!r} {unit}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -123,11 +117,11 @@ class Fluid:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ValueError(f"fluid name must be a non-empty string, got {self.name!r}")
-        _check("density", self.density_kg_m3, "kg/m³")
-        _check("surface tension", self.surface_tension_n_m, "N/m")
-        _check("solvent viscosity", self.solvent_viscosity_pa_s, "Pa·s")
-        _check("polymer viscosity", self.polymer_viscosity_pa_s, "Pa·s", positive=False)
-        _check("relaxation time", self.relaxation_time_s, "s", positive=False)
+        check_positive("density", self.density_kg_m3, "kg/m³")
+        check_positive("surface tension", self.surface_tension_n_m, "N/m")
+        check_positive("solvent viscosity", self.solvent_viscosity_pa_s, "Pa·s")
+        check_nonnegative("polymer viscosity", self.polymer_viscosity_pa_s, "Pa·s")
+        check_nonnegative("relaxation time", self.relaxation_time_s, "s")
         l2 = self.extensibility_l2
         if math.isnan(l2) or not l2 > 3.0:
             raise ValueError(
@@ -136,7 +130,7 @@ class Fluid:
             )
         c = self.concentration_pct
         if c is not None:
-            _check("concentration", c, "% w/v", positive=False)
+            check_nonnegative("concentration", c, "% w/v")
 
     @property
     def zero_shear_viscosity_pa_s(self) -> float:
@@ -290,7 +284,7 @@ class NaAlgTable:
         >>> t.relaxation_time_s(t.reference_pct) == t.lambda_ref_s
         True
         """
-        _check("NaAlg concentration", concentration_pct, "% w/v", positive=False)
+        check_nonnegative("NaAlg concentration", concentration_pct, "% w/v")
         return float(self.lambda_ref_s * (concentration_pct / self.reference_pct) ** self.exponent)
 
 
@@ -359,8 +353,7 @@ def _parse_table(data: Mapping[str, Any], origin: str) -> NaAlgTable:
         ("zero-shear viscosity", eta, "Pa·s"),
     ):
         for ci, v in zip(c, arr, strict=True):
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"{origin}: {name} at {ci} % w/v must be positive, got {v} {unit}")
+            check_positive(f"{origin}: {name} at {ci} % w/v", v, unit)
     # Fluid validation of the solvent and of L² (raises with quantity, value and unit).
     newtonian(
         "solvent",
@@ -370,10 +363,9 @@ def _parse_table(data: Mapping[str, Any], origin: str) -> NaAlgTable:
     ).with_(extensibility_l2=table.extensibility_l2)
     if np.any(eta <= table.solvent_viscosity_pa_s):
         raise ValueError(f"{origin}: every zero-shear viscosity must exceed the solvent's")
-    _check("reference concentration", table.reference_pct, "% w/v")
-    _check("reference relaxation time", table.lambda_ref_s, "s")
-    if not math.isfinite(table.exponent):
-        raise ValueError(f"{origin}: relaxation exponent must be finite, got {table.exponent}")
+    check_positive("reference concentration", table.reference_pct, "% w/v")
+    check_positive("reference relaxation time", table.lambda_ref_s, "s")
+    check_finite(f"{origin}: relaxation exponent", table.exponent)
     return table
 
 

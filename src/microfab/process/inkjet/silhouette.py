@@ -10,20 +10,16 @@ and measure it back, like the strobed JetXpert camera of seed 003 part 1
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from microfab.core.validate import check_finite, check_positive
 
 __all__ = ["BodyProfile", "Silhouette"]
 
 #: One liquid body: axial positions (m) and radii (m), both shape (n,).
 BodyProfile = tuple[np.ndarray, np.ndarray]
-
-
-def _check_positive(name: str, value: float, unit: str) -> None:
-    if not (isinstance(value, int | float | np.number) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be positive and finite, got {value!r} {unit}")
 
 
 def _check_body(index: int, body: object) -> BodyProfile:
@@ -83,8 +79,7 @@ class Silhouette:
     nozzle_radius_m: float
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.time_s, int | float | np.number) and math.isfinite(self.time_s)):
-            raise ValueError(f"time_s must be finite, got {self.time_s!r} s")
-        _check_positive("nozzle_radius_m", self.nozzle_radius_m, "m")
+        check_finite("time_s", self.time_s, "s")
+        check_positive("nozzle_radius_m", self.nozzle_radius_m, "m")
         checked = tuple(_check_body(i, b) for i, b in enumerate(self.bodies))
         object.__setattr__(self, "bodies", checked)
