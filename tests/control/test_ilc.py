@@ -342,3 +342,56 @@ def test_load_errors(tmp_path):
     (tmp_path / STATE_FILE).write_bytes(b"not an npz file")
     with pytest.raises(ValueError, match="cannot read"):
         FrequencyILC.load(tmp_path)
+
+
+# ------------------------------------------------------- harmonic 0 (the mean)
+def _triangle(features_per_s: int) -> np.ndarray:
+    """Corners (-1, -1), (1, -1), (0, 1) V at constant speed: the y mean is -0.31 V."""
+    corners = np.array([[-1.0, -1.0], [1.0, -1.0], [0.0, 1.0], [-1.0, -1.0]])
+    seg = np.linalg.norm(np.diff(corners, axis=0), axis=1)
+    s_knots = np.concatenate(([0.0], np.cumsum(seg)))
+    n = round(FS / features_per_s)
+    s = np.arange(n) / n * s_knots[-1]
+    return np.column_stack([np.interp(s, s_knots, corners[:, a]) for a in range(2)])
+
+
+def other_loop_frf(f: np.ndarray) -> np.ndarray:
+    """A closed galvo loop that is not the twin: crossover about 1.5 kHz, lightly damped
+    modes at 18 and 28 kHz, two samples of delay (the loop of the reported defect)."""
+    s = 2j * np.pi * np.asarray(f, dtype=float)
+    wc = 2 * np.pi * 1500.0
+    base = wc**2 / (s**2 + 2 * 0.6 * wc * s + wc**2)
+    for fm, zeta in ((18e3, 0.02), (28e3, 0.03)):
+        wm = 2 * np.pi * fm
+        base = base * wm**2 / (s**2 + 2 * zeta * wm * s + wm**2)
+    p = base * np.exp(-s * 2 * DT)
+    return np.column_stack([p, 0.9 * p])
+
+
+def test_offset_reference_keeps_its_mean_and_converges_on_both_axes():
+    """The reported defect: the y reference has mean -1/3 V; dropping harmonic 0 left a
+    constant +333 mV error. Both axes must fall at least 10x within 12 trials."""
+    ref = _triangle(250)
+    assert ref[:, 1].mean() < -0.3  # at constant speed: -0.31 V
+    rng = np.random.default_rng(5)
+    ilc = FrequencyILC(ref, DT, AXES)
+    u = ilc.initial_input()
+    for _ in range(12):
+        y = periodic_output(u, other_loop_frf) + 0.4e-3 * rng.standard_normal(u.shape)
+        u = ilc.update(trial(ref, u, y))
+    assert all(0 in h for h in ilc.harmonics[1:])  # the y mean is learned
+    rms = ilc.rms_history
+    assert np.all(rms[-1] <= rms[0] / 10), rms[[0, -1]]
+    assert abs(np.mean(y[:, 1] - ref[:, 1])) < 1e-3  # no constant error left
+
+
+def test_an_unlearned_mean_keeps_the_reference_offset(ref_1k):
+    """With the mean buried in noise (snr rule), the next input keeps the user's offset."""
+    ref = ref_1k + np.array([0.0, 1e-6])  # a y offset far below the noise
+    rng = np.random.default_rng(2)
+    ilc = FrequencyILC(ref, DT, AXES)
+    u = ilc.initial_input()
+    y = periodic_output(u) + 1e-3 * rng.standard_normal(u.shape)
+    u2 = ilc.update(trial(ref, u, y))
+    assert 0 not in ilc.harmonics[1]
+    assert np.mean(u2[:, 1]) == pytest.approx(np.mean(ref[:, 1]), abs=1e-12)

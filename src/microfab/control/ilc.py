@@ -4,7 +4,7 @@ Implements seed 000 §3.2, eqs. (2)-(7): the input is updated harmonic by harmon
 inverse frequency response of the stabilised machine,
 
 ``U_{i+1}[n] = U_i[n] + rho * P^-1[n] * E_i[n]`` for ``n`` in the selected set ``S``,
-``U_{i+1}[n] = 0`` otherwise,
+``U_{i+1}[n] = 0`` otherwise, except the mean (``n = 0``), which keeps ``U_i[0]``,
 
 with ``E_i = Y_d - Y_i``. Two sign typos of the seed are corrected here: with its eq. (3),
 ``E = Y - Y_d``, the ``+`` of eq. (2) would make ``E_{i+1} = (1 + rho) E_i`` and diverge,
@@ -13,7 +13,7 @@ written above; and the inverse DFT of eq. (6) must carry ``e^{+j 2 pi k n / N}``
 ``e^{-j...}``, which would time-reverse the input. The inverse model is taken from the first
 trial by complex division (eq. 7), or from a given model.
 
-Harmonic selection (the ``Q`` filter of the seed): harmonics ``1 <= n`` with
+Harmonic selection (the ``Q`` filter of the seed): harmonics ``0 <= n`` with
 ``n f_r <= cutoff_hz`` (seed §4: 8 kHz), of which are kept only those where
 
 1. the first trial's input has content: ``|U_1[n]| > content_tol * max |U_1|`` (a square
@@ -24,6 +24,14 @@ Harmonic selection (the ``Q`` filter of the seed): harmonics ``1 <= n`` with
    has no content (skipped when fewer than 8 such bins exist).
 
 With a given model only rule 1 applies.
+
+Harmonic 0, the mean of the reference, is learned like any other harmonic (with the same
+eq. 5 check): a path off the origin, such as a triangle whose y mean is -1/3 V, keeps its
+offset. When the mean is not learned (no content, or buried in noise) it keeps the input
+as applied, which stays the user's reference (``u_1 = y_d``), so an offset is never
+dropped. Every other harmonic not learned is set to 0, as the seed's eq. (2) says (the
+seed 000 tables are computed so; keeping the reference there instead changed them by up
+to 4 % at 100 features/s).
 """
 
 from __future__ import annotations
@@ -249,8 +257,7 @@ class FrequencyILC:
     # ------------------------------------------------------------- selection
     def _band(self) -> np.ndarray:
         f = self.harmonic_freq_hz
-        n = np.arange(f.size)
-        band = (n >= 1) & (f <= self.config.cutoff_hz)
+        band = f <= self.config.cutoff_hz  # harmonic 0 (the mean) included
         if self.n_samples % 2 == 0:
             band[-1] = False  # never learn the Nyquist bin
         return band
@@ -335,7 +342,11 @@ class FrequencyILC:
             st.pinv, st.mask = self._select_and_invert(U, Y)
             self._check_convergence()
         E = np.fft.rfft(st.reference - y, axis=0)  # E_i = Y_d - Y_i (sign: see module doc)
-        U_next = np.where(st.mask, U + self.config.gain * st.pinv * E, 0.0)  # eq. (2)
+        # eq. (2) on the learned harmonics, 0 on the others (the seed's Q filter), except
+        # the mean: when not learned it keeps the input as applied (u_1 = y_d, the user's)
+        kept = np.zeros_like(U)
+        kept[0] = U[0]
+        U_next = np.where(st.mask, U + self.config.gain * st.pinv * E, kept)
         u_next = np.fft.irfft(U_next, n=self.n_samples, axis=0)  # eq. (6), +j sign
         err = y - st.reference
         st.rms.append([float(v) for v in np.sqrt(np.mean(err**2, axis=0))])
