@@ -285,8 +285,11 @@ def test_wrong_model_violating_eq5_raises_with_axis_and_admissible_gain():
     ilc = FrequencyILC(ref, DT, AXES, model=scaled(0.25, 0.25), true_frf=true_frf)
     ilc.update(trial(ref, u, y))
     assert ilc.iteration == 1
-    # without the true FRF nothing is checked
+    # without the true FRF the model is checked against what trial 1 measured
     ilc = FrequencyILC(ref, DT, AXES, model=scaled(0.1, 0.1))
+    with pytest.raises(ConvergenceError, match=r"axis x.*trial 1 \(measured P = Y_1/U_1\)"):
+        ilc.update(trial(ref, u, y))
+    ilc = FrequencyILC(ref, DT, AXES, model=scaled(0.25, 0.25))
     ilc.update(trial(ref, u, y))
     assert ilc.iteration == 1
 
