@@ -34,6 +34,24 @@ def ilc_step_cmd(
     max_acceleration: Annotated[
         float | None, typer.Option(help="Declared [unit/s^2] limit.")
     ] = None,
+    frf: Annotated[
+        Path | None,
+        typer.Option(
+            help="Measured FRF file (freq_hz, re_<a>, im_<a> or mag_<a>, phase_deg_<a>) to "
+            "invert instead of the first trial (first call)."
+        ),
+    ] = None,
+    law: Annotated[
+        str, typer.Option(help="Update law: 'inverse' (seed 000) or 'p-type' (first call).")
+    ] = "inverse",
+    advance_us: Annotated[
+        float | None,
+        typer.Option(help="P-type time advance [µs] (default: the lag seen in trial 1)."),
+    ] = None,
+    axis_gain: Annotated[
+        list[str] | None,
+        typer.Option(help="Gain of one axis, AXIS=GAIN, repeatable (first call)."),
+    ] = None,
 ) -> None:
     """Learn from one measured trial and write the next input (state kept in --state).
 
@@ -45,8 +63,23 @@ def ilc_step_cmd(
     from microfab.machines.files import ilc_step
     from microfab.machines.galvo import GALVO_LIMITS
 
+    gains: dict[str, float] = {}
+    for item in axis_gain or []:
+        name, sep, value = item.partition("=")
+        try:
+            gains[name.strip()] = float(value)
+        except ValueError:
+            fail(f"--axis-gain takes AXIS=GAIN, e.g. y=0.2; got {item!r}")
+        if not sep or not name.strip():
+            fail(f"--axis-gain takes AXIS=GAIN, e.g. y=0.2; got {item!r}")
     try:
-        config = ILCConfig(cutoff_hz=cutoff_hz, gain=gain)
+        config = ILCConfig(
+            cutoff_hz=cutoff_hz,
+            gain=gain,
+            axis_gains=gains or None,
+            law=law,  # type: ignore[arg-type]  # checked by ILCConfig
+            advance_s=None if advance_us is None else advance_us * 1e-6,
+        )
         given = (max_position, max_velocity, max_acceleration)
         limits = None
         if any(v is not None for v in given) or not (state / "ilc_state.npz").exists():
@@ -62,9 +95,11 @@ def ilc_step_cmd(
             from microfab.machines.files import read_trial_file
 
             limits = {a: lim for a in read_trial_file(trial).axes}
-        rep = ilc_step(trial, state, out, config=config, limits=limits)
+        rep = ilc_step(trial, state, out, config=config, limits=limits, frf_path=frf)
     except (OSError, ValueError) as exc:
         fail(str(exc))
+    for event in rep.events:
+        console.print(f"monitor: {event}", highlight=False)
     rms = ", ".join(f"{a} {v:.4g}" for a, v in rep.rms.items())
     console.print(
         f"iteration {rep.iteration}: RMS error {rms}; harmonics "

@@ -444,8 +444,9 @@ class FrequencyILC:
                 f"seen (trial {best}, RMS {st.best_rms[a]:.4g}); gain halved at harmonic(s) "
                 f"{shown}{more}"
             )
-            st.recent_errors = []  # start counting again from the fallback
             fallen.append(a)
+        if fallen:
+            st.recent_errors = []  # start counting again from the fallback
         return fallen
 
     # ---------------------------------------------------------------- update

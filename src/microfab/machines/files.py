@@ -24,6 +24,7 @@ import numpy as np
 
 from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
 from microfab.core.limits import AxisLimits
+from microfab.io.frf import read_frf
 from microfab.io.trace import read_columns, write_columns
 from microfab.machines.base import Measurement
 from microfab.machines.learning import TrialError, learn
@@ -56,12 +57,15 @@ class StepReport:
         The input file written.
     harmonics : dict of str to int
         Number of learned harmonics per axis.
+    events : tuple of str
+        What the divergence monitor did in this step (usually nothing).
     """
 
     iteration: int
     rms: dict[str, float]
     out_path: Path
     harmonics: dict[str, int]
+    events: tuple[str, ...] = ()
 
 
 def read_trial_file(path: str | Path) -> Trial:
@@ -230,6 +234,7 @@ def ilc_step(
     out_path: str | Path,
     config: ILCConfig | None = None,
     limits: Mapping[str, AxisLimits] | None = None,
+    frf_path: str | Path | None = None,
 ) -> StepReport:
     """Learn from one measured trial and write the next input.
 
@@ -247,6 +252,9 @@ def ilc_step(
     limits : mapping of str to AxisLimits, optional
         Declared machine limits the next input must respect; stored in the state on the
         first call and used on later calls when not given again.
+    frf_path : str or Path, optional
+        A measured FRF file (`microfab.io.frf`) to invert instead of the first trial
+        (first call only; the model is kept in the state).
 
     Returns
     -------
@@ -264,9 +272,16 @@ def ilc_step(
     trial = machine.peek()
     sd = Path(state_dir)
     if FrequencyILC.exists(sd):
+        if frf_path is not None:
+            raise TrialFileError(
+                f"{sd} already holds a learning state: an FRF file is used on the first "
+                "call only (start a new state directory to learn from it)"
+            )
         ilc = FrequencyILC.load(sd)
     else:
-        ilc = FrequencyILC(trial.reference, trial.dt, trial.axes, config)
+        model = None if frf_path is None else read_frf(frf_path).model(trial.axes)
+        ilc = FrequencyILC(trial.reference, trial.dt, trial.axes, config, model=model)
+    seen = len(ilc.events)
     try:
         learn(
             machine,
@@ -286,4 +301,5 @@ def ilc_step(
         rms={a: float(rms[i]) for i, a in enumerate(trial.axes)},
         out_path=Path(out_path),
         harmonics={a: int(h.size) for a, h in zip(trial.axes, ilc.harmonics, strict=True)},
+        events=tuple(ilc.events[seen:]),
     )
