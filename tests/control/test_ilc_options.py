@@ -80,6 +80,7 @@ def test_p_type_converges_where_eq5_holds_and_refuses_where_it_cannot(ref):
         assert np.all(final[law] < ilc.rms_history[0] / 5)
     # both reach the floor set by the harmonics above the cutoff, which neither learns
     np.testing.assert_allclose(final["p-type"], final["inverse"], rtol=0.01)
+
     # without an advance, 30 samples of delay turn the 7 kHz harmonic past 90 degrees
     # (67 of lag, 76 of delay): no gain satisfies eq. 5 there and the first call says so
     def slow(f: np.ndarray) -> np.ndarray:
