@@ -204,7 +204,8 @@ def check_samples(
         col = int(np.flatnonzero(bad.any(axis=0))[0])
         row = int(np.flatnonzero(bad[:, col])[0])
         where, value = f"{name} of axis {axes[col]!r}", values[row, col]
-    raise ValueError(f"{where} must be finite, got {value} {unit} at sample {row}")
+    got = f"{value} {unit}" if unit else f"{value}"
+    raise ValueError(f"{where} must be finite, got {got} at sample {row}")
 
 
 def check_time_base(time: np.ndarray) -> tuple[float, float]:
