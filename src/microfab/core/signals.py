@@ -4,7 +4,9 @@ A sampled signal in microfab is a time base (sample time ``dt`` in s, uniform), 
 channels (axes) and samples shaped (n_samples, n_axes), with a unit. :class:`Trace` is the
 plain one; :class:`~microfab.trajectory.base.Trajectory` adds derivatives and path
 progress; the results of a run (``SimResult``, ``Measurement``, ``Trial``) hold several
-such arrays on one time base. The checks here are the ones they share, written once:
+such arrays on one time base. The checks on these arrays and names are written once, here
+(which class uses which, and why there is no common base class: ``docs/architecture.md``,
+Signals):
 
 - :func:`check_name`: a channel name is a letter, then letters, digits, underscores
   (valid as a CSV header, a MATLAB variable and an HDF5 dataset);
