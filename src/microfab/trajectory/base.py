@@ -7,21 +7,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from microfab.core.arrays import readonly
+from microfab.core.signals import Trace, check_samples
 from microfab.core.validate import check_positive
-from microfab.io.trace import Trace
 
 __all__ = ["Trajectory"]
-
-
-def _readonly(a: np.ndarray | None, shape: tuple[int, ...], name: str) -> np.ndarray | None:
-    if a is None:
-        return None
-    arr = readonly(a)
-    if arr.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} holds NaN or inf")
-    return arr
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -46,6 +35,14 @@ class Trajectory:
         Whether the trajectory starts and ends at rest; the limit check then assumes
         the machine holds still before and after it. ``False`` for one period of a
         periodic reference, which the check wraps around instead.
+
+    Raises
+    ------
+    ValueError
+        If ``dt`` is not positive, ``position`` is not (n, n_axes) with n >= 1, a
+        derivative is not shaped like ``position`` or ``s`` not (n,), or a sample is NaN
+        or inf (the message names the field, the axis and the sample; the checks are
+        :func:`~microfab.core.signals.check_samples`).
     """
 
     dt: float
@@ -61,13 +58,16 @@ class Trajectory:
     def __post_init__(self) -> None:
         check_positive("dt", self.dt, "s")
         pos = np.array(self.position, dtype=float)
-        if pos.ndim != 2 or pos.shape[1] != len(self.axes) or pos.shape[0] < 1:
-            raise ValueError(f"position must have shape (n, {len(self.axes)}), got {pos.shape}")
-        shape = pos.shape
-        object.__setattr__(self, "position", _readonly(pos, shape, "position"))
-        for name in ("velocity", "acceleration", "jerk"):
-            object.__setattr__(self, name, _readonly(getattr(self, name), shape, name))
-        object.__setattr__(self, "s", _readonly(self.s, (shape[0],), "s"))
+        # No unit in the messages: a feedforward filters commands (e.g. in V) as trajectories.
+        check_samples("position", pos, self.axes)
+        object.__setattr__(self, "position", readonly(pos))
+        for name in ("velocity", "acceleration", "jerk", "s"):
+            value = getattr(self, name)
+            if value is not None:
+                arr = readonly(value)
+                axes = None if name == "s" else self.axes
+                check_samples(name, arr, axes, n_samples=pos.shape[0])
+                object.__setattr__(self, name, arr)
 
     @property
     def n_samples(self) -> int:
@@ -85,7 +85,7 @@ class Trajectory:
         return self.n_samples * self.dt
 
     def to_trace(self) -> Trace:
-        """The positions as a :class:`~microfab.io.trace.Trace` (unit m)."""
+        """The positions as a :class:`~microfab.core.signals.Trace` (unit m)."""
         return Trace(dt=self.dt, values=self.position, axes=self.axes, unit="m")
 
     def columns(self) -> dict[str, np.ndarray]:
