@@ -21,7 +21,10 @@ Harmonic selection (the ``Q`` filter of the seed): harmonics ``0 <= n`` with
    noise), and
 2. the first trial's output stands out of the noise: ``|Y_1[n]| > snr_min * noise``, where
    ``noise`` is the RMS magnitude of ``Y_1`` over the bins below Nyquist in which the input
-   has no content (skipped when fewer than 8 such bins exist).
+   has no content; when fewer than 8 such bins exist (a path with content at every
+   harmonic, such as a letter), it is estimated from the median magnitude of the top
+   quarter of the output spectrum above the cutoff, where a closed loop passes little of
+   its input (skipped when that leaves fewer than 8 bins).
 
 With a given model only rule 1 applies.
 
@@ -355,6 +358,9 @@ class FrequencyILC:
                     empty[-1] = False
                 if empty.sum() >= 8:
                     noise = np.sqrt(np.mean(np.abs(Y1[empty, a]) ** 2))
+                else:  # every bin has content (e.g. a letter): see _noise_from_top
+                    noise = _noise_from_top(Y1[:, a], self._band())
+                if noise is not None:
                     keep &= np.abs(Y1[:, a]) > self.config.snr_min * noise
                 keep &= np.abs(Y1[:, a]) > 0
             else:
@@ -419,7 +425,7 @@ class FrequencyILC:
         st, cfg = self.state, self.config
         mag = np.abs(E)
         st.recent_errors = [*st.recent_errors[-2:], mag]
-        if not cfg.monitor or len(st.rms) < 3:
+        if not cfg.monitor or len(st.recent_errors) < 3:  # three trials since a fallback
             return []
         r = np.array(st.rms[-3:])
         grow = 1.0 + cfg.monitor_growth
@@ -621,3 +627,23 @@ def _lag_s(u: np.ndarray, Y: np.ndarray, dt: float) -> float:
     if lag > u.shape[0] // 2:  # a lead is not a lag of a causal machine
         lag = 0
     return lag * dt
+
+
+def _noise_from_top(y1: np.ndarray, band: np.ndarray) -> float | None:
+    """RMS noise magnitude of one axis's output bins, from the top quarter of the spectrum.
+
+    Used when the input has content in (nearly) every bin, so that no empty bin shows the
+    noise. Far above the loop's bandwidth a closed loop passes almost nothing of its
+    input, so the output there is mostly noise; the median magnitude of those bins, times
+    ``1 / sqrt(ln 2)`` (median to RMS of a Rayleigh magnitude), estimates the noise RMS and
+    is robust to a resonance peak. Signal left there only raises the estimate, which
+    learns fewer harmonics, never more. None when there are fewer than 8 such bins.
+    """
+    n = y1.size
+    top = np.zeros(n, bool)
+    top[(3 * n) // 4 :] = True
+    top &= ~band
+    top[-1] = False  # the Nyquist bin of an even length is real-valued
+    if top.sum() < 8:
+        return None
+    return float(np.median(np.abs(y1[top])) / np.sqrt(np.log(2.0)))
