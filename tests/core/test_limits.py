@@ -59,9 +59,23 @@ def test_velocity_value_and_sample_in_message():
     x = 2.0 * DT * np.arange(N) - 1.0
     x[500:] += 0.01
     lim = AxisLimits(position=10.0, velocity=5.0, acceleration=1e9)
-    pattern = r"velocity 12 V/s .* limit 5 V/s \(near sample (499|500)\)"
+    pattern = r"velocity 12 V/s .* limit 5 V/s at t = 0.499 s \(near sample 499\)"
     with pytest.raises(LimitViolation, match=pattern):
         check_command(x, DT, {"x": lim}, ("x",), periodic=False)
+    # periodic: the same sample, in the command's own numbering (not the padded one)
+    spike = np.zeros(N)
+    spike[500] = 0.012  # +12 /s from sample 499 to 500, then -12 /s
+    with pytest.raises(LimitViolation, match=pattern):
+        check_command(spike, DT, {"x": lim}, ("x",), periodic=True)
+
+
+def test_periodic_index_of_an_acceleration_peak_is_the_command_sample():
+    x = np.zeros(N)
+    x[7] = 1e-3  # a spike: the acceleration peaks at sample 7
+    lim = AxisLimits(position=1.0, velocity=1e9, acceleration=1.0)
+    for periodic in (False, True):
+        with pytest.raises(LimitViolation, match=r"acceleration .* \(near sample 7\)"):
+            check_command(x, DT, {"x": lim}, ("x",), periodic=periodic)
 
 
 def test_periodic_wrap_counts():

@@ -91,22 +91,25 @@ def check_command(
             raise LimitViolation(f"axis {name!r} has no declared limits; nothing was emitted")
         lim = limits[name]
         x = cmd[:, a]
+        n = x.size
+        pad = 2 if periodic else 0  # samples wrapped in front of a periodic command
         xe = np.concatenate([x[-2:], x, x[:2]]) if periodic else x
-        v = np.diff(xe) / dt
-        acc = np.diff(xe, 2) / dt**2
-        for qty, sig, bound, suffix in (
-            ("position", x, lim.position, ""),
-            ("velocity", v, lim.velocity, "/s"),
-            ("acceleration", acc, lim.acceleration, "/s^2"),
+        v = np.diff(xe) / dt  # v[k]: from sample k - pad to k - pad + 1
+        acc = np.diff(xe, 2) / dt**2  # acc[k]: centred on sample k - pad + 1
+        for qty, sig, bound, suffix, shift in (
+            ("position", x, lim.position, "", 0),
+            ("velocity", v, lim.velocity, "/s", -pad),
+            ("acceleration", acc, lim.acceleration, "/s^2", 1 - pad),
         ):
             if sig.size == 0:
                 continue
             k = int(np.argmax(np.abs(sig)))
             if abs(sig[k]) > bound:
+                i = (k + shift) % n  # a sample of the command itself, in [0, n)
                 raise LimitViolation(
                     f"axis {name}: {qty} {sig[k]:.4g} {lim.unit}{suffix} exceeds the declared "
-                    f"limit {bound:.4g} {lim.unit}{suffix} (near sample {k}); "
-                    "nothing was emitted"
+                    f"limit {bound:.4g} {lim.unit}{suffix} at t = {i * dt:.6g} s (near "
+                    f"sample {i}); nothing was emitted"
                 )
 
 
