@@ -10,11 +10,11 @@ until the machine has settled, and records the whole response.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Machine", "Measurement"]
+__all__ = ["Machine", "Measurement", "Resumable"]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -90,4 +90,22 @@ class Machine(Protocol):
         (``None``: the machine's default). The whole record is returned: the command
         followed by the hold.
         """
+        ...
+
+
+@runtime_checkable
+class Resumable(Protocol):
+    """A machine whose whole state (loops, noise generator) can be saved and restored.
+
+    `microfab.machines.learning.learn` saves a snapshot with the learner's state after
+    every trial and restores it on resume, so that a run interrupted and resumed on a new
+    machine object gives bit for bit what an uninterrupted run gives.
+    """
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """JSON-ready state, or None when some part cannot be saved."""
+        ...
+
+    def restore(self, snapshot: dict[str, Any]) -> None:
+        """Put the machine back where `snapshot` was taken."""
         ...

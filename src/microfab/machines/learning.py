@@ -25,7 +25,7 @@ import numpy as np
 from microfab.control.ilc import Trial
 from microfab.control.learning import Learner
 from microfab.core.limits import AxisLimits, check_command
-from microfab.machines.base import Machine, Measurement
+from microfab.machines.base import Machine, Measurement, Resumable
 
 __all__ = ["LearnRecord", "TrialError", "learn", "trial_digest"]
 
@@ -71,6 +71,9 @@ class LearnRecord:
         Measured output of trial 1 (feedback only when ``u_1 = y_d``), shape (N, n_axes).
     last_output, last_input : numpy.ndarray or None
         Output and input of the latest trial, shape (N, n_axes).
+    machine : dict or None
+        Snapshot of a `microfab.machines.base.Resumable` machine after the latest trial
+        (restored on resume, so a resumed run is bit-identical to an uninterrupted one).
     """
 
     digests: list[str] = field(default_factory=list)
@@ -78,6 +81,7 @@ class LearnRecord:
     first_output: np.ndarray | None = None
     last_output: np.ndarray | None = None
     last_input: np.ndarray | None = None
+    machine: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready form."""
@@ -91,6 +95,7 @@ class LearnRecord:
             "first_output": arr(self.first_output),
             "last_output": arr(self.last_output),
             "last_input": arr(self.last_input),
+            "machine": self.machine,
         }
 
     @classmethod
@@ -115,6 +120,7 @@ class LearnRecord:
             first_output=arr(raw.get("first_output")),
             last_output=arr(raw.get("last_output")),
             last_input=arr(raw.get("last_input")),
+            machine=raw.get("machine"),
         )
 
 
@@ -198,6 +204,8 @@ def learn(
     record = LearnRecord.from_meta(learner.meta)
     if limits is not None:
         record.limits = dict(limits)
+    if record.machine is not None and isinstance(machine, Resumable):
+        machine.restore(record.machine)  # where the machine stood after the last trial
     while learner.iteration < iterations:
         u = learner.current_input()
         meas = machine.run(u)
@@ -221,6 +229,8 @@ def learn(
             record.first_output = np.array(trial.output, dtype=float)
         record.last_output = np.array(trial.output, dtype=float)
         record.last_input = np.array(trial.input, dtype=float)
+        if isinstance(machine, Resumable):
+            record.machine = machine.snapshot()
         if state_dir is not None:
             learner.save(state_dir, {RECORD_KEY: record.to_json()})
         else:

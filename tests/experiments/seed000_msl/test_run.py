@@ -159,6 +159,16 @@ def test_resume_continues_to_more_iterations(tmp_path):
     np.testing.assert_array_equal(again.ilc_input, second.ilc_input)
 
 
+def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(tmp_path):
+    """The twin's loop state and noise generator are saved with the learner's state."""
+    whole = run_msl_ilc(400, 12)
+    run_msl_ilc(400, 5, state_dir=tmp_path)  # interrupted after 5 trials...
+    resumed = run_msl_ilc(400, 12, state_dir=tmp_path)  # ...and resumed on a new twin
+    np.testing.assert_array_equal(resumed.rms_history, whole.rms_history)
+    np.testing.assert_array_equal(resumed.ilc_output, whole.ilc_output)
+    np.testing.assert_array_equal(resumed.ilc_input, whole.ilc_input)
+
+
 def test_resume_refuses_other_reference(tmp_path):
     run_msl_ilc(400, 2, state_dir=tmp_path)
     with pytest.raises(ValueError, match="another reference"):
