@@ -67,14 +67,34 @@ def test_trajectory_time_optimal_writes_a_limit_safe_reference(tmp_path: Path) -
     assert (tmp_path / "ref_profile.png").exists()
 
 
-def test_trajectory_constant_speed_is_refused_with_advice(tmp_path: Path) -> None:
+def test_trajectory_at_speed_runs_within_the_limits(tmp_path: Path) -> None:
+    """--speed ramps from and to rest and stops at the square's corners: no refusal."""
     out = tmp_path / "ref.csv"
     res = runner.invoke(
         app, ["trajectory", "square:side=0.01", "--speed", "0.1", "--out", str(out)]
     )
+    assert res.exit_code == 0, res.output
+    assert "4 corner stops" in res.output
+    cols = read_columns(out)
+    assert cols["v_x"][0] == 0.0 and cols["v_x"][-1] == 0.0
+    # a jerk limit is not planned for by --speed: refused, pointing to --time-optimal
+    out2 = tmp_path / "ref2.csv"
+    res = runner.invoke(
+        app,
+        ["trajectory", "square:side=0.01", "--speed", "0.1", "--jmax", "10", "--out", str(out2)],
+    )
     assert res.exit_code == 2
     assert "exceeds the limit" in res.output and "--time-optimal" in res.output
-    assert not out.exists()
+    assert not out2.exists()
+
+
+def test_trajectory_time_optimal_refusal_does_not_advise_itself(tmp_path: Path) -> None:
+    res = runner.invoke(
+        app,
+        ["trajectory", "circle:radius=0.01", "--time-optimal", "--workspace", "0.001"],
+    )
+    assert res.exit_code == 2
+    assert "use --time-optimal" not in res.output.lower()
 
 
 def test_trajectory_option_errors(tmp_path: Path) -> None:

@@ -87,7 +87,11 @@ def _stem(drawing: str) -> str:
 def trajectory_cmd(
     drawing: DrawingArg,
     speed: Annotated[
-        float | None, typer.Option(help="Constant path speed, m/s (seed 002 eq. 15).")
+        float | None,
+        typer.Option(
+            help="Path speed, m/s (seed 002 eq. 15): held wherever the limits allow, with "
+            "ramps from and to rest, slower in tight curves, a stop at each corner."
+        ),
     ] = None,
     time_optimal: Annotated[
         bool, typer.Option("--time-optimal", help="Minimum time under the limits.")
@@ -124,7 +128,7 @@ def trajectory_cmd(
     from microfab.io.trace import write_columns
     from microfab.report.canvas import save_figure
     from microfab.report.geometry import fig_profile
-    from microfab.trajectory.sampling import constant_speed
+    from microfab.trajectory.cruise import cruise
 
     if (speed is None) == (not time_optimal):
         fail("give exactly one of --speed V or --time-optimal")
@@ -158,12 +162,15 @@ def trajectory_cmd(
                     fail(str(exc))
             traj = res.trajectory
         else:
-            traj = constant_speed(path, sample_rate_hz=rate, speed=speed)
+            assert speed is not None
+            traj = cruise(path, limits, speed=speed, sample_rate_hz=rate)
         check_trajectory(traj, limits)
     except LimitViolation as exc:
+        if time_optimal:
+            fail(f"{exc}. Declare other limits (--vmax, --amax, --jmax, --workspace).")
         fail(
-            f"{exc}. Use --time-optimal (and --feed for a speed cap) for a reference that "
-            "respects the limits, or declare other limits."
+            f"{exc}. Use --time-optimal (it also plans with --jmax; --feed caps the speed), "
+            "or declare other limits."
         )
     except ValueError as exc:
         fail(str(exc))
@@ -179,8 +186,14 @@ def trajectory_cmd(
         save_figure(fig_profile(traj, limits), target)
     except (OSError, ValueError) as exc:
         fail(f"cannot write the reference: {exc}")
+    how = ""
+    if not time_optimal:
+        how = (
+            f"; at {speed:g} m/s for {100 * traj.meta['share_at_speed']:.0f} % of the time, "
+            f"{traj.meta['corner_stops']} corner stops"
+        )
     console.print(
         f"{traj.n_samples} samples at {1 / traj.dt:.6g} Hz, duration {traj.duration:.6g} s, "
-        f"path length {path.length * 1e3:.4f} mm; wrote {out} and {target}",
+        f"path length {path.length * 1e3:.4f} mm{how}; wrote {out} and {target}",
         highlight=False,
     )
