@@ -1,18 +1,14 @@
-"""The ``microfab`` command.
+"""The ``microfab`` command: one sub-command or group per module of this package.
 
-``microfab run [JOB.toml]``        run a job of any kind (default: galvo MSL twin), write its report
-``microfab kinds``                 the job kinds and reproductions microfab knows
-``microfab reproduce NAME``        a seed paper's tables beside ours
-``microfab ilc step TRIAL ...``    one ILC step on real hardware through files
-``microfab calibrate galvo``       refit the galvo twin to seed 000 Table 1
-``microfab path show DRAWING``     picture and summary of a drawing's contours
-``microfab trajectory DRAWING``    a limit-safe sampled reference along a drawing
-``microfab droplet ...``           drop-on-demand inkjet: simulate, sweep, analyse frames
+``run``, ``kinds``, ``reproduce`` (`run.py`), ``ilc step`` (`ilc.py`), ``calibrate``
+(`calibrate.py`), ``path show`` and ``trajectory`` (`geometry.py`), ``droplet``
+(`droplet.py`); `_kit.py` holds the console, errors, progress bars and tables.
 """
 
 from __future__ import annotations
 
 import sys
+from typing import Annotated
 
 import typer
 
@@ -24,14 +20,63 @@ from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
 
 __all__ = ["app", "main"]
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
+#: Help of the ``microfab`` command (plain text: it is shown as is when piped).
+HELP = """From a part drawing and a micro-fabrication machine to machine commands.
+
+Command groups: run (a job of any kind, default the galvo MSL twin; writes its report),
+kinds (the job kinds and reproductions), reproduce NAME (a seed paper's tables beside
+ours), ilc (learning on real hardware through files), calibrate (refit a twin), path
+(inspect a drawing), trajectory (a limit-safe reference along a drawing), droplet
+(drop-on-demand inkjet: simulate, sweep, render, analyse frames).
+"""
+
+#: Piped or redirected output gets plain help, never wrapped (rich help in a terminal).
+_PLAIN = not sys.stdout.isatty()
+_SETTINGS = {"max_content_width": 10_000, "terminal_width": 10_000} if _PLAIN else {}
+_MARKUP = None if _PLAIN else "rich"
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            typer.echo(f"microfab {version('microfab')}")
+        except PackageNotFoundError:  # pragma: no cover - run from a source tree
+            typer.echo("microfab (not installed)")
+        raise typer.Exit()
+
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help=HELP,
+    rich_markup_mode=_MARKUP,
+    context_settings=_SETTINGS,
+)
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,
+) -> None:
+    """From a part drawing and a micro-fabrication machine to machine commands."""
+
+
 app.command("run")(run_cmd)
 app.command("kinds")(kinds_cmd)
 app.command("reproduce")(reproduce_cmd)
-app.add_typer(ilc_app, name="ilc")
-app.add_typer(calibrate_app, name="calibrate")
-app.add_typer(path_app, name="path")
-app.add_typer(droplet_app, name="droplet")
+for _sub in (ilc_app, calibrate_app, path_app, droplet_app):
+    _sub.rich_markup_mode = _MARKUP
+app.add_typer(ilc_app, name="ilc", context_settings=_SETTINGS)
+app.add_typer(calibrate_app, name="calibrate", context_settings=_SETTINGS)
+app.add_typer(path_app, name="path", context_settings=_SETTINGS)
+app.add_typer(droplet_app, name="droplet", context_settings=_SETTINGS)
 app.command("trajectory")(trajectory_cmd)
 
 

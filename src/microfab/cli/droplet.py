@@ -166,10 +166,10 @@ def sweep_cmd(
         typer.Option(help="Run on this Dask scheduler (tcp://host:8786) instead."),
     ] = None,
 ) -> None:
-    """Redraw Fig. 4 (breakup time against concentration) and the 40-70 V trend.
+    """Breakup time against concentration (the seed's Fig. 4) and the 40-70 V trend.
 
     Finished points are kept in OUT/sweep/ as they come back; running the same sweep
-    again resumes. ``microfab run examples/droplet_sweep.toml`` runs the same sweep as a
+    again resumes. microfab run examples/droplet_sweep.toml runs the same sweep as a
     job and writes a report with the seed's numbers beside ours.
     """
     from microfab.experiments.seed003_inkjet.figures import fig_sweep

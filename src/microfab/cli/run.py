@@ -21,7 +21,7 @@ def run_cmd(
 ) -> None:
     """Run a job of any registered kind and write its report (report.html + figures + JSON).
 
-    The kind is the job file's ``[job] kind`` (``microfab kinds`` lists them). Results and
+    The kind is the job file's [job] kind (microfab kinds lists them). Results and
     learning state are saved as the run goes; running the same job again resumes.
     """
     from microfab.experiments.catalog import default_job, load_job
@@ -50,7 +50,7 @@ def run_cmd(
 
 
 def kinds_cmd() -> None:
-    """List the job kinds (``microfab run``) and reproductions (``microfab reproduce``)."""
+    """List the job kinds (for microfab run) and the reproductions (for microfab reproduce)."""
     from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS
     from microfab.report.tables import Table
 
@@ -103,7 +103,7 @@ def reproduce_cmd(
         typer.Option("--set", help="Change a setting, key=value (see `microfab kinds`)."),
     ] = None,
 ) -> None:
-    """A seed paper's published numbers beside ours, run on the twin (``--json`` to keep them)."""
+    """A seed paper's published numbers beside ours, run on the twin (--json keeps them)."""
     from microfab.experiments.catalog import reproduction
     from microfab.io.atomic import atomic_write_json
 
