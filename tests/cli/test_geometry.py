@@ -106,3 +106,19 @@ def test_trajectory_option_errors(tmp_path: Path) -> None:
         app, ["trajectory", "circle:radius=0.01", "--time-optimal", "--contour", "3"]
     )
     assert res.exit_code == 2 and "out of range" in res.output
+
+
+def test_piped_summary_lines_are_not_wrapped(tmp_path: Path) -> None:
+    res = runner.invoke(
+        app,
+        [
+            "path",
+            "show",
+            "rectangle:width=0.05,height=0.03,corner_radius=0.005",
+            "--out",
+            str(tmp_path / "p.png"),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    (row,) = [ln for ln in res.output.splitlines() if ln.startswith("#0")]
+    assert len(row) > 80 and row.rstrip().endswith("segments"), res.output

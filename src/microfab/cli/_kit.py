@@ -25,8 +25,10 @@ if TYPE_CHECKING:
 
 __all__ = ["console", "err_console", "fail", "print_table", "progress", "reporter"]
 
-console = Console()
-err_console = Console(stderr=True)
+#: Standard output; piped or redirected, lines are never wrapped (rich's default would
+#: fold them at 80 columns, splitting summaries and table cells).
+console = Console(soft_wrap=not os.isatty(1))
+err_console = Console(stderr=True, soft_wrap=not os.isatty(2))
 
 
 def fail(msg: str, code: int = 2) -> NoReturn:
