@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 
 from microfab.io.atomic import atomic_path
 
-__all__ = ["DPI", "new_figure", "render_png", "save_figure"]
+__all__ = ["DPI", "new_figure", "render_png", "render_svg", "save_figure"]
 
 DPI = 120
 
@@ -64,4 +64,22 @@ def render_png(fig: Figure, *, dpi: int = DPI) -> bytes:
     """
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def render_svg(fig: Figure) -> bytes:
+    """Render a figure to SVG bytes in memory (vector, for zooming and print).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        Figure to render.
+
+    Returns
+    -------
+    bytes
+        The SVG file content (UTF-8).
+    """
+    buf = io.BytesIO()
+    fig.savefig(buf, format="svg")
     return buf.getvalue()

@@ -48,11 +48,19 @@ class Figure:
         The rendered PNG.
     caption : str
         What it shows (and which seed figure it redraws).
+    svg : bytes, optional
+        The same figure as SVG, written beside the PNG (``<stem>.svg``) and linked.
     """
 
     name: str
     png: bytes
     caption: str
+    svg: bytes | None = None
+
+    @property
+    def svg_name(self) -> str:
+        """File name of the SVG version (``<stem>.svg``)."""
+        return Path(self.name).with_suffix(".svg").name
 
 
 def page_html(
@@ -91,9 +99,12 @@ def page_html(
         body.append("<h2>Figures</h2>")
         for fig in figures:
             cap = html.escape(fig.caption)
+            vector = (
+                f' <a href="{html.escape(fig.svg_name)}">(SVG)</a>' if fig.svg is not None else ""
+            )
             body.append(
                 f'<figure><img src="{html.escape(fig.name)}" alt="{cap}">'
-                f"<figcaption>{cap}</figcaption></figure>"
+                f"<figcaption>{cap}{vector}</figcaption></figure>"
             )
     if tables:
         body.append("<h2>Tables</h2>")
@@ -119,6 +130,8 @@ def write_page(out_dir: str | os.PathLike[str], html_text: str, figures: Sequenc
     out.mkdir(parents=True, exist_ok=True)
     for fig in figures:
         atomic_write_bytes(out / fig.name, fig.png)
+        if fig.svg is not None:
+            atomic_write_bytes(out / fig.svg_name, fig.svg)
     target = out / "report.html"
     atomic_write_text(target, html_text)
     return target

@@ -34,9 +34,11 @@ def test_fig_xy_paths_in_mm(result):
     assert isinstance(fig, Figure)
     assert len(fig.axes) == 1
     ax = fig.axes[0]
-    assert len(ax.lines) == 4  # desired, FB, ILC output, ILC input
+    assert len(ax.lines) == 4  # FB, ILC output, ILC input, desired (drawn last, on top)
     assert ax.get_aspect() == 1.0
-    desired = ax.lines[0].get_xydata()
+    desired = ax.lines[-1].get_xydata()
+    assert "desired" in ax.lines[-1].get_label()
+    assert ax.lines[-1].get_linewidth() < ax.lines[1].get_linewidth()  # thinner
     scale = np.asarray(result.scale_mm_per_v)
     np.testing.assert_allclose(desired[:-1], result.reference * scale)
     np.testing.assert_allclose(desired[-1], desired[0])  # drawn closed
@@ -63,14 +65,16 @@ def test_fig_psd_lines_floor_and_cutoff(result):
     assert len(fig.axes) == 2
     for a, ax in enumerate(fig.axes):
         assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
-        assert len(ax.lines) == 6  # FB, FB harmonics, ILC, ILC harmonics, floor, cutoff
+        assert len(ax.lines) == 4  # FB and ILC at the harmonics, floor, cutoff
+        assert ax.lines[0].get_linestyle() == "None"  # markers only, no zig-zag
+        assert ax.lines[1].get_linestyle() == "None"
         floor = 2 * result.noise_rms_v[a] ** 2 * result.dt
         ys = [line.get_ydata() for line in ax.lines]
         assert any(np.allclose(y, floor) for y in ys)
         xs = [line.get_xdata() for line in ax.lines]
         assert any(np.allclose(x, 8e3) for x in xs)
         # harmonic markers sit on multiples of the scan rate
-        fh = np.asarray(ax.lines[1].get_xdata())
+        fh = np.asarray(ax.lines[0].get_xdata())
         np.testing.assert_allclose(fh / result.features_per_s, np.round(fh / result.features_per_s))
         assert "V²/Hz" in ax.get_ylabel()
 

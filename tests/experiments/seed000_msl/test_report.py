@@ -49,7 +49,11 @@ def test_report_written_with_all_pngs(report):
         data = (path.parent / name).read_bytes()
         assert data.startswith(PNG_SIGNATURE)
         assert len(data) > 5000
+        svg = name.replace(".png", ".svg")
+        assert f'href="{svg}"' in text
+        assert (path.parent / svg).read_bytes().lstrip().startswith(b"<?xml")
     assert "http://" not in text and "https://" not in text  # no external resources
+    assert "Why the gain margins differ" in text or "margins" not in text
 
 
 def test_captions_name_seed_figures(report):

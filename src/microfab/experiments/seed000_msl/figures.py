@@ -100,11 +100,12 @@ def fig_xy(result: MSLRunResult) -> Figure:
     n = _n_trials(result)
     fig = new_figure(5.6, 5.2)
     ax = fig.add_subplot()
+    # the desired path last and thinner, so the ILC output under it cannot hide it
     curves = (
-        (result.reference, "desired $y_d$", _DESIRED),
         (result.fb_output, "FB only ($y_1$)", _FB),
         (result.ilc_output, f"ILC output ($y_{{{n}}}$)", _ILC),
         (result.ilc_input, f"ILC input ($u_{{{n}}}$)", _INPUT),
+        (result.reference, "desired $y_d$", {**_DESIRED, "linewidth": 0.7, "color": "tab:red"}),
     )
     for signal, label, style in curves:
         p = _closed(_to_mm(result, signal))
@@ -176,9 +177,9 @@ def fig_psd(
     Returns
     -------
     matplotlib.figure.Figure
-        One log-log axes per scan axis with six lines: FB spectrum and its harmonic
-        markers, ILC spectrum and its harmonic markers, the encoder white-noise floor
-        ``2·σ²·dt`` (one-sided, V²/Hz) and the cutoff.
+        One log-log axes per scan axis with four lines: FB and ILC error at the
+        harmonics (markers only), the encoder white-noise floor ``2·σ²·dt`` (one-sided,
+        V²/Hz) and the cutoff.
     """
     fb = error_psd(result.fb_error, result.dt, result.period_s)
     ilc = error_psd(result.ilc_error, result.dt, result.period_s)
@@ -190,7 +191,7 @@ def fig_psd(
     axs = fig.subplots(n_axes, 1, sharex=True, squeeze=False)[:, 0]
     for a, (ax, name) in enumerate(zip(axs, result.axes, strict=True)):
         for spec, tag, style, marker in ((fb, "FB", _FB, "D"), (ilc, "ILC", _ILC, "o")):
-            ax.loglog(spec.freq_hz[band], spec.psd[band, a], label=f"{tag} error", **style)
+            # markers only: a one-period spectrum has power at the harmonics, noise between
             ax.loglog(
                 spec.harmonic_freq_hz[harm],
                 spec.harmonic_psd[harm, a],
@@ -199,7 +200,7 @@ def fig_psd(
                 markersize=4,
                 markerfacecolor="none",
                 color=style["color"],
-                label=f"{tag} at harmonics",
+                label=f"{tag} error at the harmonics",
             )
         sigma = result.noise_rms_v[a]
         floor = 2.0 * sigma**2 * result.dt

@@ -21,9 +21,11 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from microfab.experiments.seed000_msl import figures
+from microfab.experiments.seed000_msl import figures, loop_figures
 from microfab.experiments.seed000_msl import paper as seed000
 from microfab.experiments.seed000_msl.run import MSLRunResult
+from microfab.plants.galvo import GalvoAxis, default_galvo_axes
+from microfab.report.canvas import render_svg
 from microfab.report.page import Figure, page_html, write_page
 
 __all__ = ["FIGURE_FILES", "fmt_mm_s", "fmt_mv", "write_report"]
@@ -36,6 +38,8 @@ FIGURE_FILES = (
     "learning.png",
     "velocity.png",
     "line_width.png",
+    "bode.png",
+    "eq5.png",
 )
 
 _T1_KEYS = ("fb_rms", "fb_pp", "ilc_rms", "ilc_pp")
@@ -87,9 +91,11 @@ def _th(text: str, **attrs: int) -> str:
 
 
 def _render_figures(
-    runs: Mapping[float, MSLRunResult], main: MSLRunResult
-) -> list[tuple[str, bytes]]:
-    """Draw and render every figure to PNG bytes (nothing is written here)."""
+    runs: Mapping[float, MSLRunResult],
+    main: MSLRunResult,
+    galvo_axes: Mapping[str, GalvoAxis],
+) -> list[tuple[str, bytes, bytes]]:
+    """Draw and render every figure to PNG and SVG bytes (nothing is written here)."""
     # Looked up on the module at call time so that tests can substitute a function.
     makers: list[tuple[str, Callable[[], Any]]] = [
         ("xy.png", lambda: figures.fig_xy(main)),
@@ -98,8 +104,14 @@ def _render_figures(
         ("learning.png", lambda: figures.fig_learning(runs)),
         ("velocity.png", lambda: figures.fig_velocity(main)),
         ("line_width.png", lambda: figures.fig_line_width(main)),
+        ("bode.png", lambda: loop_figures.fig_bode(galvo_axes)),
+        ("eq5.png", lambda: loop_figures.fig_eq5(main)),
     ]
-    return [(name, figures.render_png(make())) for name, make in makers]
+    out = []
+    for name, make in makers:
+        fig = make()
+        out.append((name, figures.render_png(fig), render_svg(fig)))
+    return out
 
 
 def _captions(main: MSLRunResult, runs: Mapping[float, MSLRunResult]) -> dict[str, str]:
@@ -132,6 +144,16 @@ def _captions(main: MSLRunResult, runs: Mapping[float, MSLRunResult]) -> dict[st
             f"Analogue of seed 000 Fig. 8: predicted cured line width along one period at "
             f"{rate} from the beam speed (Jacobs working curve; assumed spot radius and "
             "resin parameters, see microfab.process.exposure)."
+        ),
+        "bode.png": (
+            "Open loop L = C G of each axis (seed 000 eq. 1 lead-lag, calibrated twin plant) "
+            "with the gain and phase margins; seed 000 §3.1 reports the margins of the real "
+            "scanners (compare the margins table)."
+        ),
+        "eq5.png": (
+            f"Seed 000 eq. 5 at {rate}: |1 - ρ P P̂⁻¹| at every learned harmonic, the true "
+            "loop of the twin against the inverse learned from trial 1; at most 1 means "
+            "every learned harmonic's error shrinks from trial to trial."
         ),
     }
 
@@ -276,6 +298,12 @@ def _margins_compare(margins: Mapping[str, Any]) -> str:
         "<table><caption>Feedback-loop margins beside seed 000 §3.1</caption>"
         + _compare_head(("Axis",), ("Gain margin (dB)", "Phase margin (deg)"))
         + f"<tbody>{''.join(rows)}</tbody></table>"
+        + '<p class="muted">Why the gain margins differ: the seed measured its margins on '
+        "the real scanners, whose mirror resonances its model does not give; the twin "
+        "carries the seed's resonance frequencies with an assumed damping of 0.05 "
+        "(microfab/data/galvo_twin.toml), so its gain margin is set by those assumed peaks. "
+        "The twin's phase margins come out a few degrees below the seed's (see the Bode "
+        "plot).</p>"
     )
 
 
@@ -305,6 +333,7 @@ def write_report(
     tables: dict[str, Any] | None = None,
     title: str = "microfab report",
     notes: Sequence[str] = (),
+    galvo_axes: Mapping[str, GalvoAxis] | None = None,
 ) -> Path:
     """Write the figures and an HTML report of seed 000 runs.
 
@@ -329,6 +358,8 @@ def write_report(
         Page title and heading.
     notes : sequence of str, optional
         Shown as a bulleted list.
+    galvo_axes : mapping of str to GalvoAxis, optional
+        The axis models the runs used, for the Bode plot (default: the calibrated twin's).
 
     Returns
     -------
@@ -348,9 +379,11 @@ def write_report(
     main = next((r for k, r in runs.items() if float(k) == float(main_rate)), None)
     if main is None:
         raise ValueError(f"main_rate {main_rate} is not among the runs' rates {sorted(runs)}")
-    pngs = _render_figures(runs, main)  # all drawing before any writing
+    rendered = _render_figures(runs, main, galvo_axes or default_galvo_axes())  # draw first
     captions = _captions(main, runs)
-    figs = [Figure(name=name, png=data, caption=captions[name]) for name, data in pngs]
+    figs = [
+        Figure(name=name, png=png, svg=svg, caption=captions[name]) for name, png, svg in rendered
+    ]
     rates = ", ".join(_rate_str(r) for r in sorted(runs))
     n_trials = ", ".join(f"{_rate_str(r)}: {runs[r].rms_history.shape[0]}" for r in sorted(runs))
     intro = (

@@ -60,6 +60,10 @@ class MSLRunResult:
         Encoder noise per axis, V.
     harmonics : list of numpy.ndarray
         Learned harmonic numbers per axis.
+    eq5 : list of numpy.ndarray
+        Per axis, ``|1 - rho P P^-1|`` at each learned harmonic (the true loop of the
+        twin against the learned inverse; seed 000 eq. 5 asks for <= 1), in the order of
+        ``harmonics``.
     """
 
     features_per_s: float
@@ -74,6 +78,7 @@ class MSLRunResult:
     scale_mm_per_v: tuple[float, ...]
     noise_rms_v: tuple[float, ...]
     harmonics: list[np.ndarray] = field(default_factory=list)
+    eq5: list[np.ndarray] = field(default_factory=list)
 
     @property
     def fb_error(self) -> np.ndarray:
@@ -203,7 +208,18 @@ def run_msl_ilc(
         scale_mm_per_v=tuple(axes[a].scale_mm_per_v for a in names),
         noise_rms_v=tuple(axes[a].noise_rms_v for a in names),
         harmonics=ilc.harmonics,
+        eq5=_eq5(ilc, true_frf),
     )
+
+
+def _eq5(ilc: FrequencyILC, true_frf: Callable[[np.ndarray], np.ndarray]) -> list[np.ndarray]:
+    """``|1 - rho P P^-1|`` at each learned harmonic, per axis (seed 000 eq. 5)."""
+    f = ilc.harmonic_freq_hz
+    p = np.asarray(true_frf(f), dtype=complex).reshape(f.size, -1)
+    st = ilc.state
+    return [
+        np.abs(1.0 - st.gain[h, a] * p[h, a] * st.pinv[h, a]) for a, h in enumerate(ilc.harmonics)
+    ]
 
 
 def reproduce_tables(
