@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import math
 
 import numpy as np
@@ -84,3 +86,18 @@ def test_bad_setup_is_refused() -> None:
         simulate_droplet(naalg(0.15), breakup_radius_m=1e-3)
     with pytest.raises(ValueError, match="outside the table"):
         naalg(-0.1)
+
+
+def test_a_drop_pinched_at_the_exit_stays_in_the_silhouettes() -> None:
+    """After an exit pinch the nozzle's meniscus is dormant, but the drop flies on: every
+    silhouette after the breakup shows it, farther from the nozzle each time."""
+    from microfab.process.inkjet.droplet import simulate_droplet
+    from microfab.process.inkjet.fluids import naalg
+    from microfab.trajectory.waveform import seed003_waveform
+
+    res = simulate_droplet(naalg(0.15), seed003_waveform(50.0), duration_s=200e-6)
+    assert res.breakup_mode == "exit"
+    after = [s for s in res.silhouettes if s.time_s > res.breakup_time_s]
+    assert len(after) >= 3
+    reach = [max(float(b[0][-1]) for b in s.bodies) for s in after]  # all non-empty
+    assert all(b > a for a, b in itertools.pairwise(reach))

@@ -803,7 +803,7 @@ def run_jet(
             events.append(ev)
             if on_pinch == "stop":
                 stop_reason = "pinch-off"
-                _take_snapshots(snaps_t, t, st, snapshots, dormant)
+                _take_snapshots(snaps_t, t, st, snapshots)
                 break
             st, remnant, lost = _split(st, k, nu.cut_radius_factor * nu.h_break)
             removed += lost
@@ -826,7 +826,7 @@ def run_jet(
         if inflow is not None:
             u_ref = inflow.displacement(t)
         w0_ref = float(st.w[0]) if st.w.size else 0.0
-        _take_snapshots(snaps_t, t, st, snapshots, dormant)
+        _take_snapshots(snaps_t, t, st, snapshots)
         if progress is not None:
             progress(t)
         if st.y.shape[0] == 0 and inflow is None:
@@ -859,10 +859,11 @@ def _take_snapshots(
     t: float,
     st: _State,
     out: list[tuple[float, tuple[Body, ...]]],
-    dormant: bool,
 ) -> None:
+    # every body, the free ones too while the nozzle's meniscus is dormant (a drop that
+    # pinched off at the exit keeps flying and must stay in the pictures)
     while snaps_t and snaps_t[0] <= t + 1e-12 * max(1.0, abs(t)):
-        out.append((snaps_t.pop(0), () if dormant else st.bodies()))
+        out.append((snaps_t.pop(0), st.bodies()))
 
 
 def _pinch_event(
