@@ -189,8 +189,9 @@ def _notes(config: MSLConfig) -> list[str]:
         "(microfab/data/galvo_twin.toml, `microfab calibrate galvo`).",
         "Trial 1 is feedback only (u_1 = y_d); ILC learns odd harmonics up to "
         f"{config.ilc.cutoff_hz:g} Hz with gain {config.ilc.gain:g}.",
-        "Line width: quasi-steady working-curve model with assumed resin (D_p 100 um, "
-        "E_c 10 mJ/cm^2) and beam waist 5 um; the seed gives neither.",
+        "Line width: quasi-steady working-curve model with the seed's 30 mW laser "
+        "(seed 000 §4.3) and an assumed resin (D_p 100 um, E_c 10 mJ/cm^2) and spot "
+        "radius 5 um; the seed gives neither (microfab/process/exposure.py).",
         "Learning state is saved after every iteration under state/; re-running resumes.",
     ]
 
