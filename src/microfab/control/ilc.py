@@ -293,7 +293,12 @@ class FrequencyILC:
         if self.true_frf is None:
             return
         f = self.harmonic_freq_hz
-        P = np.asarray(self.true_frf(f), dtype=complex).reshape(f.size, -1)
+        # the true response is needed on the learned harmonics only
+        rows = np.flatnonzero(self.state.mask.any(axis=1))
+        if rows.size == 0:
+            return
+        P = np.zeros((f.size, len(self.state.axes)), dtype=complex)
+        P[rows] = np.asarray(self.true_frf(f[rows]), dtype=complex).reshape(rows.size, -1)
         rho = self.config.gain
         for a, name in enumerate(self.state.axes):
             m = self.state.mask[:, a]

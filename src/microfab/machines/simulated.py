@@ -282,7 +282,10 @@ class SimulatedMachine:
         self._check_filtered(refs, None)
         n = cmd.shape[0]
         for _ in range(self.settle_periods):
-            self._advance(refs, self._noise(n), periodic=True, with_command=False)
+            if self.lifted is not None:  # no output needed: the state alone, to the bit
+                self.lifted.advance(np.column_stack([pos for pos, _ in refs]), self._noise(n))
+            else:
+                self._advance(refs, self._noise(n), periodic=True, with_command=False)
         _, ym, u = self._advance(refs, self._noise(n), periodic=True, with_command=with_actuator)
         self.samples_simulated += n * (self.settle_periods + 1)
         return Measurement(
