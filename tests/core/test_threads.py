@@ -23,3 +23,15 @@ def test_single_threaded_limits_blas_inside_and_restores_after() -> None:
     assert all(n == 1 for n in inside)
     assert _blas_threads() == before
     assert work.__doc__ == "Docstring kept."
+
+
+def test_one_blas_thread_limits_inside_nests_and_restores_after() -> None:
+    from microfab.core.threads import one_blas_thread
+
+    before = _blas_threads()
+    with one_blas_thread():
+        assert all(n == 1 for n in _blas_threads())
+        with one_blas_thread():
+            assert all(n == 1 for n in _blas_threads())
+        assert all(n == 1 for n in _blas_threads())
+    assert _blas_threads() == before

@@ -408,7 +408,13 @@ class FrequencyILC:
         """
         f = self.harmonic_freq_hz
         if self.true_frf is not None:
-            P = np.asarray(self.true_frf(f), dtype=complex).reshape(f.size, -1)
+            # the true response is needed on the learned harmonics only
+            rows = np.flatnonzero(self.state.mask.any(axis=1))
+            P = np.full((f.size, len(self.state.axes)), np.nan, dtype=complex)
+            if rows.size:
+                P[rows] = np.asarray(self.true_frf(f[rows]), dtype=complex).reshape(
+                    rows.size, -1
+                )
             self._eq5(P, "the true machine", "")
         elif self.state.model_frf is not None or self.config.law == "p-type":
             with np.errstate(divide="ignore", invalid="ignore"):

@@ -8,6 +8,7 @@ transfer functions (`open_loop`, `complementary_sensitivity`) and as a `Simulate
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 
 import numpy as np
@@ -91,13 +92,21 @@ def controller_tf(axis: GalvoAxis) -> control.TransferFunction:
     return lead_lag(axis.model(gain_ratio=1.0), axis.crossover_hz)
 
 
+@functools.lru_cache(maxsize=64)
 def discrete_controller(axis: GalvoAxis) -> DiscreteLTI:
-    """Tustin-discretised lead-lag controller at the axis' ``fs_hz`` (seed 000 §3.1: 1 MHz)."""
+    """Tustin-discretised lead-lag controller at the axis' ``fs_hz`` (seed 000 §3.1: 1 MHz).
+
+    Designed and discretised once per distinct axis and shared (the model is immutable).
+    """
     return discretize(controller_tf(axis), axis.dt, "tustin")
 
 
+@functools.lru_cache(maxsize=64)
 def open_loop(axis: GalvoAxis) -> DiscreteLTI:
-    """Discrete open loop ``L = C G`` (controller then plant), for margins (seed 000 §3.1)."""
+    """Discrete open loop ``L = C G`` (controller then plant), for margins (seed 000 §3.1).
+
+    Built once per distinct axis and shared (the model is immutable).
+    """
     c = discrete_controller(axis)
     p = axis.discrete_plant()
     ser = control.series(control.ss(c.A, c.B, c.C, c.D, c.dt), control.ss(p.A, p.B, p.C, p.D, p.dt))

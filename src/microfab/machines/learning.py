@@ -41,7 +41,7 @@ def trial_digest(trial: Trial) -> str:
     """SHA-256 of a trial's reference, input and output (to refuse the same trial twice)."""
     h = hashlib.sha256()
     for arr in (trial.reference, trial.input, trial.output):
-        h.update(np.ascontiguousarray(arr, dtype=float).tobytes())
+        h.update(np.ascontiguousarray(arr, dtype=float).data)  # the bytes, without a copy
     return h.hexdigest()
 
 
@@ -206,35 +206,44 @@ def learn(
         record.limits = dict(limits)
     if record.machine is not None and isinstance(machine, Resumable):
         machine.restore(record.machine)  # where the machine stood after the last trial
-    while learner.iteration < iterations:
-        u = learner.current_input()
-        meas = machine.run(u)
-        if measured is not None:
-            measured(learner.iteration + 1, meas)
-        trial = Trial(
-            dt=meas.dt,
-            reference=learner.reference if meas.reference is None else meas.reference,
-            input=meas.command,
-            output=meas.output,
-            axes=meas.axes,
-        )
-        digest = _check_trial(learner, trial, record)
-        u_next = learner.update(trial)
-        if record.limits is not None:
-            check_command(u_next, trial.dt, record.limits, trial.axes, periodic=True)
-        if publish is not None:
-            publish(u_next)
-        record.digests.append(digest)
-        if record.first_output is None:
-            record.first_output = np.array(trial.output, dtype=float)
-        record.last_output = np.array(trial.output, dtype=float)
-        record.last_input = np.array(trial.input, dtype=float)
-        if isinstance(machine, Resumable):
-            record.machine = machine.snapshot()
-        if state_dir is not None:
-            learner.save(state_dir, {RECORD_KEY: record.to_json()})
-        else:
+    # Without a state directory the record reaches the learner's meta once, when the loop
+    # ends (also by an exception): its JSON form holds every signal as lists, too costly to
+    # rebuild after each trial of a fast twin.
+    learned = False
+    try:
+        while learner.iteration < iterations:
+            u = learner.current_input()
+            meas = machine.run(u)
+            if measured is not None:
+                measured(learner.iteration + 1, meas)
+            trial = Trial(
+                dt=meas.dt,
+                reference=learner.reference if meas.reference is None else meas.reference,
+                input=meas.command,
+                output=meas.output,
+                axes=meas.axes,
+            )
+            digest = _check_trial(learner, trial, record)
+            u_next = learner.update(trial)
+            if record.limits is not None:
+                check_command(u_next, trial.dt, record.limits, trial.axes, periodic=True)
+            if publish is not None:
+                publish(u_next)
+            record.digests.append(digest)
+            if record.first_output is None:
+                record.first_output = np.array(trial.output, dtype=float)
+            record.last_output = np.array(trial.output, dtype=float)
+            record.last_input = np.array(trial.input, dtype=float)
+            learned = True
+            if state_dir is not None:
+                if isinstance(machine, Resumable):
+                    record.machine = machine.snapshot()
+                learner.save(state_dir, {RECORD_KEY: record.to_json()})
+            if progress is not None:
+                progress(learner.iteration, iterations)
+    finally:
+        if learned and state_dir is None:
+            if isinstance(machine, Resumable):
+                record.machine = machine.snapshot()
             learner.meta[RECORD_KEY] = record.to_json()
-        if progress is not None:
-            progress(learner.iteration, iterations)
     return record

@@ -186,6 +186,11 @@ class SimulatedMachine:
                 )
         self.plants = plants
         self.loops = tuple(as_loop(c) for c in ctrls)
+        # what the per-sample simulators run: the feedforward is applied before them
+        self._bare = tuple(
+            lp if lp.feedforward is None else Loop(controller=lp.controller, observer=lp.observer)
+            for lp in self.loops
+        )
         self.dt = float(plants[0].dt)
         if any(abs(p.dt - self.dt) > 1e-12 * self.dt for p in plants):
             raise ValueError(
@@ -331,7 +336,10 @@ class SimulatedMachine:
         self._check_filtered(refs, None)
         n = cmd.shape[0]
         for _ in range(self.settle_periods):
-            self._advance(refs, self._noise(n), periodic=True, with_command=False)
+            if self.lifted is not None:  # no output needed: the state alone, to the bit
+                self.lifted.advance(np.column_stack([pos for pos, _ in refs]), self._noise(n))
+            else:
+                self._advance(refs, self._noise(n), periodic=True, with_command=False)
         _, ym, u = self._advance(refs, self._noise(n), periodic=True, with_command=with_actuator)
         self.samples_simulated += n * (self.settle_periods + 1)
         return Measurement(
@@ -478,11 +486,10 @@ class SimulatedMachine:
             return res.output, res.measured, res.command
         sim = simulate if self.path is SimPath.COMPILED else simulate_python
         ys, yms, us = [], [], []
-        for i, (plant, lp, cols) in enumerate(
-            zip(self.plants, self.loops, self._cols, strict=True)
+        for i, (plant, ctrl, cols) in enumerate(
+            zip(self.plants, self._bare, self._cols, strict=True)
         ):
             pos, d = refs[i]
-            ctrl = Loop(controller=lp.controller, observer=lp.observer)  # feedforward done
             res = sim(
                 plant, ctrl, pos, noise[:, cols], self._states[i], derivatives=d, periodic=periodic
             )

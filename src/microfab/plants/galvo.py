@@ -16,6 +16,7 @@ calibrated against seed Table 1 by `microfab.experiments.seed000_msl.calibration
 
 from __future__ import annotations
 
+import functools
 import tomllib
 from dataclasses import dataclass, replace
 from importlib import resources
@@ -122,12 +123,21 @@ class GalvoAxis:
         return sys
 
     def discrete_plant(self) -> DiscreteLTI:
-        """ZOH plant at ``fs_hz`` with the computation delay appended."""
-        return with_input_delay(discretize(self.model(), self.dt, "zoh"), self.delay_samples)
+        """ZOH plant at ``fs_hz`` with the computation delay appended.
+
+        Discretised once per distinct axis and shared (the model is immutable).
+        """
+        return _zoh_plant(self)
 
     def with_calibration(self, **values: float) -> GalvoAxis:
         """A copy with calibrated parameters replaced."""
         return replace(self, **values)
+
+
+@functools.lru_cache(maxsize=64)
+def _zoh_plant(axis: GalvoAxis) -> DiscreteLTI:
+    """`GalvoAxis.discrete_plant`, kept per axis: a twin, its FRF and margins share one."""
+    return with_input_delay(discretize(axis.model(), axis.dt, "zoh"), axis.delay_samples)
 
 
 def _seed_axes() -> dict[str, GalvoAxis]:

@@ -19,6 +19,8 @@ from microfab.core.validate import check_positive
 
 __all__ = ["DiscreteLTI", "block_diag", "discretize", "freqresp_ss", "with_input_delay"]
 
+_FREQ_CHUNK = 1024  # evaluation points per stacked solve in `freqresp_ss`
+
 
 def freqresp_ss(
     A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, z: np.ndarray
@@ -53,11 +55,20 @@ def freqresp_ss(
         return out
     out = np.empty((z.size, C.shape[0], B.shape[1]), dtype=complex)
     eye = np.eye(nx)
-    for i, zi in enumerate(z):
+    Bc = B.astype(complex)
+    # stacked solves (one LAPACK call per point, as a loop would make), a chunk at a time
+    for lo in range(0, z.size, _FREQ_CHUNK):
+        zc = z[lo : lo + _FREQ_CHUNK]
         try:
-            out[i] = C @ np.linalg.solve(zi * eye - A, B) + D
-        except np.linalg.LinAlgError:
-            out[i] = np.inf
+            X = np.linalg.solve(zc[:, None, None] * eye - A, Bc)
+        except np.linalg.LinAlgError:  # a point on a pole: solve point by point
+            for i, zi in enumerate(zc, start=lo):
+                try:
+                    out[i] = C @ np.linalg.solve(zi * eye - A, B) + D
+                except np.linalg.LinAlgError:
+                    out[i] = np.inf
+            continue
+        out[lo : lo + zc.size] = C @ X + D
     return out
 
 

@@ -21,10 +21,14 @@ The LTI kernels live beside their components (`microfab.plants.base.lti_output`,
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 from numba import njit
 
-__all__ = ["passthrough_step", "run_loop"]
+__all__ = ["compiled_loop", "passthrough_step", "run_loop"]
 
 
 @njit(cache=True)
@@ -36,16 +40,79 @@ def passthrough_step(
         est[i] = ym[i]
 
 
-@njit
+@functools.cache
+def compiled_loop(
+    plant_output: Any, plant_update: Any, ctrl_step: Any, obs_step: Any
+) -> Callable[..., None]:
+    """The closed loop compiled for one combination of kernels (kept per combination).
+
+    The kernels are bound into the compiled loop as constants rather than passed as
+    arguments: each call then skips numba's typing of four function objects (some 80 µs,
+    a third of a 2500-sample period), and the kernels' code is compiled into the loop's.
+
+    Parameters
+    ----------
+    plant_output, plant_update : numba dispatcher
+        The plant's kernels (`microfab.plants.base.CompiledPlant`).
+    ctrl_step : numba dispatcher
+        The controller's kernel (`microfab.control.base.CompiledController`).
+    obs_step : numba dispatcher
+        The observer's kernel, or `passthrough_step`.
+
+    Returns
+    -------
+    callable
+        ``loop(pp, px, cp, cx, op, ox, ref, noise, u_prev, est, y, ym, u)``, working in
+        place as described in `run_loop`.
+    """
+
+    @njit
+    def loop(
+        pp: np.ndarray,
+        px: np.ndarray,
+        cp: np.ndarray,
+        cx: np.ndarray,
+        op: np.ndarray,
+        ox: np.ndarray,
+        ref: np.ndarray,
+        noise: np.ndarray,
+        u_prev: np.ndarray,
+        est: np.ndarray,
+        y: np.ndarray,
+        ym: np.ndarray,
+        u: np.ndarray,
+    ) -> None:
+        n = noise.shape[0]
+        ny = y.shape[1]
+        nu = u.shape[1]
+        yk = np.empty(ny)
+        ymk = np.empty(ny)
+        uk = np.empty(nu)
+        for k in range(n):
+            plant_output(pp, px, yk)
+            for i in range(ny):
+                ymk[i] = yk[i] + noise[k, i]
+                y[k, i] = yk[i]
+                ym[k, i] = ymk[i]
+            obs_step(op, ox, u_prev, ymk, est)
+            ctrl_step(cp, cx, ref, k, est, uk)
+            for i in range(nu):
+                u[k, i] = uk[i]
+                u_prev[i] = uk[i]
+            plant_update(pp, px, uk)
+
+    return loop
+
+
 def run_loop(
-    plant_output,
-    plant_update,
+    plant_output: Any,
+    plant_update: Any,
     pp: np.ndarray,
     px: np.ndarray,
-    ctrl_step,
+    ctrl_step: Any,
     cp: np.ndarray,
     cx: np.ndarray,
-    obs_step,
+    obs_step: Any,
     op: np.ndarray,
     ox: np.ndarray,
     ref: np.ndarray,
@@ -64,22 +131,9 @@ def run_loop(
     estimate; the plant advances one step with that command. States (``px, cx, ox``) and
     ``u_prev`` are left at their values after the last sample; the signals are written
     into ``y, ym`` (n_samples, n_outputs) and ``u`` (n_samples, n_inputs).
+
+    The loop itself is `compiled_loop` of the four kernels.
     """
-    n = noise.shape[0]
-    ny = y.shape[1]
-    nu = u.shape[1]
-    yk = np.empty(ny)
-    ymk = np.empty(ny)
-    uk = np.empty(nu)
-    for k in range(n):
-        plant_output(pp, px, yk)
-        for i in range(ny):
-            ymk[i] = yk[i] + noise[k, i]
-            y[k, i] = yk[i]
-            ym[k, i] = ymk[i]
-        obs_step(op, ox, u_prev, ymk, est)
-        ctrl_step(cp, cx, ref, k, est, uk)
-        for i in range(nu):
-            u[k, i] = uk[i]
-            u_prev[i] = uk[i]
-        plant_update(pp, px, uk)
+    compiled_loop(plant_output, plant_update, ctrl_step, obs_step)(
+        pp, px, cp, cx, op, ox, ref, noise, u_prev, est, y, ym, u
+    )

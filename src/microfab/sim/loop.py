@@ -1,6 +1,6 @@
 """Per-sample closed-loop simulation of any plant and control `Loop` written as state machines.
 
-`simulate` runs the compiled numba loop (`microfab.sim.kernels.run_loop`) when every part
+`simulate` runs the compiled numba loop (`microfab.sim.kernels.compiled_loop`) when every part
 derives from `microfab.core.compiled.Compiled` (`is_compiled`), and the plain Python loop
 `simulate_python` otherwise; both give the same numbers. The order of operations within a
 sample is that of `microfab.control.base.Loop`. Successive calls continue from the
@@ -31,7 +31,7 @@ from microfab.control.base import (
 )
 from microfab.core.validate import check_int
 from microfab.plants.base import CompiledPlant, Plant
-from microfab.sim.kernels import passthrough_step, run_loop
+from microfab.sim.kernels import compiled_loop, passthrough_step
 from microfab.sim.result import SimResult
 from microfab.trajectory.base import Trajectory
 
@@ -321,15 +321,11 @@ def simulate(
     y = np.empty((n, plant.n_outputs))
     ym = np.empty_like(y)
     u = np.empty((n, plant.n_inputs))
-    run_loop(
-        out_k,
-        upd_k,
+    compiled_loop(out_k, upd_k, step_k, obs_step)(
         plant.packed_params(),  # type: ignore[attr-defined]
         st.plant,
-        step_k,
         ctrl.packed_params(),  # type: ignore[attr-defined]
         st.controller,
-        obs_step,
         op,
         st.observer,
         R,

@@ -74,16 +74,25 @@ two stops gets at least 4 intervals).
   against it beyond this margin.
 
 The LP solver is swappable: any object with ``solve(c, A_ub, b_ub, bounds) -> x``
-(:class:`HighsLP`, SciPy's HiGHS, by default).
+(:class:`HighsLP`, SciPy's HiGHS, by default). A solver whose ``solve`` also takes a
+keyword ``x0`` receives a starting point for the velocity/acceleration LP: its greatest
+element, found directly by a backward and a forward pass over the grid (each
+acceleration row bounds one node by an increasing function of its neighbour, the way
+TOPP-RA computes its controllable sets). :class:`HighsLP` keeps that LP's HiGHS model
+between the verification rounds, which change only some bounds, and hot-starts from the
+last basis (:class:`~microfab.trajectory.highs.HighsSession`); the answer is HiGHS's
+optimal vertex either way.
 """
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
+from numba import njit
 from scipy import sparse
 from scipy.optimize import brentq, linprog, minimize_scalar
 
@@ -91,6 +100,7 @@ from microfab.core.arrays import readonly
 from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.core.validate import check_in_range, check_int, check_nonnegative, check_positive
 from microfab.trajectory.base import Trajectory
+from microfab.trajectory.highs import HighsSession
 from microfab.trajectory.spline import TimeSpline
 
 if TYPE_CHECKING:
@@ -141,7 +151,11 @@ class PathLike(Protocol):
 
 
 class LPSolver(Protocol):
-    """A linear-program solver: minimise ``c @ x`` s.t. ``A_ub @ x <= b_ub``, bounds."""
+    """A linear-program solver: minimise ``c @ x`` s.t. ``A_ub @ x <= b_ub``, bounds.
+
+    A solver whose ``solve`` also accepts a keyword ``x0`` is given a starting point for
+    the velocity/acceleration LP (see the module notes); others are called as below.
+    """
 
     def solve(
         self,
@@ -165,10 +179,12 @@ class HighsLP:
     """
 
     time_limit: float | None = None
+    _session: HighsSession = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.time_limit is not None and not self.time_limit > 0:
             raise ValueError(f"time_limit must be positive, got {self.time_limit} s")
+        object.__setattr__(self, "_session", HighsSession(self.time_limit))
 
     def solve(
         self,
@@ -176,8 +192,21 @@ class HighsLP:
         A_ub: sparse.csr_matrix,
         b_ub: np.ndarray,
         bounds: np.ndarray,
+        x0: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Minimise ``c @ x`` subject to ``A_ub @ x <= b_ub`` and ``bounds`` (n, 2)."""
+        """Minimise ``c @ x`` subject to ``A_ub @ x <= b_ub`` and ``bounds`` (n, 2).
+
+        With a starting point ``x0``, or the same ``A_ub`` object as the previous call
+        that had one, the LP goes to a kept HiGHS model (warm start, see
+        :class:`~microfab.trajectory.highs.HighsSession`); otherwise to
+        :func:`scipy.optimize.linprog`. Not thread-safe: one instance per thread.
+        """
+        session = self._session
+        if session.available and (x0 is not None or session.holds(A_ub)):
+            x, status = session.solve(c, A_ub, b_ub, bounds, x0)
+            if x is None:
+                raise PlanningError(f"HiGHS LP failed: {status}")
+            return x
         options: dict[str, object] = {}
         if self.time_limit is not None:
             options["time_limit"] = float(self.time_limit)
@@ -480,6 +509,107 @@ def _start_time(ds: float, v1: float, sigma: float) -> tuple[float, float]:
     return t, min(a / sigma, t)
 
 
+def _takes_keyword(fn: object, name: str) -> bool:
+    """Whether the callable ``fn`` accepts the keyword argument ``name``."""
+    try:
+        params = inspect.signature(fn).parameters  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+    return name in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
+
+
+@njit(cache=True)
+def _max_first(lines: np.ndarray, m: int) -> float:
+    """Largest ``x`` over the polygon ``a x + b y <= c`` (rows ``[a, b, c]`` of ``lines``).
+
+    A two-variable LP solved by enumerating the vertices (the polygon holds ``(0, 0)``).
+    """
+    best = 0.0
+    for i in range(m):
+        for j in range(i + 1, m):
+            a1, b1, c1 = lines[i, 0], lines[i, 1], lines[i, 2]
+            a2, b2, c2 = lines[j, 0], lines[j, 1], lines[j, 2]
+            det = a1 * b2 - a2 * b1
+            scale = abs(a1 * b2) + abs(a2 * b1)
+            if not abs(det) > 1e-12 * scale:
+                continue
+            x = (c1 * b2 - c2 * b1) / det
+            y = (a1 * c2 - a2 * c1) / det
+            if x <= best:
+                continue
+            ok = True
+            for r in range(m):
+                a, b, c = lines[r, 0], lines[r, 1], lines[r, 2]
+                if a * x + b * y > c + 1e-12 * (abs(a * x) + abs(b * y) + abs(c)):
+                    ok = False
+                    break
+            if ok:
+                best = x
+    return best
+
+
+@njit(cache=True)
+def _va_vertex(
+    cap: np.ndarray, alpha: np.ndarray, beta: np.ndarray, bound: np.ndarray, per: int
+) -> np.ndarray:
+    """The passes of `_greatest_va` for ``0 <= x <= cap`` and the acceleration rows.
+
+    Row ``r`` reads ``|alpha_r x_k + beta_r x_{k+1}| <= bound_r``; rows ``per * k`` to
+    ``per * (k + 1) - 1`` belong to interval ``k``.
+    """
+    n = cap.size
+    reach = np.empty(n)  # the largest x_k that the nodes after k can follow
+    reach[n - 1] = cap[n - 1]
+    lines = np.empty((2 * per + 4, 3))
+    for k in range(n - 2, -1, -1):
+        m = 0
+        for r in range(per * k, per * (k + 1)):
+            for sgn in (1.0, -1.0):
+                lines[m, 0], lines[m, 1], lines[m, 2] = sgn * alpha[r], sgn * beta[r], bound[r]
+                m += 1
+        # x_k <= cap_k, x_{k+1} <= reach_{k+1}, both >= 0
+        lines[m, 0], lines[m, 1], lines[m, 2] = 1.0, 0.0, cap[k]
+        lines[m + 1, 0], lines[m + 1, 1], lines[m + 1, 2] = 0.0, 1.0, reach[k + 1]
+        lines[m + 2, 0], lines[m + 2, 1], lines[m + 2, 2] = -1.0, 0.0, 0.0
+        lines[m + 3, 0], lines[m + 3, 1], lines[m + 3, 2] = 0.0, -1.0, 0.0
+        reach[k] = _max_first(lines, m + 4)
+    x = np.empty(n)
+    x[0] = reach[0]
+    for k in range(n - 1):
+        nxt = reach[k + 1]
+        for r in range(per * k, per * (k + 1)):
+            for sgn in (1.0, -1.0):
+                a, b = sgn * alpha[r], sgn * beta[r]
+                if b > 0.0:
+                    nxt = min(nxt, (bound[r] - a * x[k]) / b)
+        x[k + 1] = max(nxt, 0.0)
+    return x
+
+
+def _greatest_va(
+    cap: np.ndarray, alpha: np.ndarray, beta: np.ndarray, bound: np.ndarray, per: int
+) -> np.ndarray:
+    """A starting vertex for the v/a LP: its optimum wherever a greatest element exists.
+
+    A backward pass finds, interval by interval, the largest ``x_k`` that the rest of
+    the path can follow (a two-variable LP per interval, by its vertices); a forward pass
+    then takes at each node the largest value allowed after ``x_{k-1}``. Where every
+    acceleration row has coefficients of opposite signs, each bounds one node by an
+    increasing function of the other, the feasible set has a greatest element and this
+    is it: it maximises every positively weighted sum, so it is the LP's optimum and the
+    solver only certifies it (this is how TOPP-RA computes its controllable sets). Near
+    an axis' turning point on a curve a row may bound both nodes; the vertex is then a
+    good guess from which the solver iterates.
+    """
+    return _va_vertex(
+        np.ascontiguousarray(cap, dtype=float),
+        np.ascontiguousarray(alpha, dtype=float),
+        np.ascontiguousarray(beta, dtype=float),
+        np.ascontiguousarray(bound, dtype=float),
+        int(per),
+    )
+
+
 # --------------------------------------------------------------------------- planner
 class _Problem:
     """The discretised problem: constraint operators, bounds and the two solvers."""
@@ -490,6 +620,24 @@ class _Problem:
         self.g, self.limits, self.feed, self.margin, self.solver = g, limits, feed, margin, solver
         self.lp_count = 0
         self.acc_op = _acc_operator(g)
+        # the v/a LP's rows, built once: acc_op / limit, both signs, <= the multiplier
+        base = self.acc_bound(np.ones(g.h.size))
+        scaled = sparse.csr_matrix(self.acc_op.multiply(1.0 / base[:, None]))
+        self.va_rows = sparse.vstack([scaled, -scaled]).tocsr()
+        self.va_rows.data.setflags(write=False)
+        self.va_weights = np.zeros(g.s.size)  # positive weights: node's share of the length
+        self.va_weights[:-1] += 0.5 * g.h
+        self.va_weights[1:] += 0.5 * g.h
+        # a solver taking a starting point gets the greatest element (see _greatest_va)
+        self.va_crash = _takes_keyword(solver.solve, "x0")
+        if self.va_crash:
+            coo = scaled.tocoo()
+            lo = coo.col == coo.row // (2 * g.q.shape[1])  # coefficient of x_k (interval k)
+            n_rows = scaled.shape[0]
+            self.va_alpha = np.zeros(n_rows)
+            self.va_beta = np.zeros(n_rows)
+            np.add.at(self.va_alpha, coo.row[lo], coo.data[lo])
+            np.add.at(self.va_beta, coo.row[~lo], coo.data[~lo])
         jerk = np.asarray(limits.jerk, dtype=float)
         self.has_jerk = bool(np.any(np.isfinite(jerk)))
         stop = g.stop
@@ -577,14 +725,15 @@ class _Problem:
     ) -> np.ndarray:
         """The velocity/acceleration optimum: one LP, the greatest feasible ``x``."""
         cap = self.caps(vmul, jmul)
-        bound = self.acc_bound(amul)
-        A = sparse.vstack([self.acc_op / bound[:, None], -self.acc_op / bound[:, None]])
-        b = np.ones(A.shape[0])
-        w = np.zeros(self.g.s.size)  # positive weights: node's share of the length
-        w[:-1] += 0.5 * self.g.h
-        w[1:] += 0.5 * self.g.h
+        mul = np.repeat(amul, 2 * self.g.q.shape[1])  # per row of acc_op
+        b = np.concatenate([mul, mul])
+        w = self.va_weights
         bounds = np.column_stack([np.zeros_like(cap), cap])
-        x = self.solver.solve(-w / w.max(), sparse.csr_matrix(A), b, bounds)
+        if self.va_crash:
+            x0 = _greatest_va(cap, self.va_alpha, self.va_beta, mul, 2 * self.g.q.shape[1])
+            x = self.solver.solve(-w / w.max(), self.va_rows, b, bounds, x0=x0)
+        else:
+            x = self.solver.solve(-w / w.max(), self.va_rows, b, bounds)
         self.lp_count += 1
         return np.clip(x, 0.0, cap)
 
