@@ -38,7 +38,9 @@ two stops gets at least 4 intervals).
   a positively weighted sum of ``x`` (each node's share of the length) solves the
   problem: the feasible set is closed under the element-wise maximum, hence has a
   greatest element, wherever each acceleration row has one positive coefficient
-  (``|q''_i| Δs < |q'_i| / 2``, i.e. any reasonable grid). With a jerk limit, a
+  (``|q''_i| Δs < |q'_i| / 2``; on a curve, near a point where an axis' tangent
+  component vanishes, a row may have two, and the LP then weighs the nodes against each
+  other). With a jerk limit, a
   sequential LP minimises the linearisation of ``T`` at ``x̄`` under the tangent
   constraints, then does an exact line search on the convex ``T`` between ``x̄`` and the
   LP solution (both inside the LP's polytope, hence the whole segment), until ``T``
