@@ -89,6 +89,7 @@ optimal vertex either way.
 from __future__ import annotations
 
 import inspect
+import warnings
 from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import TYPE_CHECKING, Protocol
@@ -205,10 +206,17 @@ class HighsLP:
         """
         session = self._session
         if session.available and (x0 is not None or session.holds(A_ub)):
-            x, status = session.solve(c, A_ub, b_ub, bounds, x0)
-            if x is None:
-                raise PlanningError(f"HiGHS LP failed: {status}")
-            return x
+            try:
+                x, status = session.solve(c, A_ub, b_ub, bounds, x0)
+            except (AttributeError, TypeError) as exc:  # bindings of another HiGHS: linprog
+                session.broken = True
+                warnings.warn(
+                    f"HiGHS bindings unusable ({exc}); solving with linprog", stacklevel=2
+                )
+            else:
+                if x is None:
+                    raise PlanningError(f"HiGHS LP failed: {status}")
+                return x
         options: dict[str, object] = {}
         if self.time_limit is not None:
             options["time_limit"] = float(self.time_limit)
