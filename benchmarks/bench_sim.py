@@ -103,9 +103,12 @@ def bench_paths(rate: int = 400) -> None:
     for path in SimPath:
         m = galvo_twin(seed=0, path=path)
         m.run(ref)  # warm-up (numba compile, caches)
+        # a run takes ~0.3 s on the Python path and ~1 ms on the others: more repeats of
+        # the short ones, so that a brief busy spell of the machine does not decide
+        repeats = 2 if path == "python" else 20
         n0 = m.samples_simulated
-        wall = best_of(lambda m=m: m.run(ref, with_actuator=True), 2 if path == "python" else 5)
-        per_run = (m.samples_simulated - n0) // (2 if path == "python" else 5)
+        wall = best_of(lambda m=m: m.run(ref, with_actuator=True), repeats)
+        per_run = (m.samples_simulated - n0) // repeats
         speed[path] = per_run * len(m.axes) / wall  # axis-samples per s
     print(f"\ngalvo twin, {rate} f/s square, run() with actuator, both axes: axis-samples/s")
     print(f"  {'python':<10} {speed[SimPath.PYTHON]:12.3g}   (baseline)")

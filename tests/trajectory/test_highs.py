@@ -93,3 +93,17 @@ def test_va_starting_vertex_is_the_lp_optimum_on_straight_paths() -> None:
     want = cold(-prob.va_weights, prob.va_rows, b, bounds)
     np.testing.assert_allclose(x0, want, rtol=1e-9, atol=1e-12 * want.max())
     assert np.max(prob.va_rows @ x0 - b) <= 1e-9
+
+
+def test_unusable_bindings_fall_back_to_linprog(monkeypatch: pytest.MonkeyPatch) -> None:
+    c, A, b, bounds = chain_lp(seed=2)
+    lp = HighsLP()
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise AttributeError("no such method")
+
+    monkeypatch.setattr(lp._session, "solve", broken)
+    with pytest.warns(UserWarning, match="linprog"):
+        x = lp.solve(c, A, b, bounds, x0=np.zeros(c.size))
+    np.testing.assert_allclose(x, cold(c, A, b, bounds), rtol=1e-12, atol=1e-12)
+    assert not lp._session.available

@@ -495,10 +495,10 @@ class FrequencyILC:
             st.best_input = u.copy()
             st.best_rms = np.full(len(st.axes), np.inf)
         E = np.fft.rfft(st.reference - y, axis=0)  # E_i = Y_d - Y_i (sign: see module doc)
-        err = y - st.reference
-        rms = np.sqrt(np.mean(err**2, axis=0))
+        err = np.ascontiguousarray((y - st.reference).T)  # one row per axis: fast reductions
+        rms = np.sqrt(np.mean(err**2, axis=1))
         st.rms.append([float(v) for v in rms])
-        st.pp.append([float(v) for v in err.max(axis=0) - err.min(axis=0)])
+        st.pp.append([float(v) for v in err.max(axis=1) - err.min(axis=1)])
         better = rms < st.best_rms
         st.best_rms = np.where(better, rms, st.best_rms)
         st.best_input[:, better] = u[:, better]

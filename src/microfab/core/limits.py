@@ -86,24 +86,27 @@ def check_command(
         cmd = cmd[:, None]
     if not np.all(np.isfinite(cmd)):
         raise LimitViolation("command holds NaN or inf; nothing was emitted")
+    # all axes at once, one row each (reductions along contiguous rows are fast)
+    X = np.ascontiguousarray(cmd.T)
+    XE = np.concatenate([X[:, -2:], X, X[:, :2]], axis=1) if periodic else X
+    V = np.diff(XE, axis=1) / dt
+    ACC = np.diff(XE, 2, axis=1) / dt**2
+    peaks = [np.argmax(np.abs(sig), axis=1) if sig.shape[1] else None for sig in (X, V, ACC)]
     for a, name in enumerate(axes):
         if name not in limits:
             raise LimitViolation(f"axis {name!r} has no declared limits; nothing was emitted")
         lim = limits[name]
-        x = cmd[:, a]
-        n = x.size
+        n = X.shape[1]
         pad = 2 if periodic else 0  # samples wrapped in front of a periodic command
-        xe = np.concatenate([x[-2:], x, x[:2]]) if periodic else x
-        v = np.diff(xe) / dt  # v[k]: from sample k - pad to k - pad + 1
-        acc = np.diff(xe, 2) / dt**2  # acc[k]: centred on sample k - pad + 1
-        for qty, sig, bound, suffix, shift in (
-            ("position", x, lim.position, "", 0),
-            ("velocity", v, lim.velocity, "/s", -pad),
-            ("acceleration", acc, lim.acceleration, "/s^2", 1 - pad),
+        # v[k] runs from sample k - pad to k - pad + 1; acc[k] is centred on k - pad + 1
+        for qty, sig, peak, bound, suffix, shift in (
+            ("position", X[a], peaks[0], lim.position, "", 0),
+            ("velocity", V[a], peaks[1], lim.velocity, "/s", -pad),
+            ("acceleration", ACC[a], peaks[2], lim.acceleration, "/s^2", 1 - pad),
         ):
-            if sig.size == 0:
+            if peak is None:
                 continue
-            k = int(np.argmax(np.abs(sig)))
+            k = int(peak[a])
             if abs(sig[k]) > bound:
                 i = (k + shift) % n  # a sample of the command itself, in [0, n)
                 raise LimitViolation(

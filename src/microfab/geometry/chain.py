@@ -38,6 +38,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from microfab.core.validate import check_positive
@@ -50,6 +51,8 @@ __all__ = ["chain_segments", "segment_endpoints"]
 _GAP_SLACK = 1e-9
 #: gaps up to this (m) are rounding noise, far inside Path's default tolerance: not snapped
 _NOISE_GAP = 1e-13
+#: segment kinds as `segment_endpoints` codes them
+_KIND: dict[type, int] = {LineSegment: 0, ArcSegment: 1, CurveSegment: 2}
 
 
 def segment_endpoints(segments: Sequence[Segment]) -> tuple[np.ndarray, np.ndarray]:
@@ -68,21 +71,24 @@ def segment_endpoints(segments: Sequence[Segment]) -> tuple[np.ndarray, np.ndarr
     n = len(segments)
     starts = np.empty((n, 2))
     ends = np.empty((n, 2))
-    arcs: list[int] = []
-    for i, s in enumerate(segments):
-        if isinstance(s, LineSegment):
-            starts[i] = s.p0
-            ends[i] = s.p1
-        elif isinstance(s, ArcSegment):
-            arcs.append(i)
-        elif isinstance(s, CurveSegment):
-            # f(0) = Σ c_k (-1)^k and f(1) = Σ c_k in the variable x = 2u - 1
-            c = s.coef
-            sign = (-1.0) ** np.arange(c.shape[0])
-            starts[i] = sign @ c
-            ends[i] = c.sum(axis=0)
-        else:
+    kinds = [_KIND.get(type(s), -1) for s in segments]  # exact types; subclasses below
+    for i in [i for i, k in enumerate(kinds) if k < 0]:
+        s = segments[i]
+        kinds[i] = next((k for cls, k in _KIND.items() if isinstance(s, cls)), -1)
+        if kinds[i] < 0:
             raise TypeError(f"not a segment: {s!r}")
+    code = np.array(kinds, dtype=np.int8)
+    lines = np.flatnonzero(code == 0).tolist()
+    arcs = np.flatnonzero(code == 1).tolist()
+    for i in np.flatnonzero(code == 2).tolist():
+        # f(0) = Σ c_k (-1)^k and f(1) = Σ c_k in the variable x = 2u - 1
+        c = segments[i].coef  # type: ignore[union-attr]
+        sign = (-1.0) ** np.arange(c.shape[0])
+        starts[i] = sign @ c
+        ends[i] = c.sum(axis=0)
+    if lines:
+        starts[lines] = [segments[i].p0 for i in lines]  # type: ignore[union-attr]
+        ends[lines] = [segments[i].p1 for i in lines]  # type: ignore[union-attr]
     if arcs:
         a = [segments[i] for i in arcs]
         c = np.array([s.center for s in a])
@@ -175,6 +181,11 @@ def _moved(seg: Segment, start: np.ndarray | None, end: np.ndarray | None) -> Se
 _RIGIDITY = {LineSegment: 0, CurveSegment: 1, ArcSegment: 2}
 
 
+def _full_circle(seg: Segment) -> bool:
+    """An arc that `_moved` keeps as it is: alone in a closed chain, `_snap` changes nothing."""
+    return isinstance(seg, ArcSegment) and abs(seg.sweep) > 2.0 * np.pi - 1e-3
+
+
 def _snap(chain: list[Segment], closed: bool) -> list[Segment]:
     """Remove the gaps between consecutive segments of a chain (see the module notes)."""
     n = len(chain)
@@ -199,7 +210,12 @@ def _snap(chain: list[Segment], closed: bool) -> list[Segment]:
     ]
 
 
-def chain_segments(segments: Sequence[Segment], tol: float) -> list[Path]:
+def chain_segments(
+    segments: Sequence[Segment],
+    tol: float,
+    *,
+    endpoints: tuple[np.ndarray, np.ndarray] | None = None,
+) -> list[Path]:
     """Join loose segments into maximal open or closed paths.
 
     Segments may come in any order and direction. See the module documentation for the
@@ -212,6 +228,8 @@ def chain_segments(segments: Sequence[Segment], tol: float) -> list[Path]:
         The pieces, m.
     tol : float
         Largest gap between two ends that still joins them, m; positive.
+    endpoints : tuple of numpy.ndarray, optional
+        `segment_endpoints` of ``segments``, when the caller has them already.
 
     Returns
     -------
@@ -233,11 +251,25 @@ def chain_segments(segments: Sequence[Segment], tol: float) -> list[Path]:
     [True]
     """
     tol = check_positive("chaining tolerance tol", tol, "m")
-    segs = [s for s in segments if s.length > 0]
+    starts, ends = segment_endpoints(segments) if endpoints is None else endpoints
+    if starts.shape != (len(segments), 2) or ends.shape != starts.shape:
+        raise ValueError(f"endpoints must be two ({len(segments)}, 2) arrays")
+    # zero length: a line whose ends coincide (its length is their distance), an arc by
+    # radius times sweep (its length), a curve by its length
+    moved = np.any(starts != ends, axis=1).tolist()
+    keep = [
+        m
+        if isinstance(s, LineSegment)
+        else (s.radius * abs(s.sweep) > 0 if isinstance(s, ArcSegment) else s.length > 0)
+        for s, m in zip(segments, moved, strict=True)
+    ]
+    segs = list(segments)
+    if not all(keep):
+        segs = [s for s, k in zip(segments, keep, strict=True) if k]
+        starts, ends = starts[keep], ends[keep]
     n = len(segs)
     if n == 0:
         return []
-    starts, ends = segment_endpoints(segs)
     points = np.empty((2 * n, 2))
     points[0::2] = starts
     points[1::2] = ends
@@ -247,12 +279,53 @@ def chain_segments(segments: Sequence[Segment], tol: float) -> list[Path]:
     inexact = np.zeros(2 * n, dtype=bool)
     d = points[linked] - points[partner_arr[linked]]
     inexact[linked] = np.hypot(d[:, 0], d[:, 1]) > _NOISE_GAP
-    needs_snap = (inexact[0::2] | inexact[1::2]).tolist()
-    partner = partner_arr.tolist()
+    needs_snap = inexact[0::2] | inexact[1::2]
 
-    visited = bytearray(n)
+    seq, fwd, off, cyc = _walk_chains(partner_arr)
+    seq_l, off_l, cyc_l = seq.tolist(), off.tolist(), cyc.tolist()
+    snap_l = np.logical_or.reduceat(needs_snap[seq], off[:-1]).tolist()
+    # every piece in chain order; segment seq[off[c]] of a cycle, its lowest index, runs
+    # as given
+    pieces = [
+        segs[k] if f else segs[k].reversed() for k, f in zip(seq_l, fwd.tolist(), strict=True)
+    ]
     gap_tol = tol * (1.0 + _GAP_SLACK)
     out: list[Path] = []
+    plain = np.zeros(len(cyc_l), dtype=bool)  # chains as linked, checked all at once below
+    for c, closed in enumerate(cyc_l):
+        lo, hi = off_l[c], off_l[c + 1]
+        chain = pieces[lo:hi]
+        if hi - lo == 1 and not isinstance(chain[0], LineSegment):
+            k = seq_l[lo]
+            s0, e0 = starts[k], ends[k]
+            closed = bool(np.hypot(*(e0 - s0)) <= tol) and chain[0].length > 2.0 * tol
+            cyc[c] = closed
+        if (closed and hi - lo == 1 and not _full_circle(chain[0])) or snap_l[c]:
+            snapped = _snap(chain, closed)
+            if snapped is not chain:
+                out.append(Path(tuple(snapped), closed=closed, gap_tol=gap_tol))
+                continue
+        plain[c] = True
+        out.append(Path._checked(tuple(chain), closed, gap_tol))
+    _check_plain(out, plain, seq, fwd, off, cyc, segs, starts, ends, gap_tol)
+    return out
+
+
+@njit(cache=True)
+def _walk_chains(partner: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Follow the links into chains: ``(segment, forwards)`` in order, chain offsets, cycles.
+
+    Chains come in the order of their lowest segment index ``i``; a cycle starts at
+    ``i``, an open chain at its free head, and either runs so that ``i`` goes forwards.
+    """
+    n = partner.size // 2
+    seq = np.empty(n, dtype=np.int64)
+    fwd = np.empty(n, dtype=np.bool_)
+    off = np.zeros(n + 1, dtype=np.int64)
+    cyc = np.zeros(n, dtype=np.bool_)
+    visited = np.zeros(n, dtype=np.bool_)
+    pos = 0
+    n_chains = 0
     for i in range(n):
         if visited[i]:
             continue
@@ -267,31 +340,67 @@ def chain_segments(segments: Sequence[Segment], tol: float) -> list[Path]:
             if j == i:
                 cycle = True
                 break
-            head, head_fwd = j, bool(q & 1)  # arriving at j's end: j runs forwards
+            head, head_fwd = j, (q & 1) == 1  # arriving at j's end: j runs forwards
             entry = q ^ 1
         if cycle:
             head, head_fwd = i, True
         # walk forwards from the head
-        order: list[tuple[int, bool]] = []
-        s, fwd = head, head_fwd
+        s, f = head, head_fwd
         while True:
-            visited[s] = 1
-            order.append((s, fwd))
-            q = partner[2 * s + 1 if fwd else 2 * s]
+            visited[s] = True
+            seq[pos] = s
+            fwd[pos] = f
+            pos += 1
+            q = partner[2 * s + 1 if f else 2 * s]
             if q < 0:
                 break
             j = q >> 1
             if j == head:
                 break
-            s, fwd = j, not (q & 1)
-        # segment i (the lowest index of the chain) keeps its given direction: the walks
-        # above traverse it forwards
-        chain = [segs[k] if f else segs[k].reversed() for k, f in order]
-        closed = cycle
-        if len(chain) == 1 and not isinstance(chain[0], LineSegment):
-            s0, e0 = starts[order[0][0]], ends[order[0][0]]
-            closed = bool(np.hypot(*(e0 - s0)) <= tol) and chain[0].length > 2.0 * tol
-        if (closed and len(chain) == 1) or any(needs_snap[k] for k, _ in order):
-            chain = _snap(chain, closed)
-        out.append(Path(tuple(chain), closed=closed, gap_tol=gap_tol))
-    return out
+            s, f = j, (q & 1) == 0
+        cyc[n_chains] = cycle
+        n_chains += 1
+        off[n_chains] = pos
+    return seq, fwd, off[: n_chains + 1], cyc[:n_chains]
+
+
+def _check_plain(
+    out: list[Path],
+    plain: np.ndarray,
+    seq: np.ndarray,
+    fwd: np.ndarray,
+    off: np.ndarray,
+    closed: np.ndarray,
+    segs: Sequence[Segment],
+    starts: np.ndarray,
+    ends: np.ndarray,
+    gap_tol: float,
+) -> None:
+    """Check the chains made as linked (``plain``) as `Path` would, all at once.
+
+    Their pieces are the given segments, forwards or reversed, of nonzero length; only
+    the gaps remain to be checked, from the segments' end points. A chain that fails is
+    built by `Path` itself, which raises its error.
+    """
+    if not plain.any():
+        return
+    sizes = np.diff(off)
+    first, last = off[:-1], off[1:] - 1
+    s0 = np.where(fwd[:, None], starts[seq], ends[seq])  # where each piece starts
+    e0 = np.where(fwd[:, None], ends[seq], starts[seq])
+    follows = np.repeat(plain, sizes)  # a piece of a plain chain followed by another
+    follows[last] = False
+    d = s0[1:] - e0[:-1]
+    bad = follows[:-1] & (np.hypot(d[:, 0], d[:, 1]) > gap_tol)
+    dc = s0[first] - e0[last]
+    bad_close = plain & closed & (np.hypot(dc[:, 0], dc[:, 1]) > gap_tol)
+    if not (bad.any() or bad_close.any()):
+        return
+    chain_of = np.repeat(np.arange(sizes.size), sizes)
+    worst = min(set(chain_of[:-1][bad].tolist()) | set(np.flatnonzero(bad_close).tolist()))
+    lo, hi = off[worst], off[worst + 1]
+    pieces = [
+        segs[k] if f else segs[k].reversed()
+        for k, f in zip(seq[lo:hi].tolist(), fwd[lo:hi].tolist(), strict=True)
+    ]
+    out[worst] = Path(tuple(pieces), closed=bool(closed[worst]), gap_tol=gap_tol)

@@ -175,6 +175,12 @@ def _check_flat(z: Sequence[float], size: float, what: str = "points") -> None:
         )
 
 
+def _ref(entity: object, parent_ref: str) -> str:
+    """The entity's handle for skip records, or its block reference's."""
+    handle = entity.dxf.get("handle")  # type: ignore[attr-defined]
+    return handle if handle else parent_ref
+
+
 def _is_plus_z(entity: object) -> bool:
     e = entity.dxf.extrusion  # type: ignore[attr-defined]
     return e[0] == 0 and e[1] == 0 and e[2] > 0
@@ -186,9 +192,11 @@ class _Reader:
     def __init__(self, k: float, flatten_blocks: bool) -> None:
         self.k = k
         self.flatten_blocks = flatten_blocks
-        self.segments: list[Segment] = []
+        # None stands for a LINE, whose segment `finish` makes with the others in one go
+        self.segments: list[Segment | None] = []
+        self.lines: list[float] = []  # x0, y0, x1, y1 (m) of every LINE, in order
         self.skipped: list[Skipped] = []
-        self.handlers: dict[str, Callable[[object], list[Segment]]] = {
+        self.handlers: dict[str, Callable[[object], Sequence[Segment | None]]] = {
             "LINE": self.line,
             "ARC": self.arc,
             "CIRCLE": self.arc,
@@ -201,24 +209,22 @@ class _Reader:
     # ------------------------------------------------------------------ dispatch
     def entity(self, e: object, parent_ref: str, depth: int) -> None:
         kind = e.dxftype()  # type: ignore[attr-defined]
-        handle = e.dxf.get("handle")  # type: ignore[attr-defined]
-        ref = handle if handle else parent_ref
         if kind in ("INSERT", "MINSERT"):
-            self.insert(e, ref, depth)
+            self.insert(e, _ref(e, parent_ref), depth)
             return
         handler = self.handlers.get(kind)
         if handler is None:
             reason = _SKIP_REASONS.get(kind, "unsupported entity type")
-            self.skipped.append(Skipped(kind, reason, ref))
+            self.skipped.append(Skipped(kind, reason, _ref(e, parent_ref)))
             return
         try:
             segs = handler(e)
         except _SkipEntityError as exc:
-            self.skipped.append(Skipped(kind, str(exc), ref))
+            self.skipped.append(Skipped(kind, str(exc), _ref(e, parent_ref)))
             return
         except (ValueError, ArithmeticError) as exc:
             # corrupt values (NaN coordinates, a curve that does not fit, ...)
-            self.skipped.append(Skipped(kind, f"invalid geometry: {exc}", ref))
+            self.skipped.append(Skipped(kind, f"invalid geometry: {exc}", _ref(e, parent_ref)))
             return
         self.segments.extend(segs)
 
@@ -264,14 +270,38 @@ class _Reader:
             )
 
     # ------------------------------------------------------------------ entities
-    def line(self, e: object) -> list[Segment]:
+    def line(self, e: object) -> list[Segment | None]:
         s, t = e.dxf.start, e.dxf.end  # type: ignore[attr-defined]
         size = math.hypot(t.x - s.x, t.y - s.y)
-        _check_flat((s.z, t.z), size, "end points")
+        if s.z != t.z:
+            _check_flat((s.z, t.z), size, "end points")
         if size == 0:
             raise _SkipEntityError("zero length")
         k = self.k
-        return [LineSegment((s.x * k, s.y * k), (t.x * k, t.y * k))]
+        xy = (s.x * k, s.y * k, t.x * k, t.y * k)
+        if not all(map(math.isfinite, xy)):
+            return [LineSegment(xy[:2], xy[2:])]  # raises the segment's own error
+        self.lines.extend(xy)
+        return [None]
+
+    def finish(self) -> tuple[list[Segment], np.ndarray, np.ndarray]:
+        """The segments in drawing order (the LINEs' made in one go), and their end points.
+
+        The end points are those of `segment_endpoints`; the LINEs' come from their
+        coordinates, the others' from the segments.
+        """
+        if not self.lines:
+            segs: list[Segment] = self.segments  # type: ignore[assignment]
+            return (segs, *segment_endpoints(segs))
+        coords = np.array(self.lines).reshape(-1, 4)
+        lines = iter(LineSegment.many(coords))
+        segs = [next(lines) if s is None else s for s in self.segments]
+        is_line = np.array([s is None for s in self.segments])
+        starts, ends = np.empty((len(segs), 2)), np.empty((len(segs), 2))
+        starts[is_line], ends[is_line] = coords[:, :2], coords[:, 2:]
+        others = np.flatnonzero(~is_line).tolist()
+        starts[others], ends[others] = segment_endpoints([segs[i] for i in others])
+        return segs, starts, ends
 
     def arc(self, e: object) -> list[Segment]:
         sign = _plane_sign(e)
@@ -296,7 +326,7 @@ class _Reader:
             cx, cy = cw.x, cw.y
             theta0 = math.atan2(p0.y - cw.y, p0.x - cw.x)
         k = self.k
-        return [ArcSegment((cx * k, cy * k), r * k, theta0, sign * sweep)]
+        return [ArcSegment.from_numbers(cx * k, cy * k, r * k, theta0, sign * sweep)]
 
     def _poly(
         self, xy: Sequence[tuple[float, float]], bulges: Sequence[float], closed: bool
@@ -307,24 +337,33 @@ class _Reader:
         k = self.k
         n = len(xy)
         edges = range(n if closed else n - 1)
+        pts = np.array(xy, dtype=float) * k  # vertices, m: one array, rows shared by edges
+        pts.flags.writeable = False
+        finite = bool(np.all(np.isfinite(pts)))  # else the segments raise their own errors
         out: list[Segment] = []
         for i in edges:
             (x0, y0), (x1, y1) = xy[i], xy[(i + 1) % n]
             if x0 == x1 and y0 == y1:
                 continue
-            p0, p1 = (x0 * k, y0 * k), (x1 * k, y1 * k)
             b = bulges[i]
-            out.append(LineSegment(p0, p1) if b == 0 else ArcSegment.from_bulge(p0, p1, b))
+            if not finite:  # the segments raise their errors
+                p0, p1 = (x0 * k, y0 * k), (x1 * k, y1 * k)
+                out.append(LineSegment(p0, p1) if b == 0 else ArcSegment.from_bulge(p0, p1, b))
+            elif b == 0:
+                out.append(LineSegment._unchecked(pts[i], pts[(i + 1) % n]))
+            else:
+                out.append(ArcSegment._from_bulge(x0 * k, y0 * k, x1 * k, y1 * k, float(b)))
         if not out:
             raise _SkipEntityError("all vertices coincide (zero length)")
         return out
 
     def lwpolyline(self, e: object) -> list[Segment]:
         sign = _plane_sign(e)
-        pts = e.get_points("xyb")  # type: ignore[attr-defined]
-        bulges = [float(b) * sign for _, _, b in pts]
+        # an LWPOLYLINE iterates as (x, y, start width, end width, bulge): one array
+        pts = [(x, y, b) for x, y, _, _, b in np.array(list(e), dtype=float).tolist()]  # type: ignore[call-overload]
+        bulges = [b * sign for _, _, b in pts]
         if _is_plus_z(e):
-            xy = [(float(x), float(y)) for x, y, _ in pts]
+            xy = [(x, y) for x, y, _ in pts]
         else:
             elev = float(e.dxf.elevation)  # type: ignore[attr-defined]
             w = list(e.ocs().points_to_wcs([(x, y, elev) for x, y, _ in pts]))  # type: ignore[attr-defined]
@@ -433,9 +472,8 @@ def _gc_paused() -> Iterator[None]:
             gc.enable()
 
 
-def _extent(segments: Sequence[Segment]) -> float:
+def _extent(segments: Sequence[Segment], starts: np.ndarray, ends: np.ndarray) -> float:
     """Largest side of a box around the segments' end points and arcs' circles, m."""
-    starts, ends = segment_endpoints(segments)
     pts = [starts, ends]
     arcs = [s for s in segments if isinstance(s, ArcSegment)]
     if arcs:
@@ -508,15 +546,16 @@ def read_dxf(
         for e in doc.modelspace():
             reader.entity(e, "", 0)
         del doc
+        segments, starts, ends = reader.finish()
 
-    if not reader.segments:
+    if not segments:
         counts = Counter(s.kind for s in reader.skipped)
         what = ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items())) or (
             "nothing (the modelspace is empty)"
         )
         raise ValueError(f"{name}: no importable geometry; skipped: {what}")
-    if tol is None:
-        tol = max(1e-6 * _extent(reader.segments), 1e-9)
     with _gc_paused():
-        contours = chain_segments(reader.segments, tol)
+        if tol is None:
+            tol = max(1e-6 * _extent(segments, starts, ends), 1e-9)
+        contours = chain_segments(segments, tol, endpoints=(starts, ends))
     return Layer(tuple(contours), tuple(reader.skipped), name)

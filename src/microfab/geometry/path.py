@@ -156,6 +156,20 @@ class Path:
 
     # ----------------------------------------------------------------- construction
     @classmethod
+    def _checked(cls, segments: tuple[Segment, ...], closed: bool, gap_tol: float) -> Path:
+        """The path `Path(segments, closed, gap_tol)` makes, for a caller that has checked it.
+
+        For builders of many paths (:func:`~microfab.geometry.chain.chain_segments`) that
+        check all their chains at once: every segment is a `LineSegment`, `ArcSegment`
+        or `CurveSegment` of nonzero length, and the gaps are within ``gap_tol``.
+        """
+        path = object.__new__(cls)
+        object.__setattr__(path, "segments", segments)
+        object.__setattr__(path, "closed", closed)
+        object.__setattr__(path, "gap_tol", gap_tol)
+        return path
+
+    @classmethod
     def polyline(cls, points: object, closed: bool = False) -> Path:
         """Straight segments through ``points`` (n, 2), m; repeated points are skipped."""
         P = np.asarray(points, dtype=float)

@@ -70,6 +70,36 @@ class LineSegment:
         object.__setattr__(self, "p0", _vec2(self.p0, "p0"))
         object.__setattr__(self, "p1", _vec2(self.p1, "p1"))
 
+    @classmethod
+    def many(cls, coords: np.ndarray) -> list[LineSegment]:
+        """Segments from rows ``x0, y0, x1, y1`` (m), made in one go (a drawing's lines).
+
+        The end points are read-only views of one copy of ``coords``.
+
+        Raises
+        ------
+        ValueError
+            If a coordinate is not finite, or ``coords`` is not shaped (n, 4).
+        """
+        c = np.array(coords, dtype=float)
+        if c.ndim != 2 or c.shape[1] != 4:
+            raise ValueError(f"coords must be shaped (n, 4), got {c.shape}")
+        if not np.all(np.isfinite(c)):
+            i = int(np.flatnonzero(~np.all(np.isfinite(c), axis=1))[0])
+            raise ValueError(f"line {i}: end points must be finite (m), got {c[i].tolist()}")
+        c.flags.writeable = False
+        new = cls._unchecked
+        return [new(a, b) for a, b in zip(c[:, :2], c[:, 2:], strict=True)]
+
+    @classmethod
+    def _unchecked(cls, p0: np.ndarray, p1: np.ndarray) -> LineSegment:
+        """A segment on end points that are already finite, read-only (2,) float arrays."""
+        seg = object.__new__(cls)
+        attrs = seg.__dict__  # frozen: set the fields as the dataclass' own __init__ would
+        attrs["p0"] = p0
+        attrs["p1"] = p1
+        return seg
+
     @property
     def start(self) -> np.ndarray:
         """Start point, m."""
@@ -86,8 +116,8 @@ class LineSegment:
         return math.hypot(self.p1[0] - self.p0[0], self.p1[1] - self.p0[1])
 
     def reversed(self) -> LineSegment:
-        """The same segment traversed backwards."""
-        return LineSegment(self.p1, self.p0)
+        """The same segment traversed backwards (sharing the read-only end points)."""
+        return LineSegment._unchecked(self.p1, self.p0)
 
     def transformed(self, A: object, b: object = (0.0, 0.0)) -> LineSegment:
         """Image under ``p -> A p + b``."""
@@ -128,22 +158,51 @@ class ArcSegment:
     @classmethod
     def from_bulge(cls, p0: object, p1: object, bulge: float) -> ArcSegment:
         """Arc from ``p0`` to ``p1`` with a DXF bulge ``tan(sweep / 4)`` (positive: CCW)."""
-        a, b = _vec2(p0, "p0"), _vec2(p1, "p1")
-        bulge = float(bulge)
+        (ax, ay), (bx, by) = _vec2(p0, "p0").tolist(), _vec2(p1, "p1").tolist()
+        return cls._from_bulge(ax, ay, bx, by, float(bulge))
+
+    @classmethod
+    def _from_bulge(cls, ax: float, ay: float, bx: float, by: float, bulge: float) -> ArcSegment:
+        """`from_bulge` on end points that are finite floats."""
         if bulge == 0:
             raise ValueError("a bulge of 0 is a straight segment, not an arc")
-        chord = b - a
-        c = float(np.hypot(*chord))
+        # coordinate by coordinate: the same operations as on 2-vectors, without their cost
+        chx, chy = bx - ax, by - ay
+        c = float(np.hypot(chx, chy))
         if c == 0:
             raise ValueError("a bulged segment needs distinct end points")
-        sweep = 4.0 * np.arctan(bulge)
-        radius = c / (2.0 * abs(np.sin(sweep / 2.0)))
+        sweep = float(4.0 * np.arctan(bulge))
+        radius = float(c / (2.0 * abs(np.sin(sweep / 2.0))))
         # centre: from the chord midpoint along the left normal by the signed apothem
-        apothem = c / 2.0 / np.tan(sweep / 2.0)
-        n = np.array([-chord[1], chord[0]]) / c
-        center = (a + b) / 2.0 + apothem * n
-        theta0 = float(np.arctan2(a[1] - center[1], a[0] - center[0]))
-        return cls(center, radius, theta0, sweep)
+        apothem = float(c / 2.0 / np.tan(sweep / 2.0))
+        cx = (ax + bx) / 2.0 + apothem * (-chy / c)
+        cy = (ay + by) / 2.0 + apothem * (chx / c)
+        theta0 = float(np.arctan2(ay - cy, ax - cx))
+        return cls.from_numbers(cx, cy, radius, theta0, sweep)
+
+    @classmethod
+    def from_numbers(
+        cls, cx: float, cy: float, radius: float, theta0: float, sweep: float
+    ) -> ArcSegment:
+        """`ArcSegment((cx, cy), radius, theta0, sweep)` from plain numbers, checked alike.
+
+        The fast way to make many arcs (a drawing's arcs and circles).
+        """
+        cx, cy, radius, theta0, sweep = (float(v) for v in (cx, cy, radius, theta0, sweep))
+        ok = math.isfinite(cx) and math.isfinite(cy) and math.isfinite(radius) and radius > 0
+        if not (ok and math.isfinite(theta0) and 0 < abs(sweep) <= 2 * np.pi * (1 + 1e-12)):
+            return cls((cx, cy), radius, theta0, sweep)  # raises the constructor's error
+        center = np.array((cx, cy))
+        center.flags.writeable = False
+        arc = object.__new__(cls)
+        attrs = arc.__dict__  # checked as __post_init__ does: set the fields
+        attrs["center"], attrs["radius"], attrs["theta0"], attrs["sweep"] = (
+            center,
+            radius,
+            theta0,
+            sweep,
+        )
+        return arc
 
     @cached_property
     def start(self) -> np.ndarray:

@@ -72,6 +72,7 @@ class HighsSession:
 
     def __init__(self, time_limit: float | None = None) -> None:
         self.time_limit = time_limit
+        self.broken = False  # set when the bindings misbehave: use linprog from then on
         self._highs: Any = None
         self._A: sparse.csr_matrix | None = None
         self._half = 0  # rows per sign when the rows are paired, else 0
@@ -93,7 +94,7 @@ class HighsSession:
     @property
     def available(self) -> bool:
         """Whether HiGHS's own bindings can be used (else use ``linprog``)."""
-        return _api() is not None
+        return not self.broken and _api() is not None
 
     def solve(
         self,

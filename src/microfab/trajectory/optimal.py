@@ -38,7 +38,9 @@ two stops gets at least 4 intervals).
   a positively weighted sum of ``x`` (each node's share of the length) solves the
   problem: the feasible set is closed under the element-wise maximum, hence has a
   greatest element, wherever each acceleration row has one positive coefficient
-  (``|q''_i| Δs < |q'_i| / 2``, i.e. any reasonable grid). With a jerk limit, a
+  (``|q''_i| Δs < |q'_i| / 2``; on a curve, near a point where an axis' tangent
+  component vanishes, a row may have two, and the LP then weighs the nodes against each
+  other). With a jerk limit, a
   sequential LP minimises the linearisation of ``T`` at ``x̄`` under the tangent
   constraints, then does an exact line search on the convex ``T`` between ``x̄`` and the
   LP solution (both inside the LP's polytope, hence the whole segment), until ``T``
@@ -87,6 +89,7 @@ optimal vertex either way.
 from __future__ import annotations
 
 import inspect
+import warnings
 from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import TYPE_CHECKING, Protocol
@@ -203,10 +206,17 @@ class HighsLP:
         """
         session = self._session
         if session.available and (x0 is not None or session.holds(A_ub)):
-            x, status = session.solve(c, A_ub, b_ub, bounds, x0)
-            if x is None:
-                raise PlanningError(f"HiGHS LP failed: {status}")
-            return x
+            try:
+                x, status = session.solve(c, A_ub, b_ub, bounds, x0)
+            except (AttributeError, TypeError) as exc:  # bindings of another HiGHS: linprog
+                session.broken = True
+                warnings.warn(
+                    f"HiGHS bindings unusable ({exc}); solving with linprog", stacklevel=2
+                )
+            else:
+                if x is None:
+                    raise PlanningError(f"HiGHS LP failed: {status}")
+                return x
         options: dict[str, object] = {}
         if self.time_limit is not None:
             options["time_limit"] = float(self.time_limit)
