@@ -325,6 +325,13 @@ class FrequencyILC:
         -------
         numpy.ndarray
             Next input, shape (N, n_axes).
+
+        Raises
+        ------
+        ValueError
+            Signals of the wrong shape, NaN or inf, or so large that the update overflows.
+        ConvergenceError
+            On the first trial, with ``true_frf``, a gain that violates eq. (5).
         """
         st = self.state
         u = np.asarray(trial.input, dtype=float)
@@ -336,21 +343,32 @@ class FrequencyILC:
             )
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             raise ValueError("trial holds NaN or inf")
-        U = np.fft.rfft(u, axis=0)
-        Y = np.fft.rfft(y, axis=0)
+        # signals of absurd magnitude overflow below: refused after, as not finite
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            U = np.fft.rfft(u, axis=0)
+            Y = np.fft.rfft(y, axis=0)
+            pinv, mask = self._select_and_invert(U, Y) if st.iteration == 0 else (st.pinv, st.mask)
+            E = np.fft.rfft(st.reference - y, axis=0)  # E_i = Y_d - Y_i (see module doc)
+            # eq. (2) on the learned harmonics, 0 on the others (the seed's Q filter),
+            # except the mean: when not learned it keeps the input as applied (u_1 = y_d)
+            kept = np.zeros_like(U)
+            kept[0] = U[0]
+            U_next = np.where(mask, U + self.config.gain * pinv * E, kept)
+            u_next = np.fft.irfft(U_next, n=self.n_samples, axis=0)  # eq. (6), +j sign
+            err = y - st.reference
+            rms = np.sqrt(np.mean(err**2, axis=0))
+            pp = err.max(axis=0) - err.min(axis=0)
+        if not (np.all(np.isfinite(u_next)) and np.all(np.isfinite(rms))):
+            scale = max(float(np.max(np.abs(u))), float(np.max(np.abs(y))))
+            raise ValueError(
+                f"the learning update overflows: the trial's signals reach {scale:.3g}, too "
+                "large to learn from (wrong unit or a corrupt value?)"
+            )
         if st.iteration == 0:
-            st.pinv, st.mask = self._select_and_invert(U, Y)
+            st.pinv, st.mask = pinv, mask
             self._check_convergence()
-        E = np.fft.rfft(st.reference - y, axis=0)  # E_i = Y_d - Y_i (sign: see module doc)
-        # eq. (2) on the learned harmonics, 0 on the others (the seed's Q filter), except
-        # the mean: when not learned it keeps the input as applied (u_1 = y_d, the user's)
-        kept = np.zeros_like(U)
-        kept[0] = U[0]
-        U_next = np.where(st.mask, U + self.config.gain * st.pinv * E, kept)
-        u_next = np.fft.irfft(U_next, n=self.n_samples, axis=0)  # eq. (6), +j sign
-        err = y - st.reference
-        st.rms.append([float(v) for v in np.sqrt(np.mean(err**2, axis=0))])
-        st.pp.append([float(v) for v in err.max(axis=0) - err.min(axis=0)])
+        st.rms.append([float(v) for v in rms])
+        st.pp.append([float(v) for v in pp])
         st.iteration += 1
         st.inputs.append(u_next)
         return u_next.copy()
