@@ -51,6 +51,12 @@ class AxisLimits:
                 raise ValueError(f"{name} limit must be positive, got {val} {self.unit}{suffix}")
 
 
+def _power(dt: float, order: int) -> float:
+    """``dt ** order`` as a float, inf where it overflows (a Python float raises there)."""
+    with np.errstate(over="ignore"):
+        return float(np.float64(dt) ** order)
+
+
 def check_command(
     command: np.ndarray,
     dt: float,
@@ -93,7 +99,7 @@ def check_command(
         x = cmd[:, a]
         xe = np.concatenate([x[-2:], x, x[:2]]) if periodic else x
         v = np.diff(xe) / dt
-        acc = np.diff(xe, 2) / dt**2
+        acc = np.diff(xe, 2) / _power(dt, 2)
         for qty, sig, bound, suffix in (
             ("position", x, lim.position, ""),
             ("velocity", v, lim.velocity, "/s"),
@@ -262,9 +268,9 @@ def check_trajectory(traj: Trajectory, limits: MachineLimits, rtol: float = 1e-9
         for order, ((qty, unit), bound) in enumerate(zip(names, bounds, strict=True), start=1):
             if not np.isfinite(bound):
                 continue
-            d = np.diff(xe, order) / dt**order
+            d = np.diff(xe, order) / _power(dt, order)
             # rounding of the samples, amplified by the difference (2**order * eps * |x|)
-            allow = bound * (1 + rtol) + 2**order * 4 * eps * scale / dt**order
+            allow = bound * (1 + rtol) + 2**order * 4 * eps * scale / _power(dt, order)
             i = int(np.argmax(np.abs(d)))
             if abs(d[i]) > allow:
                 tc = float(np.clip(te[i] + 0.5 * order * dt, 0.0, max(t[-1], 0.0)))
