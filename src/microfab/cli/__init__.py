@@ -16,6 +16,7 @@ import sys
 
 import typer
 
+from microfab.cli._kit import OneLineErrors
 from microfab.cli.calibrate import calibrate_app
 from microfab.cli.droplet import droplet_app
 from microfab.cli.geometry import path_app, trajectory_cmd
@@ -24,7 +25,7 @@ from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
 
 __all__ = ["app", "main"]
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
+app = typer.Typer(cls=OneLineErrors, add_completion=False, no_args_is_help=True, help=__doc__)
 app.command("run")(run_cmd)
 app.command("kinds")(kinds_cmd)
 app.command("reproduce")(reproduce_cmd)
