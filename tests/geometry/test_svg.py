@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import svgpathtools
 
+from microfab.geometry.path import MAX_FLATTEN
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment
 from microfab.geometry.svg import PX, parse_svg_path, read_svg
 
@@ -340,7 +341,7 @@ def test_cusp_is_flattened_with_bounded_vertices(tmp_path):
     f = write(tmp_path, '<path d="M -24 0 T 66 68 q -12.7 71.4 3.7e-117 -4.1e-154"/>')
     layer = read_svg(f)
     pts = layer[0].flatten()
-    assert len(pts) < 70_000 * len(layer[0].segments)
+    assert len(pts) <= MAX_FLATTEN * len(layer[0].segments) + 1
     assert np.all(np.isfinite(pts))
 
 

@@ -31,7 +31,7 @@ from microfab.geometry.segments import (
 __all__ = ["MAX_FLATTEN", "Path"]
 
 #: Most vertices `Path.flatten` gives one segment.
-MAX_FLATTEN = 65536
+MAX_FLATTEN = 4096
 
 _LINE, _ARC, _CURVE = 0, 1, 2
 _CHUNK = 8192
