@@ -104,3 +104,17 @@ def test_sweep_refuses_bad_input(tmp_path: Path) -> None:
     ):
         res = runner.invoke(app, ["droplet", "sweep", *extra, "--out", str(tmp_path)])
         assert res.exit_code == 2, (extra, res.output)
+
+
+def test_analyze_of_noise_says_no_jet_found(tmp_path: Path) -> None:
+    # issue 13: exit 0 with breakup_time_s 0.0
+    from microfab.measure.shadowgraph import Camera, write_frames
+
+    noise = np.random.default_rng(0).random((6, 120, 80))
+    write_frames(
+        noise, tmp_path / "f", camera=Camera(width_px=80, height_px=120), frame_interval_s=1e-5
+    )
+    res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f")])
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: no jet found"), res.output
