@@ -84,6 +84,8 @@ def test_lednicer_is_reordered_to_selig():
         # an infinite count line was an OverflowError (int(inf)); it is no count line
         ("FOIL\ninf 39983\n0 0\n0.5 0.1\n1 0\n0 0\n0.5 -0.1\n", "finite"),
         ("FOIL\n1e300 3\n0 0\n0.5 0.1\n1 0\n0 0\n0.5 -0.1\n", "outside"),
+        # y = 1.8e308 overflowed the spline fit, with warnings
+        ("FOIL\n1 0\n0.5 1.7976931348623157e308\n0 0\n0.5 -0.1\n1 0\n", r"y = .*\[-1, 1\]"),
     ],
 )
 def test_malformed_files_raise(text, match):

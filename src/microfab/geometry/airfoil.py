@@ -96,6 +96,14 @@ def _check_points(P: np.ndarray, where: str) -> np.ndarray:
             f"{where}: x = {x[i]:g} (point {i}) lies outside [0, 1] (chord fractions, "
             f"tolerance {X_TOL}); coordinates must be normalised by the chord"
         )
+    y = P[:, 1]
+    bad = np.nonzero(np.abs(y) > 1.0)[0]
+    if bad.size:  # thicker than the chord is long: not an airfoil, or not normalised
+        i = int(bad[0])
+        raise ValueError(
+            f"{where}: y = {y[i]:g} (point {i}) lies outside [-1, 1] (chord fractions); "
+            "coordinates must be normalised by the chord"
+        )
     return P
 
 
@@ -121,7 +129,8 @@ def read_selig(path_or_text: str | os.PathLike[str]) -> tuple[str, np.ndarray]:
     ValueError
         If there are no coordinates, a row does not have exactly two numbers, a Lednicer
         count line does not match the rows, fewer than 5 points remain, a coordinate is
-        not finite, or an x lies outside ``[0, 1]`` by more than :data:`X_TOL`.
+        not finite, an x lies outside ``[0, 1]`` by more than :data:`X_TOL`, or a y
+        outside ``[-1, 1]``.
     """
     text, where = _text_of(path_or_text)
     lines = [(i + 1, ln.strip()) for i, ln in enumerate(text.splitlines()) if ln.strip()]
