@@ -59,7 +59,7 @@ def simulate_cmd(
             "(40 to 70 V, seed 003 Table 1)"
         )
     for name, value in (("--duration", duration), ("--after-breakup", after_breakup)):
-        if not 0.0 < value <= MAX_DURATION_US:
+        if not (0.0 < value * 1e-6 and value <= MAX_DURATION_US):  # in s, it must stay > 0
             fail(f"{name} must be more than 0 and at most {MAX_DURATION_US:g} µs, got {value:g} µs")
     try:
         fluid = naalg(concentration)
