@@ -4,6 +4,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from microfab.cli import app
@@ -42,6 +43,31 @@ def test_simulate_refuses_bad_input() -> None:
     assert res.exit_code == 2 and "outside the table" in res.output
     res = runner.invoke(app, ["droplet", "simulate", "--voltage", "90"])
     assert res.exit_code == 2 and "40 to 70 V" in res.output
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["--after-breakup", "inf"], "--after-breakup must be more than 0 and at most 5000"),
+        (["--duration", "1e308"], "--duration must be more than 0 and at most 5000"),
+        (["--duration", "1e9"], "--duration"),  # was a MemoryError (149 GiB)
+        (["--duration", "5e-324"], "--duration"),  # 0 s once in seconds: a ValueError
+        (["--duration", "nan"], "--duration"),
+        (["--after-breakup", "-1"], "--after-breakup"),
+        (["--concentration", "nan"], "--concentration"),
+        (["--voltage", "nan"], "--voltage"),
+    ],
+)
+def test_simulate_refuses_out_of_range_parameters_on_one_line(
+    tmp_path: Path, argv: list[str], says: str
+) -> None:
+    # issue 13: --after-breakup inf was a ValueError and --duration 1e308 an OverflowError
+    out = tmp_path / "rep"
+    res = runner.invoke(app, ["droplet", "simulate", "--duration", "1", *argv, "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and says in lines[0], res.output
+    assert not out.exists()
 
 
 def test_analyze_errors(tmp_path: Path) -> None:
@@ -118,3 +144,17 @@ def test_simulate_prints_its_summary_with_json_too(tmp_path: Path) -> None:
     )
     assert res.exit_code == 0, res.output
     assert '"breakup_time_s"' in res.output and (tmp_path / "d.json").is_file()
+
+
+def test_analyze_of_noise_says_no_jet_found(tmp_path: Path) -> None:
+    # issue 13: exit 0 with breakup_time_s 0.0
+    from microfab.measure.shadowgraph import Camera, write_frames
+
+    noise = np.random.default_rng(0).random((6, 120, 80))
+    write_frames(
+        noise, tmp_path / "f", camera=Camera(width_px=80, height_px=120), frame_interval_s=1e-5
+    )
+    res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f")])
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: no jet found"), res.output

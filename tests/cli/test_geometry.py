@@ -122,3 +122,64 @@ def test_piped_summary_lines_are_not_wrapped(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     (row,) = [ln for ln in res.output.splitlines() if ln.startswith("#0")]
     assert len(row) > 80 and row.rstrip().endswith("segments"), res.output
+
+
+def test_absurd_speed_is_held_within_the_limits(tmp_path: Path) -> None:
+    # --speed only asks: the acceleration limit caps the speed in the curve
+    out = tmp_path / "ref.csv"
+    args = ["circle:radius=0.005", "--speed", "1e200", "--vmax", "1e300", "--out", str(out)]
+    res = runner.invoke(app, ["trajectory", *args])
+    assert res.exit_code == 0, res.output
+    assert np.abs(read_columns(out)["v_x"]).max() < 1.0
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["circle:radius=0.005", "--speed", "1e-308"], "a reference may hold"),  # OverflowError
+        (["text:ab", "--speed", "0.01", "--rate", "7.7e-258"], "--rate must be between"),
+        (["circle:radius=0.5", "--speed", "0.01"], "outside the workspace"),
+        (["circle:radius=0.01", "--speed", "0.01", "--workspace", "0"], "workspace"),
+    ],
+)
+def test_trajectory_refuses_absurd_options_before_sampling(
+    tmp_path: Path, argv: list[str], says: str
+) -> None:
+    out = tmp_path / "ref.csv"
+    res = runner.invoke(app, ["trajectory", *argv, "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and says in lines[0], res.output
+    assert not out.exists()
+
+
+def test_path_show_refuses_absurd_and_empty_drawings(tmp_path: Path) -> None:
+    big = tmp_path / "big.svg"
+    big.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg"><g transform="scale(1e308)">'
+        '<path d="M 0 0 L 100 0 L 100 100 Z"/></g></svg>'
+    )
+    empty = tmp_path / "empty.svg"
+    empty.write_text('<svg xmlns="http://www.w3.org/2000/svg"></svg>')
+    for f, says in ((big, "beyond ±1000 m"), (empty, "no importable geometry")):
+        png = tmp_path / "x.png"
+        res = runner.invoke(app, ["path", "show", str(f), "--out", str(png)])
+        assert res.exit_code == 2 and says in res.output, res.output
+        assert not png.exists()
+
+
+def test_path_show_of_a_dxf_cut_after_insunits_is_one_error_line(tmp_path: Path) -> None:
+    import ezdxf
+
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 4
+    doc.modelspace().add_lwpolyline([(0, 0), (10, 0), (10, 10)], close=True)
+    full = tmp_path / "full.dxf"
+    doc.saveas(full)
+    data = full.read_bytes()
+    cut = tmp_path / "trunc.dxf"
+    cut.write_bytes(data[: data.index(b"$INSUNITS") + 12])
+    res = runner.invoke(app, ["path", "show", str(cut), "--out", str(tmp_path / "t.png")])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "trunc.dxf: not a readable DXF file" in lines[0]

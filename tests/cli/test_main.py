@@ -168,3 +168,32 @@ def test_run_unknown_key_names_section(tmp_path):
     res = CliRunner().invoke(app, ["run", str(_job(tmp_path, "bogus_key = 1"))])
     assert res.exit_code != 0
     assert "in [job]" in res.output
+
+
+def test_ilc_step_refusals_of_issue_13_are_one_line(tmp_path):
+    runner = CliRunner()
+    t = np.arange(10) * 1e-5
+    r = np.sin(2 * np.pi * t / 1e-4)
+    empty = tmp_path / "empty_axis.csv"
+    write_columns(empty, {"time": t, "reference_": r, "input_": r, "output_": 0.9 * r})
+    short = tmp_path / "short.csv"
+    write_columns(short, {"time": t, "reference_x": r, "input_x": r, "output_x": 0.9 * r})
+    (tmp_path / "next.csv").write_bytes(b"sentinel\n")
+    for trial, says in ((empty, "names no valid axis"), (short, "nothing can be learned")):
+        res = runner.invoke(
+            app,
+            [
+                "ilc",
+                "step",
+                str(trial),
+                "--state",
+                str(tmp_path / "st"),
+                "--out",
+                str(tmp_path / "next.csv"),
+            ],
+        )
+        assert res.exit_code == 2, res.output
+        _single_error_line(res.output)
+        assert says in res.output
+        assert not (tmp_path / "st").exists()
+        assert (tmp_path / "next.csv").read_bytes() == b"sentinel\n"

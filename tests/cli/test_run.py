@@ -33,3 +33,15 @@ def test_run_droplet_sweep_job(tmp_path: Path) -> None:
     res = runner.invoke(app, ["run", str(job), "--out", str(tmp_path / "r")])
     assert res.exit_code == 2
     assert "other settings" in res.output and "Traceback" not in res.output
+
+
+def test_run_check_reads_the_job_and_runs_nothing(tmp_path: Path) -> None:
+    job = tmp_path / "j.toml"
+    job.write_text('[job]\nkind = "msl-ilc"\nout = "rep"\n[scan]\niterations = 5\n')
+    res = runner.invoke(app, ["run", str(job), "--check"])
+    assert res.exit_code == 0, res.output
+    assert "a valid msl-ilc job" in res.output and "rep" in res.output
+    assert list(tmp_path.iterdir()) == [job]
+    job.write_text("[scan]\niterations = 2.7\n")
+    res = runner.invoke(app, ["run", str(job), "--check"])
+    assert res.exit_code == 2 and "expected an integer" in res.output

@@ -121,6 +121,16 @@ def test_update_validation(ref_1k):
     assert ilc.rms_history.shape == (0, 2)
 
 
+def test_update_that_overflows_is_refused_without_warnings(ref_1k):
+    ilc = FrequencyILC(ref_1k, DT, AXES)
+    u = ilc.initial_input()
+    y = periodic_output(u) * 1e300  # finite, but its FFT and squares overflow
+    with np.errstate(all="raise"), pytest.raises(ValueError, match="overflows"):
+        ilc.update(trial(ref_1k, u, y))
+    assert ilc.iteration == 0
+    assert ilc.state.mask.size == 0  # nothing chosen from a refused first trial
+
+
 def test_initial_input_is_reference_and_a_copy(ref_1k):
     ilc = FrequencyILC(ref_1k, DT, AXES)
     u = ilc.initial_input()

@@ -167,3 +167,10 @@ def test_check_trajectory_uses_analytic_derivatives_when_given() -> None:
     tr = Trajectory(dt=1e-3, position=x, acceleration=acc)
     with pytest.raises(LimitViolation, match=r"axis y: acceleration 41 m/s\^2 at t = 0\.004 s"):
         check_trajectory(tr, lim)
+
+
+def test_absurd_sample_times_do_not_overflow() -> None:
+    # dt**2 and dt**3 raised OverflowError for a trial or reference sampled every 1e257 s
+    check_command(sine(1.0), 1e200, {"x": LOOSE}, ("x",), periodic=True)
+    traj = Trajectory(dt=1e257, position=np.array([[0.0, 0.0], [0.01, 0.0]]))
+    check_trajectory(traj, MachineLimits.seed002_stage())

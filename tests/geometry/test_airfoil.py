@@ -81,6 +81,11 @@ def test_lednicer_is_reordered_to_selig():
         ("FOIL\n1 0\n0.5 nan\n0 0\n0.5 -0.1\n1 0\n", "finite"),
         ("FOIL\n1 0\n0.5 0.1\nzero zero\n0.5 -0.1\n1 0\n", "line 4"),
         ("FOIL\n3. 3.\n0 0\n0.5 0.1\n1 0\n0 0\n0.5 -0.1\n", "Lednicer"),
+        # an infinite count line was an OverflowError (int(inf)); it is no count line
+        ("FOIL\ninf 39983\n0 0\n0.5 0.1\n1 0\n0 0\n0.5 -0.1\n", "finite"),
+        ("FOIL\n1e300 3\n0 0\n0.5 0.1\n1 0\n0 0\n0.5 -0.1\n", "outside"),
+        # y = 1.8e308 overflowed the spline fit, with warnings
+        ("FOIL\n1 0\n0.5 1.7976931348623157e308\n0 0\n0.5 -0.1\n1 0\n", r"y = .*\[-1, 1\]"),
     ],
 )
 def test_malformed_files_raise(text, match):
@@ -226,6 +231,7 @@ def test_n_max_subsamples():
         ({"points_or_name": "naca9999"}, "unknown airfoil"),
         ({"chord": 0.0}, "chord"),
         ({"chord": -1.0}, "chord"),
+        ({"chord": 1.7976931348623157e308}, "chord"),  # overflowed, with warnings
         ({"n_max": 4}, "n_max"),
         ({"start": "middle"}, "start"),
         ({"direction": "up"}, "direction"),

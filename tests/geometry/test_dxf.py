@@ -1,3 +1,4 @@
+import logging
 import math
 
 import ezdxf
@@ -532,3 +533,84 @@ def test_invalid_values_are_reported(tmp_path):
     assert len(layer) == 1
     assert [(s.kind, s.ref) for s in layer.skipped] == [("CIRCLE", bad.dxf.handle)]
     assert "radius" in layer.skipped[0].reason
+
+
+# ---------------------------------------------------------------------------- damaged files
+def _square_text(tmp_path):
+    doc, msp = new_doc(4)
+    msp.add_lwpolyline([(0, 0), (10, 0), (10, 10), (0, 10)], close=True)
+    return save(doc, tmp_path, "full.dxf").read_bytes()
+
+
+@pytest.mark.parametrize("extra", range(0, 15))
+def test_cut_right_after_insunits_is_refused_not_stopiteration(tmp_path, extra):
+    # issue 13: cut right after its $INSUNITS header value -> StopIteration from ezdxf
+    data = _square_text(tmp_path)
+    cut = tmp_path / "trunc.dxf"
+    cut.write_bytes(data[: data.index(b"$INSUNITS") + extra])
+    with pytest.raises(ValueError, match=r"^trunc\.dxf: not a readable DXF file \(") as err:
+        read_dxf(cut)
+    assert "\n" not in str(err.value)
+
+
+def test_cut_binary_dxf_is_refused(tmp_path):
+    doc, msp = new_doc(4)
+    msp.add_lwpolyline([(0, 0), (10, 0), (10, 10)], close=True)
+    p = tmp_path / "bin.dxf"
+    doc.saveas(p, fmt="bin")
+    data = p.read_bytes()
+    for k in (40, len(data) // 3, len(data) - 7):  # IndexError / struct.error in ezdxf
+        p.write_bytes(data[:k])
+        with pytest.raises(ValueError, match=r"^bin\.dxf: not a readable DXF file"):
+            read_dxf(p)
+
+
+def test_invalid_group_code_message_is_one_line(tmp_path):
+    # ezdxf's 'Invalid group code "x\n"' spans two lines
+    data = _square_text(tmp_path).replace(b"$INSUNITS", b"$INSUNITS\nx", 1)
+    p = tmp_path / "junk.dxf"
+    p.write_bytes(data)
+    with pytest.raises(ValueError, match="not a readable DXF file") as err:
+        read_dxf(p)
+    assert "\n" not in str(err.value)
+
+
+def test_ezdxf_repair_messages_are_not_printed(tmp_path, capfd, monkeypatch):
+    # as on the command line: no logging handler anywhere, so Python would print warnings
+    monkeypatch.setattr(logging.getLogger(), "handlers", [])
+    text = (
+        "0\nSECTION\n2\nHEADER\n9\n$ACADVER\n1\nAC1015\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n"
+        "0\nSECTION\n2\nENTITIES\n"
+        "0\nLINE\n5\nAB\n100\nAcDbEntity\n8\n0\n100\nAcDbLine\n10\n0\n20\n0\n11\n1\n21\n0\n"
+        "0\nLINE\n5\nAB\n100\nAcDbEntity\n8\n0\n100\nAcDbLine\n10\n1\n20\n0\n11\n1\n21\n1\n"
+        "0\nENDSEC\n0\nEOF\n"
+    )  # two entities with the same handle: ezdxf logs a warning and repairs it
+    p = tmp_path / "dup.dxf"
+    p.write_text(text)
+    layer = read_dxf(p)
+    assert len(layer) == 1
+    assert capfd.readouterr().err == ""
+
+
+def test_absurd_bulge_arc_is_skipped_and_tiny_bulge_is_a_line(tmp_path):
+    doc, msp = new_doc(4)
+    add_square(msp)
+    huge = msp.add_lwpolyline([(0, 20, 0), (5, 20, 1e308), (5, 25, 0)], format="xyb")
+    tiny = msp.add_lwpolyline([(0, 40, 1e-320), (5, 40, 0)], format="xyb")
+    layer = read_dxf(save(doc, tmp_path))
+    assert [(s.kind, s.ref) for s in layer.skipped] == [("LWPOLYLINE", huge.dxf.handle)]
+    assert "beyond ±1000 m" in layer.skipped[0].reason
+    assert len(layer) == 2  # the square, and the tiny bulge read as a straight line
+    assert tiny.dxf.handle not in {s.ref for s in layer.skipped}
+    (line,) = (c for c in layer if not c.closed)
+    assert line.length == pytest.approx(5 * MM, rel=1e-12)
+
+
+def test_contours_shorter_than_a_nanometre_are_skipped(tmp_path):
+    doc, msp = new_doc(4)
+    add_square(msp)
+    msp.add_line((100, 100), (100 + 1e-8, 100))  # 1e-11 m
+    layer = read_dxf(save(doc, tmp_path))
+    assert len(layer) == 1
+    assert [s.kind for s in layer.skipped] == ["contour"]
+    assert "shorter than 1e-09 m" in layer.skipped[0].reason

@@ -66,3 +66,33 @@ def test_load_drawing_shapes_and_errors(tmp_path) -> None:
         load_drawing("part.step")
     with pytest.raises(FileNotFoundError, match="not found"):
         load_drawing(str(tmp_path / "part.dxf"))
+
+
+def test_require_extent_refuses_empty_absurd_and_tiny_layers() -> None:
+    with pytest.raises(ValueError, match="no contours"):
+        Layer((), (Skipped("TEXT", "text"),), source="t.svg").require_extent()
+    with pytest.raises(ValueError, match=r"big: contour #1 has coordinates up to 2e\+03 m"):
+        Layer((circle(0.01), circle(1.0, center=(2e3, 0.0))), source="big").require_extent()
+    with pytest.raises(ValueError, match="shorter than 1e-09 m"):
+        Layer((square(1e-12),), source="tiny").require_extent()
+    ok = Layer((circle(0.01),))
+    assert ok.require_extent() is ok
+
+
+@pytest.mark.parametrize(
+    "spec, match",
+    [
+        ("circle:radius=1e300", "within ±1000 m|does not close"),
+        ("polygon:n_sides=3,radius=1e300", "within ±1000 m"),
+        ("square:side=1e-12", "shorter than"),
+    ],
+)
+def test_load_drawing_refuses_absurd_sizes(spec: str, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        load_drawing(spec)
+
+
+def test_load_drawing_refuses_a_tiny_airfoil() -> None:
+    # a chord of 8e-122 m took minutes to draw (every derivative underflowed)
+    with pytest.raises(ValueError, match="shorter than"):
+        load_drawing("airfoil:e344", chord=8e-122)

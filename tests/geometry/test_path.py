@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from microfab.geometry.path import Path, concatenate
+from microfab.geometry.path import MAX_FLATTEN, Path, concatenate
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment
 from microfab.geometry.shapes import (
     butterfly,
@@ -275,3 +275,33 @@ def test_vectorised_evaluation_of_many_segments_is_consistent() -> None:
     seg = np.searchsorted(p.breaks, s, side="right") - 1
     frac = (s - p.breaks[seg]) / np.diff(p.breaks)[seg]
     assert np.allclose(q, pts[seg] + frac[:, None] * (pts[seg + 1] - pts[seg]), atol=1e-9)
+
+
+def test_bulge_that_is_not_an_arc_is_refused() -> None:
+    with pytest.raises(ValueError, match="radius overflows"):
+        ArcSegment.from_bulge([0, 0], [2, 0], 1e-320)
+    with pytest.raises(ValueError, match="finite"):
+        ArcSegment.from_bulge([0, 0], [2, 0], float("nan"))
+
+
+def test_arc_start_angle_must_be_finite() -> None:
+    with pytest.raises(ValueError, match="theta0"):
+        ArcSegment([0, 0], 1.0, float("inf"), 1.0)
+
+
+@pytest.mark.filterwarnings("error")
+def test_transform_that_overflows_is_refused_without_warnings() -> None:
+    for seg in (LineSegment([0, 0], [2, 2]), ArcSegment([0, 0], 1.0, 0.0, 1.0)):
+        with pytest.raises(ValueError, match="overflows"):
+            seg.transformed(np.diag([1e308, 1e308]))
+
+
+@pytest.mark.filterwarnings("error")
+def test_flatten_of_a_cusp_is_bounded_and_quiet() -> None:
+    # out and back along the same line: the curvature at the tip is unbounded (was a
+    # MemoryError: 1e17 vertices asked for)
+    ctrl = np.array([[0.0, 0.0], [1.0, 1.0], [0.0, 0.0]])
+    cusp = Path((CurveSegment.from_bezier(ctrl),))
+    pts = cusp.flatten(1e-9)
+    assert 2 < len(pts) <= MAX_FLATTEN + 1
+    assert np.all(np.isfinite(pts))

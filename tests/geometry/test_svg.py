@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import svgpathtools
 
+from microfab.geometry.path import MAX_FLATTEN
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment
 from microfab.geometry.svg import PX, parse_svg_path, read_svg
 
@@ -290,3 +291,63 @@ def test_elements_without_namespace_are_read(tmp_path):
     (c,) = read_svg(f)
     assert c.closed
     assert abs(c.signed_area) == pytest.approx(50 * PX**2, rel=1e-12)
+
+
+# ------------------------------------------------------------------ absurd and empty drawings
+def test_scale_1e308_is_refused_with_the_element(tmp_path):
+    # issue 13: transform="scale(1e308)" gave coordinates of 2.6e304 m, accepted
+    f = tmp_path / "d.svg"
+    f.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg"><g transform="scale(1e308)">'
+        '<path d="M 0 0 L 100 0 L 100 100 Z"/></g></svg>'
+    )
+    with pytest.raises(
+        ValueError, match=r"d\.svg: .*<path> #2: subpath 0 reaches .* beyond ±1000 m"
+    ):
+        read_svg(f)
+
+
+def test_a_large_but_finite_scale_beyond_the_limit_is_refused(tmp_path):
+    f = write(tmp_path, '<g transform="scale(1e7)"><rect x="0" y="0" width="10" height="5"/></g>')
+    with pytest.raises(ValueError, match=r"reaches .* m, beyond ±1000 m"):
+        read_svg(f)
+
+
+def test_overflowing_transforms_are_refused(tmp_path):
+    body = (
+        '<polyline transform="scale(1.9,-362881) scale(1.7976931348623157e+308)" points="1 0 5 5"/>'
+    )
+    with pytest.raises(ValueError, match="overflows"):
+        read_svg(write(tmp_path, body))
+
+
+@pytest.mark.parametrize(
+    "body",
+    ["", "<text>only text</text>", '<path d=""/>', '<circle cx="1" cy="1"/>'],
+)
+def test_a_drawing_with_nothing_to_import_is_refused(tmp_path, body):
+    # issue 13: an empty SVG gave an empty picture and exit 0
+    with pytest.raises(ValueError, match=r"^d\.svg: no importable geometry; skipped: "):
+        read_svg(write(tmp_path, body))
+
+
+def test_arc_with_non_finite_radius_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="non-finite"):
+        read_svg(write(tmp_path, '<path d="M 0 0 A 1e308 1e308 0 0 1 1e308 1"/>'))
+
+
+def test_cusp_is_flattened_with_bounded_vertices(tmp_path):
+    # a quadratic that runs out and back to its start: unbounded curvature at the tip
+    f = write(tmp_path, '<path d="M -24 0 T 66 68 q -12.7 71.4 3.7e-117 -4.1e-154"/>')
+    layer = read_svg(f)
+    pts = layer[0].flatten()
+    assert len(pts) <= MAX_FLATTEN * len(layer[0].segments) + 1
+    assert np.all(np.isfinite(pts))
+
+
+def test_subpaths_shorter_than_a_nanometre_are_skipped(tmp_path):
+    f = write(tmp_path, '<path d="M 0 0 L 10 0 L 10 10 Z M 50 50 l 1e-9 0"/>')
+    layer = read_svg(f)
+    assert len(layer) == 1
+    assert [s.kind for s in layer.skipped] == ["subpath"]
+    assert "shorter than 1e-09 m" in layer.skipped[0].reason

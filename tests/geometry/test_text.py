@@ -86,3 +86,20 @@ def test_bad_height_raises(h):
 def test_unknown_font_raises():
     with pytest.raises(ValueError, match="not found"):
         text_layer("u", font="No Such Font Family 1234")
+
+
+@pytest.mark.parametrize("text", ["\U0005b1f3", "a\x18", "\u200b", "x\ny"])
+def test_characters_without_a_glyph_are_refused(text):
+    # a missing glyph was drawn as a placeholder box of dozens of contours (12 of them: 20 s)
+    with pytest.raises(ValueError, match=r"U\+[0-9A-F]{4,}.*(not in font|not a printable)"):
+        text_layer(text)
+
+
+def test_accented_letters_of_the_font_are_taken():
+    assert len(text_layer("é")) >= 2
+
+
+@pytest.mark.parametrize("h", [1e152, float("inf")])
+def test_huge_height_raises(h):
+    with pytest.raises(ValueError, match="text height"):
+        text_layer("u", height=h)

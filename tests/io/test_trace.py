@@ -261,3 +261,41 @@ def test_missing_h5py_message(tmp_path, trace, monkeypatch):
     ):
         write_trace(trace, tmp_path / "t.h5")
     assert os.listdir(tmp_path) == []
+
+
+def test_cut_mat_files_are_read_or_refused_as_value_error(tmp_path):
+    # scipy raised IndexError, TypeError or OSError ("could not read bytes") on cut files
+    path = tmp_path / "t.mat"
+    write_columns(path, {"time": np.arange(10.0), "x": np.ones(10)})
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mat"
+    refused = 0
+    for k in range(0, len(data) - 1, 3):
+        cut.write_bytes(data[:k])
+        try:
+            cols = read_columns(cut)
+        except ValueError as exc:
+            assert str(exc).startswith(f"{cut}: not a readable MAT file")
+            refused += 1
+        else:  # cut after a whole variable
+            assert set(cols) <= {"time", "x"}
+    assert refused > 100
+
+
+def test_damaged_h5_files_are_read_or_refused_as_value_error(tmp_path):
+    # h5py raised RuntimeError, TypeError or KeyError on damaged files
+    pytest.importorskip("h5py")
+    path = tmp_path / "t.h5"
+    write_columns(path, {"time": np.arange(10.0), "x": np.ones(10)})
+    data = path.read_bytes()
+    bad = tmp_path / "bad.h5"
+    for k in range(0, len(data), 5):
+        damaged = bytearray(data)
+        damaged[k] ^= 0xFF
+        bad.write_bytes(bytes(damaged))
+        try:
+            cols = read_columns(bad)
+        except ValueError as exc:
+            assert "bad.h5" in str(exc)
+        else:
+            assert set(cols) <= {"time", "x"}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import microfab.control.ilc as ilc_mod
-from microfab.control.ilc import FrequencyILC, Trial
+from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
 from microfab.core.limits import AxisLimits, LimitViolation
 from microfab.io.trace import read_columns, write_columns
 from microfab.machines.files import TrialFileError, ilc_step
@@ -293,3 +293,59 @@ def test_older_trial_fed_again_is_refused(after_one_step):
     write_columns(t2, cols2)
     ilc_step(t2, state, tmp / "next2.csv")
     _assert_refused(t1, state, tmp, TrialFileError, "already learned")
+
+
+# ---------------------------------------------------------------------- issue 13 cases
+def test_axis_with_an_empty_name_is_refused(tmp_path):
+    # header time,reference_,input_,output_ was taken as an axis '' and wrote 'input_'
+    t = np.arange(64) * 1e-5
+    r = np.sin(2 * np.pi * t / (64e-5))
+    trial = tmp_path / "t.csv"
+    write_columns(trial, {"time": t, "reference_": r, "input_": r, "output_": 0.9 * r})
+    _assert_refused(trial, tmp_path / "st", tmp_path, TrialFileError, r"'reference_' names no")
+
+
+def _short_period(tmp_path: Path, n: int = 10, dt: float = 1e-5) -> Path:
+    t = np.arange(n) * dt
+    r = np.sin(2 * np.pi * t / (n * dt))
+    trial = tmp_path / "short.csv"
+    cols = {"time": t}
+    for a in AXES:
+        cols |= {f"reference_{a}": r, f"input_{a}": r, f"output_{a}": 0.9 * np.roll(r, 1)}
+    write_columns(trial, cols)
+    return trial
+
+
+def test_period_too_short_for_any_harmonic_is_refused(tmp_path):
+    # 10 samples at 10 us: 10 kHz, above the 8 kHz cutoff; printed "harmonics x 0", exit 0
+    trial = _short_period(tmp_path)
+    err = _assert_refused(trial, tmp_path / "st", tmp_path, TrialFileError, "nothing can be")
+    assert "no harmonic at or below the cutoff 8000 Hz" in str(err)
+    assert "--cutoff-hz" in str(err)
+    # with the cutoff above the repetition rate there is something to learn
+    rep = ilc_step(trial, tmp_path / "st", tmp_path / "n.csv", config=ILCConfig(cutoff_hz=2e4))
+    assert all(n >= 1 for n in rep.harmonics.values())
+
+
+def test_first_trial_without_learnable_content_is_refused(tmp_path):
+    n = 100
+    cols = {"time": np.arange(n) * 1e-5}
+    for a in AXES:  # nothing commanded: no harmonic, not even the mean, has content
+        cols |= {f"reference_{a}": np.zeros(n), f"input_{a}": np.zeros(n)}
+        cols[f"output_{a}"] = 1e-4 * np.sin(np.arange(n))
+    trial = tmp_path / "idle.csv"
+    write_columns(trial, cols)
+    err = _assert_refused(trial, tmp_path / "st", tmp_path, TrialFileError, "nothing can be")
+    assert "has content in the input" in str(err)
+
+
+def test_a_constant_reference_learns_its_mean(tmp_path):
+    n = 100
+    cols = {"time": np.arange(n) * 1e-5}
+    for a in AXES:  # an offset to hold: the mean is learned, nothing else has content
+        cols |= {f"reference_{a}": np.full(n, 0.2), f"input_{a}": np.full(n, 0.2)}
+        cols[f"output_{a}"] = np.full(n, 0.19)
+    trial = tmp_path / "flat.csv"
+    write_columns(trial, cols)
+    rep = ilc_step(trial, tmp_path / "st", tmp_path / "n.csv")
+    assert rep.harmonics == {"x": 1, "y": 1}

@@ -286,3 +286,36 @@ def test_calibration_errors(rendered: dict[str, np.ndarray], tmp_path: Path) -> 
     (tmp_path / "frames.json").write_text("{not json")
     with pytest.raises(ValueError, match="cannot read sidecar"):
         analyze_folder(tmp_path)
+
+
+def test_noise_frames_are_no_jet(tmp_path: Path) -> None:
+    # issue 13: frames of pure noise gave breakup_time_s 0.0 and 31 satellites
+    noise = np.random.default_rng(0).random((6, 120, 80))
+    with pytest.raises(ValueError, match="no jet found: in none of the 6 frames"):
+        analyze(noise, pixel_size_m=PX, frame_interval_s=DT)
+
+
+@pytest.mark.parametrize("key, value", [("t0_s", None), ("t0_s", [1.0]), ("pixel_size_m", "2e-6")])
+def test_sidecar_values_must_be_numbers(
+    rendered: dict[str, np.ndarray], tmp_path: Path, key: str, value: object
+) -> None:
+    write_frames(rendered["front"][:3], tmp_path, camera=CAM, frame_interval_s=DT)
+    meta = json.loads((tmp_path / "frames.json").read_text())
+    meta[key] = value  # t0_s: None was a TypeError from float()
+    (tmp_path / "frames.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match=rf"frames\.json: {key} = .* is not a number"):
+        analyze_folder(tmp_path)
+
+
+def test_damaged_tiff_is_refused_without_printing_tifffile_logs(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import logging
+
+    monkeypatch.setattr(logging.getLogger(), "handlers", [])  # as on the command line
+    tifffile.imwrite(tmp_path / "f.tif", np.zeros((3, 3), dtype=np.uint16))
+    data = (tmp_path / "f.tif").read_bytes()
+    (tmp_path / "f.tif").write_bytes(data[:8])  # tifffile logs "invalid offset", then raises
+    with pytest.raises(ValueError, match=r"cannot (read|use) image file .*f\.tif"):
+        load_frames(tmp_path)
+    assert capfd.readouterr().err == ""

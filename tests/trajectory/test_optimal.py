@@ -407,3 +407,14 @@ def test_jerk_limit_on_one_axis_only() -> None:
     assert_within_limits(res, limits)
     assert res.meta["jerk_limited"] is True
     assert min(segment_utilisation(res, limits)) >= 1 - 0.01 - 0.03
+
+
+@pytest.mark.filterwarnings("error")
+def test_limits_too_small_to_time_a_motion_are_a_planning_error() -> None:
+    # vmax = 1e-308 m/s: the path speed underflowed to 0 and every time became inf,
+    # with divide-by-zero warnings printed before the refusal
+    tiny = MachineLimits(
+        workspace=STAGE.workspace, velocity=(1e-308,) * 2, acceleration=(40.0,) * 2
+    )
+    with pytest.raises(PlanningError, match="allow no motion that can be timed"):
+        time_optimal(LinePath((0.0, 0.0), (0.01, 0.0)), tiny, n_grid=20)

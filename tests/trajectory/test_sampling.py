@@ -71,3 +71,17 @@ def test_samples_per_period() -> None:
         samples_per_period(-1, 3)
     with pytest.raises(ValueError, match="repetition rate must be positive"):
         square_scan(0.0, (1.0, 1.0), 1e6)
+
+
+def test_a_reference_too_long_to_hold_is_refused_not_overflowed() -> None:
+    # --speed 1e-308 overflowed round(inf); a millimetre per second over a long path asks
+    # for more samples than a reference may hold
+    c = circle(0.005)
+    for speed in (1e-308, 1e-6):
+        with pytest.raises(ValueError, match="10,000,000 a reference may hold"):
+            constant_speed(c, sample_rate_hz=10_000.0, speed=speed)
+
+
+def test_a_speed_whose_derivatives_overflow_is_refused() -> None:
+    with pytest.raises(ValueError, match="derivatives overflow"):
+        constant_speed(circle(0.005), sample_rate_hz=10_000.0, speed=1e200)

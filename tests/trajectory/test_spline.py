@@ -143,6 +143,13 @@ def test_sample_is_at_the_exact_rate_and_ends_on_the_final_knot() -> None:
     assert tr.s[0] == pytest.approx(0.0) and tr.s[-1] == pytest.approx(1.0)
 
 
+def test_sample_refuses_more_samples_than_a_reference_may_hold() -> None:
+    t, p = knots_and_points()
+    sp = TimeSpline.fit(t, p, bc="clamped")
+    with pytest.raises(ValueError, match="a reference may hold"):
+        sp.sample(1e300)
+
+
 def test_periodic_sample_is_one_period() -> None:
     t, p = knots_and_points()
     p[-1] = p[0]

@@ -12,6 +12,7 @@ from typing import Annotated
 
 import typer
 
+from microfab.cli._kit import OneLineErrors
 from microfab.cli.calibrate import calibrate_app
 from microfab.cli.droplet import droplet_app
 from microfab.cli.geometry import path_app, trajectory_cmd
@@ -48,6 +49,7 @@ def _version(value: bool) -> None:
 
 
 app = typer.Typer(
+    cls=OneLineErrors,
     add_completion=False,
     no_args_is_help=True,
     help=HELP,

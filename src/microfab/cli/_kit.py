@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, NoReturn
+import sys
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import typer
 from rich.console import Console
@@ -17,13 +19,23 @@ from rich.progress import (
     TimeElapsedColumn,
 )
 from rich.table import Table as RichTable
+from typer.core import TyperGroup
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from microfab.report.tables import Table
 
-__all__ = ["console", "err_console", "fail", "print_table", "progress", "reporter"]
+__all__ = [
+    "OneLineErrors",
+    "console",
+    "err_console",
+    "fail",
+    "one_line",
+    "print_table",
+    "progress",
+    "reporter",
+]
 
 #: Standard output; piped or redirected, lines are never wrapped (rich's default would
 #: fold them at 80 columns, splitting summaries and table cells).
@@ -31,10 +43,70 @@ console = Console(soft_wrap=not os.isatty(1))
 err_console = Console(stderr=True, soft_wrap=not os.isatty(2))
 
 
+def one_line(msg: str) -> str:
+    """``msg`` on one line: line breaks and runs of blanks become one space.
+
+    Other control characters (a file's bytes quoted in a message) are shown escaped, so
+    that an error is always exactly one line of plain text.
+    """
+    text = " ".join(msg.split())
+    return "".join(
+        ch if ch.isprintable() else ch.encode("unicode_escape").decode("ascii") for ch in text
+    )
+
+
 def fail(msg: str, code: int = 2) -> NoReturn:
-    """Print ``error: msg`` on stderr and exit with ``code``."""
-    err_console.print(f"[bold red]error:[/] {escape(msg)}", highlight=False, soft_wrap=True)
+    """Print ``error: msg`` on stderr, on one line, and exit with ``code``."""
+    err_console.print(
+        f"[bold red]error:[/] {escape(one_line(msg))}", highlight=False, soft_wrap=True
+    )
     raise typer.Exit(code)
+
+
+#: click's base exception, whether typer vendors click or uses it (``BadParameter``'s base).
+_CLICK_ERROR: type[Exception] = next(
+    c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException"
+)
+
+
+class OneLineErrors(TyperGroup):
+    """The ``microfab`` group: a usage error is one ``error:`` line, like every refusal.
+
+    click's default is a usage line, a hint and a boxed message; here a mistyped option
+    value, an unknown option or a missing argument is refused as ``error: <what>
+    (see 'microfab CMD --help')`` with click's exit code (2), on one line.
+    """
+
+    def main(  # type: ignore[override]
+        self,
+        args: Sequence[str] | None = None,
+        prog_name: str | None = None,
+        complete_var: str | None = None,
+        standalone_mode: bool = True,
+        **extra: Any,
+    ) -> Any:
+        """Run the command; in standalone mode, report usage errors on one line."""
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, **extra)
+        try:
+            code = super().main(args, prog_name, complete_var, False, **extra)
+        except _CLICK_ERROR as exc:
+            exit_code = int(getattr(exc, "exit_code", 2))
+            if type(exc).__name__ == "NoArgsIsHelpError":  # the help is printed already
+                sys.exit(exit_code)
+            ctx = getattr(exc, "ctx", None)
+            hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+            msg = exc.format_message()  # type: ignore[attr-defined]
+            err_console.print(
+                f"[bold red]error:[/] {escape(one_line(msg + hint))}",
+                highlight=False,
+                soft_wrap=True,
+            )
+            sys.exit(exit_code)
+        except typer.Abort:
+            err_console.print("Aborted!", highlight=False)
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
 
 
 def progress() -> Progress:

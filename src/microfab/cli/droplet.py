@@ -12,7 +12,10 @@ import typer
 from microfab.cli._kit import console, fail, progress
 from microfab.io.atomic import atomic_write_text
 
-__all__ = ["droplet_app"]
+__all__ = ["MAX_DURATION_US", "droplet_app"]
+
+#: Longest simulated time a command accepts, µs (the seed's runs are 100 to 400 µs).
+MAX_DURATION_US = 5000.0
 
 droplet_app = typer.Typer(
     no_args_is_help=True,
@@ -35,9 +38,10 @@ def simulate_cmd(
         float, typer.Option(help="NaAlg concentration, % w/v (0 to 2).")
     ] = 1.0,
     voltage: Annotated[float, typer.Option(help="Bipolar drive amplitude, V.")] = 50.0,
-    duration: Annotated[float, typer.Option(help="Simulated time, µs.")] = 300.0,
+    duration: Annotated[float, typer.Option(help="Simulated time, µs (at most 5000).")] = 300.0,
     after_breakup: Annotated[
-        float, typer.Option(help="How long to follow the bodies after breakup, µs.")
+        float,
+        typer.Option(help="How long to follow the bodies after breakup, µs (at most 5000)."),
     ] = 60.0,
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet"),
     json_out: Annotated[
@@ -51,20 +55,22 @@ def simulate_cmd(
 
     if not 40.0 <= voltage <= 70.0:
         fail(
-            f"voltage {voltage} V is outside what the model is calibrated for "
+            f"--voltage {voltage:g} V is outside what the model is calibrated for "
             "(40 to 70 V, seed 003 Table 1)"
         )
-    if not (math.isfinite(duration) and duration > 0 and after_breakup > 0):
-        fail(f"durations must be positive, got {duration} µs and {after_breakup} µs")
+    for name, value in (("--duration", duration), ("--after-breakup", after_breakup)):
+        if not (0.0 < value * 1e-6 and value <= MAX_DURATION_US):  # in s, it must stay > 0
+            fail(f"{name} must be more than 0 and at most {MAX_DURATION_US:g} µs, got {value:g} µs")
     try:
         fluid = naalg(concentration)
+        waveform = seed003_waveform(voltage)
     except ValueError as exc:
-        fail(str(exc))
+        fail(f"--concentration: {exc}")
     with progress() as bar:
         task = bar.add_task(f"{fluid.name}, {voltage:g} V", total=round(duration))
         res = simulate_droplet(
             fluid,
-            seed003_waveform(voltage),
+            waveform,
             duration_s=duration * 1e-6,
             after_breakup_s=after_breakup * 1e-6,
             progress=lambda t: bar.update(task, completed=round(t * 1e6)),
@@ -217,7 +223,9 @@ def sweep_cmd(
     voltage_concentration: Annotated[
         float, typer.Option(help="Concentration of the voltage series, % w/v.")
     ] = 1.0,
-    duration: Annotated[float, typer.Option(help="Simulated time per point, µs.")] = 400.0,
+    duration: Annotated[
+        float, typer.Option(help="Simulated time per point, µs (10 to 5000).")
+    ] = 400.0,
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet-sweep"),
     jobs: Annotated[
         int,
@@ -255,8 +263,8 @@ def sweep_cmd(
     for v in vs:
         if not 40.0 <= v <= 70.0:
             fail(f"voltage {v} V is outside what the model covers (40 to 70 V, seed Table 1)")
-    if not (math.isfinite(duration) and 10.0 <= duration <= 5000.0):
-        fail(f"--duration must be between 10 and 5000 µs, got {duration}")
+    if not (math.isfinite(duration) and 10.0 <= duration <= MAX_DURATION_US):
+        fail(f"--duration must be between 10 and {MAX_DURATION_US:g} µs, got {duration:g} µs")
     try:
         for c in {*cs, voltage_concentration}:
             naalg(c)

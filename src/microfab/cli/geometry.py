@@ -11,7 +11,12 @@ import typer
 
 from microfab.cli._kit import console, err_console, fail
 
-__all__ = ["path_app", "trajectory_cmd"]
+__all__ = ["MAX_GRID", "MAX_RATE_HZ", "path_app", "trajectory_cmd"]
+
+#: Largest ``--n-grid`` (the linear programs grow with it; 20000 points take a minute).
+MAX_GRID = 20_000
+#: Largest ``--rate``, Hz.
+MAX_RATE_HZ = 1e8
 
 path_app = typer.Typer(no_args_is_help=True, help="Inspect drawings: contours, lengths, holes.")
 
@@ -103,8 +108,16 @@ def trajectory_cmd(
         float | None, typer.Option(help="Half width of the square workspace, m.")
     ] = None,
     feed: Annotated[float | None, typer.Option(help="Path speed cap, m/s (time-optimal).")] = None,
-    rate: Annotated[float, typer.Option(help="Sample rate, Hz.")] = 10_000.0,
-    n_grid: Annotated[int, typer.Option(help="Planning grid points (time-optimal).")] = 1000,
+    rate: Annotated[float, typer.Option(help="Sample rate, Hz (1 Hz to 100 MHz).")] = 10_000.0,
+    n_grid: Annotated[
+        int,
+        typer.Option(
+            min=10,
+            max=MAX_GRID,
+            help=f"Planning grid points (time-optimal), 10 to {MAX_GRID}; planning time "
+            "grows faster than the grid (1000: a few s, 20000: about a minute).",
+        ),
+    ] = 1000,
     contour: Annotated[
         int | None, typer.Option(help="Only this contour (index); default: all, joined by jumps.")
     ] = None,
@@ -132,11 +145,15 @@ def trajectory_cmd(
 
     if (speed is None) == (not time_optimal):
         fail("give exactly one of --speed V or --time-optimal")
+    if not 1.0 <= rate <= MAX_RATE_HZ:
+        fail(f"--rate must be between 1 Hz and {MAX_RATE_HZ:g} Hz, got {rate:g} Hz")
     base = MachineLimits.seed002_stage()
     try:
         half = workspace
         limits = MachineLimits(
-            workspace=tuple((-half, half) for _ in base.axes) if half else base.workspace,
+            workspace=tuple((-half, half) for _ in base.axes)
+            if half is not None
+            else base.workspace,
             velocity=(vmax,) * 2 if vmax is not None else base.velocity,
             acceleration=(amax,) * 2 if amax is not None else base.acceleration,
             jerk=(jmax,) * 2 if jmax is not None else None,
@@ -150,16 +167,27 @@ def trajectory_cmd(
         path, marks = layer[contour], ((0.0, layer[contour].length),)
     else:
         path, marks = layer.tour() if len(layer) > 1 else (layer[0], ((0.0, layer[0].length),))
+    box = path.bbox
+    for k, (lo, hi) in enumerate(limits.workspace):
+        if box[k] < lo or box[k + 2] > hi:
+            fail(
+                f"the drawing spans {'xy'[k]} from {box[k]:.6g} to {box[k + 2]:.6g} m, outside "
+                f"the workspace [{lo:.6g}, {hi:.6g}] m; declare a larger --workspace, or check "
+                "the drawing's units"
+            )
     try:
         if time_optimal:
             from microfab.trajectory.optimal import PlanningError
             from microfab.trajectory.optimal import time_optimal as plan
 
+            planning_error: PlanningError | None = None
             with console.status("planning the time-optimal profile"):
                 try:
                     res = plan(path, limits, n_grid=n_grid, sample_rate_hz=rate, feed=feed)
                 except PlanningError as exc:
-                    fail(str(exc))
+                    planning_error = exc
+            if planning_error is not None:
+                fail(str(planning_error))
             traj = res.trajectory
         else:
             assert speed is not None

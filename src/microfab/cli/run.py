@@ -18,11 +18,16 @@ def run_cmd(
         Path | None, typer.Argument(help="Job TOML; the default job (seed 000 twin) if omitted.")
     ] = None,
     out: Annotated[Path | None, typer.Option(help="Report folder (overrides the job's).")] = None,
+    check: Annotated[
+        bool,
+        typer.Option("--check", help="Only check the job file and say what would run."),
+    ] = False,
 ) -> None:
     """Run a job of any registered kind and write its report (report.html + figures + JSON).
 
     The kind is the job file's [job] kind (microfab kinds lists them). Results and
-    learning state are saved as the run goes; running the same job again resumes.
+    learning state are saved as the run goes; running the same job again resumes. With
+    --check the job file is read and checked and nothing runs or is written.
     """
     from microfab.experiments.catalog import default_job, load_job
 
@@ -31,6 +36,14 @@ def run_cmd(
     except (OSError, ValueError) as exc:
         fail(str(exc))
     out_dir = out or job.out
+    if check:
+        console.print(
+            f"{job_file or 'default job'}: a valid {job.kind.name} job "
+            f"({job.title}); it would write {out_dir}",
+            highlight=False,
+            soft_wrap=True,
+        )
+        return
     try:
         with progress() as prog:
             result = job.kind.run(job.config, out_dir, reporter(prog))

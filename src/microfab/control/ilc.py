@@ -412,9 +412,7 @@ class FrequencyILC:
             rows = np.flatnonzero(self.state.mask.any(axis=1))
             P = np.full((f.size, len(self.state.axes)), np.nan, dtype=complex)
             if rows.size:
-                P[rows] = np.asarray(self.true_frf(f[rows]), dtype=complex).reshape(
-                    rows.size, -1
-                )
+                P[rows] = np.asarray(self.true_frf(f[rows]), dtype=complex).reshape(rows.size, -1)
             self._eq5(P, "the true machine", "")
         elif self.state.model_frf is not None or self.config.law == "p-type":
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -474,6 +472,13 @@ class FrequencyILC:
         -------
         numpy.ndarray
             Next input, shape (N, n_axes).
+
+        Raises
+        ------
+        ValueError
+            Signals of the wrong shape, NaN or inf, or so large that the update overflows.
+        ConvergenceError
+            On the first trial, with ``true_frf``, a gain that violates eq. (5).
         """
         st = self.state
         u = np.asarray(trial.input, dtype=float)
@@ -485,31 +490,41 @@ class FrequencyILC:
             )
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             raise ValueError("trial holds NaN or inf")
-        U = np.fft.rfft(u, axis=0)
-        Y = np.fft.rfft(y, axis=0)
+        # signals of absurd magnitude overflow below: refused, as not finite, before the
+        # state changes
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            U = np.fft.rfft(u, axis=0)
+            Y = np.fft.rfft(y, axis=0)
+            E = np.fft.rfft(st.reference - y, axis=0)  # E_i = Y_d - Y_i (see module doc)
+            err = np.ascontiguousarray((y - st.reference).T)  # one row per axis: fast
+            rms = np.sqrt(np.mean(err**2, axis=1))
+            pp = err.max(axis=1) - err.min(axis=1)
+            finite = all(np.all(np.isfinite(a)) for a in (U, Y, E, rms, pp))
+        if not finite:
+            raise ValueError(_overflow_message(u, y))
         if st.iteration == 0:
-            st.pinv, st.mask = self._select_and_invert(U, Y)
-            gains = np.array([self.config.gain_of(a) for a in st.axes])
-            st.gain = np.where(st.mask, gains[None, :], 0.0)
+            pinv, mask = self._select_and_invert(U, Y)
+            gain = np.array([self.config.gain_of(a) for a in st.axes])
+            st.pinv, st.mask = pinv, mask
+            st.gain = np.where(mask, gain[None, :], 0.0)
             self._check_convergence(U, Y)
             st.best_input = u.copy()
             st.best_rms = np.full(len(st.axes), np.inf)
-        E = np.fft.rfft(st.reference - y, axis=0)  # E_i = Y_d - Y_i (sign: see module doc)
-        err = np.ascontiguousarray((y - st.reference).T)  # one row per axis: fast reductions
-        rms = np.sqrt(np.mean(err**2, axis=1))
+        # eq. (2) on the learned harmonics, 0 on the others (the seed's Q filter), except
+        # the mean: when not learned it keeps the input as applied (u_1 = y_d, the user's)
+        with np.errstate(over="ignore", invalid="ignore"):
+            kept = np.zeros_like(U)
+            kept[0] = U[0]
+            U_next = np.where(st.mask, U + st.gain * st.pinv * E, kept)
+            u_next = np.fft.irfft(U_next, n=self.n_samples, axis=0)  # eq. (6), +j sign
+        if not np.all(np.isfinite(u_next)):
+            raise ValueError(_overflow_message(u, y))
         st.rms.append([float(v) for v in rms])
-        st.pp.append([float(v) for v in err.max(axis=1) - err.min(axis=1)])
+        st.pp.append([float(v) for v in pp])
         better = rms < st.best_rms
         st.best_rms = np.where(better, rms, st.best_rms)
         st.best_input[:, better] = u[:, better]
-        fallen = self._monitor(E)
-        # eq. (2) on the learned harmonics, 0 on the others (the seed's Q filter), except
-        # the mean: when not learned it keeps the input as applied (u_1 = y_d, the user's)
-        kept = np.zeros_like(U)
-        kept[0] = U[0]
-        U_next = np.where(st.mask, U + st.gain * st.pinv * E, kept)
-        u_next = np.fft.irfft(U_next, n=self.n_samples, axis=0)  # eq. (6), +j sign
-        for a in fallen:
+        for a in self._monitor(E):
             u_next[:, a] = st.best_input[:, a]
         st.iteration += 1
         st.inputs.append(u_next)
@@ -653,3 +668,12 @@ def _noise_from_top(y1: np.ndarray, band: np.ndarray) -> float | None:
     if top.sum() < 8:
         return None
     return float(np.median(np.abs(y1[top])) / np.sqrt(np.log(2.0)))
+
+
+def _overflow_message(u: np.ndarray, y: np.ndarray) -> str:
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = max(float(np.max(np.abs(u))), float(np.max(np.abs(y))))
+    return (
+        f"the learning update overflows: the trial's signals reach {scale:.3g}, too large "
+        "to learn from (wrong unit or a corrupt value?)"
+    )

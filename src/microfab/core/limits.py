@@ -51,6 +51,12 @@ class AxisLimits:
                 raise ValueError(f"{name} limit must be positive, got {val} {self.unit}{suffix}")
 
 
+def _power(dt: float, order: int) -> float:
+    """``dt ** order`` as a float, inf where it overflows (a Python float raises there)."""
+    with np.errstate(over="ignore"):
+        return float(np.float64(dt) ** order)
+
+
 def check_command(
     command: np.ndarray,
     dt: float,
@@ -89,8 +95,9 @@ def check_command(
     # all axes at once, one row each (reductions along contiguous rows are fast)
     X = np.ascontiguousarray(cmd.T)
     XE = np.concatenate([X[:, -2:], X, X[:, :2]], axis=1) if periodic else X
-    V = np.diff(XE, axis=1) / dt
-    ACC = np.diff(XE, 2, axis=1) / dt**2
+    with np.errstate(over="ignore"):  # an absurd dt gives inf, refused as beyond the limit
+        V = np.diff(XE, axis=1) / dt
+        ACC = np.diff(XE, 2, axis=1) / _power(dt, 2)
     peaks = [np.argmax(np.abs(sig), axis=1) if sig.shape[1] else None for sig in (X, V, ACC)]
     for a, name in enumerate(axes):
         if name not in limits:
@@ -268,9 +275,9 @@ def check_trajectory(traj: Trajectory, limits: MachineLimits, rtol: float = 1e-9
         for order, ((qty, unit), bound) in enumerate(zip(names, bounds, strict=True), start=1):
             if not np.isfinite(bound):
                 continue
-            d = np.diff(xe, order) / dt**order
+            d = np.diff(xe, order) / _power(dt, order)
             # rounding of the samples, amplified by the difference (2**order * eps * |x|)
-            allow = bound * (1 + rtol) + 2**order * 4 * eps * scale / dt**order
+            allow = bound * (1 + rtol) + 2**order * 4 * eps * scale / _power(dt, order)
             i = int(np.argmax(np.abs(d)))
             if abs(d[i]) > allow:
                 tc = float(np.clip(te[i] + 0.5 * order * dt, 0.0, max(t[-1], 0.0)))

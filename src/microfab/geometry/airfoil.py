@@ -35,7 +35,8 @@ from importlib import resources
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from microfab.core.validate import check_positive
+from microfab.core.validate import check_in_range
+from microfab.geometry.layer import MAX_COORDINATE_M
 from microfab.geometry.path import Path
 from microfab.geometry.segments import CurveSegment, LineSegment, Segment
 
@@ -95,6 +96,14 @@ def _check_points(P: np.ndarray, where: str) -> np.ndarray:
             f"{where}: x = {x[i]:g} (point {i}) lies outside [0, 1] (chord fractions, "
             f"tolerance {X_TOL}); coordinates must be normalised by the chord"
         )
+    y = P[:, 1]
+    bad = np.nonzero(np.abs(y) > 1.0)[0]
+    if bad.size:  # thicker than the chord is long: not an airfoil, or not normalised
+        i = int(bad[0])
+        raise ValueError(
+            f"{where}: y = {y[i]:g} (point {i}) lies outside [-1, 1] (chord fractions); "
+            "coordinates must be normalised by the chord"
+        )
     return P
 
 
@@ -120,7 +129,8 @@ def read_selig(path_or_text: str | os.PathLike[str]) -> tuple[str, np.ndarray]:
     ValueError
         If there are no coordinates, a row does not have exactly two numbers, a Lednicer
         count line does not match the rows, fewer than 5 points remain, a coordinate is
-        not finite, or an x lies outside ``[0, 1]`` by more than :data:`X_TOL`.
+        not finite, an x lies outside ``[0, 1]`` by more than :data:`X_TOL`, or a y
+        outside ``[-1, 1]``.
     """
     text, where = _text_of(path_or_text)
     lines = [(i + 1, ln.strip()) for i, ln in enumerate(text.splitlines()) if ln.strip()]
@@ -144,7 +154,7 @@ def read_selig(path_or_text: str | os.PathLike[str]) -> tuple[str, np.ndarray]:
         rows.append(r)
     P = np.array(rows, dtype=float)
     first = P[0]
-    if np.all(first > 1.0 + X_TOL) and np.all(first == np.round(first)):
+    if np.all(first > 1.0 + X_TOL) and np.all(first == np.round(first)) and first.max() < 1e9:
         nu, nl = int(first[0]), int(first[1])
         body = P[1:]
         if nu + nl != body.shape[0]:
@@ -250,7 +260,7 @@ def _layout(
     Returns ``(knots, ctrl, (k, x_le), i_le)`` where a data point ``p`` maps to
     ``k (p − (x_le, 0))`` and piece ``i_le`` of ``ctrl`` starts at the leading edge.
     """
-    c = check_positive("chord", chord, "m")
+    c = check_in_range("chord", chord, 0.0, MAX_COORDINATE_M, "m", low_closed=False)
     P = _points(points_or_name, n_max)
     ctrl = _bezier_pieces(P)
     (x_lo, i_lo, u_lo), (x_hi, _, _) = _extrema_x(ctrl)
@@ -295,7 +305,7 @@ def airfoil_path(
     chord : float
         Chord, m: the x extent of the outline, from the leading edge (the spline's point
         of smallest x) to the trailing edge (its largest x), computed exactly from the
-        cubic pieces.
+        cubic pieces; at most `~microfab.geometry.layer.MAX_COORDINATE_M`.
     n_max : int, optional
         Use at most this many of the points (evenly by index, keeping both trailing-edge
         points and the point of smallest x); all by default.
@@ -319,8 +329,8 @@ def airfoil_path(
     Raises
     ------
     ValueError
-        For an unknown name, bad points (see :func:`read_selig`), a non-positive chord,
-        ``n_max < 5``, or an unknown ``start`` / ``direction``.
+        For an unknown name, bad points (see :func:`read_selig`), a chord not in
+        ``(0, MAX_COORDINATE_M]``, ``n_max < 5``, or an unknown ``start`` / ``direction``.
     """
     if start not in ("trailing", "leading"):
         raise ValueError(f"start must be 'trailing' or 'leading', got {start!r}")

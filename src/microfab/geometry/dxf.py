@@ -36,8 +36,10 @@ from __future__ import annotations
 import contextlib
 import gc
 import itertools
+import logging
 import math
 import os
+import struct
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path as FsPath
@@ -46,8 +48,14 @@ import numpy as np
 
 from microfab.core.validate import check_positive
 from microfab.geometry.chain import chain_segments, segment_endpoints
-from microfab.geometry.layer import Layer, Skipped
-from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
+from microfab.geometry.layer import MAX_COORDINATE_M, MIN_LENGTH_M, Layer, Skipped
+from microfab.geometry.segments import (
+    ArcSegment,
+    CurveSegment,
+    LineSegment,
+    Segment,
+    segment_reach,
+)
 
 __all__ = ["INSUNITS_M", "UNITS_M", "read_dxf"]
 
@@ -91,6 +99,7 @@ UNITS_M: dict[str, float] = {
     "foot": 0.3048,
 }
 
+_LINE_BULGE = 1e-12  # |bulge| up to this is a straight segment (sagitta < 1e-12 chord)
 _MAX_DEPTH = 32  # block nesting depth; deeper means a recursive block definition
 _FLAT_RTOL = 1e-9  # relative tolerance on z and on the extrusion's tilt
 _TWO_PI = 2.0 * math.pi
@@ -121,6 +130,28 @@ _SKIP_REASONS: dict[str, str] = {
     ),
     **dict.fromkeys(("RAY", "XLINE"), "infinite lines are not imported"),
 }  # fmt: skip
+
+
+#: What ezdxf raises on a damaged file: its own errors, and, for a file cut short or
+#: holding odd tags, errors of its tag loaders (StopIteration at the end of a truncated
+#: header, IndexError in a cut binary file, ...).
+_EZDXF_READ_ERRORS = (
+    OSError,
+    UnicodeDecodeError,
+    ValueError,
+    struct.error,
+    StopIteration,
+    IndexError,
+    KeyError,
+    TypeError,
+    AttributeError,
+    EOFError,
+    ArithmeticError,
+)
+
+# ezdxf reports the repairs it makes (duplicate handles, ...) through logging; without a
+# handler Python prints them on stderr, which would break a command's one-line error.
+logging.getLogger("ezdxf").addHandler(logging.NullHandler())
 
 
 class _SkipEntityError(Exception):
@@ -226,6 +257,18 @@ class _Reader:
             # corrupt values (NaN coordinates, a curve that does not fit, ...)
             self.skipped.append(Skipped(kind, f"invalid geometry: {exc}", _ref(e, parent_ref)))
             return
+        reach = max((segment_reach(s) for s in segs if s is not None), default=0.0)
+        if not reach <= MAX_COORDINATE_M:
+            what = f"{reach:.3g} m" if np.isfinite(reach) else "non-finite coordinates"
+            self.skipped.append(
+                Skipped(
+                    kind,
+                    f"invalid geometry: reaches {what}, beyond ±{MAX_COORDINATE_M:g} m "
+                    "(a corrupt value, or the wrong units?)",
+                    _ref(e, parent_ref),
+                )
+            )
+            return
         self.segments.extend(segs)
 
     def insert(self, e: object, ref: str, depth: int) -> None:
@@ -281,6 +324,12 @@ class _Reader:
         xy = (s.x * k, s.y * k, t.x * k, t.y * k)
         if not all(map(math.isfinite, xy)):
             return [LineSegment(xy[:2], xy[2:])]  # raises the segment's own error
+        reach = max(map(abs, xy))
+        if reach > MAX_COORDINATE_M:  # as entity() checks the other segments
+            raise _SkipEntityError(
+                f"invalid geometry: reaches {reach:.3g} m, beyond ±{MAX_COORDINATE_M:g} m "
+                "(a corrupt value, or the wrong units?)"
+            )
         self.lines.extend(xy)
         return [None]
 
@@ -346,10 +395,12 @@ class _Reader:
             if x0 == x1 and y0 == y1:
                 continue
             b = bulges[i]
+            # a bulge below 1e-12 bows the chord by less than 1e-12 of it: a line
+            straight = abs(b) <= _LINE_BULGE
             if not finite:  # the segments raise their errors
                 p0, p1 = (x0 * k, y0 * k), (x1 * k, y1 * k)
-                out.append(LineSegment(p0, p1) if b == 0 else ArcSegment.from_bulge(p0, p1, b))
-            elif b == 0:
+                out.append(LineSegment(p0, p1) if straight else ArcSegment.from_bulge(p0, p1, b))
+            elif straight:
                 out.append(LineSegment._unchecked(pts[i], pts[(i + 1) % n]))
             else:
                 out.append(ArcSegment._from_bulge(x0 * k, y0 * k, x1 * k, y1 * k, float(b)))
@@ -540,8 +591,12 @@ def read_dxf(
     with _gc_paused():
         try:
             doc = ezdxf.readfile(fs)
-        except (OSError, ezdxf.DXFError, UnicodeDecodeError, ValueError) as exc:
-            raise ValueError(f"{name}: not a readable DXF file ({exc})") from exc
+        except (ezdxf.DXFError, *_EZDXF_READ_ERRORS) as exc:
+            if isinstance(exc, StopIteration | EOFError):
+                why = "it ends too early: cut short?"
+            else:  # ezdxf's messages may span lines ('Invalid group code "x\n"'): one
+                why = " ".join(str(exc).split()) or type(exc).__name__
+            raise ValueError(f"{name}: not a readable DXF file ({why})") from exc
         reader = _Reader(_unit_factor(doc, units, name), flatten_blocks)
         for e in doc.modelspace():
             reader.entity(e, "", 0)
@@ -558,4 +613,12 @@ def read_dxf(
         if tol is None:
             tol = max(1e-6 * _extent(segments, starts, ends), 1e-9)
         contours = chain_segments(segments, tol, endpoints=(starts, ends))
-    return Layer(tuple(contours), tuple(reader.skipped), name)
+    kept = [c for c in contours if c.length >= MIN_LENGTH_M]
+    for c in contours:
+        if c.length < MIN_LENGTH_M:  # a CAD artefact far below any fabrication scale
+            x, y = (float(v) for v in c.start)
+            reason = f"shorter than {MIN_LENGTH_M:g} m ({c.length:.3g} m)"
+            reader.skipped.append(Skipped("contour", reason, f"at ({x:.6g}, {y:.6g}) m"))
+    if not kept:
+        raise ValueError(f"{name}: no importable geometry; every contour is shorter than 1 nm")
+    return Layer(tuple(kept), tuple(reader.skipped), name).require_extent()

@@ -10,9 +10,18 @@ import numpy as np
 from matplotlib.path import Path as MplPath
 
 from microfab.geometry.path import Path
-from microfab.geometry.segments import LineSegment, Segment
+from microfab.geometry.segments import LineSegment, Segment, segment_reach
 
-__all__ = ["Layer", "Skipped"]
+__all__ = ["MAX_COORDINATE_M", "MIN_LENGTH_M", "Layer", "Skipped"]
+
+#: Largest distance from the origin a drawing may reach, m. Micro-fabrication parts are
+#: millimetres to decimetres; a drawing reaching beyond a kilometre is in the wrong units,
+#: holds a corrupt value or an absurd transform (an SVG ``scale(1e308)``), and its
+#: coordinates would overflow the sampling and planning that follow.
+MAX_COORDINATE_M = 1e3
+#: Shortest contour a drawing may hold, m: shorter is below any fabrication scale (a
+#: drawing in the wrong units), and its derivatives underflow.
+MIN_LENGTH_M = 1e-9
 
 
 @dataclass(frozen=True)
@@ -121,6 +130,43 @@ class Layer:
             )
         if not self.contours:
             raise ValueError("the layer has no contours")
+        return self
+
+    def require_extent(self, limit_m: float = MAX_COORDINATE_M) -> Layer:
+        """Return the layer if it has contours, all within ``±limit_m`` and not too short.
+
+        Parameters
+        ----------
+        limit_m : float
+            Largest coordinate allowed, m (default `MAX_COORDINATE_M`).
+
+        Raises
+        ------
+        ValueError
+            No contours, a contour with a non-finite coordinate or one beyond ``limit_m``,
+            or one shorter than `MIN_LENGTH_M`; the message names the source, the contour
+            and how far it reaches or how long it is.
+        """
+        src = self.source or "the drawing"
+        if not self.contours:
+            skipped = f" (skipped: {len(self.skipped)} item(s))" if self.skipped else ""
+            raise ValueError(f"{src}: no contours to draw{skipped}")
+        for i, c in enumerate(self.contours):
+            reach = max(segment_reach(s) for s in c.segments)
+            if not reach <= limit_m:
+                what = f"coordinates up to {reach:.3g} m"
+                if not np.isfinite(reach):
+                    what = "non-finite coordinates"
+                raise ValueError(
+                    f"{src}: contour #{i} has {what}; a drawing must lie within "
+                    f"±{limit_m:g} m of the origin (wrong units, a corrupt value or an "
+                    "absurd scale?)"
+                )
+            if not c.length >= MIN_LENGTH_M:
+                raise ValueError(
+                    f"{src}: contour #{i} is {c.length:.3g} m long, shorter than "
+                    f"{MIN_LENGTH_M:g} m (wrong units or an absurd scale?)"
+                )
         return self
 
     def transformed(self, A: object, b: object = (0.0, 0.0)) -> Layer:

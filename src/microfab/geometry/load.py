@@ -47,8 +47,13 @@ def load_drawing(
     FileNotFoundError
         If ``spec`` names a drawing file that does not exist.
     ValueError
-        If the source is not understood or the file is malformed.
+        If the source is not understood, the file is malformed, or the drawing has no
+        contours or reaches beyond `~microfab.geometry.layer.MAX_COORDINATE_M`.
     """
+    return _load(spec, units=units, chord=chord, text_height=text_height).require_extent()
+
+
+def _load(spec: str, *, units: str | None, chord: float, text_height: float) -> Layer:
     spec = spec.strip()
     if not spec:
         raise ValueError("empty drawing specification")

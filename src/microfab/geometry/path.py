@@ -28,7 +28,10 @@ from microfab.geometry.segments import (
     cheb_fit2,
 )
 
-__all__ = ["Path"]
+__all__ = ["MAX_FLATTEN", "Path"]
+
+#: Most vertices `Path.flatten` gives one segment.
+MAX_FLATTEN = 4096
 
 _LINE, _ARC, _CURVE = 0, 1, 2
 _CHUNK = 8192
@@ -76,13 +79,24 @@ class _CurveGroup:
         return u
 
     def derivs(self, rows: np.ndarray, sigma: np.ndarray, order: int) -> list[np.ndarray]:
-        """Arc-length derivatives q, q_s, q_ss, q_sss at local arc length sigma."""
+        """Arc-length derivatives q, q_s, q_ss, q_sss at local arc length sigma.
+
+        At a cusp (the curve stops, ``|dq/du| = 0``) the second and third derivatives
+        are unbounded: they come out inf or NaN there, without a warning, for the caller
+        to refuse or to bound.
+        """
         u = self.u_of_sigma(rows, sigma)
         x = (2.0 * u - 1.0)[:, None]
         f = [_clenshaw(self.d[k][rows], x)[:, 0, :] for k in range(order + 1)]
-        out = [f[0]]
         if order == 0:
-            return out
+            return [f[0]]
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            return self._chain(f, order)
+
+    @staticmethod
+    def _chain(f: list[np.ndarray], order: int) -> list[np.ndarray]:
+        """Arc-length derivatives from the parameter derivatives ``f`` (chain rule)."""
+        out = [f[0]]
         g = np.maximum(np.linalg.norm(f[1], axis=1), 1e-300)[:, None]
         out.append(f[1] / g)
         if order == 1:
@@ -402,6 +416,12 @@ class Path:
         -------
         numpy.ndarray
             Vertices, shape (n, 2); for a closed path the first vertex is repeated last.
+
+        Notes
+        -----
+        A segment gets at most `MAX_FLATTEN` vertices: the curvature of a cusp (a Bézier
+        curve that stops and turns back) is unbounded, and no step would meet ``tol``
+        there; near a cusp the polyline then deviates by more than ``tol``.
         """
         if tol is None:
             tol = 1e-4 * max(float(np.max(np.ptp(self._coarse, axis=0))), 1e-12)
@@ -410,12 +430,14 @@ class Path:
         for i, seg in enumerate(self.segments):
             if isinstance(seg, ArcSegment):
                 step = 2.0 * np.sqrt(max(2.0 * tol * seg.radius - tol * tol, 1e-300))
-                counts[i] = max(int(np.ceil(seg.length / min(step, 2 * seg.radius))), 2)
+                n_arc = np.ceil(seg.length / min(step, 2 * seg.radius))
+                counts[i] = max(int(min(n_arc, MAX_FLATTEN)), 2)
             elif isinstance(seg, CurveSegment):
                 probe = self._eval_local(np.full(33, i), np.linspace(0.0, seg.length, 33), 2)[2]
-                kmax = float(np.max(np.linalg.norm(probe, axis=1)))
+                kmax = float(np.max(np.linalg.norm(probe, axis=1)))  # inf or NaN at a cusp
                 step = np.sqrt(8.0 * tol / kmax) if kmax > 0 else seg.length
-                counts[i] = max(int(np.ceil(1.25 * seg.length / step)), 2)
+                step = step if step > 0 else seg.length / MAX_FLATTEN
+                counts[i] = max(int(min(np.ceil(1.25 * seg.length / step), MAX_FLATTEN)), 2)
         seg_idx = np.repeat(np.arange(len(self.segments)), counts)
         frac = np.concatenate([np.arange(c) / c for c in counts])
         lengths = np.array([s.length for s in self.segments])

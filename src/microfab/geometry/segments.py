@@ -25,9 +25,9 @@ from functools import cached_property
 import numpy as np
 from numpy.polynomial import chebyshev as cheb
 
-from microfab.core.validate import check_positive
+from microfab.core.validate import check_finite, check_positive
 
-__all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment"]
+__all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment", "segment_reach"]
 
 GL_X, GL_W = np.polynomial.legendre.leggauss(10)
 N_PANELS = 16
@@ -49,11 +49,19 @@ def _vec2(p: object, name: str) -> np.ndarray:
     return a
 
 
+_MAX_SCALE = 1e150  # largest entry of an affine map: its square stays finite
+
+
 def _affine(A: object, b: object) -> tuple[np.ndarray, np.ndarray]:
     Am = np.asarray(A, dtype=float).reshape(2, 2)
     bv = np.asarray(b, dtype=float).reshape(2)
     if not (np.all(np.isfinite(Am)) and np.all(np.isfinite(bv))):
         raise ValueError("transform must be finite")
+    if np.max(np.abs(Am)) > _MAX_SCALE:  # A^T A, and the images, would overflow
+        raise ValueError(
+            f"transform overflows: it scales by up to {np.max(np.abs(Am)):.3g} "
+            f"(at most {_MAX_SCALE:g})"
+        )
     if abs(np.linalg.det(Am)) < 1e-300:
         raise ValueError("transform is singular")
     return Am, bv
@@ -153,7 +161,7 @@ class ArcSegment:
             raise ValueError(f"arc sweep must be nonzero and within ±2π, got {self.sweep} rad")
         object.__setattr__(self, "radius", r)
         object.__setattr__(self, "sweep", s)
-        object.__setattr__(self, "theta0", float(self.theta0))
+        object.__setattr__(self, "theta0", check_finite("arc theta0", self.theta0, "rad"))
 
     @classmethod
     def from_bulge(cls, p0: object, p1: object, bulge: float) -> ArcSegment:
@@ -166,17 +174,22 @@ class ArcSegment:
         """`from_bulge` on end points that are finite floats."""
         if bulge == 0:
             raise ValueError("a bulge of 0 is a straight segment, not an arc")
+        if not math.isfinite(bulge):
+            raise ValueError(f"a bulge must be finite, got {bulge!r}")
         # coordinate by coordinate: the same operations as on 2-vectors, without their cost
         chx, chy = bx - ax, by - ay
         c = float(np.hypot(chx, chy))
         if c == 0:
             raise ValueError("a bulged segment needs distinct end points")
         sweep = float(4.0 * np.arctan(bulge))
-        radius = float(c / (2.0 * abs(np.sin(sweep / 2.0))))
-        # centre: from the chord midpoint along the left normal by the signed apothem
-        apothem = float(c / 2.0 / np.tan(sweep / 2.0))
-        cx = (ax + bx) / 2.0 + apothem * (-chy / c)
-        cy = (ay + by) / 2.0 + apothem * (chx / c)
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # checked below
+            radius = float(c / (2.0 * abs(np.sin(sweep / 2.0))))
+            # centre: from the chord midpoint along the left normal by the signed apothem
+            apothem = float(c / 2.0 / np.tan(sweep / 2.0))
+            cx = (ax + bx) / 2.0 + apothem * (-chy / c)
+            cy = (ay + by) / 2.0 + apothem * (chx / c)
+        if not (math.isfinite(radius) and math.isfinite(cx) and math.isfinite(cy)):
+            raise ValueError(f"bulge {bulge!r} is too small for an arc: its radius overflows")
         theta0 = float(np.arctan2(ay - cy, ax - cx))
         return cls.from_numbers(cx, cy, radius, theta0, sweep)
 
@@ -437,3 +450,18 @@ def _fit_piece(
 
 
 Segment = LineSegment | ArcSegment | CurveSegment
+
+
+def segment_reach(seg: Segment) -> float:
+    """An upper bound of ``max(|x|, |y|)`` over a segment, m; inf when not finite.
+
+    Cheap (no sampling): the end points of a line, the centre plus the radius of an arc,
+    the sum of the Chebyshev coefficients' magnitudes of a curve (``|T_k| <= 1``).
+    """
+    if isinstance(seg, ArcSegment):
+        r = float(np.max(np.abs(seg.center))) + seg.radius
+    elif isinstance(seg, CurveSegment):
+        r = float(np.max(np.sum(np.abs(seg.coef), axis=0)))
+    else:
+        r = float(np.max(np.abs(np.concatenate([seg.start, seg.end]))))
+    return r if np.isfinite(r) and np.isfinite(seg.length) else float("inf")

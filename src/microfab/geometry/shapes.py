@@ -8,15 +8,19 @@ the command line (``microfab path show circle:radius=0.01``).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 
-from microfab.core.validate import check_in_range, check_positive
+from microfab.core.validate import check_finite, check_in_range, check_positive
 from microfab.geometry.path import Path
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
 
 __all__ = [
+    "MAX_LOBES",
+    "MAX_SIDES",
+    "MAX_TURNS",
     "SHAPES",
     "butterfly",
     "circle",
@@ -29,6 +33,14 @@ __all__ = [
     "spiral_length",
     "square",
 ]
+
+
+#: Most sides of a regular polygon (more is a circle: use ``circle``).
+MAX_SIDES = 10_000
+#: Most turns of a spiral (its end angle, theta1, at most this many times 2 pi).
+MAX_TURNS = 100
+#: Largest frequency of a Lissajous curve.
+MAX_LOBES = 50
 
 
 def rectangle(
@@ -93,10 +105,10 @@ def circle(radius: float, *, center: tuple[float, float] = (0.0, 0.0), theta0: f
 def regular_polygon(
     n_sides: int, radius: float, *, center: tuple[float, float] = (0.0, 0.0), theta0: float = 0.0
 ) -> Path:
-    """A regular polygon with ``n_sides`` vertices on a circle of ``radius`` (m)."""
+    """A regular polygon: ``n_sides`` (3 to `MAX_SIDES`) vertices on a circle of ``radius``."""
+    if not (3 <= n_sides <= MAX_SIDES and int(n_sides) == n_sides):
+        raise ValueError(f"n_sides must be an integer from 3 to {MAX_SIDES}, got {n_sides}")
     n = int(n_sides)
-    if n < 3 or n != n_sides:
-        raise ValueError(f"n_sides must be an integer >= 3, got {n_sides}")
     r = check_positive("radius", radius, "m")
     th = theta0 + 2 * np.pi * np.arange(n) / n
     pts = np.column_stack([center[0] + r * np.cos(th), center[1] + r * np.sin(th)])
@@ -126,11 +138,15 @@ def spiral(b: float = 50e-3 / (2 * np.pi), theta0: float = 0.0, theta1: float = 
     b : float
         Growth, m/rad.
     theta0, theta1 : float
-        Angle range, rad, ``0 <= theta0 < theta1``.
+        Angle range, rad, ``0 <= theta0 < theta1 <= 2π MAX_TURNS``.
     """
     b = check_positive("b", b, "m/rad")
     if not (0 <= theta0 < theta1 and np.isfinite(theta1)):
         raise ValueError(f"need 0 <= theta0 < theta1, got [{theta0}, {theta1}] rad")
+    if theta1 > 2 * np.pi * MAX_TURNS:
+        raise ValueError(
+            f"theta1 = {theta1:g} rad is more than {MAX_TURNS} turns ({MAX_TURNS} x 2 pi rad)"
+        )
     # split by turns so each piece stays low-degree
     n_turns = max(int(np.ceil((theta1 - theta0) / (2 * np.pi))), 1)
     segs: list[Segment] = []
@@ -175,12 +191,16 @@ def lissajous(
 ) -> Path:
     """The closed Lissajous curve ``(ax sin(fx t + phase), ay sin(fy t))``, t ∈ [0, 2π].
 
-    ``fx`` and ``fy`` are coprime integers; the curve crosses itself but is one closed
-    contour.
+    ``fx`` and ``fy`` are coprime integers from 1 to `MAX_LOBES`; the curve crosses itself
+    but is one closed contour.
     """
     ax, ay = check_positive("ax", ax, "m"), check_positive("ay", ay, "m")
-    if int(fx) != fx or int(fy) != fy or fx < 1 or fy < 1 or np.gcd(int(fx), int(fy)) != 1:
+    if not (1 <= fx <= MAX_LOBES and 1 <= fy <= MAX_LOBES):
+        raise ValueError(f"fx and fy must lie between 1 and {MAX_LOBES}, got {fx}, {fy}")
+    if int(fx) != fx or int(fy) != fy or np.gcd(int(fx), int(fy)) != 1:
         raise ValueError(f"fx and fy must be coprime positive integers, got {fx}, {fy}")
+
+    phase = math.remainder(check_finite("phase", phase, "rad"), 2 * np.pi)  # keep precision
 
     def f(u: np.ndarray) -> np.ndarray:
         t = 2 * np.pi * u
@@ -237,8 +257,6 @@ def parse_shape(spec: str) -> Path:
             kwargs[key.strip()] = float(val)
         except ValueError:
             raise ValueError(f"shape argument {key}={val!r} is not a number") from None
-    if name == "polygon" and "n_sides" in kwargs:
-        kwargs["n_sides"] = int(kwargs["n_sides"])  # type: ignore[assignment]
     try:
         return SHAPES[name](**kwargs)
     except TypeError as exc:

@@ -26,6 +26,7 @@ import os
 import re
 import warnings
 import xml.etree.ElementTree as ET
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path as FsPath
 
@@ -34,9 +35,15 @@ import svgpathtools
 from svgpathtools.parser import parse_transform
 
 from microfab.core.validate import check_positive
-from microfab.geometry.layer import Layer, Skipped
+from microfab.geometry.layer import MAX_COORDINATE_M, MIN_LENGTH_M, Layer, Skipped
 from microfab.geometry.path import Path
-from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Segment
+from microfab.geometry.segments import (
+    ArcSegment,
+    CurveSegment,
+    LineSegment,
+    Segment,
+    segment_reach,
+)
 
 __all__ = ["PX", "UNITS", "parse_svg_path", "read_svg"]
 
@@ -71,6 +78,10 @@ _NOT_RENDERED = {
 }  # fmt: skip
 _CONTAINERS = {"g", "a", "switch"}
 _SHAPES = {"path", "rect", "circle", "ellipse", "line", "polyline", "polygon"}
+
+
+class _ExtentError(ValueError):
+    """Geometry beyond `MAX_COORDINATE_M`: the whole drawing is refused, not one element."""
 
 
 # --------------------------------------------------------------------------- path data
@@ -125,6 +136,8 @@ def _arc_segments(arc: svgpathtools.Arc) -> list[Segment]:
     c = _c2(arc.center)
     phi = math.radians(arc.rotation)
     theta, delta = math.radians(arc.theta), math.radians(arc.delta)
+    if not all(math.isfinite(v) for v in (rx, ry, c[0], c[1], phi, theta, delta)):
+        raise ValueError(f"an arc with a non-finite radius, angle or centre: {arc}")
     if delta == 0.0:
         return []
     if abs(rx - ry) <= 1e-12 * max(rx, ry):
@@ -192,6 +205,15 @@ def _parse_d(d: str, A: np.ndarray, b: np.ndarray, ref: str) -> tuple[list[Path]
         segs: list[Segment] = []
         for s in sp:
             segs.extend(_to_segments(s))
+        # bound the image first, so that an absurd transform cannot overflow the maps
+        bound = 2.0 * float(np.max(np.abs(A))) * max(segment_reach(s) for s in segs)
+        bound += float(np.max(np.abs(b)))
+        if not bound <= 1e100:
+            what = f"about {bound:.3g} m" if math.isfinite(bound) else "non-finite coordinates"
+            raise _ExtentError(
+                f"SVG path data{where}: subpath {k} reaches {what}, beyond "
+                f"±{MAX_COORDINATE_M:g} m (check the transforms and the width/viewBox units)"
+            )
         try:
             segs = [s.transformed(A, b) for s in segs]
         except ValueError as exc:
@@ -199,10 +221,22 @@ def _parse_d(d: str, A: np.ndarray, b: np.ndarray, ref: str) -> tuple[list[Path]
                 Skipped("subpath", f"cannot map it to metres: {exc}", f"{ref} subpath {k}".strip())
             )
             continue
+        reach = max(segment_reach(s) for s in segs)
+        if not reach <= MAX_COORDINATE_M:
+            what = f"{reach:.3g} m" if math.isfinite(reach) else "non-finite coordinates"
+            raise _ExtentError(
+                f"SVG path data{where}: subpath {k} reaches {what}, beyond "
+                f"±{MAX_COORDINATE_M:g} m (check the transforms and the width/viewBox units)"
+            )
         if not any(s.length > 0 for s in segs):
             skipped.append(
                 Skipped("subpath", "zero length (degenerate)", f"{ref} subpath {k}".strip())
             )
+            continue
+        total = sum(s.length for s in segs)
+        if total < MIN_LENGTH_M:  # far below any fabrication scale: an exporter's artefact
+            why = f"shorter than {MIN_LENGTH_M:g} m ({total:.3g} m)"
+            skipped.append(Skipped("subpath", why, f"{ref} subpath {k}".strip()))
             continue
         open_path = Path(tuple(segs), closed=False)
         closed = has_z or bool(
@@ -389,7 +423,9 @@ def read_svg(path: str | os.PathLike[str], *, scale: float | None = None) -> Lay
     ------
     ValueError
         If the file is not SVG/XML, has a malformed ``viewBox``, ``width`` or
-        ``transform``, or a ``<path>`` has malformed data (the message names the element).
+        ``transform``, a ``<path>`` has malformed data, geometry reaches beyond
+        `~microfab.geometry.layer.MAX_COORDINATE_M` (the message names the element), or
+        nothing in it is importable geometry.
     """
     fname = os.fspath(path)
     try:
@@ -426,9 +462,15 @@ def read_svg(path: str | os.PathLike[str], *, scale: float | None = None) -> Lay
                 continue
             ref = ref_of(child, tag)
             try:
-                ctf = tf @ parse_transform(child.get("transform"), strict=True)
+                with np.errstate(over="ignore", invalid="ignore"):  # checked just below
+                    ctf = tf @ parse_transform(child.get("transform"), strict=True)
             except ValueError as exc:
                 raise ValueError(f"{fname}: {ref}: malformed transform: {exc}") from exc
+            if not np.all(np.isfinite(ctf)):
+                raise ValueError(
+                    f"{fname}: {ref}: transform {child.get('transform')!r} overflows "
+                    "(with the transforms around it)"
+                )
             if tag in _CONTAINERS:
                 walk(child, ctf)
             elif tag in _SHAPES:
@@ -437,12 +479,13 @@ def read_svg(path: str | os.PathLike[str], *, scale: float | None = None) -> Lay
                 except ValueError as exc:
                     skipped.append(Skipped(tag, str(exc), ref))
                     continue
-                A = page_A @ ctf[:2, :2]
-                b = page_A @ ctf[:2, 2] + page_b
+                with np.errstate(over="ignore", invalid="ignore"):  # _parse_d bounds them
+                    A = page_A @ ctf[:2, :2]
+                    b = page_A @ ctf[:2, 2] + page_b
                 try:
                     c, sk = _parse_d(d, A, b, ref)
                 except ValueError as exc:
-                    if tag == "path":
+                    if tag == "path" or isinstance(exc, _ExtentError):
                         raise ValueError(f"{fname}: {exc}") from exc
                     skipped.append(Skipped(tag, str(exc), ref))
                     continue
@@ -454,4 +497,11 @@ def read_svg(path: str | os.PathLike[str], *, scale: float | None = None) -> Lay
                 skipped.append(Skipped(tag, f"<{tag}> is not geometry this reader takes", ref))
 
     walk(root, np.eye(3))
-    return Layer(tuple(contours), tuple(skipped), source=FsPath(fname).name)
+    name = FsPath(fname).name
+    if not contours:
+        counts = Counter(sk.kind for sk in skipped)
+        what = ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items())) or (
+            "nothing (the drawing is empty)"
+        )
+        raise ValueError(f"{name}: no importable geometry; skipped: {what}")
+    return Layer(tuple(contours), tuple(skipped), source=name)

@@ -9,12 +9,12 @@ returns them, and each becomes an exact :class:`~microfab.geometry.segments.Line
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.font_manager import FontProperties, findfont
+from matplotlib.font_manager import FontProperties, findfont, get_font
 from matplotlib.path import Path as MplPath
 from matplotlib.textpath import TextPath
 
-from microfab.core.validate import check_positive
-from microfab.geometry.layer import Layer
+from microfab.core.validate import check_in_range
+from microfab.geometry.layer import MAX_COORDINATE_M, Layer
 from microfab.geometry.path import Path
 from microfab.geometry.segments import CurveSegment, LineSegment, Segment
 
@@ -82,7 +82,8 @@ def text_layer(
         tall, a lower-case "x" 0.547 ``height``, and the glyph box of the text is
         ``height`` × (its ink extent in em units); outlines scale linearly with it.
         matplotlib delivers outline coordinates on a grid of 1/6400 em (FreeType 26.6
-        fixed point at its internal size 100), i.e. to within ``height / 6400``.
+        fixed point at its internal size 100), i.e. to within ``height / 6400``. At most
+        `~microfab.geometry.layer.MAX_COORDINATE_M`.
     font : str
         Font family name, e.g. ``"DejaVu Sans"`` (bundled with matplotlib, always there)
         or ``"DejaVu Serif"``.
@@ -101,19 +102,28 @@ def text_layer(
     Raises
     ------
     ValueError
-        If the text has no visible outline (empty or blank), ``height`` is not a positive
-        length, or the font is not found.
+        If the text has no visible outline (empty or blank), holds a control character or
+        a character the font lacks, ``height`` is not a positive length, or the font is
+        not found.
     """
     if not isinstance(text, str):
         raise TypeError(f"text must be a string, got {type(text).__name__}")
     if not text.strip():
         raise ValueError(f"text {text!r} has no visible characters; give at least one glyph")
-    h = check_positive("text height", height, "m")
+    h = check_in_range("text height", height, 0.0, MAX_COORDINATE_M, "m", low_closed=False)
     prop = FontProperties(family=font, weight=weight)
     try:
-        findfont(prop, fallback_to_default=False)
+        ft = get_font(findfont(prop, fallback_to_default=False))
     except ValueError as exc:
         raise ValueError(f"font {font!r} (weight {weight!r}) not found: {exc}") from exc
+    for ch in text:
+        # a glyph the font lacks would be drawn as a placeholder box (dozens of contours)
+        if not ch.isprintable() or (not ch.isspace() and ft.get_char_index(ord(ch)) == 0):
+            what = "not a printable character" if not ch.isprintable() else f"not in font {font!r}"
+            raise ValueError(
+                f"text {text!r}: character {ch!r} (U+{ord(ch):04X}) is {what}; "
+                "give letters the font has"
+            )
     tp = TextPath((0.0, 0.0), text, size=1.0, prop=prop)
     if len(tp.vertices) == 0:
         raise ValueError(f"text {text!r} has no outline in font {font!r}")

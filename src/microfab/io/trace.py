@@ -16,6 +16,8 @@ from __future__ import annotations
 import io
 import os
 import re
+import struct
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -30,6 +32,21 @@ __all__ = ["Trace", "read_columns", "read_trace", "write_columns", "write_trace"
 PathLike = str | os.PathLike[str]
 _FORMATS = {".csv": "csv", ".mat": "mat", ".h5": "h5", ".hdf5": "h5"}
 _UNIT_LINE = re.compile(r"#\s*unit\s*:(.*)")
+
+
+#: What the MAT and HDF5 libraries raise on a damaged file besides their own errors.
+_DAMAGED = (
+    ValueError,
+    TypeError,
+    IndexError,
+    KeyError,
+    EOFError,
+    OverflowError,
+    UnicodeDecodeError,
+    AttributeError,
+    struct.error,
+    zlib.error,
+)
 
 
 def _format(path: Path) -> str:
@@ -163,8 +180,9 @@ def _read_mat(path: Path) -> tuple[dict[str, np.ndarray], str]:
 
     try:
         raw = loadmat(path, squeeze_me=True)
-    except (MatReadError, ValueError, TypeError, NotImplementedError) as exc:
-        raise ValueError(f"{path}: not a readable MAT file (v7.3 files are HDF5): {exc}") from exc
+    except (MatReadError, NotImplementedError, OSError, *_DAMAGED) as exc:  # cut or damaged
+        why = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"{path}: not a readable MAT file (v7.3 files are HDF5): {why}") from exc
     unit = raw.pop("unit", "") if isinstance(raw.get("unit"), str) else ""
     return {k: _column(path, k, v) for k, v in raw.items() if not k.startswith("__")}, unit
 
@@ -173,11 +191,15 @@ def _read_h5(path: Path) -> tuple[dict[str, np.ndarray], str]:
     h5py = _h5py()
     if not h5py.is_hdf5(path):
         raise ValueError(f"{path}: not an HDF5 file")
-    with h5py.File(path, "r") as f:
-        unit = f.attrs.get("unit", "")
-        unit = unit.decode() if isinstance(unit, bytes) else str(unit)
-        cols = {k: _column(path, k, v[()]) for k, v in f.items() if isinstance(v, h5py.Dataset)}
-    return cols, unit
+    try:
+        with h5py.File(path, "r") as f:
+            unit = f.attrs.get("unit", "")
+            unit = unit.decode() if isinstance(unit, bytes) else str(unit)
+            raw = {k: v[()] for k, v in f.items() if isinstance(v, h5py.Dataset)}
+    except (OSError, RuntimeError, *_DAMAGED) as exc:  # HDF5's own errors on damage
+        why = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"{path}: damaged HDF5 file: {why}") from exc
+    return {k: _column(path, k, v) for k, v in raw.items()}, unit
 
 
 def _read(path: PathLike) -> tuple[dict[str, np.ndarray], str]:

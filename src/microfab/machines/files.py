@@ -15,6 +15,7 @@ repeating the call is safe.
 
 from __future__ import annotations
 
+import re
 import time as _time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -37,6 +38,9 @@ __all__ = [
     "read_trial_file",
     "write_input_file",
 ]
+
+
+_AXIS = re.compile(r"[A-Za-z0-9_]+")
 
 
 class TrialFileError(TrialError):
@@ -89,6 +93,13 @@ def read_trial_file(path: str | Path) -> Trial:
     axes = tuple(k[len("reference_") :] for k in cols if k.startswith("reference_"))
     if not axes:
         raise TrialFileError(f"{p}: no 'reference_<axis>' column (found: {', '.join(cols)})")
+    for a in axes:
+        if not _AXIS.fullmatch(a):
+            raise TrialFileError(
+                f"{p}: column {'reference_' + a!r} names no valid axis: write "
+                "reference_<axis> with an axis name of letters, digits and underscores, "
+                "e.g. reference_x"
+            )
     for a in axes:
         for kind in ("input", "output"):
             if f"{kind}_{a}" not in cols:
@@ -228,6 +239,31 @@ class FileMachine:
         )
 
 
+def _check_learnable(ilc: FrequencyILC, trial_path: str | Path) -> None:
+    """Raise `TrialFileError` when the first trial leaves nothing to learn.
+
+    That is a period too short for any harmonic at or below the cutoff (only the mean
+    could be learned: the motion never), or no harmonic at all, the mean included, with
+    content in the input and out of the noise in the output.
+    """
+    f_r = 1.0 / ilc.period_s
+    cutoff = ilc.config.cutoff_hz
+    period = f"the period of {ilc.n_samples} samples ({ilc.period_s:.6g} s, {f_r:.6g} Hz)"
+    if f_r > cutoff:
+        why = (
+            f"{period} has no harmonic at or below the cutoff {cutoff:g} Hz; record a "
+            "longer period or raise the cutoff (--cutoff-hz)"
+        )
+    elif not any(h.size for h in ilc.harmonics):
+        why = (
+            f"no harmonic of {period} up to the cutoff {cutoff:g} Hz has content in the "
+            "input and stands out of the noise in the output"
+        )
+    else:
+        return
+    raise TrialFileError(f"{trial_path}: nothing can be learned: {why}; nothing was written")
+
+
 def ilc_step(
     trial_path: str | Path,
     state_dir: str | Path,
@@ -264,7 +300,9 @@ def ilc_step(
     ------
     TrialFileError
         Bad trial: see `read_trial_file`; also sample time, length or axes that differ from
-        the state's, a reference that changed, or a trial already learned from.
+        the state's, a reference that changed, a trial already learned from, or a first
+        trial in which no harmonic above the mean can be learned (a period too short for
+        any harmonic below the cutoff, or no content above the noise).
     microfab.core.limits.LimitViolation
         The next input would exceed the declared limits (nothing is written).
     """
@@ -282,6 +320,13 @@ def ilc_step(
         model = None if frf_path is None else read_frf(frf_path).model(trial.axes)
         ilc = FrequencyILC(trial.reference, trial.dt, trial.axes, config, model=model)
     seen = len(ilc.events)
+    first = ilc.iteration == 0
+
+    def publish(u: np.ndarray) -> None:
+        if first:  # the harmonics are chosen from the first trial: say if there are none
+            _check_learnable(ilc, trial_path)
+        write_input_file(out_path, trial.dt, u, trial.axes)
+
     try:
         learn(
             machine,
@@ -289,7 +334,7 @@ def ilc_step(
             iterations=ilc.iteration + 1,
             state_dir=sd,
             limits=limits,
-            publish=lambda u: write_input_file(out_path, trial.dt, u, trial.axes),
+            publish=publish,
         )
     except TrialError as exc:
         if isinstance(exc, TrialFileError):

@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import logging
 import math
 import re
 from collections.abc import Sequence
@@ -133,6 +134,11 @@ def _rgb_to_gray(arr: np.ndarray) -> np.ndarray:
     from skimage.color import rgb2gray
 
     return rgb2gray(arr[..., :3])
+
+
+# tifffile logs what it finds wrong in a damaged file before it raises; without a handler
+# Python prints that on stderr, beside the one-line error the file's refusal gives.
+logging.getLogger("tifffile").addHandler(logging.NullHandler())
 
 
 def _read_image(path: Path) -> list[np.ndarray]:
@@ -677,7 +683,8 @@ def analyze(
     ------
     ValueError
         If the pixel size or frame interval is missing or not positive, the frames are
-        malformed, or the nozzle cannot be found and ``nozzle_row`` is not given.
+        malformed, the nozzle cannot be found and ``nozzle_row`` is not given, or no frame
+        shows a jet (liquid below the nozzle with its head in view: noise, a blank).
 
     Examples
     --------
@@ -744,6 +751,14 @@ def analyze(
         head[k] = fr.leading.tip_z_m
         base = 0.0 if fr.leading.attached else fr.leading.tail_z_m
         lig[k] = fr.leading.tip_z_m - base
+
+    if not np.isfinite(head).any():  # noise, a blank or a wrongly lit sequence
+        raise ValueError(
+            f"no jet found: in none of the {n} frames does liquid hang from the nozzle "
+            f"(row {nozzle_row}) with its head inside the field of view (shadow level "
+            f"{shadow:.3f} of the background); check that the liquid is darker than the "
+            "background, the nozzle row and the threshold"
+        )
 
     # Head speed: every frame with the head in view and out of the nozzle.
     fit = np.isfinite(head) & (head > 0.0)
@@ -868,6 +883,12 @@ def analyze_folder(
     folder = Path(directory)
     frames, names = load_frames(folder, pattern=pattern)
     meta = _read_sidecar(folder)
+    for key in ("pixel_size_m", "frame_interval_s", "nozzle_row", "t0_s"):
+        value = meta.get(key)
+        if key not in meta or (value is None and key == "nozzle_row"):  # null: detect it
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f"{folder / SIDECAR_NAME}: {key} = {value!r} is not a number")
     if pixel_size_m is None:
         pixel_size_m = meta.get("pixel_size_m")
     if pixel_size_m is None:
@@ -885,7 +906,7 @@ def analyze_folder(
     if nozzle_row is None:
         nozzle_row = meta.get("nozzle_row")
     if t0_s is None:
-        t0_s = float(meta.get("t0_s", 0.0))
+        t0_s = meta.get("t0_s", 0.0)
     return analyze(
         frames,
         pixel_size_m=pixel_size_m,

@@ -10,7 +10,11 @@ from microfab.core.arrays import readonly
 from microfab.core.signals import Trace, check_samples
 from microfab.core.validate import check_positive
 
-__all__ = ["Trajectory"]
+__all__ = ["MAX_SAMPLES", "Trajectory"]
+
+#: Most samples a sampled reference may hold (17 minutes at 10 kHz; about 1 GB in memory
+#: with its derivatives). More means a speed or a sample rate off by orders of magnitude.
+MAX_SAMPLES = 10_000_000
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -29,7 +29,7 @@ import numpy as np
 from microfab.core.limits import MachineLimits
 from microfab.core.validate import check_positive
 from microfab.geometry.path import Path
-from microfab.trajectory.base import Trajectory
+from microfab.trajectory.base import MAX_SAMPLES, Trajectory
 
 __all__ = ["cruise"]
 
@@ -55,7 +55,7 @@ def _bounds(
         _, d1, d2 = path.evaluate(side, 2)
         t = np.abs(d1)
         c = np.abs(d2)
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", over="ignore"):  # inf: no bound from there
             v_axis = np.min(np.where(t > 0, vmax / t, np.inf), axis=1)
             v_curv = np.min(
                 np.where(c > 0, np.sqrt((1 - TANGENTIAL_SHARE) * amax / c), np.inf), axis=1
@@ -119,13 +119,22 @@ def cruise(
     Raises
     ------
     ValueError
-        A non-positive speed or sample rate, or a path of zero length.
+        A non-positive speed or sample rate, a path of zero length, or more than
+        `MAX_SAMPLES` samples.
     """
     check_positive("speed", speed, "m/s")
     check_positive("sample_rate_hz", sample_rate_hz, "Hz")
     length = path.length
     if not length > 0:
         raise ValueError("the path has zero length")
+    with np.errstate(over="ignore"):
+        count = length / speed * sample_rate_hz  # samples at full speed, a lower bound
+    if not count <= MAX_SAMPLES:
+        raise ValueError(
+            f"tracing {length:.6g} m at {speed:g} m/s and {sample_rate_hz:g} Hz takes more "
+            f"than the {MAX_SAMPLES:,} samples a reference may hold: raise the speed or lower "
+            "the sample rate"
+        )
     if grid_points is None:
         grid_points = int(np.clip(math.ceil(length * sample_rate_hz / speed), 2000, 20_000))
     s = np.linspace(0.0, length, grid_points)

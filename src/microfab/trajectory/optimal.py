@@ -707,7 +707,8 @@ class _Problem:
         acceleration ramps from zero at the path jerk ``σ = min_i j_i / |q'_i|`` first
         (:func:`_start_time`). The ramp duration is NaN elsewhere.
         """
-        dt = self.tw / (np.sqrt(np.maximum(x[:-1], 0)) + np.sqrt(np.maximum(x[1:], 0)))
+        with np.errstate(divide="ignore"):  # a speed that underflows: refused by the caller
+            dt = self.tw / (np.sqrt(np.maximum(x[:-1], 0)) + np.sqrt(np.maximum(x[1:], 0)))
         ramp = np.full(dt.size, np.nan)
         if self.has_jerk:
             # s̈ varies within an interval: Simpson's rule on 1/ṡ, with x at the midpoint
@@ -957,6 +958,12 @@ def time_optimal(
         else:
             x = prob.solve_va(vmul, amul)
         t, ramp = prob.knot_times(x, jmul)
+        if not np.all(np.isfinite(t)):
+            raise PlanningError(
+                "the limits allow no motion that can be timed (the path speed underflows to "
+                f"zero): velocity {limits.velocity} m/s, acceleration {limits.acceleration} "
+                f"m/s^2, jerk {limits.jerk} m/s^3; declare limits the machine really has"
+            )
         splines = _fit_segments(g, t, ramp, segs, bc, limits.axes)
         worst = 0.0
         # per-round shrink factors (the smallest asked for), applied once

@@ -11,7 +11,7 @@ import numpy as np
 
 from microfab.core.validate import check_positive
 from microfab.geometry.path import Path
-from microfab.trajectory.base import Trajectory
+from microfab.trajectory.base import MAX_SAMPLES, Trajectory
 from microfab.trajectory.periodic import samples_per_period
 
 __all__ = ["constant_speed", "periodic"]
@@ -19,12 +19,15 @@ __all__ = ["constant_speed", "periodic"]
 
 def _sample(path: Path, s: np.ndarray, speed: float, dt: float, at_rest: bool) -> Trajectory:
     q, d1, d2, d3 = path.evaluate(s, 3)
+    v = np.float64(speed)
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow: refused as not finite
+        acc, jerk = v**2 * d2, v**3 * d3
     return Trajectory(
         dt=dt,
         position=q,
-        velocity=speed * d1,
-        acceleration=speed**2 * d2,
-        jerk=speed**3 * d3,
+        velocity=v * d1,
+        acceleration=acc,
+        jerk=jerk,
         s=s,
         at_rest=at_rest,
         meta={"generator": "constant_speed", "speed_m_s": speed},
@@ -65,6 +68,12 @@ def constant_speed(
     -------
     Trajectory
         Marked ``at_rest=True`` (the machine holds still before and after).
+
+    Raises
+    ------
+    ValueError
+        A rate, speed or duration that is not positive and finite, more than
+        `MAX_SAMPLES` samples, or derivatives that overflow.
     """
     check_positive("sample_rate_hz", sample_rate_hz, "Hz")
     if (speed is None) == (duration is None):
@@ -75,13 +84,22 @@ def constant_speed(
         duration = L / speed
     assert duration is not None
     check_positive("duration", duration, "s")
-    n = max(round(duration * sample_rate_hz) + 1, 2)
+    count = duration * sample_rate_hz
+    if not count <= MAX_SAMPLES:
+        raise ValueError(
+            f"{count:.3g} samples ({duration:.3g} s at {sample_rate_hz:g} Hz) is more than "
+            f"the {MAX_SAMPLES:,} a reference may hold: raise the speed or lower the sample rate"
+        )
+    n = max(round(count) + 1, 2)
     dt = duration / (n - 1)
     v = L / duration
     s = np.linspace(0.0, L, n)
     if path.closed:
         s[-1] = np.nextafter(L, 0.0)  # stay on the last segment instead of wrapping to 0
-    return _sample(path, s, v, dt, at_rest=True)
+    try:
+        return _sample(path, s, v, dt, at_rest=True)
+    except ValueError as exc:  # v**3 times the curvature's derivative overflowed
+        raise ValueError(f"at {v:.3g} m/s the path's derivatives overflow: {exc}") from exc
 
 
 def periodic(path: Path, *, features_per_s: float, sample_rate_hz: float) -> Trajectory:

@@ -31,7 +31,7 @@ from scipy.interpolate import CubicSpline, PchipInterpolator, make_interp_spline
 
 from microfab.core.arrays import readonly
 from microfab.core.validate import check_positive
-from microfab.trajectory.base import Trajectory
+from microfab.trajectory.base import MAX_SAMPLES, Trajectory
 
 __all__ = ["SplineMaxima", "TimeSpline"]
 
@@ -425,9 +425,20 @@ class TimeSpline:
         Returns
         -------
         microfab.trajectory.base.Trajectory
+
+        Raises
+        ------
+        ValueError
+            A rate that is not positive and finite, or more than
+            `~microfab.trajectory.base.MAX_SAMPLES` samples.
         """
         check_positive("sample_rate_hz", sample_rate_hz, "Hz")
         T = self.duration
+        if not T * sample_rate_hz <= MAX_SAMPLES:
+            raise ValueError(
+                f"{T * sample_rate_hz:.3g} samples ({T:.3g} s at {sample_rate_hz:g} Hz) is more "
+                f"than the {MAX_SAMPLES:,} a reference may hold: lower the sample rate"
+            )
         periodic = self.bc == "periodic"
         if periodic:
             n = max(round(T * sample_rate_hz), 1)

@@ -1,0 +1,51 @@
+"""Console helpers: every refusal, a usage error included, is one ``error:`` line."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from microfab.cli import app
+from microfab.cli._kit import one_line
+
+runner = CliRunner()
+
+
+def _single_error_line(output: str) -> str:
+    lines = [ln for ln in output.splitlines() if ln.strip()]
+    assert len(lines) == 1, output
+    assert lines[0].startswith("error: "), output
+    return lines[0]
+
+
+def test_one_line_collapses_breaks_and_escapes_control_characters() -> None:
+    assert one_line('Invalid group code "x\n" at line 3.') == 'Invalid group code "x " at line 3.'
+    assert one_line("a\r\n  b\u2028c\x0bd") == "a b c d"
+    assert one_line("bell\x07 and \x1b[31mred") == "bell\\x07 and \\x1b[31mred"
+    assert one_line("µm, é, 😀") == "µm, é, 😀"
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["droplet", "simulate", "--duration", "abc"], "Invalid value for '--duration'"),
+        (["droplet", "sweep", "--jobs", "0"], "'--jobs' / '--workers'"),
+        (["kinds", "--bogus"], "No such option: --bogus"),
+        (["bogus"], "No such command 'bogus'"),
+        (["path", "show"], "Missing argument"),
+        (["trajectory", "spiral", "--time-optimal", "--n-grid", "5"], "'--n-grid'"),
+    ],
+)
+def test_usage_errors_are_one_line_with_exit_code_2(argv: list[str], says: str) -> None:
+    # click printed a usage line, a hint and a boxed message
+    res = runner.invoke(app, argv)
+    assert res.exit_code == 2
+    line = _single_error_line(res.output)
+    assert says in line and "--help" in line
+
+
+def test_help_and_no_arguments_still_show_the_help() -> None:
+    res = runner.invoke(app, ["--help"])
+    assert res.exit_code == 0 and "Usage" in res.output
+    res = runner.invoke(app, ["path"])
+    assert "show" in res.output and "error:" not in res.output
