@@ -1,0 +1,406 @@
+"""Run fuzz cases through the ``microfab`` command line and classify what happens.
+
+A `Case` is a command line and the files it needs in an empty working folder. `run_case`
+runs it in process with typer's ``CliRunner`` inside a fresh temporary folder, hashes
+every file in that folder before and after, and returns an `Outcome`:
+
+``refused``
+    exit code 2 and the whole output (stdout and stderr) is one line starting with
+    ``error:``, and every file in the folder is byte-identical afterwards;
+``accepted``
+    exit code 0;
+``uncaught``
+    a Python exception escaped the command (a traceback);
+``messy``
+    any other exit: exit code 2 with more than one line or without ``error:``, or
+    another exit code;
+``dirty``
+    a clean refusal that changed, created or deleted a file in the working folder;
+``hang``
+    the case ran longer than the per-case timeout.
+
+`run_pool` runs many cases in worker processes, so that a case stuck in compiled code
+is killed and reported as a hang without stopping the run.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import functools
+import hashlib
+import multiprocessing as mp
+import os
+import shutil
+import signal
+import sys
+import tempfile
+import time
+import traceback
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "OUTCOMES",
+    "Case",
+    "Outcome",
+    "format_table",
+    "run_case",
+    "run_pool",
+    "tally",
+]
+
+#: Every outcome, in table order; those after ``accepted`` are failures.
+OUTCOMES = ("refused", "accepted", "uncaught", "hang", "messy", "dirty")
+FAILURES = ("uncaught", "hang", "messy", "dirty")
+TIMEOUT_S = 20.0
+
+
+@dataclass(frozen=True)
+class Case:
+    """One fuzz case: a command line run in an empty folder holding ``files``.
+
+    Attributes
+    ----------
+    kind : str
+        The input kind (table row), e.g. ``"dxf"``.
+    argv : tuple of str
+        Arguments of ``microfab`` (paths relative to the working folder).
+    files : tuple of (str, bytes)
+        Files written into the working folder first (relative path, content); outputs
+        that already exist (a previous reference, an older state) belong here too, so
+        that a refusal is seen to leave them alone.
+    setup : tuple of str
+        Named fixtures copied into the folder (see `FIXTURES`).
+    note : str
+        What was done to the input, for reports.
+    """
+
+    kind: str
+    argv: tuple[str, ...]
+    files: tuple[tuple[str, bytes], ...] = ()
+    setup: tuple[str, ...] = ()
+    note: str = ""
+
+    def describe(self) -> str:
+        """One line: kind, note and command."""
+        return f"[{self.kind}] {self.note} :: microfab {' '.join(self.argv)}"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one case did."""
+
+    case: Case
+    outcome: str
+    exit_code: int | None
+    seconds: float
+    detail: str = ""
+    changed: tuple[str, ...] = field(default=())
+
+    @property
+    def failed(self) -> bool:
+        """True for an uncaught exception, a hang, a messy or a dirty refusal."""
+        return self.outcome in FAILURES
+
+
+class CaseTimeoutError(BaseException):
+    """Raised by the alarm in a case that runs too long (not an `Exception`)."""
+
+
+# ------------------------------------------------------------------------- fixtures
+def _ilc_state(dest: Path) -> None:
+    """A learning state after one valid trial (``st/``), as ``ilc step`` leaves it."""
+    from fuzz_cases import BASE_TRIAL_FILE, base_trial_csv
+
+    from microfab.machines.files import ilc_step
+
+    tpl = _template_dir() / "ilc_state"
+    if not tpl.exists():
+        work = Path(tempfile.mkdtemp(prefix="state-", dir=_template_dir()))
+        (work / BASE_TRIAL_FILE).write_bytes(base_trial_csv(second=False))
+        ilc_step(work / BASE_TRIAL_FILE, work / "st", work / "next.csv")
+        (work / "st").rename(tpl)
+        shutil.rmtree(work)
+    shutil.copytree(tpl, dest / "st")
+
+
+_TEMPLATES: list[tuple[int, Path]] = []
+
+
+def _template_dir() -> Path:
+    if not _TEMPLATES or _TEMPLATES[0][0] != os.getpid():  # one per (forked) process
+        tpl = Path(tempfile.mkdtemp(prefix="microfab-fuzz-tpl-"))
+        atexit.register(_remove_templates)
+        _TEMPLATES[:] = [(os.getpid(), tpl)]
+    return _TEMPLATES[0][1]
+
+
+def _remove_templates() -> None:
+    """Remove this process's fixture templates (a forked worker runs no atexit)."""
+    if _TEMPLATES and _TEMPLATES[0][0] == os.getpid():
+        shutil.rmtree(_TEMPLATES[0][1], ignore_errors=True)
+        _TEMPLATES.clear()
+
+
+#: Named fixtures a `Case` may ask for in ``setup``.
+FIXTURES: dict[str, Callable[[Path], None]] = {"ilc_state": _ilc_state}
+
+
+# ------------------------------------------------------------------------- one case
+def _hashes(root: Path) -> dict[str, str]:
+    out = {}
+    for dirpath, _dirs, files in os.walk(root):
+        for f in files:
+            p = Path(dirpath) / f
+            out[str(p.relative_to(root))] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return out
+
+
+@contextlib.contextmanager
+def _alarm(seconds: float) -> Iterator[None]:
+    def on_alarm(signum: int, frame: Any) -> None:
+        raise CaseTimeoutError(f"over {seconds:g} s")
+
+    old = signal.signal(signal.SIGALRM, on_alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+@contextlib.contextmanager
+def _in_folder(path: Path) -> Iterator[None]:
+    old = os.getcwd()
+    os.chdir(path)
+    try:
+        yield
+    finally:
+        os.chdir(old)
+
+
+def _prepare(case: Case, work: Path) -> None:
+    for name in case.setup:
+        FIXTURES[name](work)
+    for rel, content in case.files:
+        p = work / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(content)
+
+
+def classify(exit_code: int | None, output: str, exception: BaseException | None) -> str:
+    """``refused``, ``accepted``, ``uncaught`` or ``messy`` for one finished command."""
+    if exception is not None and not isinstance(exception, SystemExit):
+        return "uncaught"
+    if exit_code == 0:
+        return "accepted"
+    lines = [ln for ln in output.splitlines() if ln.strip()]
+    if exit_code == 2 and len(lines) == 1 and lines[0].startswith("error:"):
+        return "refused"
+    return "messy"
+
+
+@functools.cache
+def _command() -> Any:
+    """The ``microfab`` click command, built once (typer rebuilds it on every invoke)."""
+    import typer.main
+
+    from microfab.cli import app
+
+    return typer.main.get_command(app)
+
+
+def invoke(argv: Sequence[str]) -> tuple[int, str, BaseException | None]:
+    """Run ``microfab argv`` in process as typer's CliRunner does.
+
+    Returns
+    -------
+    exit_code : int
+    output : str
+        stdout and stderr, interleaved as a terminal shows them.
+    exception : BaseException or None
+        An exception that escaped the command (not ``SystemExit``).
+    """
+    from typer.testing import CliRunner
+
+    exc: BaseException | None = None
+    with CliRunner().isolation(env={"COLUMNS": "100"}) as streams:
+        try:
+            _command().main(args=list(argv), prog_name="microfab")
+            code = 0
+        except SystemExit as e:
+            code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+        except Exception as e:
+            exc, code = e, 1
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            output = streams[2].getvalue().decode("utf-8", "replace")
+    return code, output, exc
+
+
+def run_case(case: Case, timeout_s: float = TIMEOUT_S) -> Outcome:
+    """Run one case in process in a fresh temporary folder and classify it."""
+    with tempfile.TemporaryDirectory(prefix="microfab-fuzz-") as tmp:
+        work = Path(tmp)
+        _prepare(case, work)
+        before = _hashes(work)
+        t0 = time.perf_counter()
+        try:
+            with _in_folder(work), _alarm(timeout_s):
+                code, output, exc = invoke(case.argv)
+        except CaseTimeoutError:
+            return Outcome(case, "hang", None, time.perf_counter() - t0, f"over {timeout_s:g} s")
+        seconds = time.perf_counter() - t0
+        outcome = classify(code, output, exc)
+        if outcome == "uncaught":
+            assert exc is not None
+            tb = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+            last = f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:300]
+            return Outcome(case, outcome, code, seconds, f"{last}\n{tb}")
+        changed: tuple[str, ...] = ()
+        if outcome == "refused":
+            after = _hashes(work)
+            changed = tuple(
+                sorted(k for k in before.keys() | after.keys() if before.get(k) != after.get(k))
+            )
+            if changed:
+                outcome = "dirty"
+        detail = " | ".join(ln for ln in output.splitlines() if ln.strip())[:500]
+        return Outcome(case, outcome, code, seconds, detail, changed)
+
+
+# ------------------------------------------------------------------------- many cases
+def _worker(conn: Any, timeout_s: float) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        while True:
+            case = conn.recv()
+            if case is None:
+                return
+            try:
+                out = run_case(case, timeout_s)
+            except Exception as exc:  # the driver itself failed: report it as uncaught
+                out = Outcome(case, "uncaught", None, 0.0, f"driver: {exc!r}")
+            conn.send(out)
+    finally:
+        _remove_templates()
+
+
+@dataclass
+class _Slot:
+    proc: Any
+    conn: Any
+    case: Case | None = None
+    started: float = 0.0
+
+
+def run_pool(
+    cases: Sequence[Case],
+    *,
+    workers: int = 2,
+    timeout_s: float = TIMEOUT_S,
+    on_result: Callable[[Outcome], None] | None = None,
+) -> list[Outcome]:
+    """Run cases in ``workers`` processes; a case over ``timeout_s`` is a hang.
+
+    A worker whose case does not return within ``timeout_s`` plus a grace period (stuck
+    in compiled code, where the in-process alarm cannot reach) is killed and replaced.
+    """
+    ctx = mp.get_context("fork")
+    grace = 10.0
+
+    def start() -> _Slot:
+        parent, child = ctx.Pipe()
+        proc = ctx.Process(target=_worker, args=(child, timeout_s), daemon=True)
+        proc.start()
+        child.close()
+        return _Slot(proc, parent)
+
+    todo = list(reversed(cases))
+    slots = [start() for _ in range(max(1, min(workers, len(cases))))]
+    results: list[Outcome] = []
+
+    def done(out: Outcome) -> None:
+        results.append(out)
+        if on_result is not None:
+            on_result(out)
+
+    try:
+        while todo or any(s.case is not None for s in slots):
+            for i, s in enumerate(slots):
+                if s.case is None and todo:
+                    s.case, s.started = todo.pop(), time.monotonic()
+                    s.conn.send(s.case)
+                if s.case is None:
+                    continue
+                if s.conn.poll(0.005):
+                    try:
+                        out = s.conn.recv()
+                    except EOFError:  # the worker died (e.g. killed for memory)
+                        out = Outcome(s.case, "uncaught", None, 0.0, "worker process died")
+                        s.proc.join(1)
+                        slots[i] = start()
+                    else:
+                        s.case = None
+                    done(out)
+                elif not s.proc.is_alive() or time.monotonic() - s.started > timeout_s + grace:
+                    alive = s.proc.is_alive()
+                    s.proc.kill()
+                    s.proc.join(5)
+                    detail = f"over {timeout_s:g} s (killed)" if alive else "worker died"
+                    kind = "hang" if alive else "uncaught"
+                    done(Outcome(s.case, kind, None, time.monotonic() - s.started, detail))
+                    slots[i] = start()
+    finally:
+        for s in slots:
+            with contextlib.suppress(OSError, BrokenPipeError):
+                s.conn.send(None)
+        for s in slots:
+            s.proc.join(5)
+            if s.proc.is_alive():
+                s.proc.kill()
+    return results
+
+
+# ------------------------------------------------------------------------- the table
+def tally(results: Sequence[Outcome]) -> dict[str, Counter[str]]:
+    """Counts of each outcome per kind, and in ``"total"``."""
+    table: dict[str, Counter[str]] = {}
+    for r in results:
+        table.setdefault(r.case.kind, Counter())[r.outcome] += 1
+    total: Counter[str] = Counter()
+    for c in table.values():
+        total.update(c)
+    table["total"] = total
+    return table
+
+
+def format_table(results: Sequence[Outcome]) -> str:
+    """The fuzz table: per kind and total, cases and each outcome."""
+    heads = (
+        "kind",
+        "cases",
+        "clean refusals",
+        "accepted",
+        "uncaught",
+        "hangs >20 s",
+        "messy refusals",
+        "refusals that changed files",
+    )
+    keys = ("refused", "accepted", "uncaught", "hang", "messy", "dirty")
+    rows = [
+        (kind, str(sum(c.values())), *(str(c[k]) for k in keys))
+        for kind, c in tally(results).items()
+    ]
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(heads)]
+    fmt = lambda r: "  ".join(  # noqa: E731
+        v.ljust(w) if i == 0 else v.rjust(w) for i, (v, w) in enumerate(zip(r, widths, strict=True))
+    )
+    sep = "  ".join("-" * w for w in widths)
+    return "\n".join([fmt(heads), sep, *(fmt(r) for r in rows[:-1]), sep, fmt(rows[-1])])
