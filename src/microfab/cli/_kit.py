@@ -92,7 +92,11 @@ class OneLineErrors(TyperGroup):
             code = super().main(args, prog_name, complete_var, False, **extra)
         except _CLICK_ERROR as exc:
             exit_code = int(getattr(exc, "exit_code", 2))
-            if type(exc).__name__ == "NoArgsIsHelpError":  # the help is printed already
+            if type(exc).__name__ == "NoArgsIsHelpError":
+                # rich help is printed while it is built; plain help (piped) is the message
+                text = exc.format_message()  # type: ignore[attr-defined]
+                if text.strip():
+                    typer.echo(text)
                 sys.exit(exit_code)
             ctx = getattr(exc, "ctx", None)
             hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
