@@ -365,7 +365,10 @@ class CurveSegment:
     def point(self, u: np.ndarray) -> np.ndarray:
         """``f(u)``, shape (n, 2)."""
         x = 2.0 * np.asarray(u, dtype=float) - 1.0
-        return np.column_stack([cheb.chebval(x, self.coef[:, 0]), cheb.chebval(x, self.coef[:, 1])])
+        with np.errstate(over="ignore", invalid="ignore"):  # absurd curves: inf, refused later
+            return np.column_stack(
+                [cheb.chebval(x, self.coef[:, 0]), cheb.chebval(x, self.coef[:, 1])]
+            )
 
     @cached_property
     def derivative_coefs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -373,7 +376,8 @@ class CurveSegment:
         out = []
         c = self.coef
         for _ in range(3):
-            c = 2.0 * cheb.chebder(c, axis=0) if c.shape[0] > 1 else np.zeros((1, 2))
+            with np.errstate(over="ignore", invalid="ignore"):  # inf: refused where used
+                c = 2.0 * cheb.chebder(c, axis=0) if c.shape[0] > 1 else np.zeros((1, 2))
             out.append(c)
         return out[0], out[1], out[2]
 
