@@ -80,8 +80,15 @@ def test_analyze_errors(tmp_path: Path) -> None:
     frames[:, :20, 10:30] = 0.1
     write_frames(frames, tmp_path / "f", camera=cam, frame_interval_s=1e-5)
     (tmp_path / "f" / "frames.json").unlink()
+    # issue 13: the hints speak the CLI's option names and units, not Python's
     res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f")])
-    assert res.exit_code == 2 and "pixel size" in res.output
+    assert res.exit_code == 2 and "error: --pixel-size is required (µm)" in res.output
+    assert "pixel_size_m=" not in res.output
+    res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f"), "--pixel-size", "2"])
+    assert res.exit_code == 2 and "error: --frame-interval is required (µs)" in res.output
+    for opt, unit in (("--pixel-size", "µm"), ("--frame-interval", "µs")):
+        res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f"), opt, "-1"])
+        assert res.exit_code == 2 and f"error: {opt} must be more than 0 {unit}" in res.output
 
 
 def test_sweep_writes_figure_and_resumable_results(tmp_path: Path) -> None:

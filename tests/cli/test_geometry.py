@@ -101,7 +101,23 @@ def test_trajectory_option_errors(tmp_path: Path) -> None:
     res = runner.invoke(app, ["trajectory", "circle:radius=0.01"])
     assert res.exit_code == 2 and "exactly one" in res.output
     res = runner.invoke(app, ["trajectory", "circle:radius=0.01", "--time-optimal", "--amax", "-1"])
-    assert res.exit_code == 2 and "acceleration limit of axis x must be positive" in res.output
+    assert res.exit_code == 2 and "error: --amax must be more than 0 m/s², got -1" in res.output
+    # issue 13: every hint names the option and its unit, never a Python name
+    for opt, unit in (
+        ("--speed", "m/s"),
+        ("--vmax", "m/s"),
+        ("--jmax", "m/s³"),
+        ("--workspace", "m"),
+        ("--chord", "m"),
+        ("--text-height", "m"),
+    ):
+        argv = ["trajectory", "airfoil:e344", "--speed", "0.01", opt, "-2"]
+        res = runner.invoke(app, argv)
+        assert f"error: {opt} must be more than 0 {unit}, got -2 {unit}" in res.output, argv
+    res = runner.invoke(app, ["trajectory", "text:A", "--speed", "0.01", "--units", "furlong"])
+    assert res.exit_code == 2 and "error: --units 'furlong' is not one of" in res.output
+    res = runner.invoke(app, ["trajectory", "text:A", "--speed", "0.01", "--feed", "0.1"])
+    assert res.exit_code == 2 and "--feed caps the speed of --time-optimal" in res.output
     res = runner.invoke(
         app, ["trajectory", "circle:radius=0.01", "--time-optimal", "--contour", "3"]
     )
@@ -137,7 +153,7 @@ def test_absurd_speed_is_held_within_the_limits(tmp_path: Path) -> None:
     "argv, says",
     [
         (["circle:radius=0.005", "--speed", "1e-308"], "a reference may hold"),  # OverflowError
-        (["text:ab", "--speed", "0.01", "--rate", "7.7e-258"], "--rate must be between"),
+        (["text:ab", "--speed", "0.01", "--rate", "7.7e-258"], "--rate must be at least 1"),
         (["circle:radius=0.5", "--speed", "0.01"], "outside the workspace"),
         (["circle:radius=0.01", "--speed", "0.01", "--workspace", "0"], "workspace"),
     ],

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from microfab.cli import app
@@ -58,4 +59,29 @@ def test_step_with_p_type_and_axis_gain(tmp_path: Path) -> None:
     res = _step(tmp_path, "--law", "q-type", state="s4")
     assert res.exit_code == 2 and "law must be" in res.output
     res = _step(tmp_path, "--axis-gain", "z=0.1", state="s5")
-    assert res.exit_code == 2 and "axis_gains names ['z']" in res.output
+    assert res.exit_code == 2 and "a gain is given for axis ['z']" in res.output
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["--cutoff-hz", "-1"], "--cutoff-hz must be more than 0 Hz, got -1 Hz"),
+        (["--gain", "5"], "--gain must be more than 0 and at most 2, got 5"),
+        (
+            ["--max-velocity", "0"],
+            "--max-velocity must be more than 0 (input unit)/s, got 0 (input unit)/s",
+        ),
+        (["--advance-us", "-1"], "--advance-us must be at least 0 µs, got -1 µs"),
+        (["--axis-gain", "y=3"], "--axis-gain y must be more than 0 and at most 2, got 3"),
+    ],
+)
+def test_option_hints_name_the_option_and_its_unit(
+    tmp_path: Path, argv: list[str], says: str
+) -> None:
+    # issue 13: hints spoke Python names and units ("advance_s ... -1e-06 s" for µs)
+    _trial(tmp_path / "trial.csv")
+    res = _step(tmp_path, *argv)
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert lines == [f"error: {says}"], res.output
+    assert not (tmp_path / "state").exists()

@@ -52,7 +52,7 @@ def test_axis_gains_set_each_axis_contraction(ref):
     assert cfg.gain_of("x") == 0.4 and cfg.gain_of("y") == 1.0
     with pytest.raises(ValueError, match=r"axis gain of 'y'"):
         ILCConfig(axis_gains={"y": 2.5})
-    with pytest.raises(ValueError, match=r"axis_gains names \['z'\]"):
+    with pytest.raises(ValueError, match=r"a gain is given for axis \['z'\]"):
         FrequencyILC(ref, DT, AXES, ILCConfig(axis_gains={"z": 0.3}))
 
 

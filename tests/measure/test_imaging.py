@@ -277,7 +277,7 @@ def test_calibration_errors(rendered: dict[str, np.ndarray], tmp_path: Path) -> 
     write_frames(frames, tmp_path, camera=CAM, frame_interval_s=DT)
     shutil.copy(tmp_path / "frames.json", tmp_path / "frames.bak")
     (tmp_path / "frames.json").unlink()
-    with pytest.raises(ValueError, match="pixel size is required: pass --pixel-size"):
+    with pytest.raises(ValueError, match="pixel size is required: give pixel_size_m"):
         analyze_folder(tmp_path, frame_interval_s=DT)
     with pytest.raises(ValueError, match="frame interval is required"):
         analyze_folder(tmp_path, pixel_size_m=PX)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from collections.abc import Sequence
@@ -61,6 +62,41 @@ def fail(msg: str, code: int = 2) -> NoReturn:
         f"[bold red]error:[/] {escape(one_line(msg))}", highlight=False, soft_wrap=True
     )
     raise typer.Exit(code)
+
+
+def check_option(
+    name: str,
+    value: float | None,
+    unit: str,
+    *,
+    low: float = 0.0,
+    high: float | None = None,
+    low_closed: bool = False,
+) -> None:
+    """Refuse an option value outside (``low``, ``high``], naming the option and its unit.
+
+    Parameters
+    ----------
+    name : str
+        The option as the user typed it, e.g. ``"--speed"``.
+    value : float or None
+        The value in the option's unit; ``None`` (not given) passes.
+    unit : str
+        The option's unit as its help states it (``"m/s"``, ``"µs"``).
+    low, high : float
+        Bounds; ``high=None`` for none. ``low`` is excluded unless ``low_closed``.
+    low_closed : bool
+        Accept ``value == low``.
+    """
+    if value is None:
+        return
+    above = value >= low if low_closed else value > low
+    if math.isfinite(value) and above and (high is None or value <= high):
+        return
+    lower = f"at least {low:g}" if low_closed else f"more than {low:g}"
+    upper = "" if high is None else f" and at most {high:g}"
+    unit = f" {unit}" if unit else ""
+    fail(f"{name} must be {lower}{upper}{unit}, got {value:g}{unit}")
 
 
 #: click's base exception, whether typer vendors click or uses it (``BadParameter``'s base).

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import console, fail, progress
+from microfab.cli._kit import check_option, console, fail, progress
 from microfab.io.atomic import atomic_write_text
 
 __all__ = ["MAX_DURATION_US", "droplet_app"]
@@ -59,8 +58,9 @@ def simulate_cmd(
             "(40 to 70 V, seed 003 Table 1)"
         )
     for name, value in (("--duration", duration), ("--after-breakup", after_breakup)):
-        if not (0.0 < value * 1e-6 and value <= MAX_DURATION_US):  # in s, it must stay > 0
-            fail(f"{name} must be more than 0 and at most {MAX_DURATION_US:g} µs, got {value:g} µs")
+        check_option(name, value, "µs", high=MAX_DURATION_US)
+        if not value * 1e-6 > 0.0:  # a subnormal count of µs is 0 s
+            fail(f"{name} must be more than 0 µs, got {value:g} µs")
     try:
         fluid = naalg(concentration)
         waveform = seed003_waveform(voltage)
@@ -129,13 +129,12 @@ def render_cmd(
 
     if not 40.0 <= voltage <= 70.0:
         fail(f"--voltage {voltage} V is outside the calibrated 40 to 70 V (seed 003 Table 1)")
-    for name, value, low, high in (
-        ("--duration", duration, 10.0, 5000.0),
-        ("--frame-interval", frame_interval, 0.1, 1000.0),
-        ("--pixel-size", pixel_size, 0.1, 100.0),
+    for name, value, low, high, unit in (
+        ("--duration", duration, 10.0, 5000.0, "µs"),
+        ("--frame-interval", frame_interval, 0.1, 1000.0, "µs"),
+        ("--pixel-size", pixel_size, 0.1, 100.0, "µm"),
     ):
-        if not (math.isfinite(value) and low <= value <= high):
-            fail(f"{name} must be between {low:g} and {high:g} µm or µs, got {value}")
+        check_option(name, value, unit, low=low, high=high, low_closed=True)
     try:
         fluid = naalg(concentration)
     except ValueError as exc:
@@ -184,15 +183,27 @@ def analyze_cmd(
 ) -> None:
     """Measure head speed, breakup frame and mode, satellites and drop volume from frames."""
     from microfab.experiments.seed003_inkjet.figures import fig_analysis
-    from microfab.measure.imaging import analyze_folder, load_frames
+    from microfab.measure.imaging import SIDECAR_NAME, MissingSetting, analyze_folder, load_frames
     from microfab.report.canvas import save_figure
 
+    options = {
+        "pixel_size_m": ("--pixel-size", "µm"),
+        "frame_interval_s": ("--frame-interval", "µs"),
+    }
+    for (name, unit), value in zip(options.values(), (pixel_size, frame_interval), strict=True):
+        check_option(name, value, unit)
     try:
         res = analyze_folder(
             frames_dir,
             pixel_size_m=None if pixel_size is None else pixel_size * 1e-6,
             frame_interval_s=None if frame_interval is None else frame_interval * 1e-6,
             nozzle_row=nozzle_row,
+        )
+    except MissingSetting as exc:
+        name, unit = options[exc.key]
+        fail(
+            f'{name} is required ({unit}): pass it, or put "{exc.key}" '
+            f"in {frames_dir / SIDECAR_NAME}"
         )
     except (OSError, ValueError) as exc:
         fail(str(exc))
@@ -262,9 +273,8 @@ def sweep_cmd(
     vs = _floats(voltages, "voltages") if voltages.strip() else []
     for v in vs:
         if not 40.0 <= v <= 70.0:
-            fail(f"voltage {v} V is outside what the model covers (40 to 70 V, seed Table 1)")
-    if not (math.isfinite(duration) and 10.0 <= duration <= MAX_DURATION_US):
-        fail(f"--duration must be between 10 and {MAX_DURATION_US:g} µs, got {duration:g} µs")
+            fail(f"--voltages: {v:g} V is outside the model's 40 to 70 V (seed 003 Table 1)")
+    check_option("--duration", duration, "µs", low=10.0, high=MAX_DURATION_US, low_closed=True)
     try:
         for c in {*cs, voltage_concentration}:
             naalg(c)

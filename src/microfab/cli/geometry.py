@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from microfab.cli._kit import console, err_console, fail
+from microfab.cli._kit import check_option, console, err_console, fail
 
 __all__ = ["MAX_GRID", "MAX_RATE_HZ", "path_app", "trajectory_cmd"]
 
@@ -35,8 +35,13 @@ HeightOpt = Annotated[float, typer.Option(help="Text font size, m.")]
 
 
 def _load(drawing: str, units: str | None, chord: float, text_height: float):
+    from microfab.geometry.dxf import UNITS_M
     from microfab.geometry.load import load_drawing
 
+    check_option("--chord", chord, "m")
+    check_option("--text-height", text_height, "m")
+    if units is not None and units.strip().lower() not in UNITS_M:
+        fail(f"--units {units!r} is not one of {', '.join(UNITS_M)}")
     try:
         return load_drawing(drawing, units=units, chord=chord, text_height=text_height)
     except (OSError, ValueError) as exc:
@@ -145,8 +150,18 @@ def trajectory_cmd(
 
     if (speed is None) == (not time_optimal):
         fail("give exactly one of --speed V or --time-optimal")
-    if not 1.0 <= rate <= MAX_RATE_HZ:
-        fail(f"--rate must be between 1 Hz and {MAX_RATE_HZ:g} Hz, got {rate:g} Hz")
+    check_option("--rate", rate, "Hz", low=1.0, high=MAX_RATE_HZ, low_closed=True)
+    for name, value, unit in (
+        ("--speed", speed, "m/s"),
+        ("--feed", feed, "m/s"),
+        ("--vmax", vmax, "m/s"),
+        ("--amax", amax, "m/s²"),
+        ("--jmax", jmax, "m/s³"),
+        ("--workspace", workspace, "m"),
+    ):
+        check_option(name, value, unit)
+    if feed is not None and not time_optimal:
+        fail("--feed caps the speed of --time-optimal; with --speed, the speed is already set")
     base = MachineLimits.seed002_stage()
     try:
         half = workspace

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import console, fail
+from microfab.cli._kit import check_option, console, fail
 
 __all__ = ["ilc_app"]
 
@@ -63,6 +63,14 @@ def ilc_step_cmd(
     from microfab.machines.files import ilc_step
     from microfab.machines.galvo import GALVO_LIMITS
 
+    check_option("--cutoff-hz", cutoff_hz, "Hz")
+    check_option("--gain", gain, "", high=2.0)
+    check_option("--max-position", max_position, "(input unit)")
+    check_option("--max-velocity", max_velocity, "(input unit)/s")
+    check_option("--max-acceleration", max_acceleration, "(input unit)/s²")
+    check_option("--advance-us", advance_us, "µs", low_closed=True)
+    if law not in ("inverse", "p-type"):
+        fail(f"--law must be 'inverse' or 'p-type', got {law!r}")
     gains: dict[str, float] = {}
     for item in axis_gain or []:
         name, sep, value = item.partition("=")
@@ -72,6 +80,7 @@ def ilc_step_cmd(
             fail(f"--axis-gain takes AXIS=GAIN, e.g. y=0.2; got {item!r}")
         if not sep or not name.strip():
             fail(f"--axis-gain takes AXIS=GAIN, e.g. y=0.2; got {item!r}")
+        check_option(f"--axis-gain {name.strip()}", gains[name.strip()], "", high=2.0)
     try:
         config = ILCConfig(
             cutoff_hz=cutoff_hz,

@@ -239,7 +239,7 @@ class FrequencyILC:
         self.config = config or ILCConfig()
         unknown = sorted(set(self.config.axis_gains or {}) - set(axes))
         if unknown:
-            raise ValueError(f"axis_gains names {unknown}, not axes of {list(axes)}")
+            raise ValueError(f"a gain is given for axis {unknown}, but the axes are {list(axes)}")
         self.model = model
         self.true_frf = true_frf
         self.state = _State(dt=float(dt), axes=tuple(axes), reference=ref.copy())

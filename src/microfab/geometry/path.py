@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from numpy.polynomial import chebyshev as cheb
 
 from microfab.core.validate import check_positive
 from microfab.geometry.segments import (
@@ -26,6 +27,7 @@ from microfab.geometry.segments import (
     LineSegment,
     Segment,
     cheb_fit2,
+    segment_bbox,
 )
 
 __all__ = ["MAX_FLATTEN", "Path"]
@@ -419,9 +421,10 @@ class Path:
 
         Notes
         -----
-        A segment gets at most `MAX_FLATTEN` vertices: the curvature of a cusp (a Bézier
-        curve that stops and turns back) is unbounded, and no step would meet ``tol``
-        there; near a cusp the polyline then deviates by more than ``tol``.
+        Lines and arcs are sampled evenly in arc length; polynomial curves evenly in their
+        own parameter, with a step from the largest ``|f''(u)|``, so a cusp (a Bézier
+        curve that stops and turns back) needs no special case. A segment gets at most
+        `MAX_FLATTEN` vertices; a curve that would need more deviates by more than ``tol``.
         """
         if tol is None:
             tol = 1e-4 * max(float(np.max(np.ptp(self._coarse, axis=0))), 1e-12)
@@ -433,15 +436,29 @@ class Path:
                 n_arc = np.ceil(seg.length / min(step, 2 * seg.radius))
                 counts[i] = max(int(min(n_arc, MAX_FLATTEN)), 2)
             elif isinstance(seg, CurveSegment):
-                probe = self._eval_local(np.full(33, i), np.linspace(0.0, seg.length, 33), 2)[2]
-                kmax = float(np.max(np.linalg.norm(probe, axis=1)))  # inf or NaN at a cusp
-                step = np.sqrt(8.0 * tol / kmax) if kmax > 0 else seg.length
-                step = step if step > 0 else seg.length / MAX_FLATTEN
-                counts[i] = max(int(min(np.ceil(1.25 * seg.length / step), MAX_FLATTEN)), 2)
+                # sampled evenly in the curve's own parameter u: a chord of Δu deviates
+                # by at most max|f''(u)| Δu² / 8 (no arc-length inversion needed)
+                d2 = seg.derivative_coefs[1]
+                with np.errstate(over="ignore", invalid="ignore"):
+                    x = np.linspace(-1.0, 1.0, 33)
+                    probe = np.hypot(cheb.chebval(x, d2[:, 0]), cheb.chebval(x, d2[:, 1]))
+                    kmax = float(np.max(probe))
+                du = np.sqrt(8.0 * tol / kmax) if kmax > 0 else 1.0
+                n = np.ceil(1.25 / du) if np.isfinite(du) and du > 0 else MAX_FLATTEN
+                counts[i] = max(int(min(n, MAX_FLATTEN)), 2)
         seg_idx = np.repeat(np.arange(len(self.segments)), counts)
         frac = np.concatenate([np.arange(c) / c for c in counts])
         lengths = np.array([s.length for s in self.segments])
-        pts = self._eval_local(seg_idx, frac * lengths[seg_idx], 0)[0]
+        curve = np.array([isinstance(s, CurveSegment) for s in self.segments])[seg_idx]
+        pts = np.empty((seg_idx.size, 2))
+        if np.any(~curve):
+            rows = ~curve
+            pts[rows] = self._eval_local(seg_idx[rows], frac[rows] * lengths[seg_idx[rows]], 0)[0]
+        start = np.concatenate([[0], np.cumsum(counts)])
+        for i in np.flatnonzero([isinstance(s, CurveSegment) for s in self.segments]):
+            seg = self.segments[i]
+            assert isinstance(seg, CurveSegment)
+            pts[start[i] : start[i + 1]] = seg.point(frac[start[i] : start[i + 1]])
         return np.vstack([pts, self.end[None, :] if not self.closed else pts[:1]])
 
     @cached_property
@@ -451,13 +468,13 @@ class Path:
 
     @cached_property
     def bbox(self) -> tuple[float, float, float, float]:
-        """``(xmin, ymin, xmax, ymax)``, m (to 1e-6 of the size)."""
-        p = self.flatten(1e-6 * max(float(np.max(np.ptp(self._coarse, axis=0))), 1e-12))
+        """``(xmin, ymin, xmax, ymax)``, m: exact, from each segment's extremes."""
+        b = np.array([segment_bbox(seg) for seg in self.segments])
         return (
-            float(p[:, 0].min()),
-            float(p[:, 1].min()),
-            float(p[:, 0].max()),
-            float(p[:, 1].max()),
+            float(b[:, 0].min()),
+            float(b[:, 1].min()),
+            float(b[:, 2].max()),
+            float(b[:, 3].max()),
         )
 
     @cached_property

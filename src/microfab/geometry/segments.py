@@ -27,7 +27,7 @@ from numpy.polynomial import chebyshev as cheb
 
 from microfab.core.validate import check_finite, check_positive
 
-__all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment", "segment_reach"]
+__all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment", "segment_bbox", "segment_reach"]
 
 GL_X, GL_W = np.polynomial.legendre.leggauss(10)
 N_PANELS = 16
@@ -469,3 +469,35 @@ def segment_reach(seg: Segment) -> float:
     else:
         r = float(np.max(np.abs(np.concatenate([seg.start, seg.end]))))
     return r if np.isfinite(r) and np.isfinite(seg.length) else float("inf")
+
+
+def segment_bbox(seg: Segment) -> tuple[float, float, float, float]:
+    """Exact bounding box ``(xmin, ymin, xmax, ymax)`` of a segment, m.
+
+    No sampling: the end points plus, for an arc, the axis crossings of the circle inside
+    its sweep, and for a curve, the real roots of ``dx/du`` and ``dy/du`` in ``[0, 1]``
+    (``numpy.polynomial.chebyshev.chebroots``).
+    """
+    pts = [seg.start, seg.end]
+    if isinstance(seg, ArcSegment):
+        lo, hi = sorted((seg.theta0, seg.theta0 + seg.sweep))
+        k = np.arange(np.ceil(lo / (np.pi / 2)), np.floor(hi / (np.pi / 2)) + 1)
+        t = k * np.pi / 2
+        pts.append(seg.center + seg.radius * np.column_stack([np.cos(t), np.sin(t)]))
+    elif isinstance(seg, CurveSegment):
+        d1 = seg.derivative_coefs[0]
+        for dim in range(2):
+            c = cheb.chebtrim(d1[:, dim])
+            if c.size < 2 or not np.all(np.isfinite(c)):
+                continue
+            roots = cheb.chebroots(c)
+            x = roots.real[(np.abs(roots.imag) <= 1e-9) & (np.abs(roots.real) <= 1.0)]
+            if x.size:
+                pts.append(seg.point((x + 1.0) / 2.0))
+    p = np.vstack([np.reshape(q, (-1, 2)) for q in pts])
+    return (
+        float(p[:, 0].min()),
+        float(p[:, 1].min()),
+        float(p[:, 0].max()),
+        float(p[:, 1].max()),
+    )

@@ -75,6 +75,7 @@ from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
 __all__ = [
     "IMAGE_SUFFIXES",
     "SIDECAR_NAME",
+    "MissingSetting",
     "DropletAnalysis",
     "analyze",
     "analyze_folder",
@@ -96,6 +97,23 @@ _NOZZLE_WIDTH_DROP = 0.75
 
 
 # ---------------------------------------------------------------------------- loading
+
+
+class MissingSetting(ValueError):
+    """A camera setting that was neither passed nor found in the frames' sidecar.
+
+    Parameters
+    ----------
+    key : str
+        The setting's name (``"pixel_size_m"`` or ``"frame_interval_s"``), so that a
+        front end can name its own option for it.
+    message : str
+        The error message.
+    """
+
+    def __init__(self, key: str, message: str) -> None:
+        super().__init__(message)
+        self.key = key
 
 
 def natural_key(name: str) -> list[int | str]:
@@ -693,15 +711,15 @@ def analyze(
     (6e-05, 'front')
     """
     if pixel_size_m is None:
-        raise ValueError(
-            "pixel size is required: "
-            "pass --pixel-size or pixel_size_m=<m per pixel in the object plane>"
+        raise MissingSetting(
+            "pixel_size_m",
+            "pixel size is required: give pixel_size_m (m per pixel in the object plane)",
         )
     px = check_positive("pixel_size_m", pixel_size_m, "m")
     if frame_interval_s is None:
-        raise ValueError(
-            "frame interval is required: "
-            "pass --frame-interval or frame_interval_s=<s between frames>"
+        raise MissingSetting(
+            "frame_interval_s",
+            "frame interval is required: give frame_interval_s (s between frames)",
         )
     dt = check_positive("frame_interval_s", frame_interval_s, "s")
     check_finite("t0_s", t0_s, "s")
@@ -892,16 +910,18 @@ def analyze_folder(
     if pixel_size_m is None:
         pixel_size_m = meta.get("pixel_size_m")
     if pixel_size_m is None:
-        raise ValueError(
-            "pixel size is required: pass --pixel-size or pixel_size_m=<m per pixel>, "
-            f'or put "pixel_size_m" in {folder / SIDECAR_NAME}'
+        raise MissingSetting(
+            "pixel_size_m",
+            "pixel size is required: give pixel_size_m (m per pixel) "
+            f'or put "pixel_size_m" in {folder / SIDECAR_NAME}',
         )
     if frame_interval_s is None:
         frame_interval_s = meta.get("frame_interval_s")
     if frame_interval_s is None:
-        raise ValueError(
-            "frame interval is required: pass --frame-interval or frame_interval_s=<s>, "
-            f'or put "frame_interval_s" in {folder / SIDECAR_NAME}'
+        raise MissingSetting(
+            "frame_interval_s",
+            "frame interval is required: give frame_interval_s (s) "
+            f'or put "frame_interval_s" in {folder / SIDECAR_NAME}',
         )
     if nozzle_row is None:
         nozzle_row = meta.get("nozzle_row")
