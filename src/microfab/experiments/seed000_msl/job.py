@@ -187,7 +187,7 @@ def _notes(config: MSLConfig) -> list[str]:
         "Digital twin: galvo x/y with eq. (1) lead-lag feedback at 1 MHz; rigid-body pole, "
         "gain ratio and encoder noise calibrated to seed 000 Table 1 "
         "(microfab/data/galvo_twin.toml, `microfab calibrate galvo`).",
-        "Trial 1 is feedback only (u_1 = y_d); ILC learns odd harmonics up to "
+        "Trial 1 is feedback only (u_1 = y_d); ILC learns every harmonic (the mean included) up to "
         f"{config.ilc.cutoff_hz:g} Hz with gain {config.ilc.gain:g}.",
         "Line width: quasi-steady working-curve model with the seed's 30 mW laser "
         "(seed 000 §4.3) and an assumed resin (D_p 100 um, E_c 10 mJ/cm^2) and spot "
