@@ -1,10 +1,11 @@
-"""Two-dimensional dose of a gated Gaussian spot along a sampled path; cured line measures.
+"""Two-dimensional dose of a gated Gaussian spot along a sampled path, and its cure threshold.
 
 Seed 001 (compliant XY nanomanipulator MSL) writes closed contours with a 405 nm laser
 diode focused to a spot of "around 3 microns" (§2) and cures lines of about 2.5 µm
 (§4.2, Figs. 14-15). This module computes what the resin receives when the spot follows a
 simulated or measured path with the gated, warming-up power of
-:class:`microfab.process.laser.LaserDiode`, and measures the cured line.
+:class:`microfab.process.laser.LaserDiode`; :mod:`microfab.process.cured_line` measures
+the cured line.
 
 Model
 -----
