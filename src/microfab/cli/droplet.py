@@ -183,7 +183,12 @@ def analyze_cmd(
 ) -> None:
     """Measure head speed, breakup frame and mode, satellites and drop volume from frames."""
     from microfab.experiments.seed003_inkjet.figures import fig_analysis
-    from microfab.measure.imaging import SIDECAR_NAME, MissingSetting, analyze_folder, load_frames
+    from microfab.measure.imaging import (
+        SIDECAR_NAME,
+        MissingSettingError,
+        analyze_folder,
+        load_frames,
+    )
     from microfab.report.canvas import save_figure
 
     options = {
@@ -199,7 +204,7 @@ def analyze_cmd(
             frame_interval_s=None if frame_interval is None else frame_interval * 1e-6,
             nozzle_row=nozzle_row,
         )
-    except MissingSetting as exc:
+    except MissingSettingError as exc:
         name, unit = options[exc.key]
         fail(
             f'{name} is required ({unit}): pass it, or put "{exc.key}" '

@@ -75,8 +75,8 @@ from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
 __all__ = [
     "IMAGE_SUFFIXES",
     "SIDECAR_NAME",
-    "MissingSetting",
     "DropletAnalysis",
+    "MissingSettingError",
     "analyze",
     "analyze_folder",
     "as_frames",
@@ -99,7 +99,7 @@ _NOZZLE_WIDTH_DROP = 0.75
 # ---------------------------------------------------------------------------- loading
 
 
-class MissingSetting(ValueError):
+class MissingSettingError(ValueError):
     """A camera setting that was neither passed nor found in the frames' sidecar.
 
     Parameters
@@ -711,13 +711,13 @@ def analyze(
     (6e-05, 'front')
     """
     if pixel_size_m is None:
-        raise MissingSetting(
+        raise MissingSettingError(
             "pixel_size_m",
             "pixel size is required: give pixel_size_m (m per pixel in the object plane)",
         )
     px = check_positive("pixel_size_m", pixel_size_m, "m")
     if frame_interval_s is None:
-        raise MissingSetting(
+        raise MissingSettingError(
             "frame_interval_s",
             "frame interval is required: give frame_interval_s (s between frames)",
         )
@@ -910,7 +910,7 @@ def analyze_folder(
     if pixel_size_m is None:
         pixel_size_m = meta.get("pixel_size_m")
     if pixel_size_m is None:
-        raise MissingSetting(
+        raise MissingSettingError(
             "pixel_size_m",
             "pixel size is required: give pixel_size_m (m per pixel) "
             f'or put "pixel_size_m" in {folder / SIDECAR_NAME}',
@@ -918,7 +918,7 @@ def analyze_folder(
     if frame_interval_s is None:
         frame_interval_s = meta.get("frame_interval_s")
     if frame_interval_s is None:
-        raise MissingSetting(
+        raise MissingSettingError(
             "frame_interval_s",
             "frame interval is required: give frame_interval_s (s) "
             f'or put "frame_interval_s" in {folder / SIDECAR_NAME}',

@@ -1,0 +1,36 @@
+"""Published numbers of seed 001 (compliant nanomanipulator MSL, RBF + plug-in RC).
+
+Every value cites its equation or section in ``../shared/seeds/001_44fdd8e8f587fd7f.txt``.
+Figures 8-10 carry no numbers; the targets the project sets for them are in
+`FIG_TARGETS` and say so.
+"""
+
+from __future__ import annotations
+
+#: seed 001 eq. (9): identified transfer functions K / (s² + a1 s + a0), per axis.
+EQ9: dict[str, dict[str, float]] = {
+    "x": {"K": 548248.13, "a1": 14.88, "a0": 101793.23},
+    "y": {"K": 319852.42, "a1": 18.52, "a0": 99664.23},
+}
+
+TRAVEL_MM = 1.5  # seed 001 §2: working range up to ±1.5 mm per axis
+WAVELENGTH_NM = 405.0  # seed 001 §2: blue laser diode
+SPOT_UM = 3.0  # seed 001 §2: "the focused spot size ... is around 3 microns"
+
+CIRCLE_DIAMETER_MM = 0.15  # seed 001 §4.2: circular contour of diameter 0.15 mm
+N_CIRCLES = 4  # seed 001 §4.2: four circle patterns in one operation
+FIELD_MM = 0.5  # seed 001 §4.2: working range of the manipulator about 0.5 mm
+GATE_PERIODS = (3, 4)  # seed 001 §4.2: error reaches submicrons in 3-4 periods
+
+#: seed 001 §4.2 / Fig. 13a: axial tracking errors (not labelled RMS in the seed; read as
+#: RMS: the contour RMS agrees, sqrt((485.8² + 885.8²)/2) = 714 nm against 769.5 nm).
+AXIAL_RMS_NM = {"x": 485.8, "y": 885.8}
+CONTOUR_RMS_NM = 769.5  # seed 001 §4.2 / Fig. 13b: contour error, RMS over phase
+LINE_WIDTH_UM = 2.5  # seed 001 §4.2, Figs. 14-15: linewidth ~2.5 µm
+
+#: Figs. 8-10 give curves only; these are the project's targets (issue 14), not seed data.
+FIG_TARGETS = {
+    "fig8_rbf_over_pid_max": 1.0 / 3.0,  # RBF RMS <= 1/3 of PID's on the nonlinear circle
+    "fig9_over_fig8_max": 2.0,  # Fig. 9 (no cross-coupling) within 2x of the circle case
+    "fig10_rc_gain_min": 5.0,  # RBF+RC >= 5x below RBF alone within 10 periods, noise off
+}
