@@ -13,10 +13,10 @@ from numba import njit
 import control
 from microfab.control.base import CompiledController, LTIController, ReferenceWindow
 from microfab.control.pid import PID, pid_frequency_response
+from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import (
     PluginRC,
     RCConfig,
-    RCMemory,
     learning_factor,
     period_samples,
     rc_update,
