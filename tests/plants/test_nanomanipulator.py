@@ -34,7 +34,7 @@ DT = 1e-4
 EQ9 = {"x": (548248.13, 14.88, 101793.23), "y": (319852.42, 18.52, 99664.23)}
 
 
-@njit(cache=True)
+@njit  # not cached: a cache of a test module depends on how pytest names it
 def _open_loop(p: np.ndarray, s: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
     """Outputs of the twin under the command rows ``u`` (output before each update)."""
     y = np.empty(2)
