@@ -174,3 +174,31 @@ def test_absurd_sample_times_do_not_overflow() -> None:
     check_command(sine(1.0), 1e200, {"x": LOOSE}, ("x",), periodic=True)
     traj = Trajectory(dt=1e257, position=np.array([[0.0, 0.0], [0.01, 0.0]]))
     check_trajectory(traj, MachineLimits.seed002_stage())
+
+
+def test_seed001_stage_limits():
+    from microfab.core.limits import MachineLimits
+
+    lim = MachineLimits.seed001_stage()
+    assert lim.axes == ("x", "y")
+    assert lim.workspace == ((-1.5e-3, 1.5e-3), (-1.5e-3, 1.5e-3))  # seed 001 §2
+    assert lim.velocity == (0.02, 0.02)
+    assert lim.acceleration == (5.0, 5.0)
+    assert lim.jerk == (float("inf"), float("inf"))
+
+    from microfab.core.limits import check_trajectory
+    from microfab.trajectory.base import Trajectory
+
+    def circle(radius_m: float, centre_m: float, hz: float) -> Trajectory:
+        t = np.arange(10_000) * 1e-4  # one 1 s period at 10 kHz
+        w = 2 * np.pi * hz
+        ph = w * t
+        pos = centre_m + radius_m * np.column_stack([np.cos(ph), np.sin(ph)])
+        vel = radius_m * w * np.column_stack([-np.sin(ph), np.cos(ph)])
+        return Trajectory(dt=1e-4, position=pos, velocity=vel, at_rest=False)
+
+    check_trajectory(circle(0.075e-3, 0.25e-3, 1.0), lim)  # seed 001 §4.2 circle, 0.47 mm/s
+    with pytest.raises(LimitViolation, match="above the workspace maximum"):
+        check_trajectory(circle(0.075e-3, 1.45e-3, 1.0), lim)  # beyond +1.5 mm
+    with pytest.raises(LimitViolation, match="velocity"):
+        check_trajectory(circle(0.075e-3, 0.25e-3, 50.0), lim)  # 23.6 mm/s > 20 mm/s

@@ -183,6 +183,21 @@ class MachineLimits:
             acceleration=(40.0, 40.0),  # seed 002 Table I: 40 m/s^2
         )
 
+    @classmethod
+    def seed001_stage(cls) -> MachineLimits:
+        """The XY flexure nanomanipulator of seed 001; no jerk limit.
+
+        Travel from the seed; speed and acceleration are assumed (the seed gives none) and
+        match ``velocity_limit_mm_s`` of ``data/nanomanipulator_twin.toml``.
+        """
+        return cls(
+            workspace=((-1.5e-3, 1.5e-3), (-1.5e-3, 1.5e-3)),  # seed 001 §2: ±1.5 mm x ±1.5 mm
+            # assumed: 40x the 0.47 mm/s of a 0.15 mm circle at 1 Hz (such a circle up to 40 Hz)
+            velocity=(0.02, 0.02),
+            # assumed: a 0.15 mm circle at 40 Hz needs (2 pi 40)^2 * 0.075 mm = 4.7 m/s^2
+            acceleration=(5.0, 5.0),
+        )
+
     def with_jerk(self, jerk: float | tuple[float, ...]) -> MachineLimits:
         """A copy with the jerk limit replaced (one value for all axes, or per axis)."""
         j = (float(jerk),) * len(self.axes) if np.isscalar(jerk) else tuple(jerk)  # type: ignore[arg-type]
