@@ -1,0 +1,615 @@
+"""RBF-network robust adaptive control of a two-axis stage (seed 001 §3.2, eqs. 2-5).
+
+One network per axis, ``u = Ŵᵀ h(z)`` (seed 001 eq. 4), Gaussian nodes
+``h_j = exp(−‖z − c_j‖² / (2 b_j²))`` (eq. 2), input ``z = (x1, x2, x̄1, x̄2, s, v)`` with
+``e = x1 − r``, ``s = λe + ė``, ``v = λė − r̈`` (§3.2) and the adaptive law (eq. 5)
+
+``dŴ/dt = −Γ (h(z) s + σ Ŵ)``.
+
+Seed points: eq. 3 sums the outputs over ``j = 1..m`` while eq. 2 numbers the nodes
+``1..l`` (the same ``l`` here); eq. 5 writes ``dŴᵀ/dt · h(z) = −Γ(h s + σŴ)``, which
+leaves a scalar on the left and a vector on the right: read as the vector law above (the
+one the Lyapunov function A1 needs); eq. 7 says "substitute control law (5)", meaning
+the control law (4); A1 writes ``W̃ᵀ Γ⁻¹ W̃ᵀ`` for ``W̃ᵀ Γ⁻¹ W̃``.
+
+Discretisation (ours: the seed is continuous): at sample k the command is
+``u_k = Ŵ_kᵀ h(z_k)``; then ``Ŵ_{k+1} = exp(−Γσ dt) Ŵ_k − Γ dt h(z_k) s_k``: the linear
+leakage term exactly, the gradient term by explicit Euler.
+
+Scaling (ours): each component of ``z`` is shifted and divided by a scale,
+``z̃_i = (z_i − o_i) / g_i``, so that one width rule fits all six; the centres and widths
+live in these scaled units. `RBFAdaptive.for_reference` builds them from the reference
+(see there). Only positions are measured: ``x2``, ``x̄2`` come from the filtered
+differentiator of `microfab.control.velocity`, ``ṙ``, ``r̈`` from the reference window
+(which must carry velocity and acceleration).
+
+The certainty-equivalence oracle (eq. 6) and the checks of eqs. 7-8 and A6 are in
+`microfab.control.certainty`.
+
+Defaults (assumed; the seed gives no λ, Γ, σ, ε, l, centres, widths or Ŵ(0)) were chosen
+on the eq. 9 model (10 kHz, a 0.15 mm circle at 1 Hz, noise off): λ = 100/s,
+Γ = 0.05 V/mm, width factor 2, centres spread ±1 in scaled ``s``, l = 25, σ = 1e-3,
+Ŵ(0) = 0 give 0.8 µm RMS from the second period on; Γ = 0.2 (or λ = 300 with Γ = 0.1)
+sets off a bounded oscillation of ~0.2 mm, so Γ keeps a factor of ~4 from it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Self
+
+import numpy as np
+from numba import njit
+
+from microfab.control.base import CompiledController, ReferenceWindow
+from microfab.control.velocity import (
+    N_ESTIMATOR_PARAMS,
+    N_ESTIMATOR_STATES,
+    VelocityEstimator,
+    estimator_step,
+)
+from microfab.core.validate import check_finite, check_int, check_nonnegative, check_positive
+
+__all__ = ["RBFAdaptive", "RBFConfig", "RBFLog", "RBFNetwork", "rbf_core", "rbf_step"]
+
+N_Z = 6  # z = (x1, x2, x̄1, x̄2, s, v), seed 001 §3.2
+N_AXES = 2
+_HEAD = 4 + N_ESTIMATOR_PARAMS  # l, dt, λ, spare; estimator (velocity.py)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RBFConfig:
+    """Tunable settings of the RBF adaptive controller (both axes).
+
+    Parameters
+    ----------
+    n_nodes : int
+        Hidden nodes per axis, ``l`` of seed 001 eq. 2 (default 25, the issue's
+        benchmark size; the seed gives none).
+    lam : float
+        λ of ``s = λe + ė``, 1/s (seed: λ > 0, no value; default 100/s assumed).
+    gamma : float or tuple of float
+        Adaptive gain Γ of eq. 5, scalar or its diagonal (one per node), V/mm
+        (``dŴ/dt = −Γ h s`` with ``s`` in mm/s and ``Ŵ`` in V): > 0.
+    sigma : float
+        Leakage σ of eq. 5, mm/(V·s) (an unexcited weight decays at the rate ``Γσ``,
+        1/s): > 0.
+    eps : float
+        ε of eq. 6, s (used by `microfab.control.certainty`): under the oracle law
+        ``ṡ ≈ −s/ε``.
+    width_factor : float
+        Width rule of `RBFAdaptive.for_reference`: ``b_j`` = this times the mean distance
+        from ``c_j`` to its two neighbouring centres (scaled units).
+    s_spread : float
+        Centres alternate between ``+s_spread`` and ``−s_spread`` in scaled ``s`` (so
+        the network can make a command odd in ``s``, a feedback), >= 0.
+    w0 : float
+        Initial weight of every node, V (seed: Ŵ(0) not given; default 0).
+    estimator : VelocityEstimator
+        Velocity estimator on the measured positions.
+    """
+
+    n_nodes: int = 25
+    lam: float = 100.0  # assumed: see the class docstring
+    gamma: float | tuple[float, ...] = 0.05  # assumed
+    sigma: float = 1e-3  # assumed
+    eps: float = 2e-3  # assumed
+    width_factor: float = 2.0  # assumed
+    s_spread: float = 1.0  # assumed
+    w0: float = 0.0  # assumed: the seed gives no Ŵ(0)
+    estimator: VelocityEstimator = field(default_factory=VelocityEstimator)
+
+    def __post_init__(self) -> None:
+        check_int("n_nodes", self.n_nodes, 1, "nodes")
+        check_positive("lam (λ of s = λe + ė)", self.lam, "1/s")
+        if isinstance(self.gamma, tuple | list | np.ndarray):
+            g = tuple(float(v) for v in self.gamma)
+            if len(g) != self.n_nodes:
+                raise ValueError(
+                    f"gamma (Γ diagonal) must have n_nodes = {self.n_nodes} entries, got "
+                    f"{len(g)}; give one per node or a scalar"
+                )
+            for j, v in enumerate(g):
+                check_positive(f"gamma[{j}] (Γ)", v, "V/mm")
+            object.__setattr__(self, "gamma", g)
+        else:
+            check_positive("gamma (Γ)", self.gamma, "V/mm")
+        check_positive("sigma (σ)", self.sigma, "mm/(V·s)")
+        check_positive("eps (ε)", self.eps, "s")
+        check_positive("width_factor", self.width_factor, "")
+        check_nonnegative("s_spread", self.s_spread, "(scaled s)")
+        check_finite("w0 (initial weight)", self.w0, "V")
+        if not isinstance(self.estimator, VelocityEstimator):
+            raise ValueError(
+                f"estimator must be a VelocityEstimator, got {type(self.estimator).__name__}"
+            )
+
+    def gamma_diagonal(self) -> np.ndarray:
+        """Γ as its diagonal, shape (n_nodes,)."""
+        g = self.gamma
+        return np.array(g, float) if isinstance(g, tuple) else np.full(self.n_nodes, float(g))
+
+
+def _array(name: str, value: Any, shape: tuple[int, ...], unit: str) -> np.ndarray:
+    """``value`` as a finite float64 array of ``shape`` (``-1`` free), else ValueError."""
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers in {unit}, got {value!r}") from None
+    if a.ndim != len(shape) or any(s not in (-1, t) for s, t in zip(shape, a.shape, strict=True)):
+        dims = ["n" if s == -1 else str(s) for s in shape]
+        want = "(" + ", ".join(dims) + ("," if len(dims) == 1 else "") + ")"
+        raise ValueError(f"{name} must be shaped {want}, got {a.shape}; fix its dimension")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} holds NaN or inf ({unit}); give finite values")
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class RBFNetwork:
+    """One axis's network: scaling of ``z``, centres, widths, initial weights.
+
+    Parameters
+    ----------
+    offset, scale : numpy.ndarray
+        ``z̃ = (z − offset) / scale``, shape (6,) each, in the units of ``z``
+        ``(mm, mm/s, mm, mm/s, mm/s, mm/s²)``; scale > 0.
+    centres : numpy.ndarray
+        ``c_j`` in scaled units, shape (l, 6).
+    widths : numpy.ndarray
+        ``b_j`` in scaled units, shape (l,), > 0.
+    weights : numpy.ndarray
+        ``Ŵ(0)``, V, shape (l,).
+    """
+
+    offset: np.ndarray
+    scale: np.ndarray
+    centres: np.ndarray
+    widths: np.ndarray
+    weights: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "offset", _array("offset", self.offset, (N_Z,), "units of z"))
+        scale = _array("scale", self.scale, (N_Z,), "units of z")
+        if np.any(scale <= 0):
+            raise ValueError(f"scale must be positive in every component, got {scale.tolist()}")
+        object.__setattr__(self, "scale", scale)
+        c = _array("centres", self.centres, (-1, N_Z), "scaled units")
+        if c.shape[0] < 1:
+            raise ValueError("centres must hold at least one node (shape (l >= 1, 6))")
+        object.__setattr__(self, "centres", c)
+        b = _array("widths (b_j)", self.widths, (c.shape[0],), "scaled units")
+        if np.any(b <= 0):
+            j = int(np.argmin(b))
+            raise ValueError(
+                f"widths b_j must be positive (seed 001 eq. 2), got b[{j}] = {b[j]:g}; "
+                "give positive widths"
+            )
+        object.__setattr__(self, "widths", b)
+        object.__setattr__(self, "weights", _array("weights", self.weights, (c.shape[0],), "V"))
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes ``l``."""
+        return int(self.centres.shape[0])
+
+    def hidden(self, z: np.ndarray) -> np.ndarray:
+        """``h(z)`` for unscaled inputs ``z``, shape (..., 6) -> (..., l)."""
+        zs = (np.asarray(z, float) - self.offset) / self.scale
+        d2 = ((zs[..., None, :] - self.centres) ** 2).sum(axis=-1)
+        return np.exp(-d2 / (2.0 * self.widths**2))
+
+
+def _layout(nl: int) -> tuple[int, int, int, int, int]:
+    """State offsets ``(estimators, h, z, s, v)`` for ``nl`` nodes per axis."""
+    ie = N_AXES * nl
+    ih = ie + N_AXES * N_ESTIMATOR_STATES
+    iz = ih + N_AXES * nl
+    return ie, ih, iz, iz + N_Z, iz + N_Z + N_AXES
+
+
+@njit(cache=True)
+def rbf_core(p: np.ndarray, x: np.ndarray, r: np.ndarray, ym: np.ndarray, u: np.ndarray) -> None:
+    """One sample of both axes' RBF controllers, in place (no allocation).
+
+    ``r`` is the reference at this sample, shape (n_orders >= 3, 2): position (mm),
+    velocity (mm/s), acceleration (mm/s²); a composite controller (plug-in RC, seed 001
+    Fig. 7) may pass a corrected copy. Layouts: see `RBFAdaptive`.
+    """
+    if r.shape[0] < 3:
+        raise ValueError("the RBF controller needs a reference with velocity and acceleration")
+    nl = int(p[0])
+    lam = p[2]
+    stride = 2 * N_Z + (N_Z + 3) * nl
+    ie = N_AXES * nl
+    ih = ie + N_AXES * N_ESTIMATOR_STATES
+    iz = ih + N_AXES * nl
+    isv = iz + N_Z
+    v0 = estimator_step(p, 4, x, ie, ym[0])
+    v1 = estimator_step(p, 4, x, ie + N_ESTIMATOR_STATES, ym[1])
+    for a in range(N_AXES):
+        o = _HEAD + a * stride
+        if a == 0:
+            xa, va, xb, vb = ym[0], v0, ym[1], v1
+        else:
+            xa, va, xb, vb = ym[1], v1, ym[0], v0
+        ed = va - r[1, a]
+        s = lam * (xa - r[0, a]) + ed
+        vv = lam * ed - r[2, a]
+        x[iz] = (xa - p[o]) * p[o + 6]
+        x[iz + 1] = (va - p[o + 1]) * p[o + 7]
+        x[iz + 2] = (xb - p[o + 2]) * p[o + 8]
+        x[iz + 3] = (vb - p[o + 3]) * p[o + 9]
+        x[iz + 4] = (s - p[o + 4]) * p[o + 10]
+        x[iz + 5] = (vv - p[o + 5]) * p[o + 11]
+        ic = o + 2 * N_Z
+        ib = ic + N_Z * nl
+        ig = ib + nl
+        idc = ig + nl
+        iw = a * nl
+        iha = ih + a * nl
+        acc = 0.0
+        for j in range(nl):
+            d2 = 0.0
+            for i in range(N_Z):
+                dz = x[iz + i] - p[ic + j * N_Z + i]
+                d2 += dz * dz
+            hj = math.exp(-d2 * p[ib + j])
+            x[iha + j] = hj
+            acc += x[iw + j] * hj
+        u[a] = acc
+        for j in range(nl):
+            x[iw + j] = p[idc + j] * x[iw + j] - p[ig + j] * x[iha + j] * s
+        x[isv + a] = s
+        x[isv + N_AXES + a] = vv
+
+
+@njit(cache=True)
+def rbf_step(
+    p: np.ndarray, x: np.ndarray, ref: np.ndarray, k: int, ym: np.ndarray, u: np.ndarray
+) -> None:
+    """`CompiledController` kernel: `rbf_core` on ``ref[k]``."""
+    rbf_core(p, x, ref[k], ym, u)
+
+
+@njit(cache=True)
+def _rbf_replay(
+    p: np.ndarray,
+    x: np.ndarray,
+    ref: np.ndarray,
+    ym: np.ndarray,
+    u: np.ndarray,
+    s: np.ndarray,
+    v: np.ndarray,
+    wn: np.ndarray,
+    H: np.ndarray,
+) -> None:
+    """`rbf_core` over recorded measurements, logging u, s, v, ‖Ŵ‖ (before update), h."""
+    nl = int(p[0])
+    ih = N_AXES * nl + N_AXES * N_ESTIMATOR_STATES
+    isv = ih + N_AXES * nl + N_Z
+    keep_h = H.shape[0] > 0
+    for k in range(ym.shape[0]):
+        for a in range(N_AXES):
+            acc = 0.0
+            for j in range(nl):
+                acc += x[a * nl + j] * x[a * nl + j]
+            wn[k, a] = math.sqrt(acc)
+        rbf_core(p, x, ref[k], ym[k], u[k])
+        for a in range(N_AXES):
+            s[k, a] = x[isv + a]
+            v[k, a] = x[isv + N_AXES + a]
+            if keep_h:
+                for j in range(nl):
+                    H[k, a, j] = x[ih + a * nl + j]
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class RBFLog:
+    """Per-sample signals of an RBF run, replayed from its measurements (`RBFAdaptive.replay`).
+
+    Attributes
+    ----------
+    command : numpy.ndarray
+        ``u = Ŵᵀh``, V, shape (n, 2).
+    s : numpy.ndarray
+        Error function ``s = λe + ė`` (estimated ``ė``), mm/s, shape (n, 2).
+    v : numpy.ndarray
+        ``v = λė − r̈``, mm/s², shape (n, 2).
+    weight_norm : numpy.ndarray
+        ‖Ŵ‖ used at each sample (before its update), V, shape (n, 2).
+    hidden : numpy.ndarray or None
+        ``h(z)`` per sample and axis, shape (n, 2, l), when asked for.
+    final_state : numpy.ndarray
+        Controller state after the last sample.
+    """
+
+    command: np.ndarray
+    s: np.ndarray
+    v: np.ndarray
+    weight_norm: np.ndarray
+    hidden: np.ndarray | None
+    final_state: np.ndarray
+
+
+def _stack_reference(
+    reference: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray, n: int
+) -> np.ndarray:
+    """Reference as the loops stack it, shape (n, 3, 2), checked."""
+    out = np.empty((n, 3, N_AXES))
+    for d, (name, arr) in enumerate(
+        (("reference", reference), ("velocity", velocity), ("acceleration", acceleration))
+    ):
+        a = np.asarray(arr, dtype=float)
+        if a.shape != (n, N_AXES):
+            raise ValueError(f"{name} must be shaped ({n}, 2) like the measurements, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} holds NaN or inf")
+        out[:, d] = a
+    return out
+
+
+class RBFAdaptive(CompiledController):
+    """Two-axis RBF adaptive controller, seed 001 eqs. 2, 4, 5 (see the module docstring).
+
+    Measurement: positions (x, y), mm, shape (2,). Command: amplifier inputs, V, shape
+    (2,). The reference window must carry velocity (mm/s) and acceleration (mm/s²).
+
+    Parameters
+    ----------
+    config : RBFConfig
+        λ, Γ, σ, estimator (its ``n_nodes`` must match the networks).
+    networks : sequence of RBFNetwork
+        The x and y networks (scaling, centres, widths, initial weights).
+    dt : float
+        Sample time, s.
+
+    Notes
+    -----
+    ``params``: ``[l, dt, λ, 0, estimator(11)]`` then per axis ``[offset(6), 1/scale(6),
+    centres(l*6), 1/(2 b²)(l), Γ dt(l), exp(−Γσ dt)(l)]``. State: ``[Ŵ_x(l), Ŵ_y(l),
+    estimator x(3), estimator y(3), h_x(l), h_y(l), z̃(6), s(2), v(2)]`` (h, z̃, s and v
+    are the last sample's, kept for logging).
+    """
+
+    kernel_step: Any = rbf_step
+
+    def __init__(self, *, config: RBFConfig, networks: Sequence[RBFNetwork], dt: float) -> None:
+        if not isinstance(config, RBFConfig):
+            raise ValueError(f"config must be an RBFConfig, got {type(config).__name__}")
+        nets = tuple(networks)
+        if len(nets) != N_AXES or not all(isinstance(n, RBFNetwork) for n in nets):
+            raise ValueError("networks must be two RBFNetwork, for the x and y axes")
+        for name, net in zip("xy", nets, strict=True):
+            if net.n_nodes != config.n_nodes:
+                raise ValueError(
+                    f"the {name} network has {net.n_nodes} nodes but n_nodes = "
+                    f"{config.n_nodes}; make them equal"
+                )
+        self.dt = check_positive("dt", dt, "s")
+        self.config = config
+        self.networks = nets
+        self.preview = 1
+        self.n_inputs = N_AXES
+        self.n_outputs = N_AXES
+        nl = config.n_nodes
+        g = config.gamma_diagonal()
+        head = np.zeros(_HEAD)
+        head[:3] = (nl, dt, config.lam)
+        head[4:] = config.estimator.discrete(dt)
+        parts = [head]
+        for net in nets:
+            parts += [
+                net.offset,
+                1.0 / net.scale,
+                net.centres.ravel(),
+                1.0 / (2.0 * net.widths**2),
+                g * dt,
+                np.exp(-g * config.sigma * dt),
+            ]
+        self.params = np.ascontiguousarray(np.concatenate(parts), dtype=np.float64)
+        self.params.setflags(write=False)
+
+    @property
+    def n_nodes(self) -> int:
+        """Nodes per axis ``l``."""
+        return self.config.n_nodes
+
+    def _axis_params(self, a: int) -> tuple[np.ndarray, ...]:
+        """``(offset, 1/scale, centres, 1/(2b²), Γdt, decay)`` of axis ``a`` from ``params``."""
+        nl = self.n_nodes
+        o = _HEAD + a * (2 * N_Z + (N_Z + 3) * nl)
+        p = self.params
+        c = p[o + 2 * N_Z : o + 2 * N_Z + N_Z * nl].reshape(nl, N_Z)
+        ib = o + 2 * N_Z + N_Z * nl
+        return (p[o : o + 6], p[o + 6 : o + 12], c, p[ib : ib + nl],
+                p[ib + nl : ib + 2 * nl], p[ib + 2 * nl : ib + 3 * nl])  # fmt: skip
+
+    def init(self) -> np.ndarray:
+        """Initial weights, estimators not yet initialised, empty logs; shape (4l + 16,)."""
+        nl = self.n_nodes
+        x = np.zeros(4 * nl + 2 * N_ESTIMATOR_STATES + N_Z + 2 * N_AXES)
+        for a, net in enumerate(self.networks):
+            x[a * nl : (a + 1) * nl] = net.weights
+        return x
+
+    def weights(self, state: np.ndarray) -> np.ndarray:
+        """Ŵ of both axes from a state, shape (2, l) (a copy)."""
+        nl = self.n_nodes
+        return np.array(state[: N_AXES * nl]).reshape(N_AXES, nl)
+
+    def step(
+        self, state: np.ndarray, window: ReferenceWindow, measurement: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One sample in Python (the reference for `rbf_step`): ``(command, new state)``."""
+        if window.velocity is None or window.acceleration is None:
+            raise ValueError(
+                "the RBF controller needs a reference with velocity and acceleration "
+                "(give the simulator derivatives=(velocity, acceleration))"
+            )
+        nl = self.n_nodes
+        ie, ih, iz, isv, iv = _layout(nl)
+        x = np.array(state, dtype=float)
+        ym = np.asarray(measurement, dtype=float)
+        phi = self.params[4:_HEAD]
+        vel = np.empty(N_AXES)
+        for a in range(N_AXES):
+            i0 = ie + a * N_ESTIMATOR_STATES
+            vel[a], x[i0 : i0 + N_ESTIMATOR_STATES] = self.config.estimator.step(
+                phi, x[i0 : i0 + N_ESTIMATOR_STATES], float(ym[a])
+            )
+        u = np.empty(N_AXES)
+        for a in range(N_AXES):
+            b = 1 - a
+            off, inv, c, ib2, gdt, decay = self._axis_params(a)
+            ed = vel[a] - window.velocity[0, a]
+            s = self.config.lam * (ym[a] - window.position[0, a]) + ed
+            v = self.config.lam * ed - window.acceleration[0, a]
+            z = np.array([ym[a], vel[a], ym[b], vel[b], s, v])
+            zs = (z - off) * inv
+            h = np.exp(-((zs - c) ** 2).sum(axis=1) * ib2)
+            w = x[a * nl : (a + 1) * nl]
+            u[a] = w @ h
+            x[a * nl : (a + 1) * nl] = decay * w - gdt * h * s
+            x[ih + a * nl : ih + (a + 1) * nl] = h
+            x[iz : iz + N_Z] = zs
+            x[isv + a], x[iv + a] = s, v
+        return u, x
+
+    def replay(
+        self,
+        reference: np.ndarray,
+        velocity: np.ndarray,
+        acceleration: np.ndarray,
+        measured: np.ndarray,
+        state: np.ndarray | None = None,
+        *,
+        hidden: bool = False,
+    ) -> RBFLog:
+        """Run the controller over recorded measurements and log its internals.
+
+        The controller is deterministic given its measurements and reference, so this
+        reproduces the commands of a closed-loop run (simulated or measured) and adds
+        ``s``, ``v``, ‖Ŵ‖ and optionally ``h`` per sample (for the report and the checks
+        of eqs. 7-8).
+
+        Parameters
+        ----------
+        reference, velocity, acceleration : numpy.ndarray
+            Reference position (mm), velocity (mm/s), acceleration (mm/s²), shape (n, 2).
+        measured : numpy.ndarray
+            Measured positions the controller saw, mm, shape (n, 2).
+        state : numpy.ndarray, optional
+            Starting state (default `init`).
+        hidden : bool
+            Also keep ``h(z)`` (shape (n, 2, l)).
+
+        Returns
+        -------
+        RBFLog
+        """
+        ym = np.ascontiguousarray(np.asarray(measured, dtype=float))
+        if ym.ndim != 2 or ym.shape[1] != N_AXES or not np.all(np.isfinite(ym)):
+            raise ValueError(f"measured must be finite and shaped (n, 2), got {ym.shape}")
+        n = ym.shape[0]
+        R = _stack_reference(reference, velocity, acceleration, n)
+        x = self.init() if state is None else np.array(state, dtype=float)
+        u, s, v, wn = (np.empty((n, N_AXES)) for _ in range(4))
+        H = np.empty((n if hidden else 0, N_AXES, self.n_nodes))
+        _rbf_replay(self.params, x, R, ym, u, s, v, wn, H)
+        return RBFLog(
+            command=u, s=s, v=v, weight_norm=wn, hidden=H if hidden else None, final_state=x
+        )
+
+    @classmethod
+    def for_reference(
+        cls,
+        position: np.ndarray,
+        velocity: np.ndarray,
+        acceleration: np.ndarray,
+        dt: float,
+        config: RBFConfig | None = None,
+        *,
+        closed: bool = True,
+    ) -> Self:
+        """The controller with centres, widths and scaling from a reference (default rule).
+
+        Rule (ours; the seed gives no centres, widths or scaling): for axis ``a`` (other
+        axis ``b``) the reference's own ``z`` is ``z_r = (r_a, ṙ_a, r_b, ṙ_b, 0, −r̈_a)``
+        (on the reference ``s = 0`` and ``v = −r̈``).
+
+        * Scaling: ``offset`` is the mid-range of each component over the reference.
+          Every scale is the deviation that moves ``s`` as much as a position error of
+          the axis's half-range ``A`` would (with ``V`` the velocity half-range):
+          positions ``A`` (the other axis: its own), velocities and ``s`` ``λA + V``,
+          ``v`` ``λ(λA + V)`` plus the half-range of ``r̈``. The velocities so weigh
+          little against the positions (a stage at rest on the contour is near the
+          centres, and the network is active from the start), and the network stays
+          active over errors as large as the motion. A scale that comes out 0 (an axis
+          at rest) is set to 1 (mm, mm/s, mm/s²).
+        * Centres: ``z_r`` at ``l`` samples equally spaced in time over the given
+          reference (pass one period of a closed contour), scaled; their ``s``
+          component alternates ``±s_spread`` (centres all at ``s = 0`` make every
+          ``h_j`` even in ``s``, and the network could then give no feedback: on eq. 9
+          it never left the start).
+        * Widths: ``b_j`` = ``width_factor`` times the mean distance from ``c_j`` to its
+          two neighbours (the last and first are neighbours when ``closed``); a width
+          that comes out 0 (repeated centres) takes the largest other width, or 1.
+        * Weights: ``Ŵ(0) = w0`` for every node.
+
+        Parameters
+        ----------
+        position, velocity, acceleration : numpy.ndarray
+            Reference, shape (n >= l, 2), mm, mm/s, mm/s².
+        dt : float
+            Sample time, s.
+        config : RBFConfig, optional
+            Settings (default `RBFConfig()`).
+        closed : bool
+            Whether the reference is one period of a closed (repeated) contour.
+        """
+        cfg = RBFConfig() if config is None else config
+        nl = cfg.n_nodes
+        P = np.asarray(position, dtype=float)
+        n = P.shape[0] if P.ndim == 2 else 0
+        R = _stack_reference(P, velocity, acceleration, n)
+        if n < nl:
+            raise ValueError(f"the reference has {n} samples, fewer than n_nodes = {nl}")
+        nets = []
+        idx = (np.arange(nl) * n) // nl
+        for a in range(N_AXES):
+            b = 1 - a
+            zr = np.column_stack(
+                [R[:, 0, a], R[:, 1, a], R[:, 0, b], R[:, 1, b], np.zeros(n), -R[:, 2, a]]
+            )
+            lo, hi = zr.min(axis=0), zr.max(axis=0)
+            offset = 0.5 * (lo + hi)
+            scale = 0.5 * (hi - lo)
+            sref = cfg.lam * scale[0] + scale[1]
+            sref_b = cfg.lam * scale[2] + scale[3]
+            scale[1], scale[3], scale[4] = sref, sref_b, sref
+            scale[5] = cfg.lam * sref + scale[5]
+            scale[scale <= 1e-12 * max(1.0, float(np.max(np.abs(zr))))] = 1.0
+            c = (zr[idx] - offset) / scale
+            c[:, 4] = cfg.s_spread * np.where(np.arange(nl) % 2 == 0, 1.0, -1.0)
+            d = np.linalg.norm(np.diff(c, axis=0), axis=1)
+            gap = np.linalg.norm(c[0] - c[-1]) if closed else (d[-1] if d.size else 0.0)
+            nxt = np.append(d, gap)
+            prv = np.insert(d, 0, gap if closed else (d[0] if d.size else 0.0))
+            width = cfg.width_factor * 0.5 * (nxt + prv)
+            if np.all(width <= 0):
+                width[:] = 1.0
+            width[width <= 0] = width.max()
+            nets.append(
+                RBFNetwork(
+                    offset=offset,
+                    scale=scale,
+                    centres=c,
+                    widths=width,
+                    weights=np.full(nl, cfg.w0),
+                )
+            )
+        return cls(config=cfg, networks=nets, dt=dt)
