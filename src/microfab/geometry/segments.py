@@ -466,9 +466,10 @@ def segment_reach(seg: Segment) -> float:
         r = float(np.max(np.abs(seg.center))) + seg.radius
     elif isinstance(seg, CurveSegment):
         r = float(np.max(np.sum(np.abs(seg.coef), axis=0)))
-    else:
-        r = float(np.max(np.abs(np.concatenate([seg.start, seg.end]))))
-    return r if np.isfinite(r) and np.isfinite(seg.length) else float("inf")
+    else:  # a line: four floats (this runs once per DXF entity, keep it cheap)
+        (a, b), (c, d) = seg.start.tolist(), seg.end.tolist()
+        r = max(abs(a), abs(b), abs(c), abs(d))
+    return r if math.isfinite(r) and math.isfinite(seg.length) else float("inf")
 
 
 def segment_bbox(seg: Segment) -> tuple[float, float, float, float]:
