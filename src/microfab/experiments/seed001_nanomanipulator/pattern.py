@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from microfab.control.repetitive import period_samples
 from microfab.core.validate import check_in_range, check_int, check_positive
 from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.trajectory.base import Trajectory
@@ -196,12 +197,7 @@ def pattern_reference(config: PatternConfig, dt: float) -> PatternReference:
         memory needs one), or a duration is shorter than a sample.
     """
     check_positive("dt", dt, "s")
-    n_period = round(config.period_s / dt)
-    if n_period < 4 or abs(n_period * dt - config.period_s) > 1e-9 * config.period_s:
-        raise ValueError(
-            f"period_s = {config.period_s:g} s is not a whole number of {dt:g} s samples; "
-            f"use a multiple of the sample time (e.g. {max(n_period, 4) * dt:g} s)"
-        )
+    n_period = period_samples(config.period_s, dt)  # the RC's memory needs whole samples
     n_move = max(round(config.move_s / dt), 1)
     n_pause = max(round(config.pause_s / dt), 1)
     n_ramp = max(round(config.ramp_s / dt), 1)
