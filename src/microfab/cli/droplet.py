@@ -52,11 +52,7 @@ def simulate_cmd(
     from microfab.process.inkjet.fluids import naalg
     from microfab.trajectory.waveform import seed003_waveform
 
-    if not 40.0 <= voltage <= 70.0:
-        fail(
-            f"--voltage {voltage:g} V is outside what the model is calibrated for "
-            "(40 to 70 V, seed 003 Table 1)"
-        )
+    _check_voltage("--voltage", voltage)
     for name, value in (("--duration", duration), ("--after-breakup", after_breakup)):
         check_option(name, value, "µs", high=MAX_DURATION_US)
         if not value * 1e-6 > 0.0:  # a subnormal count of µs is 0 s
@@ -81,6 +77,15 @@ def simulate_cmd(
     if json_out is not None:
         _json(summary, json_out)
     console.print_json(json.dumps(summary, default=float))
+
+
+def _check_voltage(name: str, volts: float) -> None:
+    """Refuse a drive amplitude outside the calibrated 40-70 V (seed 003 Table 1)."""
+    if not 40.0 <= volts <= 70.0:
+        fail(
+            f"{name} {volts:g} V is outside what the model is calibrated for (40 to 70 V, "
+            "seed 003 Table 1)"
+        )
 
 
 def _camera(silhouettes: list[Any], pixel_size_m: float = 2e-6) -> Any:
@@ -127,8 +132,7 @@ def render_cmd(
     from microfab.process.inkjet.fluids import naalg
     from microfab.trajectory.waveform import seed003_waveform
 
-    if not 40.0 <= voltage <= 70.0:
-        fail(f"--voltage {voltage} V is outside the calibrated 40 to 70 V (seed 003 Table 1)")
+    _check_voltage("--voltage", voltage)
     for name, value, low, high, unit in (
         ("--duration", duration, 10.0, 5000.0, "µs"),
         ("--frame-interval", frame_interval, 0.1, 1000.0, "µs"),
@@ -277,8 +281,7 @@ def sweep_cmd(
     cs = _floats(concentrations, "concentrations")
     vs = _floats(voltages, "voltages") if voltages.strip() else []
     for v in vs:
-        if not 40.0 <= v <= 70.0:
-            fail(f"--voltages: {v:g} V is outside the model's 40 to 70 V (seed 003 Table 1)")
+        _check_voltage("--voltages", v)
     check_option("--duration", duration, "µs", low=10.0, high=MAX_DURATION_US, low_closed=True)
     try:
         for c in {*cs, voltage_concentration}:

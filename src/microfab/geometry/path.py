@@ -449,13 +449,13 @@ class Path:
         seg_idx = np.repeat(np.arange(len(self.segments)), counts)
         frac = np.concatenate([np.arange(c) / c for c in counts])
         lengths = np.array([s.length for s in self.segments])
-        curve = np.array([isinstance(s, CurveSegment) for s in self.segments])[seg_idx]
+        is_curve = np.array([isinstance(s, CurveSegment) for s in self.segments])
+        rows = ~is_curve[seg_idx]
         pts = np.empty((seg_idx.size, 2))
-        if np.any(~curve):
-            rows = ~curve
+        if np.any(rows):
             pts[rows] = self._eval_local(seg_idx[rows], frac[rows] * lengths[seg_idx[rows]], 0)[0]
         start = np.concatenate([[0], np.cumsum(counts)])
-        for i in np.flatnonzero([isinstance(s, CurveSegment) for s in self.segments]):
+        for i in np.flatnonzero(is_curve):
             seg = self.segments[i]
             assert isinstance(seg, CurveSegment)
             pts[start[i] : start[i + 1]] = seg.point(frac[start[i] : start[i + 1]])

@@ -132,19 +132,13 @@ def compare_controllers(config: ComparisonConfig | None = None) -> ComparisonRes
         ),
         "PID+RC": PluginRC(pid, RCConfig(period_s=period_s, dt=dt, windows=window)),
     }
-    rng = np.random.default_rng(cfg.seed)
-    noise = rng.standard_normal(pos.shape) * plant.noise_rms_mm()[None, :]
-    if not cfg.noise:
-        noise[:] = 0.0
+    noise = np.zeros_like(pos)
+    if cfg.noise:
+        rms = plant.noise_rms_mm()[None, :]
+        noise = np.random.default_rng(cfg.seed).standard_normal(pos.shape) * rms
     out: dict[str, np.ndarray] = {}
-    for name in CONTROLLERS:
-        res = simulate(
-            nanomanipulator_twin(seed=cfg.seed),
-            controllers[name],
-            pos,
-            noise,
-            derivatives=(vel, acc),
-        )
+    for name in CONTROLLERS:  # the plant holds no state: each run starts from plant.init()
+        res = simulate(plant, controllers[name], pos, noise, derivatives=(vel, acc))
         e = (pos - res.output)[s0 : s0 + periods * n].reshape(periods, n, 2)
         out[name] = np.sqrt(np.mean(e**2, axis=(1, 2))) * 1e6  # mm -> nm
     return ComparisonResult(config=cfg, rms_nm=out)

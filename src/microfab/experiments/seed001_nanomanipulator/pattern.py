@@ -207,7 +207,8 @@ def pattern_reference(config: PatternConfig, dt: float) -> PatternReference:
     pos, vel, acc, starts = [], [], [], []
     here = np.zeros(2)
     count = 0
-    for c in circle_centres(config):
+    centres = circle_centres(config)
+    for c in centres:
         ring = c[None, :] + R * np.column_stack([np.cos(theta), np.sin(theta)])
         p, v, a = _min_jerk(here, ring[0], n_move, dt)
         hold = np.repeat(ring[:1], n_pause, axis=0)
@@ -230,7 +231,7 @@ def pattern_reference(config: PatternConfig, dt: float) -> PatternReference:
         position=np.vstack(pos),
         velocity=np.vstack(vel),
         acceleration=np.vstack(acc),
-        centres=circle_centres(config),
+        centres=centres,
         radius_mm=R,
         period_samples=n_period,
         starts=tuple(starts),
