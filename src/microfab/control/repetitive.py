@@ -510,6 +510,10 @@ class PluginRC(CompiledController):
         new[io:] = s_in
         return np.asarray(u, dtype=float), new
 
+    def inner_state(self, state: np.ndarray) -> np.ndarray:
+        """The inner controller's part of ``state`` (a view, no checks: for logging)."""
+        return state[self._inner_offset :]
+
     # ------------------------------------------------------------------ persistence
     def memory_of(self, state: np.ndarray) -> RCMemory:
         """The saved form of a state (`RCMemory`), inner controller state included."""

@@ -1,0 +1,731 @@
+"""Seed 001 §4.2 on the twin: four circles, RBF + plug-in RC, gated laser, cured lines.
+
+`run_job` runs the whole pattern of `pattern.pattern_reference` on the nanomanipulator
+twin, one sample at a time (`microfab.sim.loop.simulate`, compiled):
+
+* **Transfers** between circles (the move and the final hold) run under the PID of
+  seed 001 Fig. 8 (`PID.tuned`, crossover ``pid_bandwidth_hz``): the seed does not say
+  how its stage moves between circles, and the RBF network fitted to one circle is not
+  active far from it (assumed).
+* **Each circle** (its pause, spin-up, periods and spin-down) runs under a fresh RBF
+  controller (`RBFAdaptive.for_reference` on one period of that circle) inside the plug-in
+  RC (`PluginRC`, active over the circle's periods), handed over bumplessly from the PID
+  (`microfab.control.rbf_handover`). With ``rc.carry`` the RC memory of one circle seeds
+  the next.
+* **The laser gate** (`LaserGate`) of each circle watches the measured error
+  ``r − y_m`` and exposes one loop after a period under the threshold.
+
+Sensor noise is drawn once for the whole job from ``twin.seed`` (the disturbance phases
+use the same seed), so a run is reproducible to the bit.
+
+Interruption: with an ``out`` directory the run saves, after every period-long chunk,
+the chunk's signals (``run/chunks/NNNNN.npz``) and then the loop state (plant, RBF
+weights, RC memory, gate state: ``run/state.npz``), each atomically. Running the same
+config again resumes after the last saved chunk and gives bit-identical results; a
+different config refuses to touch the saved run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from microfab.control.gate import GateConfig, run_gate
+from microfab.control.pid import PID
+from microfab.control.rbf import RBFAdaptive, RBFConfig
+from microfab.control.rbf_handover import feedback_gain, handover
+from microfab.control.rc_memory import RCMemory
+from microfab.control.repetitive import PluginRC, RCConfig
+from microfab.core.limits import MachineLimits, check_trajectory
+from microfab.core.validate import check_int, check_nonnegative, check_positive
+from microfab.experiments.seed001_nanomanipulator.pattern import (
+    PatternConfig,
+    PatternReference,
+    pattern_reference,
+)
+from microfab.io.atomic import atomic_save_npz
+from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
+from microfab.process.dose import DoseSettings
+from microfab.process.laser import LaserDiode
+from microfab.sim.loop import LoopState, simulate
+
+__all__ = [
+    "CircleRun",
+    "JobConfig",
+    "JobRun",
+    "RCSettings",
+    "Segment",
+    "TwinSettings",
+    "job_segments",
+    "make_twin",
+    "run_job",
+]
+
+Progress = Callable[[str, int, int | None], None]
+_HANDOVER_MEAN = 50  # samples averaged for the hand-over point (5 ms at 10 kHz): assumed
+_STATE_VERSION = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class TwinSettings:
+    """Which twin runs the job.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the disturbance phases and of the sensor noise.
+    nonlinear : bool
+        The §4.1 terms on (seed 001 eq. 1).
+    disturbance : bool
+        ``d(t)`` on.
+    noise : bool
+        Sensor noise on (``noise_rms_mm`` of the twin).
+    noise_rms_mm : tuple of float, optional
+        Sensor noise per axis, mm, replacing the data file's (e.g. the values
+        `microfab calibrate nanomanipulator` fitted).
+    disturbance_mm_s2 : tuple of float, optional
+        Disturbance bound ``d0`` per axis, mm/s², replacing the data file's.
+    params_file : str, optional
+        Another twin data file (default ``data/nanomanipulator_twin.toml``).
+    """
+
+    seed: int = 0
+    nonlinear: bool = True
+    disturbance: bool = True
+    noise: bool = True
+    noise_rms_mm: tuple[float, float] | None = None
+    disturbance_mm_s2: tuple[float, float] | None = None
+    params_file: str | None = None
+
+    def __post_init__(self) -> None:
+        check_int("seed", self.seed, 0)
+        for name in ("nonlinear", "disturbance", "noise"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        for name, unit in (("noise_rms_mm", "mm"), ("disturbance_mm_s2", "mm/s²")):
+            v = getattr(self, name)
+            if v is not None:
+                if len(v) != 2:
+                    raise ValueError(f"{name} must give x and y, got {v!r}")
+                for a, x in zip("xy", v, strict=True):
+                    check_nonnegative(f"{name} ({a})", x, unit)
+                object.__setattr__(self, name, (float(v[0]), float(v[1])))
+
+
+@dataclass(frozen=True, kw_only=True)
+class RCSettings:
+    """The plug-in RC of each circle (seed 001 §3.3, Figs. 6-7).
+
+    Parameters
+    ----------
+    enabled : bool
+        RC on (False: the RBF alone, seed Fig. 8-9).
+    tau_s : float
+        ``Q(s) = 1/(τs + 1)``, s (seed gives the form only; default a 100 Hz cutoff,
+        assumed as in `RCConfig`).
+    gain : float
+        Learning gain in (0, 2] (seed: none; 1 taken).
+    lead_samples : int
+        Phase lead, samples (assumed 20: the RBF loop lags; see `compare.py`).
+    carry : bool
+        The memory of one circle seeds the next (same pattern phase); default False.
+    """
+
+    enabled: bool = True
+    tau_s: float = 1.0 / (2.0 * math.pi * 100.0)  # assumed: Q cutoff 100 Hz
+    gain: float = 1.0  # seed 001 §3.3 gives no gain; 1 taken
+    lead_samples: int = 20  # assumed (compare.py)
+    carry: bool = False
+
+    def __post_init__(self) -> None:
+        check_positive("tau_s (RC low-pass Q time constant)", self.tau_s, "s")
+        check_int("lead_samples", self.lead_samples, 0, "samples")
+        for name in ("enabled", "carry"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class JobConfig:
+    """A nanomanipulator MSL job (seed 001 §4.2).
+
+    Parameters
+    ----------
+    pattern : PatternConfig
+        Circles, period, pauses.
+    rbf : RBFConfig
+        RBF settings (centres from each circle, `RBFAdaptive.for_reference`).
+    rc : RCSettings
+        Plug-in RC.
+    gate_threshold_mm : float
+        Laser gate threshold on the RMS error norm over a period, mm (default 1 µm, our
+        reading of seed 001's "reaches submicrons").
+    laser : LaserDiode
+        Dead time, warm-up and power (defaults assumed, see there).
+    dose : DoseSettings
+        Spot and grid of the cured-line maps (seed 001 §2: 3 µm spot).
+    twin : TwinSettings
+        The twin.
+    pid_bandwidth_hz : float
+        Crossover of the transfer PID, Hz (assumed 200 Hz, as `compare.py`).
+    handover_damping : float
+        Damping ratio the RBF's hand-over weights inject (`rbf_handover`; assumed 1).
+    log_every : int
+        Samples between logged ‖Ŵ‖ and ``s`` values (default 500: 20 Hz at 10 kHz;
+        each log point costs a return from the compiled loop, ~0.5 ms).
+    """
+
+    pattern: PatternConfig = field(default_factory=PatternConfig)
+    rbf: RBFConfig = field(default_factory=RBFConfig)
+    rc: RCSettings = field(default_factory=RCSettings)
+    gate_threshold_mm: float = 1e-3  # our reading of seed 001 "reaches submicrons"
+    laser: LaserDiode = field(default_factory=LaserDiode)
+    dose: DoseSettings = field(default_factory=DoseSettings)
+    twin: TwinSettings = field(default_factory=TwinSettings)
+    pid_bandwidth_hz: float = 200.0  # assumed (compare.py)
+    handover_damping: float = 1.0  # assumed (rbf_handover)
+    log_every: int = 500
+
+    def __post_init__(self) -> None:
+        check_positive("gate threshold_mm", self.gate_threshold_mm, "mm")
+        check_positive("pid_bandwidth_hz", self.pid_bandwidth_hz, "Hz")
+        check_positive("handover_damping", self.handover_damping, "")
+        check_int("log_every", self.log_every, 1, "samples")
+        if self.laser.warmup_s >= self.pattern.period_s:
+            raise ValueError(
+                f"laser warm-up longer than a period: delay + rise = {self.laser.warmup_s:g} s "
+                f">= period {self.pattern.period_s:g} s; shorten the warm-up or lengthen the "
+                "period"
+            )
+
+    def fingerprint(self) -> str:
+        """A hash of every setting (a saved run resumes only under the same one)."""
+        return hashlib.sha256(repr(self).encode()).hexdigest()[:16]
+
+
+def make_twin(settings: TwinSettings) -> NanomanipulatorPlant:
+    """The twin of ``settings`` (β checked against β_min by the plant)."""
+    over: dict[str, Any] = {}
+    if settings.noise_rms_mm is not None:
+        over["noise_rms_mm"] = settings.noise_rms_mm
+    if settings.disturbance_mm_s2 is not None:
+        over["disturbance_mm_s2"] = settings.disturbance_mm_s2
+    return nanomanipulator_twin(
+        seed=settings.seed,
+        nonlinear=settings.nonlinear,
+        disturbance=settings.disturbance,
+        path=settings.params_file,
+        **over,
+    )
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Samples ``[start, stop)`` under one controller: ``circle`` is None for a transfer."""
+
+    start: int
+    stop: int
+    circle: int | None
+
+
+def job_segments(ref: PatternReference, config: PatternConfig) -> tuple[Segment, ...]:
+    """Transfer and circle segments of a pattern, in order, covering every sample."""
+    n_move = max(round(config.move_s / ref.dt), 1)
+    n_pause = max(round(config.pause_s / ref.dt), 1)
+    n_ramp = max(round(config.ramp_s / ref.dt), 1)
+    n_ring = 2 * n_ramp + ref.period_samples * ref.periods
+    segs: list[Segment] = []
+    pos = 0
+    for i in range(len(ref.starts)):
+        segs.append(Segment(pos, pos + n_move, None))
+        pos += n_move
+        segs.append(Segment(pos, pos + n_pause + n_ring, i))
+        pos += n_pause + n_ring
+    segs.append(Segment(pos, ref.n_samples, None))
+    return tuple(segs)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class CircleRun:
+    """What happened on one circle.
+
+    Attributes
+    ----------
+    index : int
+        Circle number (0-based).
+    start : int
+        First sample of the first period.
+    gate_opened, gate_closed : int or None
+        Sample (job index) of the laser switch-on and of the first sample after the
+        exposure; None when the gate never opened.
+    gate_period : int or None
+        1-based period in which the laser switched on.
+    weights : numpy.ndarray
+        Final RBF weights, V, shape (2, l).
+    rc_memory : RCMemory or None
+        Final RC state (None without RC).
+    rbf : RBFAdaptive
+        The circle's controller (centres, widths, scaling).
+    """
+
+    index: int
+    start: int
+    gate_opened: int | None
+    gate_closed: int | None
+    gate_period: int | None
+    weights: np.ndarray
+    rc_memory: RCMemory | None
+    rbf: RBFAdaptive
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class JobRun:
+    """Signals of a whole job, shape (n, 2) unless noted, mm / V.
+
+    Attributes
+    ----------
+    config : JobConfig
+    reference : PatternReference
+    output, measured, command : numpy.ndarray
+        True and measured position (mm), command (V).
+    laser : numpy.ndarray
+        Gate output per sample, bool, shape (n,).
+    circles : tuple of CircleRun
+    log_index : numpy.ndarray
+        Samples at which ‖Ŵ‖ and ``s`` were logged (inside circles), shape (m,).
+    weight_norm : numpy.ndarray
+        ‖Ŵ‖ per axis at those samples, V, shape (m, 2).
+    s : numpy.ndarray
+        ``s = λe + ė`` per axis at those samples, mm/s, shape (m, 2).
+    noise_rms_mm : numpy.ndarray
+        Sensor noise per axis used, mm, shape (2,).
+    resumed_from : int
+        Chunks loaded from a saved run (0: ran from the start).
+    """
+
+    config: JobConfig
+    reference: PatternReference
+    output: np.ndarray
+    measured: np.ndarray
+    command: np.ndarray
+    laser: np.ndarray
+    circles: tuple[CircleRun, ...]
+    log_index: np.ndarray
+    weight_norm: np.ndarray
+    s: np.ndarray
+    noise_rms_mm: np.ndarray
+    resumed_from: int = 0
+
+    @property
+    def dt(self) -> float:
+        """Sample time, s."""
+        return self.reference.dt
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times, s, shape (n,)."""
+        return np.arange(self.reference.n_samples) * self.dt
+
+    @property
+    def error(self) -> np.ndarray:
+        """Measured tracking error ``r − y_m`` (what the sensor shows), mm."""
+        return self.reference.position - self.measured
+
+    @property
+    def true_error(self) -> np.ndarray:
+        """True tracking error ``r − y``, mm."""
+        return self.reference.position - self.output
+
+
+# ---------------------------------------------------------------------------- running
+@dataclass
+class _Saved:
+    """The loop state between chunks (what ``state.npz`` holds)."""
+
+    chunk: int
+    loop: LoopState | None
+    gate: np.ndarray | None
+    carry: RCMemory | None
+
+
+def _chunks(segs: tuple[Segment, ...], n_period: int) -> list[tuple[int, int, int]]:
+    """``(segment index, start, stop)`` of every chunk: segments cut into periods."""
+    out = []
+    for k, sg in enumerate(segs):
+        a = sg.start
+        while a < sg.stop:
+            b = min(a + n_period, sg.stop)
+            out.append((k, a, b))
+            a = b
+    return out
+
+
+class _Runner:
+    """Builds the controllers of a job and runs its chunks (state in `_Saved`)."""
+
+    def __init__(self, config: JobConfig) -> None:
+        self.config = config
+        self.plant = make_twin(config.twin)
+        dt = self.plant.dt
+        self.ref = pattern_reference(config.pattern, dt)
+        self.segs = job_segments(self.ref, config.pattern)
+        self.N = self.ref.period_samples
+        self.chunks = _chunks(self.segs, self.N)
+        rms = self.plant.noise_rms_mm() if config.twin.noise else np.zeros(2)
+        self.noise_rms = np.asarray(rms, dtype=float)
+        rng = np.random.default_rng(config.twin.seed)
+        self.noise = rng.standard_normal(self.ref.position.shape) * self.noise_rms[None, :]
+        self.pid = PID.tuned(
+            self.plant.continuous_models(), bandwidth_hz=config.pid_bandwidth_hz, dt=dt
+        )
+        p = self.plant.config
+        self.ks = [
+            feedback_gain(
+                p.numerator_mm_per_v_s2[a], p.stiffness_per_s2[a], config.handover_damping
+            )
+            for a in range(2)
+        ]
+        self._ctrl: dict[int, Any] = {}
+
+    # -- controllers
+    def circle_rbf(self, i: int) -> RBFAdaptive:
+        s0, n = self.ref.starts[i], self.N
+        one = slice(s0, s0 + n)
+        r = self.ref
+        return RBFAdaptive.for_reference(
+            r.position[one], r.velocity[one], r.acceleration[one], r.dt, self.config.rbf
+        )
+
+    def rc_config(self, seg: Segment) -> RCConfig:
+        i = seg.circle
+        assert i is not None
+        rc = self.config.rc
+        return RCConfig(
+            period_s=self.config.pattern.period_s,
+            dt=self.ref.dt,
+            tau_s=rc.tau_s,
+            gain=rc.gain,
+            lead_samples=rc.lead_samples,
+            windows=((self.ref.starts[i] - seg.start, self.ref.periods),),
+        )
+
+    def controller(self, k: int, measured: np.ndarray, command: np.ndarray) -> Any:
+        """Controller of segment ``k`` (built once; hand-over from the signals before it)."""
+        if k in self._ctrl:
+            return self._ctrl[k]
+        seg = self.segs[k]
+        if seg.circle is None:
+            ctrl: Any = self.pid
+        else:
+            rbf = self.circle_rbf(seg.circle)
+            a = seg.start
+            if a > 0:
+                lo = max(a - _HANDOVER_MEAN, 0)
+                r = self.ref
+                rbf = handover(
+                    rbf,
+                    measured=measured[lo:a].mean(axis=0),
+                    reference=np.stack([r.position[a], r.velocity[a], r.acceleration[a]]),
+                    command=command[lo:a].mean(axis=0),
+                    gains=self.ks,
+                )
+            ctrl = PluginRC(rbf, self.rc_config(seg)) if self.config.rc.enabled else rbf
+        self._ctrl[k] = ctrl
+        return ctrl
+
+    def gate_config(self, seg: Segment) -> GateConfig:
+        i = seg.circle
+        assert i is not None
+        s0 = self.ref.starts[i] - seg.start
+        return GateConfig(
+            period_samples=self.N,
+            threshold_mm=self.config.gate_threshold_mm,
+            starts=tuple(s0 + j * self.N for j in range(self.ref.periods)),
+        )
+
+    def rbf_of(self, ctrl: Any) -> RBFAdaptive:
+        return ctrl.inner if isinstance(ctrl, PluginRC) else ctrl
+
+    def inner_state(self, ctrl: Any, state: np.ndarray) -> np.ndarray:
+        if isinstance(ctrl, PluginRC):
+            return ctrl.inner_state(state)
+        return state
+
+
+def _save(path: Path, saved: _Saved, fingerprint: str) -> None:
+    lp = saved.loop
+    arrays: dict[str, Any] = {
+        "version": np.int64(_STATE_VERSION),
+        "fingerprint": np.array(fingerprint),
+        "chunk": np.int64(saved.chunk),
+    }
+    if lp is not None:
+        arrays |= {
+            "plant": lp.plant,
+            "controller": lp.controller,
+            "command": lp.command,
+        }
+    if saved.gate is not None:
+        arrays["gate"] = saved.gate
+    if saved.carry is not None:
+        arrays["carry_memory"] = saved.carry.memory
+        arrays["carry_error"] = saved.carry.error
+        arrays["carry_current"] = saved.carry.error_current
+        arrays["carry_inner"] = saved.carry.inner
+        arrays["carry_samples"] = np.int64(saved.carry.samples)
+        arrays["carry_config"] = np.array(json.dumps(saved.carry.config.to_json()))
+    atomic_save_npz(path, **arrays)
+
+
+def _load(path: Path, fingerprint: str) -> _Saved:
+    with np.load(path, allow_pickle=False) as z:
+        if int(z["version"]) != _STATE_VERSION:
+            raise ValueError(
+                f"{path}: saved run format {int(z['version'])}, this microfab reads "
+                f"{_STATE_VERSION}; remove {path.parent} to start again"
+            )
+        if str(z["fingerprint"]) != fingerprint:
+            raise ValueError(
+                f"{path.parent} holds a run of another job configuration; use another "
+                "output folder, or remove it to start again"
+            )
+        loop = None
+        if "plant" in z:
+            loop = LoopState(
+                plant=z["plant"].copy(),
+                controller=z["controller"].copy(),
+                observer=np.zeros(0),
+                command=z["command"].copy(),
+            )
+        carry = None
+        if "carry_memory" in z:
+            carry = RCMemory(
+                config=RCConfig.from_json(json.loads(str(z["carry_config"]))),
+                memory=z["carry_memory"].copy(),
+                error=z["carry_error"].copy(),
+                error_current=z["carry_current"].copy(),
+                samples=int(z["carry_samples"]),
+                inner=z["carry_inner"].copy(),
+            )
+        return _Saved(
+            chunk=int(z["chunk"]),
+            loop=loop,
+            gate=z["gate"].copy() if "gate" in z else None,
+            carry=carry,
+        )
+
+
+def run_job(
+    config: JobConfig | None = None,
+    out: str | Path | None = None,
+    progress: Progress | None = None,
+) -> JobRun:
+    """Run a nanomanipulator MSL job on the twin (module notes).
+
+    Parameters
+    ----------
+    config : JobConfig, optional
+        The job (defaults: seed 001 §4.2 with the assumed values documented there).
+    out : path-like, optional
+        Folder for the resumable run (``out/run``); None runs in memory.
+    progress : callable, optional
+        ``progress(task, done, total)`` per chunk.
+
+    Returns
+    -------
+    JobRun
+
+    Raises
+    ------
+    ValueError
+        On a path beyond the stage's travel or limits, a β below β_min (from the twin),
+        or a saved run of another configuration in ``out``.
+    """
+    cfg = config or JobConfig()
+    run = _Runner(cfg)
+    ref = run.ref
+    check_trajectory(ref.trajectory(), MachineLimits.seed001_stage())
+    n = ref.n_samples
+    Y, YM, U = (np.zeros((n, 2)) for _ in range(3))
+    laser = np.zeros(n, dtype=bool)
+    log_i: list[int] = []
+    log_w: list[np.ndarray] = []
+    log_s: list[np.ndarray] = []
+    finals: dict[int, np.ndarray] = {}  # circle -> controller state at its end
+    fp = cfg.fingerprint()
+    run_dir = None if out is None else Path(out) / "run"
+    state_file = None if run_dir is None else run_dir / "state.npz"
+    saved = _Saved(chunk=0, loop=None, gate=None, carry=None)
+    if state_file is not None and state_file.exists():
+        saved = _load(state_file, fp)
+        assert run_dir is not None
+        for c in range(saved.chunk):
+            with np.load(run_dir / "chunks" / f"{c:05d}.npz", allow_pickle=False) as z:
+                _, a, b = run.chunks[c]
+                Y[a:b], YM[a:b], U[a:b], laser[a:b] = (
+                    z["output"],
+                    z["measured"],
+                    z["command"],
+                    z["laser"],
+                )
+                log_i += z["log_index"].tolist()
+                log_w += list(z["log_w"])
+                log_s += list(z["log_s"])
+                if "final_controller" in z:
+                    finals[int(z["final_circle"])] = z["final_controller"].copy()
+    resumed = saved.chunk
+    state, gate_state, carry = saved.loop, saved.gate, saved.carry
+    task = "nanomanipulator job"
+    total = len(run.chunks)
+    if progress:
+        progress(task, resumed, total)
+    for c in range(resumed, total):
+        k, a, b = run.chunks[c]
+        seg = run.segs[k]
+        ctrl = run.controller(k, YM, U)
+        first = a == seg.start
+        if first:
+            cst = ctrl.init()
+            if seg.circle is not None:
+                gate_state = None
+                if carry is not None and isinstance(ctrl, PluginRC):
+                    cst = ctrl.state_from(
+                        dataclasses.replace(
+                            carry, config=ctrl.config, samples=0, inner=ctrl.inner.init()
+                        )
+                    )
+            state = (
+                None
+                if state is None
+                else LoopState(
+                    plant=state.plant, controller=cst, observer=np.zeros(0), command=state.command
+                )
+            )
+            if state is None:
+                state = LoopState(
+                    plant=run.plant.init(),
+                    controller=cst,
+                    observer=np.zeros(0),
+                    command=np.zeros(2),
+                )
+        li, lw, ls = [], [], []
+        step = cfg.log_every if seg.circle is not None else b - a
+        p = a
+        while p < b:
+            q = min(p + step, b)
+            res = simulate(
+                run.plant,
+                ctrl,
+                ref.position[p:q],
+                run.noise[p:q],
+                state,
+                derivatives=(ref.velocity[p:q], ref.acceleration[p:q]),
+            )
+            Y[p:q], YM[p:q], U[p:q] = res.output, res.measured, res.command
+            state = res.final_state
+            if seg.circle is not None:
+                rbf = run.rbf_of(ctrl)
+                inner = run.inner_state(ctrl, state.controller)
+                li.append(q - 1)
+                lw.append(np.linalg.norm(rbf.weights(inner), axis=1))
+                nl = rbf.n_nodes
+                # state layout of RBFAdaptive: [..., z(6), s(2), v(2)] at the end
+                ls.append(inner[-4:-2].copy() if nl else np.zeros(2))
+            p = q
+        if seg.circle is not None:
+            g = run.gate_config(seg)
+            gr = run_gate((ref.position - YM)[a:b], g, gate_state)
+            laser[a:b] = gr.laser
+            gate_state = gr.state
+            if b == seg.stop:
+                finals[seg.circle] = state.controller.copy()
+                if cfg.rc.carry and isinstance(ctrl, PluginRC):
+                    carry = ctrl.memory_of(state.controller)
+        log_i += li
+        log_w += lw
+        log_s += ls
+        if run_dir is not None:
+            last: dict[str, Any] = {}
+            if seg.circle is not None and b == seg.stop:
+                last = {
+                    "final_circle": np.int64(seg.circle),
+                    "final_controller": finals[seg.circle],
+                }
+            atomic_save_npz(
+                run_dir / "chunks" / f"{c:05d}.npz",
+                output=Y[a:b],
+                measured=YM[a:b],
+                command=U[a:b],
+                laser=laser[a:b],
+                log_index=np.asarray(li, dtype=np.int64),
+                log_w=np.asarray(lw).reshape(-1, 2),
+                log_s=np.asarray(ls).reshape(-1, 2),
+                **last,
+            )
+            assert state_file is not None
+            _save(state_file, _Saved(chunk=c + 1, loop=state, gate=gate_state, carry=carry), fp)
+        if progress:
+            progress(task, c + 1, total)
+    circles = _circle_runs(run, laser, YM, U, finals)
+    return JobRun(
+        config=cfg,
+        reference=ref,
+        output=Y,
+        measured=YM,
+        command=U,
+        laser=laser,
+        circles=circles,
+        log_index=np.asarray(log_i, dtype=np.int64),
+        weight_norm=np.asarray(log_w).reshape(-1, 2),
+        s=np.asarray(log_s).reshape(-1, 2),
+        noise_rms_mm=run.noise_rms,
+        resumed_from=resumed,
+    )
+
+
+def _circle_runs(
+    run: _Runner,
+    laser: np.ndarray,
+    measured: np.ndarray,
+    command: np.ndarray,
+    finals: dict[int, np.ndarray],
+) -> tuple[CircleRun, ...]:
+    out = []
+    for k, seg in enumerate(run.segs):
+        if seg.circle is None:
+            continue
+        i = seg.circle
+        on = np.flatnonzero(laser[seg.start : seg.stop])
+        s0 = run.ref.starts[i]
+        opened = int(on[0]) + seg.start if on.size else None
+        closed = int(on[-1]) + seg.start + 1 if on.size else None
+        period = None if opened is None else (opened - s0) // run.N + 1
+        ctrl = run.controller(k, measured, command)
+        rbf = run.rbf_of(ctrl)
+        final = finals.get(i)
+        inner = None if final is None else run.inner_state(ctrl, final)
+        out.append(
+            CircleRun(
+                index=i,
+                start=s0,
+                gate_opened=opened,
+                gate_closed=closed,
+                gate_period=period,
+                weights=rbf.weights(rbf.init() if inner is None else inner),
+                rc_memory=(
+                    ctrl.memory_of(final)
+                    if final is not None and isinstance(ctrl, PluginRC)
+                    else None
+                ),
+                rbf=rbf,
+            )
+        )
+    return tuple(out)
