@@ -46,6 +46,10 @@ from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.core.limits import MachineLimits, check_trajectory
 from microfab.core.validate import check_int, check_nonnegative, check_positive
+from microfab.experiments.seed001_nanomanipulator.metrics import (
+    TrackingMetrics,
+    tracking_metrics,
+)
 from microfab.experiments.seed001_nanomanipulator.pattern import (
     PatternConfig,
     PatternReference,
@@ -343,6 +347,21 @@ class JobRun:
     def true_error(self) -> np.ndarray:
         """True tracking error ``r − y``, mm."""
         return self.reference.position - self.output
+
+    def metrics(self) -> TrackingMetrics:
+        """Seed 001 §4.2 metrics of the measured signals (`metrics.tracking_metrics`)."""
+        r = self.reference
+        return tracking_metrics(
+            r.position,
+            self.measured,
+            self.laser,
+            starts=r.starts,
+            period_samples=r.period_samples,
+            periods=r.periods,
+            centres=r.centres,
+            radius=r.radius_mm,
+            dt=r.dt,
+        )
 
 
 # ---------------------------------------------------------------------------- running
