@@ -31,7 +31,7 @@ import numpy as np
 
 from microfab.control.gate import GateConfig, LaserGate, run_gate
 from microfab.control.pid import PID
-from microfab.control.rbf import N_Z, RBFAdaptive, RBFConfig
+from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig, pattern_reference
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
@@ -114,20 +114,26 @@ def best_of(fn: Callable[[], object], repeats: int = 3) -> float:
     return min(times)
 
 
-def compiled_run(s: Setup, sl: slice = slice(None), state: LoopState | None = None) -> object:
-    """`simulate` (compiled) over samples ``sl`` then `run_gate` over their error."""
+def compiled_run(
+    s: Setup,
+    sl: slice = slice(None),
+    state: LoopState | None = None,
+    gate: GateConfig | None = None,
+) -> object:
+    """`simulate` (compiled) over samples ``sl`` then `run_gate` (``gate``, default
+    ``s.gate``) over their error, the gate counting samples from the start of ``sl``."""
     pos = s.pos[sl]
     res = simulate(s.plant, s.ctrl, pos, s.noise[sl], state, derivatives=(s.vel[sl], s.acc[sl]))
-    return run_gate(pos - res.measured, s.gate)
+    return run_gate(pos - res.measured, gate or s.gate)
 
 
-def python_run(s: Setup, sl: slice, state: LoopState | None = None) -> object:
+def python_run(s: Setup, sl: slice, state: LoopState, gate_cfg: GateConfig) -> object:
     """`simulate_python` over samples ``sl`` then `LaserGate.step` per sample."""
     pos = s.pos[sl]
     res = simulate_python(
         s.plant, s.ctrl, pos, s.noise[sl], state, derivatives=(s.vel[sl], s.acc[sl])
     )
-    gate = LaserGate(s.gate)
+    gate = LaserGate(gate_cfg)
     x = gate.init()
     err = pos - res.measured
     for k in range(err.shape[0]):
@@ -136,12 +142,21 @@ def python_run(s: Setup, sl: slice, state: LoopState | None = None) -> object:
 
 
 def bench_compiled(periods: int = 20, repeats: int = 3) -> tuple[int, float, float, float]:
-    """Samples, simulate s, gate s and total steps/s of the compiled path over a whole circle."""
+    """Samples, simulate s, gate s and total steps/s of the compiled path over a whole circle.
+
+    Also prints where the gate opened (a check that the loop converged as in `compare`).
+    """
     s = build(periods)
     compiled_run(s, slice(0, 200))  # warm-up: numba compilation of loop and gate
     n = s.pos.shape[0]
     res = simulate(s.plant, s.ctrl, s.pos, s.noise, derivatives=(s.vel, s.acc))
     err = s.pos - res.measured
+    run = run_gate(err, s.gate)
+    if run.opened_at is None:
+        print(f"  gate did not open (last period RMS {run.last_rms_mm * 1e6:.0f} nm)")
+    else:
+        k = (run.opened_at - s.start) // s.gate.period_samples
+        print(f"  gate opened at the start of period {k + 1} of {periods}")
     t_sim = best_of(
         lambda: simulate(s.plant, s.ctrl, s.pos, s.noise, derivatives=(s.vel, s.acc)), repeats
     )
@@ -178,17 +193,19 @@ def bench_python(n_py: int = 3000, repeats: int = 2) -> tuple[float, float, floa
     """Steps/s of Python and compiled on the same ``n_py`` samples of the circle, and the ratio.
 
     Both start from the compiled loop's state one period into the circle (RC active, its
-    memory full), so the Python loop runs the same arithmetic as the compiled one.
+    memory full), so the Python loop runs the same arithmetic as the compiled one; the gate
+    sees loops back to back from the stretch's first sample (a period start).
     """
     s = build(periods=3)
     s0 = s.start + s.gate.period_samples
     head = simulate(s.plant, s.ctrl, s.pos[:s0], s.noise[:s0], derivatives=(s.vel[:s0], s.acc[:s0]))
     st = head.final_state
     sl = slice(s0, s0 + n_py)
-    compiled_run(s, sl, st)  # warm-up (numba compilation)
-    python_run(s, slice(s0, s0 + 10), st)  # warm-up (the gate kernel's dispatch)
-    t_c = best_of(lambda: compiled_run(s, sl, st), 20)
-    t_py = best_of(lambda: python_run(s, sl, st), repeats)
+    gate = GateConfig(period_samples=s.gate.period_samples)
+    compiled_run(s, sl, st, gate)  # warm-up (numba compilation)
+    python_run(s, slice(s0, s0 + 10), st, gate)  # warm-up (the gate kernel's dispatch)
+    t_c = best_of(lambda: compiled_run(s, sl, st, gate), 20)
+    t_py = best_of(lambda: python_run(s, sl, st, gate), repeats)
     return n_py / t_py, n_py / t_c, t_py / t_c
 
 
@@ -208,11 +225,12 @@ def main() -> None:
     rate = 1.0 / probe.plant.dt
     print(
         "seed 001 loop: nanomanipulator twin (RK4, 6 sub-steps) + RBF "
-        f"({rbf_shape[0]} centres per axis on {rbf_shape[1]}-D z; N_Z = {N_Z}) "
-        "in the plug-in RC, + laser gate"
+        f"({rbf_shape[0]} centres per axis on {rbf_shape[1]}-D z; RBFConfig() default "
+        f"l = {RBFConfig().n_nodes}) in the plug-in RC, + laser gate"
     )
+    print(f"\n1. compiled, one circle of 20 periods at {rate:g} Hz, best of 3")
     n, t_sim, t_gate, steps = bench_compiled()
-    print(f"\n1. compiled, one circle of 20 periods ({n} samples at {rate:g} Hz), best of 3")
+    print(f"  {n} samples")
     print(f"  simulate             {t_sim:8.3f} s   {n / t_sim:12.3g} steps/s")
     print(f"  run_gate             {t_gate:8.3f} s   {n / t_gate:12.3g} steps/s")
     print(f"  simulate + run_gate  {n / steps:8.3f} s   {steps:12.3g} steps/s")
