@@ -32,6 +32,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_topp.py
 	$(BIN)/python benchmarks/bench_droplet.py
 	$(BIN)/python benchmarks/bench_sweep.py
+	$(BIN)/python benchmarks/bench_nanomanipulator.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples

@@ -24,9 +24,10 @@ restoring stiffness ``1 - 2 ξ`` vanishes at ``x1 = L / 2`` and the unforced sta
 saddle at ``x1 = L``: beyond +0.5 mm only the feedback holds it (the seed's terms, kept).
 
 **beta_min.** Twins whose ``beta`` falls below ``beta_min = beta_min_fraction * K`` anywhere in
-the declared workspace (``|x1| <= workspace_mm``, ``|x2|, |x̄2| <= velocity_limit_mm_s``) are
-refused, checked on a 41³ grid of ``(x1, x2, x̄2)`` that holds the corners and zero (the
-terms are polynomials whose extremes over a box lie at the corners or where ``x2 = 0``).
+the declared workspace are refused (`check_beta`, on a 41³ grid).
+
+The parameters (`NanomanipulatorParams`, `load_params`, the beta check and `term_shares`)
+live in `microfab.plants.nanomanipulator_params` and are re-exported here.
 
 **Fig. 5 option** (off by default, coefficients assumed): a stiffening flexure
 ``k(x) = a0 (1 + κ (x1/W)²)`` adds ``-a0 κ x1³ / W²`` to alpha, and a voice-coil force
@@ -56,30 +57,36 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
-from dataclasses import dataclass, fields, replace
-from importlib import resources
 from typing import Any
 
 import numpy as np
 from numba import njit
 
 import control
-from microfab.core.validate import (
-    check_finite,
-    check_in_range,
-    check_int,
-    check_nonnegative,
-    check_positive,
-)
 from microfab.plants.base import CompiledPlant, LTIPlant
 from microfab.plants.lti import DiscreteLTI, block_diag, discretize
+from microfab.plants.nanomanipulator_params import (
+    _AXIS_FIXED,
+    _H_DT,
+    _H_NDIST,
+    _H_NSUB,
+    AXES,
+    NanomanipulatorParams,
+    _alpha_beta,
+    _block,
+    beta_minimum,
+    check_beta,
+    load_params,
+    term_share_table,
+    term_shares,
+)
 
 __all__ = [
     "AXES",
     "NanomanipulatorParams",
     "NanomanipulatorPlant",
     "beta_minimum",
+    "check_beta",
     "drift_and_gain",
     "load_params",
     "nanomanipulator_twin",
@@ -87,32 +94,8 @@ __all__ = [
     "term_shares",
 ]
 
-AXES = ("x", "y")
-_GRID = 41  # points per dimension of the beta_min check (odd: holds zero and the corners)
-# flat params: [dt, rk4_substeps, n_sinusoids], then per axis a block of
-# a0, a1, K, c_aa, c_ax, c_bv, c_bx, k3, eta (see `NanomanipulatorParams.pack`) and
-# (amplitude mm/s², cos(w dt), sin(w dt)) per sinusoid of d
-_H_DT, _H_NSUB, _H_NDIST, _HEADER = 0, 1, 2, 3
-_A0, _A1, _K, _CAA, _CAX, _CBV, _CBX, _K3, _ETA = range(9)
-_AXIS_FIXED = 9
+
 _N_STATE = 5  # x1, x2, y1, y2 (mm, mm/s), sample counter k; then the phasors of d
-
-
-@njit(cache=True, inline="always")
-def _block(p: np.ndarray, axis: int) -> int:
-    """Offset of the parameter block of ``axis`` in the flat params."""
-    return _HEADER + axis * (_AXIS_FIXED + 3 * int(p[_H_NDIST]))
-
-
-@njit(cache=True, inline="always")
-def _alpha_beta(p: np.ndarray, o: int, x1: float, x2: float, v: float) -> tuple[float, float]:
-    """Alpha (mm/s²), beta (mm/(V s²)) of the axis at block ``o``; ``v`` the other's x2."""
-    x1s = x1 * x1
-    alpha = -p[o + _A0] * x1 - p[o + _A1] * x2 + p[o + _CAA] * x1s + p[o + _CAX] * x1 * v
-    alpha -= p[o + _K3] * x1s * x1
-    beta = p[o + _K] + p[o + _CBV] * x2 * x2 - p[o + _CBX] * x1s * v
-    beta *= 1.0 - p[o + _ETA] * x1s
-    return alpha, beta
 
 
 @njit(cache=True)
@@ -197,302 +180,6 @@ def kernel_update(p: np.ndarray, s: np.ndarray, u: np.ndarray) -> None:
         z = _axpy(z, h / 6.0, _axpy(inc, 1.0, k4))
     s[0], s[1], s[2], s[3] = z
     s[4] += 1.0
-
-
-@njit(cache=True)
-def _beta_grid_min(
-    p: np.ndarray, axis: int, w_mm: float, v_mm_s: float, n: int
-) -> tuple[float, float, float, float]:
-    """Smallest beta of ``axis`` on an n³ grid of ``(x1, x2, x̄2)``, and where it is."""
-    o = _block(p, axis)
-    best, bx1, bx2, bv = np.inf, 0.0, 0.0, 0.0
-    for i in range(n):
-        x1 = -w_mm + 2.0 * w_mm * i / (n - 1)
-        for j in range(n):
-            x2 = -v_mm_s + 2.0 * v_mm_s * j / (n - 1)
-            for k in range(n):
-                v = -v_mm_s + 2.0 * v_mm_s * k / (n - 1)
-                b = _alpha_beta(p, o, x1, x2, v)[1]
-                if not b >= best:  # NaN is the smallest
-                    best, bx1, bx2, bv = b, x1, x2, v
-    return best, bx1, bx2, bv
-
-
-def _pair(name: str, value: Any, unit: str, check: Any) -> tuple[float, float]:
-    """A per-axis pair ``(x, y)``, each value passed through ``check``."""
-    if not isinstance(value, (tuple, list, np.ndarray)) or len(value) != 2:
-        raise ValueError(f"{name} needs one value per axis (x, y), got {value!r} {unit}")
-    return (check(f"{name}[x]", value[0], unit), check(f"{name}[y]", value[1], unit))
-
-
-_GAINS = ("alpha_square_gain", "alpha_cross_gain", "beta_velocity_gain", "beta_cross_gain")
-_PER_AXIS = {
-    "numerator_mm_per_v_s2": ("mm/(V s^2)", check_positive),
-    "damping_per_s": ("1/s", check_positive),
-    "stiffness_per_s2": ("1/s^2", check_positive),
-    "disturbance_mm_s2": ("mm/s^2", check_nonnegative),
-    "noise_rms_mm": ("mm", check_nonnegative),
-}
-
-
-@dataclass(frozen=True, kw_only=True)
-class NanomanipulatorParams:
-    """Parameters of the two-axis nonlinear twin (seed 001 eqs. (1), (9), §4.1).
-
-    Values and their sources: ``data/nanomanipulator_twin.toml`` (`load_params`). Per-axis
-    values are pairs ``(x, y)``.
-
-    Parameters
-    ----------
-    sample_rate_hz : float
-        Sample rate, Hz.
-    rk4_substeps : int
-        RK4 sub-steps per sample (>= 1).
-    numerator_mm_per_v_s2, damping_per_s, stiffness_per_s2 : tuple of float
-        ``K``, ``a1``, ``a0`` of eq. (9) per axis: mm/(V s²), 1/s, 1/s².
-    length_scale_mm : float
-        ``L`` of the scaled equation in which the §4.1 terms act, mm.
-    alpha_square_gain, alpha_cross_gain, beta_velocity_gain, beta_cross_gain : float
-        Gains of the §4.1 terms ``x1²``, ``x1 x̄2``, ``x2²``, ``-x1² x̄2`` (1 = seed, 0 = off).
-    fig5_stiffening : float
-        Relative stiffness rise at full stroke (Fig. 5 option), > -1; 0 = off.
-    fig5_force_drop : float
-        Relative fall of the force constant at full stroke, in [0, 1); 0 = off.
-    workspace_mm : float
-        Half range of each axis, mm.
-    velocity_limit_mm_s : float
-        Largest speed per axis the beta check covers, mm/s.
-    beta_min_fraction : float
-        ``beta_min / K`` in (0, 1].
-    disturbance_mm_s2 : tuple of float
-        Bound ``d0`` of ``d(t)`` per axis, mm/s² (0 = none).
-    disturbance_frequencies_hz, disturbance_weights : tuple of float
-        Sinusoids of ``d``: frequencies (Hz, below Nyquist), shares of ``d0`` (sum 1).
-    disturbance_seed : int
-        Seed of the sinusoids' random phases.
-    noise_rms_mm : tuple of float
-        Encoder noise rms per axis, mm (added by the simulators, not by the plant).
-
-    Raises
-    ------
-    ValueError
-        On a value out of range (naming it, its value and unit) or when beta falls below
-        ``beta_min`` in the workspace (`check_beta`).
-    """
-
-    sample_rate_hz: float
-    rk4_substeps: int
-    numerator_mm_per_v_s2: tuple[float, float]
-    damping_per_s: tuple[float, float]
-    stiffness_per_s2: tuple[float, float]
-    length_scale_mm: float
-    alpha_square_gain: float
-    alpha_cross_gain: float
-    beta_velocity_gain: float
-    beta_cross_gain: float
-    fig5_stiffening: float
-    fig5_force_drop: float
-    workspace_mm: float
-    velocity_limit_mm_s: float
-    beta_min_fraction: float
-    disturbance_mm_s2: tuple[float, float]
-    disturbance_frequencies_hz: tuple[float, ...]
-    disturbance_weights: tuple[float, ...]
-    disturbance_seed: int
-    noise_rms_mm: tuple[float, float]
-
-    def __post_init__(self) -> None:
-        fs = check_positive("sample_rate_hz", self.sample_rate_hz, "Hz")
-        check_int("rk4_substeps", self.rk4_substeps, 1)
-        for name, (unit, check) in _PER_AXIS.items():
-            object.__setattr__(self, name, _pair(name, getattr(self, name), unit, check))
-        for name in _GAINS:
-            check_finite(name, getattr(self, name))
-        check_positive("length_scale_mm", self.length_scale_mm, "mm")
-        check_positive("workspace_mm", self.workspace_mm, "mm")
-        check_positive("velocity_limit_mm_s", self.velocity_limit_mm_s, "mm/s")
-        check_in_range("fig5_stiffening", self.fig5_stiffening, -1.0, 1e3, low_closed=False)
-        check_in_range("fig5_force_drop", self.fig5_force_drop, 0.0, 1.0, high_closed=False)
-        check_in_range("beta_min_fraction", self.beta_min_fraction, 0.0, 1.0, low_closed=False)
-        check_int("disturbance_seed", self.disturbance_seed, 0)
-        freqs = tuple(self.disturbance_frequencies_hz)
-        weights = tuple(self.disturbance_weights)
-        if len(freqs) != len(weights) or not freqs:
-            raise ValueError(
-                f"disturbance_frequencies_hz ({len(freqs)} values) and disturbance_weights "
-                f"({len(weights)}) need the same non-zero length: one weight per frequency"
-            )
-        for j, (f, w) in enumerate(zip(freqs, weights, strict=True)):
-            check_in_range(
-                f"disturbance_frequencies_hz[{j}]", f, 0.0, fs / 2, "Hz", low_closed=False
-            )
-            check_nonnegative(f"disturbance_weights[{j}]", w)
-        if abs(sum(weights) - 1.0) > 1e-9:
-            raise ValueError(
-                f"disturbance_weights must sum to 1 so that |d(t)| <= d0, got sum {sum(weights)}; "
-                "rescale them"
-            )
-        object.__setattr__(self, "disturbance_frequencies_hz", tuple(float(f) for f in freqs))
-        object.__setattr__(self, "disturbance_weights", tuple(float(w) for w in weights))
-        check_beta(self)
-
-    @property
-    def dt(self) -> float:
-        """Sample time, s."""
-        return 1.0 / self.sample_rate_hz
-
-    def natural_frequency_hz(self) -> tuple[float, ...]:
-        """Undamped natural frequency of eq. (9) per axis, Hz (seed: 50.78, 50.24)."""
-        return tuple(math.sqrt(a0) / (2 * math.pi) for a0 in self.stiffness_per_s2)
-
-    def damping_ratio(self) -> tuple[float, ...]:
-        """Damping ratio of eq. (9) per axis (seed: 0.0233, 0.0293)."""
-        pairs = zip(self.damping_per_s, self.stiffness_per_s2, strict=True)
-        return tuple(a1 / (2 * math.sqrt(a0)) for a1, a0 in pairs)
-
-    def dc_gain_mm_per_v(self) -> tuple[float, ...]:
-        """DC gain ``K / a0`` of eq. (9) per axis, mm/V (seed: 5.386, 3.209)."""
-        pairs = zip(self.numerator_mm_per_v_s2, self.stiffness_per_s2, strict=True)
-        return tuple(k / a0 for k, a0 in pairs)
-
-    def disturbance_phases(self) -> np.ndarray:
-        """Random phases of the sinusoids of ``d(t)``, rad, shape (2, n_sinusoids)."""
-        rng = np.random.default_rng(self.disturbance_seed)
-        return rng.uniform(0.0, 2 * np.pi, size=(2, len(self.disturbance_frequencies_hz)))
-
-    def pack(self) -> np.ndarray:
-        """The flat ``float64`` params of the kernels (layout in the module source)."""
-        nd = len(self.disturbance_frequencies_hz)
-        L, w2 = self.length_scale_mm, self.workspace_mm**2
-        out = [self.dt, float(self.rk4_substeps), float(nd)]
-        for i in range(2):
-            a0 = self.stiffness_per_s2[i]
-            wn = math.sqrt(a0)
-            # a0 L ξ² = (a0/L) x1², a0 L ξ ξ̄' = a0/(wn L) x1 x̄2,
-            # a0 L ξ'² = x2²/L,     a0 L ξ² ξ̄' = a0/(wn L²) x1² x̄2
-            out += [
-                a0,
-                self.damping_per_s[i],
-                self.numerator_mm_per_v_s2[i],
-                a0 / L * self.alpha_square_gain,
-                a0 / (wn * L) * self.alpha_cross_gain,
-                self.beta_velocity_gain / L,
-                a0 / (wn * L * L) * self.beta_cross_gain,
-                a0 * self.fig5_stiffening / w2,
-                self.fig5_force_drop / w2,
-            ]
-            for f, w in zip(self.disturbance_frequencies_hz, self.disturbance_weights, strict=True):
-                theta = 2 * math.pi * f * self.dt
-                out += [self.disturbance_mm_s2[i] * w, math.cos(theta), math.sin(theta)]
-        return np.array(out, dtype=np.float64)
-
-    def with_(self, **changes: Any) -> NanomanipulatorParams:
-        """A validated copy with ``changes``; unknown names are refused (ValueError)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown twin parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}"
-            )
-        return replace(self, **changes)
-
-    def linear(self) -> NanomanipulatorParams:
-        """A copy with the §4.1 terms and the Fig. 5 physics off (eq. (9) only)."""
-        off = dict.fromkeys((*_GAINS, "fig5_stiffening", "fig5_force_drop"), 0.0)
-        return self.with_(**off)
-
-
-def beta_minimum(params: NanomanipulatorParams, axis: int) -> tuple[float, float, float, float]:
-    """Smallest ``beta`` of one axis in the declared workspace and where it occurs.
-
-    Parameters
-    ----------
-    params : NanomanipulatorParams
-        The twin.
-    axis : int
-        0 for x, 1 for y.
-
-    Returns
-    -------
-    tuple of float
-        ``(beta, x1, x2, x̄2)`` in mm/(V s²), mm, mm/s, mm/s, on the 41³ grid of
-        ``|x1| <= workspace_mm``, ``|x2|, |x̄2| <= velocity_limit_mm_s`` (corners, zero in it).
-    """
-    p = params.pack()
-    return _beta_grid_min(p, axis, params.workspace_mm, params.velocity_limit_mm_s, _GRID)
-
-
-def check_beta(params: NanomanipulatorParams) -> None:
-    """Refuse (ValueError) a twin whose beta falls below ``beta_min`` in the workspace."""
-    for i, ax in enumerate(AXES):
-        b, x1, x2, v = beta_minimum(params, i)
-        b_min = params.beta_min_fraction * params.numerator_mm_per_v_s2[i]
-        if not b >= b_min:
-            raise ValueError(
-                f"beta of axis {ax} falls to {b:.6g} mm/(V s^2), below beta_min = {b_min:.6g} "
-                f"mm/(V s^2) ({params.beta_min_fraction:g} K of eq. (9)) at x1 = {x1:.4g} mm, "
-                f"x2 = {x2:.4g} mm/s, other axis x2 = {v:.4g} mm/s; reduce beta_velocity_gain, "
-                "beta_cross_gain, fig5_force_drop or velocity_limit_mm_s"
-            )
-
-
-_SECTIONS = {  # TOML section -> the fields it holds (per-axis fields under [axes.x], [axes.y])
-    "sampling": ("sample_rate_hz", "rk4_substeps"),
-    "nonlinear": ("length_scale_mm", *_GAINS, "fig5_stiffening", "fig5_force_drop"),
-    "workspace": ("workspace_mm", "velocity_limit_mm_s", "beta_min_fraction"),
-    "disturbance": ("disturbance_frequencies_hz", "disturbance_weights", "disturbance_seed"),
-}
-
-
-def _read_table(table: dict[str, Any], known: tuple[str, ...], where: str) -> dict[str, Any]:
-    """The values of a TOML table; unknown keys, missing keys or sources refused."""
-    out = {}
-    for key, val in table.items():
-        base = key.removesuffix("_source")
-        if base not in known:
-            raise ValueError(f"{where}: unknown key {key!r}; known: {', '.join(known)}")
-        if key == base:
-            if f"{key}_source" not in table:
-                raise ValueError(f"{where}: {key} has no {key}_source string; state its source")
-            out[key] = tuple(val) if isinstance(val, list) else val
-    missing = [k for k in known if k not in out]
-    if missing:
-        raise ValueError(f"{where}: missing {', '.join(missing)}")
-    return out
-
-
-def load_params(path: str | os.PathLike[str] | None = None) -> NanomanipulatorParams:
-    """Read the twin's parameters from a TOML file (default ``data/nanomanipulator_twin.toml``).
-
-    Every value needs a ``<key>_source`` string; unknown sections and keys are refused.
-
-    Raises
-    ------
-    ValueError
-        Naming the file, the section and the key.
-    """
-    if path is None:
-        origin = "data/nanomanipulator_twin.toml"
-        text = resources.files("microfab.data").joinpath("nanomanipulator_twin.toml").read_text()
-    else:
-        origin = os.fspath(path)
-        with open(path, "rb") as fh:
-            text = fh.read().decode()
-    data = tomllib.loads(text)
-    unknown = sorted(set(data) - {*_SECTIONS, "axes"})
-    if unknown:
-        raise ValueError(
-            f"{origin}: unknown section [{unknown[0]}]; known: {sorted(_SECTIONS)}, axes"
-        )
-    values: dict[str, Any] = {}
-    for sec, known in _SECTIONS.items():
-        values.update(_read_table(data.get(sec, {}), known, f"{origin} [{sec}]"))
-    axes = data.get("axes", {})
-    if sorted(axes) != list(AXES):
-        raise ValueError(f"{origin}: [axes] needs the tables x and y, got {sorted(axes)}")
-    per = [_read_table(axes[ax], tuple(_PER_AXIS), f"{origin} [axes.{ax}]") for ax in AXES]
-    values.update({k: (per[0][k], per[1][k]) for k in _PER_AXIS})
-    return NanomanipulatorParams(**values)
 
 
 class NanomanipulatorPlant(CompiledPlant):
@@ -652,59 +339,3 @@ def nanomanipulator_twin(
     if not disturbance:
         cfg = cfg.with_(disturbance_mm_s2=(0.0, 0.0))
     return NanomanipulatorPlant(cfg)
-
-
-_TERMS = ("alpha x1^2", "alpha x1*xbar2", "beta x2^2", "beta -x1^2*xbar2", "x1^2 in mm, s")
-
-
-def term_shares(
-    params: NanomanipulatorParams, amplitude_mm: float, frequency_hz: float = 1.0, axis: int = 0
-) -> dict[str, float]:
-    """Size of each §4.1 term relative to the linear term it adds to.
-
-    Evaluated at ``x1 = A``, ``x2 = x̄2 = 2π f A`` (the peaks of a sine of amplitude ``A``
-    taken together, an upper bound). Alpha terms are relative to the stiffness term ``a0 A``,
-    beta terms to ``K``; the last entry is ``x1²`` read literally in mm and s (``A / a0``).
-
-    Parameters
-    ----------
-    params : NanomanipulatorParams
-        The twin.
-    amplitude_mm : float
-        ``A``, mm.
-    frequency_hz : float
-        ``f``, Hz.
-    axis : int
-        0 for x, 1 for y.
-
-    Returns
-    -------
-    dict of str to float
-        Absolute shares (dimensionless).
-    """
-    A = check_positive("amplitude_mm", amplitude_mm, "mm")
-    v = 2 * math.pi * check_positive("frequency_hz", frequency_hz, "Hz") * A
-    p = params.pack()
-    o = _block(p, axis)
-    a0, K = p[o + _A0], p[o + _K]
-    return {
-        _TERMS[0]: abs(p[o + _CAA] * A * A) / (a0 * A),
-        _TERMS[1]: abs(p[o + _CAX] * A * v) / (a0 * A),
-        _TERMS[2]: abs(p[o + _CBV] * v * v) / K,
-        _TERMS[3]: abs(p[o + _CBX] * A * A * v) / K,
-        _TERMS[4]: A / a0,
-    }
-
-
-def term_share_table(
-    params: NanomanipulatorParams,
-    amplitudes_mm: tuple[float, ...] = (0.01, 0.5),
-    frequency_hz: float = 1.0,
-) -> str:
-    """A plain-text table of `term_shares` per axis and amplitude (for reports)."""
-    cols = [(i, a) for i in range(2) for a in amplitudes_mm]
-    head = f"{'term':<18}" + "".join(f"{AXES[i]} @ {a * 1e3:g} µm".rjust(15) for i, a in cols)
-    shares = [term_shares(params, a, frequency_hz, i) for i, a in cols]
-    rows = [f"§4.1 term shares at {frequency_hz:g} Hz (x1 = A, x2 = xbar2 = 2π f A)", head]
-    rows += [f"{t:<18}" + "".join(f"{s[t]:15.3g}" for s in shares) for t in _TERMS]
-    return "\n".join(rows)
