@@ -13,6 +13,10 @@ from typing import Any
 
 from microfab.experiments.kinds import JobKind, Reproduction
 from microfab.experiments.seed000_msl.job import MSL_ILC, MSL_ILC_REPRODUCTION
+from microfab.experiments.seed001_nanomanipulator.job import (
+    NANOMANIPULATOR_MSL,
+    NANOMANIPULATOR_REPRODUCTION,
+)
 from microfab.experiments.seed003_inkjet.job import DROPLET_FIG4_REPRODUCTION, DROPLET_SWEEP
 from microfab.io.job import JobFile, JobFileError, parse_job, read_job
 
@@ -28,10 +32,11 @@ __all__ = [
 ]
 
 #: Every job kind, by name.
-JOB_KINDS: dict[str, JobKind] = {k.name: k for k in (MSL_ILC, DROPLET_SWEEP)}
+JOB_KINDS: dict[str, JobKind] = {k.name: k for k in (MSL_ILC, NANOMANIPULATOR_MSL, DROPLET_SWEEP)}
 #: Every reproduction, by name.
 REPRODUCTIONS: dict[str, Reproduction] = {
-    r.name: r for r in (MSL_ILC_REPRODUCTION, DROPLET_FIG4_REPRODUCTION)
+    r.name: r
+    for r in (MSL_ILC_REPRODUCTION, NANOMANIPULATOR_REPRODUCTION, DROPLET_FIG4_REPRODUCTION)
 }
 
 

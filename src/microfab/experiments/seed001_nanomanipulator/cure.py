@@ -66,9 +66,7 @@ class CircleCure:
     prints: dict[str, Print]
 
 
-def _write(
-    run: JobRun, name: str, on: int, off: int, switch: int, threshold: float
-) -> Print:
+def _write(run: JobRun, name: str, on: int, off: int, switch: int, threshold: float) -> Print:
     """Dose and loop measures of a laser command on ``[switch, off)`` for the loop at ``on``."""
     cfg = run.config
     n = run.reference.period_samples

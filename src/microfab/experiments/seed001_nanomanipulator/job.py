@@ -165,7 +165,9 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> JobConfig:
         ),
         gate_threshold_mm=g["threshold_um"] * 1e-3,
         laser=LaserDiode(
-            power_w=la["power_mw"] * 1e-3, delay_s=la["delay_ms"] * 1e-3, rise_s=la["rise_ms"] * 1e-3
+            power_w=la["power_mw"] * 1e-3,
+            delay_s=la["delay_ms"] * 1e-3,
+            rise_s=la["rise_ms"] * 1e-3,
         ),
         dose=DoseSettings(spot_diameter_m=la["spot_um"] * 1e-6),
         twin=TwinSettings(

@@ -433,6 +433,7 @@ class _Runner:
             tau_s=rc.tau_s,
             gain=rc.gain,
             lead_samples=rc.lead_samples,
+            carry=rc.carry,  # keep a memory loaded from the last circle at the window start
             windows=((self.ref.starts[i] - seg.start, self.ref.periods),),
         )
 
