@@ -174,3 +174,24 @@ def test_bad_inputs_are_refused(change: dict, match: str) -> None:
     ref, out, laser = kw.pop("reference"), kw.pop("output"), kw.pop("laser")
     with pytest.raises(ValueError, match=match):
         tracking_metrics(ref, out, laser, **kw)
+
+
+@pytest.mark.parametrize("bins", [None, 250, 125])
+def test_every_phase_bin_holds_samples_when_the_bins_divide_the_period(bins: int | None) -> None:
+    cfg = PatternConfig(
+        n_circles=1, period_s=0.025, periods=2, pause_s=0.01, move_s=0.01, ramp_s=0.01
+    )
+    ref = pattern_reference(cfg, DT)  # 250 samples a period: samples on the bin edges
+    m = tracking_metrics(
+        ref.position,
+        _radial(ref, 1e-4),
+        np.zeros(ref.n_samples, bool),
+        starts=ref.starts,
+        period_samples=250,
+        periods=2,
+        centres=ref.centres,
+        radius=ref.radius_mm,
+        bins_per_period=bins,
+    )
+    assert m.phase_rad.size == 2 * (bins or 250)
+    np.testing.assert_allclose(m.contour_vs_phase_nm, 100.0, rtol=1e-9)

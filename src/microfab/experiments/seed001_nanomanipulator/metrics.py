@@ -165,6 +165,16 @@ def _bin_mean(values: np.ndarray, index: np.ndarray, n_bins: int) -> np.ndarray:
     return out
 
 
+def _mean_over_circles(curves: np.ndarray) -> np.ndarray:
+    """Mean over axis 0 of the bins that hold samples (NaN where no circle has any)."""
+    have = np.isfinite(curves)
+    count = have.sum(axis=0)
+    total = np.where(have, curves, 0.0).sum(axis=0)
+    out = np.full(curves.shape[1], np.nan)
+    np.divide(total, count, out=out, where=count > 0)
+    return out
+
+
 def _opt(v: float | None, fmt: str = "{:.1f}") -> str:
     return DASH if v is None else fmt.format(v)
 
@@ -286,7 +296,7 @@ def tracking_metrics(
     centres: np.ndarray,
     radius: float,
     dt: float = 1e-4,
-    bins_per_period: int = BINS_PER_PERIOD,
+    bins_per_period: int | None = None,
 ) -> TrackingMetrics:
     """The seed 001 §4.2 metrics of a job (definitions: module docstring).
 
@@ -309,8 +319,9 @@ def tracking_metrics(
     dt : float
         Sample time, s (for the gate times of `TrackingMetrics.summary`; default the
         twin's assumed 10 kHz).
-    bins_per_period : int
-        Phase bins per period of the contour-vs-phase curve (<= period_samples).
+    bins_per_period : int, optional
+        Phase bins per period of the contour-vs-phase curve, <= period_samples (default
+        `BINS_PER_PERIOD`, or one per sample when the period is shorter).
 
     Returns
     -------
@@ -325,7 +336,8 @@ def tracking_metrics(
     N = check_int("period_samples", period_samples, 2, "samples")
     k = check_int("periods", periods, 1, "periods")
     check_positive("dt", dt, "s")
-    bins = check_int("bins_per_period", bins_per_period, 1, "bins")
+    bins = min(BINS_PER_PERIOD, N) if bins_per_period is None else bins_per_period
+    bins = check_int("bins_per_period", bins, 1, "bins")
     if bins > N:
         raise ValueError(f"bins_per_period ({bins}) must not exceed period_samples ({N})")
     c = np.asarray(centres, dtype=np.float64)
@@ -357,7 +369,8 @@ def tracking_metrics(
         ce = contour_error(y[sl], c[i], radius)
         contour_all.append(ce)
         ph = phase_of(r[sl], c[i])
-        idx = np.clip(np.floor(ph / width).astype(np.int64), 0, n_bins - 1)
+        # a sample on a bin's lower edge (bins dividing the period) belongs to that bin
+        idx = np.clip(np.floor(ph / width + 1e-6).astype(np.int64), 0, n_bins - 1)
         curves.append(_bin_mean(ce, idx, n_bins))
         per_period.append(period_rms(e, s, N, k))
         lo = st[i - 1] + span if i else 0
@@ -378,7 +391,7 @@ def tracking_metrics(
         contour_rms_nm=float(np.sqrt(np.mean(contour**2))) * NM_PER_MM,
         period_rms_nm=np.array(per_period) * NM_PER_MM,
         phase_rad=(np.arange(n_bins) + 0.5) * width,
-        contour_vs_phase_nm=np.nanmean(np.array(curves), axis=0) * NM_PER_MM,
+        contour_vs_phase_nm=_mean_over_circles(np.array(curves)) * NM_PER_MM,
         gate_period=tuple(gate_p),
         gate_sample=tuple(gate_k),
         exposed_rms_nm=tuple(exposed),

@@ -1,0 +1,75 @@
+"""``microfab rc step``: one period of the seed 001 plug-in RC on hardware through files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from microfab.cli._kit import check_option, console, fail
+
+__all__ = ["rc_app"]
+
+rc_app = typer.Typer(no_args_is_help=True, help="Plug-in repetitive control on hardware.")
+
+
+@rc_app.command("step")
+def rc_step_cmd(
+    trial: Annotated[
+        Path,
+        typer.Argument(
+            help="One measured period (.csv, .mat, .h5): time [s], ref_x, ref_y (the "
+            "uncorrected contour), x, y [mm]."
+        ),
+    ],
+    state: Annotated[Path, typer.Option("--state", help="RC state directory.")],
+    out: Annotated[
+        Path,
+        typer.Option("--out", help="Next command file: time, command_x/y = ref + correction [mm]."),
+    ],
+    tau_ms: Annotated[
+        float | None,
+        typer.Option(help="Time constant of Q(s) = 1/(tau s + 1) [ms] (first call; 1.59)."),
+    ] = None,
+    gain: Annotated[
+        float | None, typer.Option(help="Learning gain k_r in (0, 2] (first call; 1).")
+    ] = None,
+    lead_samples: Annotated[
+        int | None, typer.Option(help="Phase lead [samples] (first call; 0).")
+    ] = None,
+    period_s: Annotated[
+        float | None, typer.Option(help="Contour period [s] to check the trial against.")
+    ] = None,
+) -> None:
+    """Learn from one measured period and write the next command (seed 001 Fig. 6).
+
+    The first call creates the state (the trial must have run on the plain contour); the
+    state is the simulated RC's (PluginRC.save_state), so a twin run can be continued.
+    """
+    from microfab.experiments.seed001_nanomanipulator.hardware import rc_file_step
+
+    check_option("--tau-ms", tau_ms, "ms")
+    check_option("--gain", gain, "", high=2.0)
+    check_option("--lead-samples", lead_samples, "samples", low_closed=True)
+    check_option("--period-s", period_s, "s")
+    try:
+        rep = rc_file_step(
+            trial,
+            state,
+            out,
+            tau_s=None if tau_ms is None else tau_ms * 1e-3,
+            gain=gain,
+            lead_samples=lead_samples,
+            period_s=period_s,
+        )
+    except (OSError, ValueError) as exc:
+        fail(str(exc))
+    x, y = rep.rms_nm
+    cx, cy = rep.correction_rms_nm
+    made = " (new state)" if rep.created else ""
+    console.print(
+        f"period {rep.period}{made}: RMS error x {x:.1f} nm, y {y:.1f} nm; next correction "
+        f"RMS x {cx:.1f} nm, y {cy:.1f} nm; wrote {rep.out_path}",
+        highlight=False,
+    )

@@ -1,0 +1,392 @@
+"""Seed 001 hardware through files: measured traces and the file-based plug-in RC step.
+
+Columns of a measured file (CSV, MAT or HDF5, `microfab.io.trace.read_columns`; other
+columns are ignored):
+
+``time``
+    Sample time, s, uniformly spaced (one sample rate for the whole file).
+``ref_x``, ``ref_y``
+    The contour reference, mm: the pattern the job asked for, **without** the RC's
+    correction (the RC learns from ``e = r − y`` against it, seed 001 Fig. 6).
+``x``, ``y``
+    Measured stage position, mm.
+``laser``
+    Laser command, 0 (off) or 1 (on): `analyze` traces only.
+
+`read_measured` reads and checks such a file; `rc_file_step` is one period of the plug-in
+RC (seed 001 §3.3, Fig. 6) on hardware: one measured period in, the next command
+(``r + c``) out, the `microfab.control.rc_memory.RCMemory` kept in a state directory in
+the same format as the simulated RC's (`microfab.control.repetitive.PluginRC.save_state`).
+Every check runs before anything is written; the contour (first call only), the command
+file and the state are then written in that order, each atomically, so a refused or
+interrupted step leaves the state as it was.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from microfab.control.rc_memory import RCMemory
+from microfab.control.repetitive import RCConfig, period_samples
+from microfab.core.signals import check_time_base
+from microfab.io.atomic import atomic_save_npz
+from microfab.io.trace import read_columns, write_columns
+
+__all__ = [
+    "CONTOUR_FILE",
+    "LASER",
+    "REF_TOL_MM",
+    "STATE_FILE",
+    "TRACE_COLUMNS",
+    "MeasuredTrace",
+    "RCStepReport",
+    "rc_file_step",
+    "read_measured",
+]
+
+#: Columns of a trial period (`rc_file_step`); an `analyze` trace adds `LASER`.
+TRACE_COLUMNS = ("time", "ref_x", "ref_y", "x", "y")
+LASER = "laser"
+#: RC state file in the state directory (`RCMemory.save`, as `PluginRC.save_state`).
+STATE_FILE = "rc_state.npz"
+#: The contour reference of the first trial, kept to check later trials' ``ref_x, ref_y``.
+CONTOUR_FILE = "contour.npz"
+#: Largest reference deviation taken as the same reference, mm (assumed 1 nm: 1/1000 of
+#: the 1 µm gate threshold, above the ~0.1 nm rounding of a ≤ 1.5 mm position in float32).
+REF_TOL_MM = 1e-6
+#: Relative tolerance on sample-time steps (as `microfab.core.signals.check_time_base`).
+_DT_RTOL = 1e-6
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class MeasuredTrace:
+    """A checked measured file.
+
+    Attributes
+    ----------
+    path : Path
+        Where it was read.
+    time : numpy.ndarray
+        Sample times, s, shape (n,).
+    dt : float
+        Sample time, s.
+    reference, output : numpy.ndarray
+        ``(ref_x, ref_y)`` and ``(x, y)``, mm, shape (n, 2).
+    laser : numpy.ndarray or None
+        Laser on, bool, shape (n,), when read with ``laser=True``.
+    """
+
+    path: Path
+    time: np.ndarray
+    dt: float
+    reference: np.ndarray
+    output: np.ndarray
+    laser: np.ndarray | None
+
+    @property
+    def n_samples(self) -> int:
+        """Samples in the file."""
+        return int(self.time.size)
+
+
+def read_measured(path: str | Path, *, laser: bool = False) -> MeasuredTrace:
+    """Read a measured file (columns: module docstring) and check it.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV, MAT or HDF5 file.
+    laser : bool
+        Also require the ``laser`` column (0 or 1 per sample).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        Unreadable; missing columns (named); no or one sample; NaN or inf (naming column,
+        sample and time); a sample rate that changes within the file (naming where); a
+        laser value other than 0 and 1.
+    """
+    p = Path(path)
+    cols = read_columns(p)
+    need = (*TRACE_COLUMNS, LASER) if laser else TRACE_COLUMNS
+    missing = [c for c in need if c not in cols]
+    if missing:
+        raise ValueError(
+            f"{p}: missing column(s) {', '.join(missing)} (found: "
+            f"{', '.join(cols) or 'none'}); a trace holds {', '.join(need)}"
+        )
+    t = cols["time"]
+    if t.size == 0:
+        raise ValueError(f"{p}: the file holds no samples (only its header)")
+    if t.size < 2:
+        raise ValueError(f"{p}: one sample gives no sample rate; record at least two")
+    for name in need:
+        bad = np.flatnonzero(~np.isfinite(cols[name]))
+        if bad.size:
+            k = int(bad[0])
+            at = f" (t = {t[k]:g} s)" if np.isfinite(t[k]) else ""
+            raise ValueError(
+                f"{p}: column {name!r} holds {cols[name][k]} at sample {k}{at}; "
+                "every value must be finite"
+            )
+    steps = np.diff(t)
+    dt0 = float(steps[0])
+    if dt0 <= 0:
+        raise ValueError(f"{p}: time must increase, got {t[0]:g} s then {t[1]:g} s")
+    off = np.flatnonzero(np.abs(steps - dt0) > _DT_RTOL * dt0)
+    if off.size:
+        k = int(off[0])
+        raise ValueError(
+            f"{p}: the sample rate changes at sample {k + 1} (t = {t[k + 1]:g} s): step "
+            f"{steps[k]:.9g} s after {dt0:.9g} s; record at one rate"
+        )
+    try:
+        _, dt = check_time_base(t)  # also refuses a slow drift the step check lets through
+    except ValueError as exc:
+        raise ValueError(f"{p}: {exc}; record at one rate") from exc
+    on = None
+    if laser:
+        v = cols[LASER]
+        wrong = np.flatnonzero((v != 0.0) & (v != 1.0))
+        if wrong.size:
+            k = int(wrong[0])
+            raise ValueError(
+                f"{p}: column 'laser' holds {v[k]:g} at sample {k}; write 0 (off) or 1 (on)"
+            )
+        on = v == 1.0
+    return MeasuredTrace(
+        path=p,
+        time=t,
+        dt=dt,
+        reference=np.column_stack([cols["ref_x"], cols["ref_y"]]),
+        output=np.column_stack([cols["x"], cols["y"]]),
+        laser=on,
+    )
+
+
+def largest_deviation(a: np.ndarray, b: np.ndarray) -> tuple[float, int, int]:
+    """``(|a − b| max, sample, axis)`` of two (n, 2) arrays."""
+    d = np.abs(np.asarray(a) - np.asarray(b))
+    k, j = np.unravel_index(int(np.argmax(d)), d.shape)
+    return float(d[k, j]), int(k), int(j)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RCStepReport:
+    """What one `rc_file_step` did.
+
+    Attributes
+    ----------
+    period : int
+        The state's sample counter in periods (1 after the first call of a new state).
+    rms_nm : tuple of float
+        RMS error ``r − y`` of the trial per axis (x, y), nm.
+    correction_rms_nm : tuple of float
+        RMS of the next correction per axis, nm.
+    out_path : Path
+        The command file written.
+    created : bool
+        Whether this call created the state.
+    """
+
+    period: int
+    rms_nm: tuple[float, float]
+    correction_rms_nm: tuple[float, float]
+    out_path: Path
+    created: bool
+
+
+_OUT_SUFFIXES = (".csv", ".mat", ".h5", ".hdf5")
+
+
+def _same(a: float, b: float) -> bool:
+    return math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
+
+
+def _load_state(sd: Path) -> RCMemory | None:
+    return RCMemory.load(sd / STATE_FILE) if (sd / STATE_FILE).is_file() else None
+
+
+def _at_boundary(cfg: RCConfig, samples: int) -> bool:
+    """Whether a state's sample counter sits at a period boundary of its RC."""
+    n = cfg.period_samples
+    if cfg.windows is None:
+        return samples % n == 0
+    for s, k in cfg.windows:
+        if s < samples < s + k * n:
+            return (samples - s) % n == 0
+    return True  # outside every window (or at its end): nothing half-learned
+
+
+def _check_options(
+    mem: RCMemory, tau_s: float | None, gain: float | None, lead_samples: int | None
+) -> None:
+    cfg = mem.config
+    for opt, given, kept in (
+        ("--tau-ms", None if tau_s is None else tau_s * 1e3, cfg.tau_s * 1e3),
+        ("--gain", gain, cfg.gain),
+        ("--lead-samples", lead_samples, cfg.lead_samples),
+    ):
+        if given is not None and not _same(float(given), float(kept)):
+            raise ValueError(
+                f"{opt} {given:g} differs from the state's {kept:g}: the RC settings are "
+                "fixed on the first call (leave the option out, or start a new state "
+                "directory)"
+            )
+
+
+def rc_file_step(
+    trial: str | Path,
+    state_dir: str | Path,
+    out: str | Path,
+    *,
+    tau_s: float | None = None,
+    gain: float | None = None,
+    lead_samples: int | None = None,
+    period_s: float | None = None,
+) -> RCStepReport:
+    """One plug-in RC period on hardware: measured period in, next command out.
+
+    The first call (no state) creates an `RCConfig` whose period is the trial's length
+    times its sample time (``period_s`` if given, which must then be a whole number of
+    samples and equal the trial's length) and whose ``tau_s``, ``gain`` and
+    ``lead_samples`` are given or `RCConfig`'s defaults; that first trial must have run
+    on the plain contour (no correction). Every call then takes
+    ``c_{j+1} = rc_update(c_j, e_j)`` with ``e_j = r − y`` of the trial and writes
+    ``command = r + c_{j+1}`` (seed 001 Fig. 6: the RC output added to the reference).
+
+    Parameters
+    ----------
+    trial : str or Path
+        One measured period (`TRACE_COLUMNS`).
+    state_dir : str or Path
+        State directory: `STATE_FILE` (an `RCMemory`, also one saved by
+        `PluginRC.save_state` of a simulated run) and `CONTOUR_FILE`.
+    out : str or Path
+        Command file (``.csv``, ``.mat``, ``.h5``): ``time, command_x, command_y``
+        (mm) and ``correction_x, correction_y`` (mm).
+    tau_s, gain, lead_samples : optional
+        RC settings for a new state; on later calls, if given, they must equal the
+        state's.
+    period_s : float, optional
+        The contour period, s, to check the trial against.
+
+    Returns
+    -------
+    RCStepReport
+
+    Raises
+    ------
+    ValueError
+        On a bad trial (`read_measured`), a period that is not a whole number of samples
+        or not the trial's length, a trial whose length or sample time differs from the
+        state's, a reference that is not the state's contour, a trial learned from
+        already, settings that differ from the state's, or an unreadable state.
+    """
+    o = Path(out)
+    if o.suffix.lower() not in _OUT_SUFFIXES or o.is_dir():
+        raise ValueError(
+            f"--out {o} must be a file ending in {', '.join(_OUT_SUFFIXES)} (the format)"
+        )
+    tr = read_measured(trial)
+    n, dt = tr.n_samples, tr.dt
+    if period_s is not None:
+        n_p = period_samples(period_s, dt)
+        if n_p != n:
+            raise ValueError(
+                f"{tr.path}: the trial holds {n} samples, the period {period_s:g} s is {n_p} "
+                f"samples at {dt:g} s; give exactly one period"
+            )
+    sd = Path(state_dir)
+    if sd.exists() and not sd.is_dir():
+        raise ValueError(f"--state {sd} is a file; give a directory")
+    mem = _load_state(sd)
+    created = mem is None
+    if mem is None:
+        kw: dict[str, float | int] = {}
+        if tau_s is not None:
+            kw["tau_s"] = tau_s
+        if gain is not None:
+            kw["gain"] = gain
+        if lead_samples is not None:
+            kw["lead_samples"] = lead_samples
+        mem = RCMemory.initial(RCConfig(period_s=n * dt, dt=dt, **kw), 2)  # type: ignore[arg-type]
+    else:
+        cfg = mem.config
+        if not _same(cfg.dt, dt):
+            raise ValueError(
+                f"{tr.path}: sampled at {dt:.9g} s, the RC state at {cfg.dt:.9g} s; record "
+                "at the state's rate or start a new state directory"
+            )
+        if cfg.period_samples != n:
+            raise ValueError(
+                f"{tr.path}: holds {n} samples, the RC state's period {cfg.period_samples}; "
+                "give exactly one period of the contour"
+            )
+        if mem.memory.shape[1] != 2:
+            raise ValueError(
+                f"the RC state in {sd} has {mem.memory.shape[1]} axes; this step needs x, y"
+            )
+        _check_options(mem, tau_s, gain, lead_samples)
+        if not _at_boundary(cfg, mem.samples):
+            raise ValueError(
+                f"the RC state in {sd} was saved mid-period (sample {mem.samples}, period "
+                f"{n}); save the simulated state at a period boundary"
+            )
+    contour = sd / CONTOUR_FILE
+    if not created and contour.is_file():
+        try:
+            with np.load(contour, allow_pickle=False) as z:
+                ref0 = np.array(z["reference"])
+        except (OSError, ValueError, KeyError) as exc:
+            raise ValueError(f"cannot read the contour {contour}: {exc}") from exc
+        if ref0.shape != tr.reference.shape:
+            raise ValueError(f"the contour in {contour} is shaped {ref0.shape}, not {(n, 2)}")
+        dev, k, j = largest_deviation(tr.reference, ref0)
+        if dev > REF_TOL_MM:
+            raise ValueError(
+                f"{tr.path}: ref_{'xy'[j]} differs from the first trial's contour by "
+                f"{dev * 1e6:.1f} nm at t = {tr.time[k]:g} s; ref_x, ref_y must be the "
+                "uncorrected contour (not the command of the last step)"
+            )
+    err = tr.reference - tr.output
+    if not created and mem.samples > 0 and np.array_equal(err, mem.error):
+        raise ValueError(
+            f"{tr.path}: this trial was learned from already (its error equals the state's "
+            "last period); measure the command written by the last step"
+        )
+    new = mem.after_period(err)
+    corr = new.next_correction()
+    command = tr.reference + corr
+    if not np.all(np.isfinite(command)):  # pragma: no cover - finite inputs, finite update
+        raise ValueError("the next command is not finite; nothing was written")
+    if created or not contour.is_file():
+        sd.mkdir(parents=True, exist_ok=True)
+        atomic_save_npz(contour, reference=tr.reference, dt=np.array(dt))
+    write_columns(
+        out,
+        {
+            "time": tr.time,
+            "command_x": command[:, 0],
+            "command_y": command[:, 1],
+            "correction_x": corr[:, 0],
+            "correction_y": corr[:, 1],
+        },
+        unit="mm",
+    )
+    new.save(sd / STATE_FILE)
+    rms = np.sqrt(np.mean(err**2, axis=0)) * 1e6
+    crms = np.sqrt(np.mean(corr**2, axis=0)) * 1e6
+    return RCStepReport(
+        period=new.samples // new.config.period_samples,
+        rms_nm=(float(rms[0]), float(rms[1])),
+        correction_rms_nm=(float(crms[0]), float(crms[1])),
+        out_path=Path(out),
+        created=created,
+    )
