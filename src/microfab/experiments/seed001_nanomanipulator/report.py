@@ -50,7 +50,6 @@ def fig_learning(run: JobRun) -> MplFigure:
     a2.set_xlabel("time [s]")
     a1.legend(loc="upper left", fontsize=8)
     a1.set_title("RBF weights and error function (shaded: circle periods)", fontsize=9)
-    fig.tight_layout()
     return fig
 
 
@@ -68,7 +67,6 @@ def fig_effort(run: JobRun) -> MplFigure:
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
     ax.set_title("Control effort (PID between circles, RBF + RC on them)", fontsize=9)
-    fig.tight_layout()
     return fig
 
 
@@ -102,7 +100,6 @@ def fig_cure(cure: CircleCure, run: JobRun) -> MplFigure:
     axes[0, 0].set_ylabel("y [mm]")
     axes[1, 0].set_ylabel("y [mm] (closing point)")
     fig.suptitle(f"Circle {cure.circle + 1}: cured resin (black)", fontsize=10)
-    fig.tight_layout()
     return fig
 
 
