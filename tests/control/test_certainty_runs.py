@@ -151,14 +151,8 @@ def test_eq7_and_eq8_hold_along_the_twin_run(
 ) -> None:
     dt, eps, lam = run.plant.dt, run.ctl.config.eps, run.ctl.config.lam
     q = terms[a]
-    s, b, bd, us, u, d = (
-        q["s"],
-        q["beta"],
-        q["beta_dot"],
-        q["u_star"],
-        run.command[:, a],
-        (run.disturbance[:, a]),
-    )
+    s, b, bd, us = q["s"], q["beta"], q["beta_dot"], q["u_star"]
+    u, d = run.command[:, a], run.disturbance[:, a]
     H = run.hidden[:, a]
     w_star = fit_ideal_weights(H, us[:-1])
     ideal = H @ w_star
