@@ -13,10 +13,11 @@ eq. 6 add 1/s to 1/(s·(mm/(s² V))): the seed's law is dimensionally consistent
 dimensionless β; we apply it as written, the ``1/(εβ²)`` term then being a ~2e-6 part of
 the ``1/(εβ)`` one, and ``ṡ ≈ −s/ε`` under the oracle.
 
-Checks along a run (`ce_law`, `fit_ideal_weights`, `eq8_rhs`, `a6_bound`): with
-``μ_l = u* − W*ᵀh`` (eq. 7; the seed says "substitute control law (5)", meaning (4)),
-eq. 8 reads ``ṡ = β(W̃ᵀh − μ_l) − (1/ε + 1/(εβ) − β̇/(2β)) s + d``, in which
-``W̃ᵀh − μ_l = u − u*`` whatever ``W*``. Seed points on the proof: A1 writes
+Checks along a run (`ce_law`, `fit_ideal_weights`, `eq7_rhs`, `eq8_rhs`, `a6_bound`):
+with ``μ_l = u* − W*ᵀh`` (eq. 7; the seed says "substitute control law (5)", meaning (4)),
+eq. 7 reads ``ṡ = α + v + β(Ŵᵀh − W*ᵀh − μ_l) + βu* + d`` and eq. 8
+``ṡ = β(W̃ᵀh − μ_l) − (1/ε + 1/(εβ) − β̇/(2β)) s + d``, in which ``W̃ᵀh − μ_l = u − u*``
+whatever ``W*``. Seed points on the proof: A1 writes
 ``W̃ᵀΓ⁻¹W̃ᵀ`` for ``W̃ᵀΓ⁻¹W̃``; in the step A2 -> A3 the ``μ_l s`` term needs ``β²``
 (``|μ_l s| ≤ s²/(2εβ²) + (ε/2) μ_l² β²``), not ``β``, and dropping ``s²/(εβ)`` against
 ``s²/(2εβ²)`` needs ``β ≥ 1``; the proof needs ``β ≥ β_min > 0`` where the seed states
@@ -41,6 +42,7 @@ __all__ = [
     "CertaintyEquivalence",
     "a6_bound",
     "ce_law",
+    "eq7_rhs",
     "eq8_rhs",
     "fit_ideal_weights",
     "lyapunov_v",
@@ -75,6 +77,44 @@ def ce_law(
     """Seed 001 eq. 6, elementwise: ``u*`` in V from α (mm/s²), β (mm/(s² V)), β̇, s, v."""
     a, b, bd, s_, v_ = (np.asarray(x, dtype=float) for x in (alpha, beta, beta_dot, s, v))
     return -(a + v_) / b - (1.0 / (eps * b) + 1.0 / (eps * b * b) - bd / (2.0 * b * b)) * s_
+
+
+def eq7_rhs(
+    alpha: np.ndarray,
+    beta: np.ndarray,
+    v: np.ndarray,
+    network: np.ndarray,
+    ideal: np.ndarray,
+    mu: np.ndarray,
+    u_star: np.ndarray,
+    disturbance: np.ndarray | float = 0.0,
+) -> np.ndarray:
+    """Right side of seed 001 eq. 7, ``α + v + β(Ŵᵀh − W*ᵀh − μ_l) + βu* + d``, mm/s².
+
+    Parameters
+    ----------
+    alpha, beta : numpy.ndarray
+        α (mm/s²) and β (mm/(s² V)) of eq. 1.
+    v : numpy.ndarray
+        ``v = λė − r̈``, mm/s².
+    network, ideal : numpy.ndarray
+        ``Ŵᵀh`` (the command of eq. 4) and ``W*ᵀh``, V.
+    mu : numpy.ndarray
+        ``μ_l = u* − W*ᵀh``, V.
+    u_star : numpy.ndarray
+        ``u*`` of eq. 6, V.
+    disturbance : numpy.ndarray or float
+        ``d``, mm/s².
+
+    Returns
+    -------
+    numpy.ndarray
+        ``ṡ`` by eq. 7, mm/s²; arrays broadcast. With ``μ_l`` as defined it equals
+        ``α + v + βŴᵀh + d``, eq. 1 written for ``s`` under the law of eq. 4.
+    """
+    b = np.asarray(beta, dtype=float)
+    net, ide, m, us = (np.asarray(x, dtype=float) for x in (network, ideal, mu, u_star))
+    return np.asarray(alpha) + np.asarray(v) + b * (net - ide - m) + b * us + disturbance
 
 
 def eq8_rhs(
