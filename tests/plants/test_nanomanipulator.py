@@ -325,7 +325,10 @@ def test_data_file_values_have_sources():
                 continue
             n_values += 1
             src = table[f"{key}_source"]
-            assert src.startswith(("seed 001", "assumed: ")), (key, src)
+            assert src.startswith(("seed 001", "assumed: ", "calibrated: `microfab calibrate")), (
+                key,
+                src,
+            )
     assert n_values == 25
     for ax in ("x", "y"):
         assert data["axes"][ax]["numerator_mm_per_v_s2_source"].startswith("seed 001 eq. (9)")

@@ -1,4 +1,4 @@
-"""``microfab calibrate galvo``: refit the galvo twin to seed 000 Table 1."""
+"""``microfab calibrate galvo|nanomanipulator``: refit a twin to its seed's numbers."""
 
 from __future__ import annotations
 
@@ -30,4 +30,51 @@ def calibrate_galvo_cmd(
             f"noise {ax.noise_rms_v * 1e3:.3f} mV; FB residual (RMS, PP) {res}"
         )
     if write is not None:
+        console.print(f"wrote {write}")
+
+
+@calibrate_app.command("nanomanipulator")
+def calibrate_nanomanipulator_cmd(
+    write: Annotated[
+        Path | None, typer.Option(help="Write a twin data file with the fitted noise here.")
+    ] = None,
+    job: Annotated[
+        Path | None, typer.Option(help="Fit on this nanomanipulator-msl job (default: seed's).")
+    ] = None,
+) -> None:
+    """Fit the nanomanipulator twin's sensor noise to seed 001 §4.2's axial RMS."""
+    from microfab.cli._kit import fail
+    from microfab.experiments.seed001_nanomanipulator.calibration import fit_noise, write_noise
+    from microfab.experiments.seed001_nanomanipulator.run import JobConfig
+
+    config = None
+    if job is not None:
+        from microfab.experiments.catalog import load_job
+
+        try:
+            loaded = load_job(job)
+        except (OSError, ValueError) as exc:
+            fail(str(exc))
+        if not isinstance(loaded.config, JobConfig):
+            fail(f"{job}: not a nanomanipulator-msl job (kind {loaded.kind.name!r})")
+        config = loaded.config
+    try:
+        fit = fit_noise(
+            config,
+            progress=lambda k, s, a: console.print(
+                f"run {k}: noise {s[0]:.1f} / {s[1]:.1f} nm -> axial RMS {a[0]:.1f} / {a[1]:.1f} nm"
+            ),
+        )
+    except ValueError as exc:
+        fail(str(exc))
+    ex, ey = fit.axial_error_pct
+    console.print(
+        f"noise x {fit.noise_rms_nm[0]:.1f} nm, y {fit.noise_rms_nm[1]:.1f} nm; axial RMS "
+        f"{fit.axial_rms_nm[0]:.1f} / {fit.axial_rms_nm[1]:.1f} nm ({ex:+.2f} %, {ey:+.2f} %; "
+        "seed 485.8 / 885.8); contour RMS (prediction) "
+        f"{fit.contour_rms_nm:.1f} nm ({fit.contour_error_pct:+.1f} %; seed 769.5)"
+    )
+    if write is not None:
+        src = None if config is None else config.twin.params_file
+        write_noise(fit, write, source=src)
         console.print(f"wrote {write}")

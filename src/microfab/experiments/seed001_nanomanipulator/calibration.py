@@ -190,7 +190,7 @@ def write_noise(fit: NoiseFit, path: str | Path, *, source: str | Path | None = 
         src = (
             f'noise_rms_mm_source = "calibrated: `microfab calibrate nanomanipulator` fits the '
             f"sensor noise so that the four-circle job's axial RMS is seed 001 §4.2's "
-            f"{_TARGET[a]} nm ({ax}); got {fit.axial_rms_nm[a]:.1f} nm in {fit.runs} runs\""
+            f'{_TARGET[a]} nm ({ax}); got {fit.axial_rms_nm[a]:.1f} nm in {fit.runs} runs"'
         )
         s, v = sources[a], values[a]
         lo, hi = sorted((s, v), key=lambda m: m.start())

@@ -1,0 +1,34 @@
+"""The nanomanipulator-msl job through its kind: run, summary, report and reproduction."""
+
+from __future__ import annotations
+
+import json
+
+from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS
+from microfab.experiments.kinds import no_progress
+from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig
+from microfab.experiments.seed001_nanomanipulator.run import JobConfig
+
+
+def test_job_writes_summary_and_report(tmp_path):
+    kind = JOB_KINDS["nanomanipulator-msl"]
+    cfg = JobConfig(pattern=PatternConfig(n_circles=1, periods=4))
+    res = kind.run(cfg, tmp_path, no_progress)
+    summary = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))
+    assert summary["tracking"]["gate_period"] == [c.gate_period for c in res.run.circles]
+    assert set(summary["cured_lines"][0]) >= {"gated", "compensated", "ungated"}
+    page = kind.write_report(res, tmp_path, "t")
+    text = page.read_text(encoding="utf-8")
+    for name in ("xy.png", "error_time.png", "contour_phase.png", "learning.png", "cure_1.png"):
+        assert (tmp_path / name).stat().st_size > 1000
+        assert name in text
+    assert "485.8" in text  # the seed's numbers beside ours
+    assert not res.failures()
+
+
+def test_reproduction_gives_the_seed_table():
+    rep = REPRODUCTIONS["nanomanipulator"]
+    out = rep.run(rep.parse_options({}), no_progress)
+    rows = {r[0]: r[1] for r in out.tables[0].rows}
+    assert rows["axial RMS x [nm]"].endswith("/ 485.8")
+    assert out.data["gate_period"] == [3, 3, 3, 3]
