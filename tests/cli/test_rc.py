@@ -238,3 +238,12 @@ def test_boundary_rule_follows_the_windows(tmp_path: Path, windows: tuple | None
     r = _step(tmp_path / "trial.csv", tmp_path / "state", tmp_path / "next.csv")
     assert r.exit_code == 0, r.output
     assert RCMemory.load(tmp_path / "state" / STATE_FILE).samples == samples + N
+
+
+def test_the_commands_are_listed() -> None:
+    res = runner.invoke(app, ["--help"])
+    assert res.exit_code == 0
+    rows = {ln.split()[0] for ln in res.output.splitlines() if ln.startswith("  ") and ln.split()}
+    assert {"rc", "nanomanipulator"} <= rows, res.output
+    res = runner.invoke(app, ["rc", "step", "--help"])
+    assert res.exit_code == 0 and "--tau-ms" in res.output and "╭" not in res.output
