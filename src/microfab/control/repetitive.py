@@ -538,6 +538,9 @@ class PluginRC(CompiledController):
     def state_from(self, memory: RCMemory) -> np.ndarray:
         """The controller state of a saved `RCMemory` (checked against this RC).
 
+        A memory without inner state (the file-based RC's, ``microfab rc step``, which
+        cannot know the hardware's inner controller) starts the inner controller at rest.
+
         Raises
         ------
         ValueError
@@ -555,7 +558,7 @@ class PluginRC(CompiledController):
                 f"{(self.n, self.n_axes)}"
             )
         n_inner = self.inner.init().size
-        if memory.inner.size != n_inner:
+        if memory.inner.size not in (0, n_inner):
             raise ValueError(
                 f"the saved inner controller state has {memory.inner.size} values, "
                 f"{type(self.inner).__name__} needs {n_inner}: it was saved with another "
@@ -567,7 +570,8 @@ class PluginRC(CompiledController):
         st[1 : 1 + sz] = memory.memory.ravel()
         st[1 + sz : 1 + 2 * sz] = memory.error.ravel()
         st[1 + 2 * sz : 1 + 3 * sz] = memory.error_current.ravel()
-        st[self._inner_offset :] = memory.inner
+        if memory.inner.size:  # else the file-based RC's memory: the inner loop at rest
+            st[self._inner_offset :] = memory.inner
         return st
 
     def save_state(self, state: np.ndarray, path: str | Path) -> Path:

@@ -10,6 +10,7 @@ import pytest
 
 from microfab.experiments.seed001_nanomanipulator.metrics import (
     contour_error,
+    pattern_metrics,
     period_rms,
     phase_of,
     tracking_metrics,
@@ -30,17 +31,7 @@ def _ref() -> PatternReference:
 
 def _metrics(ref: PatternReference, y: np.ndarray, laser: np.ndarray | None = None):
     on = np.zeros(ref.n_samples, bool) if laser is None else laser
-    return tracking_metrics(
-        ref.position,
-        y,
-        on,
-        starts=ref.starts,
-        period_samples=ref.period_samples,
-        periods=ref.periods,
-        centres=ref.centres,
-        radius=ref.radius_mm,
-        dt=ref.dt,
-    )
+    return pattern_metrics(ref, y, on)
 
 
 def _radial(ref: PatternReference, delta: np.ndarray | float) -> np.ndarray:

@@ -28,7 +28,7 @@ from microfab.experiments.seed001_nanomanipulator.hardware import (
 )
 from microfab.experiments.seed001_nanomanipulator.metrics import (
     TrackingMetrics,
-    tracking_metrics,
+    pattern_metrics,
 )
 from microfab.experiments.seed001_nanomanipulator.pattern import (
     PatternConfig,
@@ -201,17 +201,7 @@ def analyze_trace(
     pattern = pattern_reference(cfg, 1.0 / fs)
     check_reference(trace, pattern)
     assert trace.laser is not None
-    metrics = tracking_metrics(
-        trace.reference,
-        trace.output,
-        trace.laser,
-        starts=pattern.starts,
-        period_samples=pattern.period_samples,
-        periods=pattern.periods,
-        centres=pattern.centres,
-        radius=pattern.radius_mm,
-        dt=pattern.dt,
-    )
+    metrics = pattern_metrics(pattern, trace.output, trace.laser, reference=trace.reference)
     return Analysis(trace=trace, config=cfg, pattern=pattern, metrics=metrics)
 
 

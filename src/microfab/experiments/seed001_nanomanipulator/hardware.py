@@ -24,6 +24,7 @@ interrupted step leaves the state as it was.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -361,7 +362,9 @@ def rc_file_step(
             f"{tr.path}: this trial was learned from already (its error equals the state's "
             "last period); measure the command written by the last step"
         )
-    new = mem.after_period(err)
+    # the hardware's inner controller is not known here: the file-based memory holds none
+    # (a simulation resumed from it starts its inner controller at rest)
+    new = dataclasses.replace(mem.after_period(err), inner=np.zeros(0))
     corr = new.next_correction()
     command = tr.reference + corr
     if not np.all(np.isfinite(command)):  # pragma: no cover - finite inputs, finite update

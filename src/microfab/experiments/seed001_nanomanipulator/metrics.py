@@ -38,11 +38,13 @@ import numpy as np
 
 from microfab.core.validate import check_int, check_positive
 from microfab.experiments.seed001_nanomanipulator import paper
+from microfab.experiments.seed001_nanomanipulator.pattern import PatternReference
 from microfab.report.tables import DASH, Table, ratio, versus
 
 __all__ = [
     "TrackingMetrics",
     "contour_error",
+    "pattern_metrics",
     "period_rms",
     "phase_of",
     "tracking_metrics",
@@ -398,4 +400,37 @@ def tracking_metrics(
         starts=st,
         period_samples=N,
         dt=float(dt),
+    )
+
+
+def pattern_metrics(
+    pattern: PatternReference,
+    output: np.ndarray,
+    laser: np.ndarray,
+    *,
+    reference: np.ndarray | None = None,
+) -> TrackingMetrics:
+    """`tracking_metrics` of a job of the §4.2 pattern (circle runs, centres from it).
+
+    Parameters
+    ----------
+    pattern : PatternReference
+        The job's pattern.
+    output : numpy.ndarray
+        Measured output, mm, shape (pattern.n_samples, 2).
+    laser : numpy.ndarray
+        Laser on per sample, bool, shape (pattern.n_samples,).
+    reference : numpy.ndarray, optional
+        The reference the sensor's error is taken against (default the pattern's).
+    """
+    return tracking_metrics(
+        pattern.position if reference is None else reference,
+        output,
+        laser,
+        starts=pattern.starts,
+        period_samples=pattern.period_samples,
+        periods=pattern.periods,
+        centres=pattern.centres,
+        radius=pattern.radius_mm,
+        dt=pattern.dt,
     )
