@@ -48,7 +48,7 @@ from microfab.core.limits import MachineLimits, check_trajectory
 from microfab.core.validate import check_int, check_nonnegative, check_positive
 from microfab.experiments.seed001_nanomanipulator.metrics import (
     TrackingMetrics,
-    tracking_metrics,
+    pattern_metrics,
 )
 from microfab.experiments.seed001_nanomanipulator.pattern import (
     PatternConfig,
@@ -349,19 +349,8 @@ class JobRun:
         return self.reference.position - self.output
 
     def metrics(self) -> TrackingMetrics:
-        """Seed 001 §4.2 metrics of the measured signals (`metrics.tracking_metrics`)."""
-        r = self.reference
-        return tracking_metrics(
-            r.position,
-            self.measured,
-            self.laser,
-            starts=r.starts,
-            period_samples=r.period_samples,
-            periods=r.periods,
-            centres=r.centres,
-            radius=r.radius_mm,
-            dt=r.dt,
-        )
+        """Seed 001 §4.2 metrics of the measured signals (`metrics.pattern_metrics`)."""
+        return pattern_metrics(self.reference, self.measured, self.laser)
 
 
 # ---------------------------------------------------------------------------- running
