@@ -47,8 +47,9 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from microfab.core.validate import check_positive
-from microfab.geometry.chain import chain_segments, segment_endpoints
+from microfab.geometry.chain import _chain, segment_endpoints
 from microfab.geometry.layer import MAX_COORDINATE_M, MIN_LENGTH_M, Layer, Skipped
+from microfab.geometry.path import Path
 from microfab.geometry.segments import (
     ArcSegment,
     CurveSegment,
@@ -612,13 +613,20 @@ def read_dxf(
     with _gc_paused():
         if tol is None:
             tol = max(1e-6 * _extent(segments, starts, ends), 1e-9)
-        contours = chain_segments(segments, tol, endpoints=(starts, ends))
-    kept = [c for c in contours if c.length >= MIN_LENGTH_M]
-    for c in contours:
-        if c.length < MIN_LENGTH_M:  # a CAD artefact far below any fabrication scale
-            x, y = (float(v) for v in c.start)
-            reason = f"shorter than {MIN_LENGTH_M:g} m ({c.length:.3g} m)"
-            reader.skipped.append(Skipped("contour", reason, f"at ({x:.6g}, {y:.6g}) m"))
-    if not kept:
-        raise ValueError(f"{name}: no importable geometry; every contour is shorter than 1 nm")
-    return Layer(tuple(kept), tuple(reader.skipped), name).require_extent()
+        contours, snapped = _chain(segments, tol, (starts, ends))
+        kept: list[Path] = []
+        moved: list[int] = []  # kept contours whose segments the chaining moved
+        for c, snap in zip(contours, snapped.tolist(), strict=True):
+            if c.length >= MIN_LENGTH_M:
+                if snap:
+                    moved.append(len(kept))
+                kept.append(c)
+            elif c.length < MIN_LENGTH_M:  # a CAD artefact far below any fabrication scale
+                x, y = (float(v) for v in c.start)
+                reason = f"shorter than {MIN_LENGTH_M:g} m ({c.length:.3g} m)"
+                reader.skipped.append(Skipped("contour", reason, f"at ({x:.6g}, {y:.6g}) m"))
+        if not kept:
+            raise ValueError(f"{name}: no importable geometry; every contour is shorter than 1 nm")
+        # every segment of the other contours is an entity's, checked within the bounds
+        # by _Reader.entity (reversing keeps a segment's reach)
+        return Layer(tuple(kept), tuple(reader.skipped), name).require_extent(only=moved)

@@ -456,19 +456,31 @@ def _fit_piece(
 Segment = LineSegment | ArcSegment | CurveSegment
 
 
+#: Below this reach (m) a segment's length cannot overflow: a line's is at most 2√2 times
+#: its reach, an arc's 2π(1 + 1e-12) times, a degree-d curve's at most 2√2 d² times
+#: (Markov's bound on the derivative of a polynomial bounded by the reach on [-1, 1]), so
+#: `segment_reach` does not compute it (a curve's length needs its quadrature).
+_REACH_LENGTH_SAFE = 1e150
+
+
 def segment_reach(seg: Segment) -> float:
     """An upper bound of ``max(|x|, |y|)`` over a segment, m; inf when not finite.
 
     Cheap (no sampling): the end points of a line, the centre plus the radius of an arc,
-    the sum of the Chebyshev coefficients' magnitudes of a curve (``|T_k| <= 1``).
+    the sum of the Chebyshev coefficients' magnitudes of a curve (``|T_k| <= 1``). Also
+    inf when the segment's length is not finite, which only a reach beyond 1e150 m allows.
     """
+    # plain floats: this runs once per DXF entity and per contour, keep it cheap
     if isinstance(seg, ArcSegment):
-        r = float(np.max(np.abs(seg.center))) + seg.radius
+        cx, cy = seg.center.tolist()
+        r = max(abs(cx), abs(cy)) + seg.radius
     elif isinstance(seg, CurveSegment):
         r = float(np.max(np.sum(np.abs(seg.coef), axis=0)))
-    else:  # a line: four floats (this runs once per DXF entity, keep it cheap)
+    else:  # a line
         (a, b), (c, d) = seg.start.tolist(), seg.end.tolist()
         r = max(abs(a), abs(b), abs(c), abs(d))
+    if r <= _REACH_LENGTH_SAFE:
+        return r
     return r if math.isfinite(r) and math.isfinite(seg.length) else float("inf")
 
 
