@@ -155,6 +155,10 @@ _EZDXF_READ_ERRORS = (
 logging.getLogger("ezdxf").addHandler(logging.NullHandler())
 
 
+#: What `_Reader.line` returns: the LINE is checked and its coordinates stored
+_STORED: list[None] = [None]
+
+
 class _SkipEntityError(Exception):
     """Raised by an entity handler: the entity is skipped for the given reason."""
 
@@ -213,9 +217,12 @@ def _ref(entity: object, parent_ref: str) -> str:
     return handle if handle else parent_ref
 
 
-def _is_plus_z(entity: object) -> bool:
-    e = entity.dxf.extrusion  # type: ignore[attr-defined]
-    return e[0] == 0 and e[1] == 0 and e[2] > 0
+def _orientation(entity: object) -> tuple[float, bool]:
+    """`_plane_sign`, and whether the extrusion is exactly +z (no OCS transform needed)."""
+    ex, ey, ez = entity.dxf.extrusion  # type: ignore[attr-defined]
+    if ex == 0 and ey == 0 and ez > 0:
+        return 1.0, True
+    return _plane_sign(entity), False
 
 
 class _Reader:
@@ -241,11 +248,11 @@ class _Reader:
     # ------------------------------------------------------------------ dispatch
     def entity(self, e: object, parent_ref: str, depth: int) -> None:
         kind = e.dxftype()  # type: ignore[attr-defined]
-        if kind in ("INSERT", "MINSERT"):
-            self.insert(e, _ref(e, parent_ref), depth)
-            return
         handler = self.handlers.get(kind)
         if handler is None:
+            if kind in ("INSERT", "MINSERT"):
+                self.insert(e, _ref(e, parent_ref), depth)
+                return
             reason = _SKIP_REASONS.get(kind, "unsupported entity type")
             self.skipped.append(Skipped(kind, reason, _ref(e, parent_ref)))
             return
@@ -258,7 +265,10 @@ class _Reader:
             # corrupt values (NaN coordinates, a curve that does not fit, ...)
             self.skipped.append(Skipped(kind, f"invalid geometry: {exc}", _ref(e, parent_ref)))
             return
-        reach = max((segment_reach(s) for s in segs if s is not None), default=0.0)
+        if segs is _STORED:  # a LINE: checked, and kept as numbers until `finish`
+            self.segments.append(None)
+            return
+        reach = max(map(segment_reach, segs), default=0.0)  # type: ignore[arg-type]
         if not reach <= MAX_COORDINATE_M:
             what = f"{reach:.3g} m" if np.isfinite(reach) else "non-finite coordinates"
             self.skipped.append(
@@ -321,18 +331,19 @@ class _Reader:
             _check_flat((s.z, t.z), size, "end points")
         if size == 0:
             raise _SkipEntityError("zero length")
-        k = self.k
-        xy = (s.x * k, s.y * k, t.x * k, t.y * k)
-        if not all(map(math.isfinite, xy)):
-            return [LineSegment(xy[:2], xy[2:])]  # raises the segment's own error
-        reach = max(map(abs, xy))
-        if reach > MAX_COORDINATE_M:  # as entity() checks the other segments
+        k, limit = self.k, MAX_COORDINATE_M
+        x0, y0, x1, y1 = s.x * k, s.y * k, t.x * k, t.y * k
+        if not (abs(x0) <= limit and abs(y0) <= limit and abs(x1) <= limit and abs(y1) <= limit):
+            xy = (x0, y0, x1, y1)  # not finite, or too far: refused
+            if not all(map(math.isfinite, xy)):
+                return [LineSegment(xy[:2], xy[2:])]  # raises the segment's own error
+            reach = max(map(abs, xy))  # as entity() checks the other segments
             raise _SkipEntityError(
                 f"invalid geometry: reaches {reach:.3g} m, beyond ±{MAX_COORDINATE_M:g} m "
                 "(a corrupt value, or the wrong units?)"
             )
-        self.lines.extend(xy)
-        return [None]
+        self.lines += (x0, y0, x1, y1)
+        return _STORED
 
     def finish(self) -> tuple[list[Segment], np.ndarray, np.ndarray]:
         """The segments in drawing order (the LINEs' made in one go), and their end points.
@@ -354,7 +365,7 @@ class _Reader:
         return segs, starts, ends
 
     def arc(self, e: object) -> list[Segment]:
-        sign = _plane_sign(e)
+        sign, plus_z = _orientation(e)
         c = e.dxf.center  # type: ignore[attr-defined]
         r = float(e.dxf.radius)  # type: ignore[attr-defined]
         if not (math.isfinite(r) and r > 0):
@@ -365,7 +376,7 @@ class _Reader:
             a0 = math.radians(float(e.dxf.start_angle))  # type: ignore[attr-defined]
             span = (float(e.dxf.end_angle) - float(e.dxf.start_angle)) % 360.0  # type: ignore[attr-defined]
             sweep = math.radians(span) if span > 0 else _TWO_PI  # equal angles: full circle
-        if _is_plus_z(e):
+        if plus_z:
             cx, cy, theta0 = c.x, c.y, a0
         else:
             # OCS -> WCS: the arc runs counter-clockwise about the extrusion, i.e.
@@ -389,32 +400,46 @@ class _Reader:
         edges = range(n if closed else n - 1)
         pts = np.array(xy, dtype=float) * k  # vertices, m: one array, rows shared by edges
         pts.flags.writeable = False
-        finite = bool(np.all(np.isfinite(pts)))  # else the segments raise their own errors
-        out: list[Segment] = []
+        if not np.all(np.isfinite(pts)):  # the segments raise their errors
+            out: list[Segment] = []
+            for i in edges:
+                (x0, y0), (x1, y1) = xy[i], xy[(i + 1) % n]
+                if x0 == x1 and y0 == y1:
+                    continue
+                b = bulges[i]
+                p0, p1 = (x0 * k, y0 * k), (x1 * k, y1 * k)
+                # a bulge below 1e-12 bows the chord by less than 1e-12 of it: a line
+                straight = abs(b) <= _LINE_BULGE
+                out.append(LineSegment(p0, p1) if straight else ArcSegment.from_bulge(p0, p1, b))
+            if not out:
+                raise _SkipEntityError("all vertices coincide (zero length)")
+            return out
+        segs: list[Segment | None] = []
+        arcs: list[int] = []  # the bulged edges, made in one go below
         for i in edges:
-            (x0, y0), (x1, y1) = xy[i], xy[(i + 1) % n]
+            j = (i + 1) % n
+            (x0, y0), (x1, y1) = xy[i], xy[j]
             if x0 == x1 and y0 == y1:
                 continue
-            b = bulges[i]
-            # a bulge below 1e-12 bows the chord by less than 1e-12 of it: a line
-            straight = abs(b) <= _LINE_BULGE
-            if not finite:  # the segments raise their errors
-                p0, p1 = (x0 * k, y0 * k), (x1 * k, y1 * k)
-                out.append(LineSegment(p0, p1) if straight else ArcSegment.from_bulge(p0, p1, b))
-            elif straight:
-                out.append(LineSegment._unchecked(pts[i], pts[(i + 1) % n]))
+            if abs(bulges[i]) <= _LINE_BULGE:  # see above: a line
+                segs.append(LineSegment._unchecked(pts[i], pts[j]))
             else:
-                out.append(ArcSegment._from_bulge(x0 * k, y0 * k, x1 * k, y1 * k, float(b)))
-        if not out:
+                arcs.append(i)
+                segs.append(None)
+        if not segs:
             raise _SkipEntityError("all vertices coincide (zero length)")
-        return out
+        if arcs:
+            ends = [(i + 1) % n for i in arcs]
+            made = iter(ArcSegment.many_from_bulge(pts[arcs], pts[ends], [bulges[i] for i in arcs]))
+            segs = [next(made) if s is None else s for s in segs]
+        return segs  # type: ignore[return-value]
 
     def lwpolyline(self, e: object) -> list[Segment]:
-        sign = _plane_sign(e)
+        sign, plus_z = _orientation(e)
         # an LWPOLYLINE iterates as (x, y, start width, end width, bulge): one array
         pts = [(x, y, b) for x, y, _, _, b in np.array(list(e), dtype=float).tolist()]  # type: ignore[call-overload]
         bulges = [b * sign for _, _, b in pts]
-        if _is_plus_z(e):
+        if plus_z:
             xy = [(x, y) for x, y, _ in pts]
         else:
             elev = float(e.dxf.elevation)  # type: ignore[attr-defined]
@@ -440,11 +465,11 @@ class _Reader:
                 size = max(max(xs) - min(xs), max(ys) - min(ys))
                 _check_flat([p.z for p in loc], size, "vertices")
             return self._poly([(p.x, p.y) for p in loc], [0.0] * len(loc), closed)
-        sign = _plane_sign(e)
+        sign, plus_z = _orientation(e)
         bulges = [float(v.dxf.bulge) * sign for v in verts]
         elev = float(e.dxf.elevation.z)  # type: ignore[attr-defined]
         pts = [(v.dxf.location.x, v.dxf.location.y, elev) for v in verts]
-        if _is_plus_z(e):
+        if plus_z:
             xy = [(x, y) for x, y, _ in pts]
         else:
             xy = [(p.x, p.y) for p in e.ocs().points_to_wcs(pts)]  # type: ignore[attr-defined]
