@@ -47,7 +47,8 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from microfab.core.validate import check_positive
-from microfab.geometry.chain import _chain, segment_endpoints
+from microfab.geometry.chain import _chain
+from microfab.geometry.dxf_batch import ARC, SegmentBatch, beyond_reason
 from microfab.geometry.layer import MAX_COORDINATE_M, MIN_LENGTH_M, Layer, Skipped
 from microfab.geometry.path import Path
 from microfab.geometry.segments import (
@@ -155,8 +156,10 @@ _EZDXF_READ_ERRORS = (
 logging.getLogger("ezdxf").addHandler(logging.NullHandler())
 
 
-#: What `_Reader.line` returns: the LINE is checked and its coordinates stored
+#: What a handler returns when it has put the entity in the batch: accepted (a LINE, a
+#: polyline without bulges) or, with arcs, pending until `SegmentBatch.finish`
 _STORED: list[None] = [None]
+_PENDING: list[None] = [None]
 
 
 class _SkipEntityError(Exception):
@@ -232,8 +235,10 @@ class _Reader:
         self.k = k
         self.flatten_blocks = flatten_blocks
         # None stands for a LINE, whose segment `finish` makes with the others in one go
-        self.segments: list[Segment | None] = []
-        self.lines: list[float] = []  # x0, y0, x1, y1 (m) of every LINE, in order
+        self.batch = SegmentBatch()
+        # the batch's lists, appended to directly (see SegmentBatch)
+        self.segments, self.lines, self.arcs = self.batch.slots, self.batch.lines, self.batch.arcs
+        self._mark = self.batch.mark()  # where the polyline `_poly` puts in the batch starts
         self.skipped: list[Skipped] = []
         self.handlers: dict[str, Callable[[object], Sequence[Segment | None]]] = {
             "LINE": self.line,
@@ -265,20 +270,14 @@ class _Reader:
             # corrupt values (NaN coordinates, a curve that does not fit, ...)
             self.skipped.append(Skipped(kind, f"invalid geometry: {exc}", _ref(e, parent_ref)))
             return
-        if segs is _STORED:  # a LINE: checked, and kept as numbers until `finish`
-            self.segments.append(None)
+        if segs is _STORED:  # in the batch, checked
+            return
+        if segs is _PENDING:  # in the batch, checked but for its arcs
+            self.batch.wait(self._mark, len(self.skipped), kind, _ref(e, parent_ref))
             return
         reach = max(map(segment_reach, segs), default=0.0)  # type: ignore[arg-type]
         if not reach <= MAX_COORDINATE_M:
-            what = f"{reach:.3g} m" if np.isfinite(reach) else "non-finite coordinates"
-            self.skipped.append(
-                Skipped(
-                    kind,
-                    f"invalid geometry: reaches {what}, beyond ±{MAX_COORDINATE_M:g} m "
-                    "(a corrupt value, or the wrong units?)",
-                    _ref(e, parent_ref),
-                )
-            )
+            self.skipped.append(Skipped(kind, beyond_reason(reach), _ref(e, parent_ref)))
             return
         self.segments.extend(segs)
 
@@ -337,32 +336,10 @@ class _Reader:
             xy = (x0, y0, x1, y1)  # not finite, or too far: refused
             if not all(map(math.isfinite, xy)):
                 return [LineSegment(xy[:2], xy[2:])]  # raises the segment's own error
-            reach = max(map(abs, xy))  # as entity() checks the other segments
-            raise _SkipEntityError(
-                f"invalid geometry: reaches {reach:.3g} m, beyond ±{MAX_COORDINATE_M:g} m "
-                "(a corrupt value, or the wrong units?)"
-            )
+            raise _SkipEntityError(beyond_reason(max(map(abs, xy))))  # as entity() does
         self.lines += (x0, y0, x1, y1)
+        self.segments.append(None)
         return _STORED
-
-    def finish(self) -> tuple[list[Segment], np.ndarray, np.ndarray]:
-        """The segments in drawing order (the LINEs' made in one go), and their end points.
-
-        The end points are those of `segment_endpoints`; the LINEs' come from their
-        coordinates, the others' from the segments.
-        """
-        if not self.lines:
-            segs: list[Segment] = self.segments  # type: ignore[assignment]
-            return (segs, *segment_endpoints(segs))
-        coords = np.array(self.lines).reshape(-1, 4)
-        lines = iter(LineSegment.many(coords))
-        segs = [next(lines) if s is None else s for s in self.segments]
-        is_line = np.array([s is None for s in self.segments])
-        starts, ends = np.empty((len(segs), 2)), np.empty((len(segs), 2))
-        starts[is_line], ends[is_line] = coords[:, :2], coords[:, 2:]
-        others = np.flatnonzero(~is_line).tolist()
-        starts[others], ends[others] = segment_endpoints([segs[i] for i in others])
-        return segs, starts, ends
 
     def arc(self, e: object) -> list[Segment]:
         sign, plus_z = _orientation(e)
@@ -392,47 +369,58 @@ class _Reader:
     def _poly(
         self, xy: Sequence[tuple[float, float]], bulges: Sequence[float], closed: bool
     ) -> list[Segment]:
-        """Lines and bulge arcs through vertices (drawing units) scaled to metres."""
-        if len(xy) < 2:
-            raise _SkipEntityError(f"fewer than two vertices ({len(xy)})")
-        k = self.k
+        """Lines and bulge arcs through vertices (drawing units) scaled to metres.
+
+        Within the bounds, the edges go into the batch as numbers (`_STORED`, or
+        `_PENDING` with arcs, whose reach is only known at the end); otherwise the
+        segments are made here, to be refused.
+        """
         n = len(xy)
-        edges = range(n if closed else n - 1)
-        pts = np.array(xy, dtype=float) * k  # vertices, m: one array, rows shared by edges
-        pts.flags.writeable = False
-        if not np.all(np.isfinite(pts)):  # the segments raise their errors
-            out: list[Segment] = []
-            for i in edges:
-                (x0, y0), (x1, y1) = xy[i], xy[(i + 1) % n]
-                if x0 == x1 and y0 == y1:
-                    continue
-                b = bulges[i]
-                p0, p1 = (x0 * k, y0 * k), (x1 * k, y1 * k)
-                # a bulge below 1e-12 bows the chord by less than 1e-12 of it: a line
-                straight = abs(b) <= _LINE_BULGE
-                out.append(LineSegment(p0, p1) if straight else ArcSegment.from_bulge(p0, p1, b))
-            if not out:
-                raise _SkipEntityError("all vertices coincide (zero length)")
-            return out
-        segs: list[Segment | None] = []
-        arcs: list[int] = []  # the bulged edges, made in one go below
-        for i in edges:
-            j = (i + 1) % n
+        if n < 2:
+            raise _SkipEntityError(f"fewer than two vertices ({n})")
+        k, limit = self.k, MAX_COORDINATE_M
+        pts = [(x * k, y * k) for x, y in xy]
+        if not all(abs(x) <= limit and abs(y) <= limit for x, y in pts):  # or not finite
+            return self._poly_segments(xy, bulges, closed)
+        self._mark = self.batch.mark()
+        slots, lines, arcs = self.segments, self.lines, self.arcs
+        n_slots = len(slots)
+        with_arcs = False
+        for i in range(n if closed else n - 1):
+            j = i + 1 if i + 1 < n else 0
             (x0, y0), (x1, y1) = xy[i], xy[j]
             if x0 == x1 and y0 == y1:
                 continue
-            if abs(bulges[i]) <= _LINE_BULGE:  # see above: a line
-                segs.append(LineSegment._unchecked(pts[i], pts[j]))
+            b = bulges[i]
+            # a bulge below 1e-12 bows the chord by less than 1e-12 of it: a line
+            if abs(b) <= _LINE_BULGE:
+                lines += (*pts[i], *pts[j])
+                slots.append(None)
             else:
-                arcs.append(i)
-                segs.append(None)
-        if not segs:
+                arcs += (*pts[i], *pts[j], b)
+                slots.append(ARC)
+                with_arcs = True
+        if len(slots) == n_slots:
             raise _SkipEntityError("all vertices coincide (zero length)")
-        if arcs:
-            ends = [(i + 1) % n for i in arcs]
-            made = iter(ArcSegment.many_from_bulge(pts[arcs], pts[ends], [bulges[i] for i in arcs]))
-            segs = [next(made) if s is None else s for s in segs]
-        return segs  # type: ignore[return-value]
+        return _PENDING if with_arcs else _STORED
+
+    def _poly_segments(
+        self, xy: Sequence[tuple[float, float]], bulges: Sequence[float], closed: bool
+    ) -> list[Segment]:
+        """`_poly`'s segments made one by one (they raise their errors)."""
+        k, n = self.k, len(xy)
+        out: list[Segment] = []
+        for i in range(n if closed else n - 1):
+            (x0, y0), (x1, y1) = xy[i], xy[(i + 1) % n]
+            if x0 == x1 and y0 == y1:
+                continue
+            p0, p1, b = (x0 * k, y0 * k), (x1 * k, y1 * k), bulges[i]
+            out.append(
+                LineSegment(p0, p1) if abs(b) <= _LINE_BULGE else ArcSegment.from_bulge(p0, p1, b)
+            )
+        if not out:
+            raise _SkipEntityError("all vertices coincide (zero length)")
+        return out
 
     def lwpolyline(self, e: object) -> list[Segment]:
         sign, plus_z = _orientation(e)
@@ -549,15 +537,18 @@ def _gc_paused() -> Iterator[None]:
             gc.enable()
 
 
-def _extent(segments: Sequence[Segment], starts: np.ndarray, ends: np.ndarray) -> float:
-    """Largest side of a box around the segments' end points and arcs' circles, m."""
+def _extent(others: Sequence[Segment], starts: np.ndarray, ends: np.ndarray) -> float:
+    """Largest side of a box around the segments' end points and arcs' circles, m.
+
+    ``others`` are the segments other than lines (lines add no more than their ends).
+    """
     pts = [starts, ends]
-    arcs = [s for s in segments if isinstance(s, ArcSegment)]
+    arcs = [s for s in others if isinstance(s, ArcSegment)]
     if arcs:
         c = np.array([s.center for s in arcs])
         r = np.array([s.radius for s in arcs])[:, None]
         pts += [c - r, c + r]
-    curves = [s for s in segments if isinstance(s, CurveSegment)]
+    curves = [s for s in others if isinstance(s, CurveSegment)]
     if curves:
         pts.append(np.array([s.point(np.array([0.5]))[0] for s in curves]))
     allp = np.vstack(pts)
@@ -627,7 +618,7 @@ def read_dxf(
         for e in doc.modelspace():
             reader.entity(e, "", 0)
         del doc
-        segments, starts, ends = reader.finish()
+        segments, starts, ends, others = reader.batch.finish(reader.skipped)
 
     if not segments:
         counts = Counter(s.kind for s in reader.skipped)
@@ -637,7 +628,7 @@ def read_dxf(
         raise ValueError(f"{name}: no importable geometry; skipped: {what}")
     with _gc_paused():
         if tol is None:
-            tol = max(1e-6 * _extent(segments, starts, ends), 1e-9)
+            tol = max(1e-6 * _extent(others, starts, ends), 1e-9)
         contours, snapped = _chain(segments, tol, (starts, ends))
         kept: list[Path] = []
         moved: list[int] = []  # kept contours whose segments the chaining moved

@@ -27,7 +27,15 @@ from numpy.polynomial import chebyshev as cheb
 
 from microfab.core.validate import check_finite, check_positive
 
-__all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment", "segment_bbox", "segment_reach"]
+__all__ = [
+    "ArcSegment",
+    "CurveSegment",
+    "LineSegment",
+    "Segment",
+    "bulge_arc_numbers",
+    "segment_bbox",
+    "segment_reach",
+]
 
 GL_X, GL_W = np.polynomial.legendre.leggauss(10)
 N_PANELS = 16
@@ -194,53 +202,19 @@ class ArcSegment:
         return cls.from_numbers(cx, cy, radius, theta0, sweep)
 
     @classmethod
-    def many_from_bulge(cls, p0: object, p1: object, bulge: object) -> list[ArcSegment]:
-        """`from_bulge` of many arcs in one go: rows of ``p0``, ``p1`` (m, 2), m; ``bulge`` (m,).
+    def _many_checked(
+        cls, center: np.ndarray, radius: np.ndarray, theta0: np.ndarray, sweep: np.ndarray
+    ) -> list[ArcSegment]:
+        """Arcs from rows of numbers that `from_numbers` accepts, made in one go.
 
-        The same operations as `from_bulge`, element by element, so the same arcs to the
-        bit; the centres are read-only views of one array. If any row is invalid, the
-        arcs are made one by one, and the first invalid one raises `from_bulge`'s error.
+        ``center`` (m, 2), m; ``radius``, ``theta0``, ``sweep`` (m,). The centres are
+        read-only views of one copy of ``center``.
         """
-        a = np.array(p0, dtype=float).reshape(-1, 2)
-        b = np.array(p1, dtype=float).reshape(-1, 2)
-        w = np.array(bulge, dtype=float).reshape(-1)
-        if not (a.shape == b.shape and w.shape == (a.shape[0],)):
-            raise ValueError(
-                f"p0 and p1 must be shaped (m, 2) and bulge (m,), got {a.shape}, "
-                f"{b.shape} and {w.shape}"
-            )
-        ax, ay, bx, by = a[:, 0], a[:, 1], b[:, 0], b[:, 1]
-        chx, chy = bx - ax, by - ay
-        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # checked below
-            c = np.hypot(chx, chy)
-            sweep = 4.0 * np.arctan(w)
-            radius = c / (2.0 * np.abs(np.sin(sweep / 2.0)))
-            apothem = c / 2.0 / np.tan(sweep / 2.0)
-            center = np.empty((w.size, 2))
-            center[:, 0] = (ax + bx) / 2.0 + apothem * (-chy / c)
-            center[:, 1] = (ay + by) / 2.0 + apothem * (chx / c)
-            theta0 = np.arctan2(ay - center[:, 1], ax - center[:, 0])
-            ok = (
-                np.isfinite(a).all(axis=1)
-                & np.isfinite(b).all(axis=1)
-                & np.isfinite(w)
-                & (w != 0)
-                & (sweep != 0)
-                & (c != 0)
-                & np.isfinite(radius)
-                & (radius > 0)
-                & np.isfinite(center).all(axis=1)
-                & np.isfinite(theta0)
-                & (np.abs(sweep) <= 2 * np.pi * (1 + 1e-12))
-            )
-        if not ok.all():  # one by one: the first invalid arc raises its error
-            return [cls.from_bulge(p, q, v) for p, q, v in zip(a, b, w.tolist(), strict=True)]
-        center.flags.writeable = False
+        c = np.array(center, dtype=float).reshape(-1, 2)
+        c.flags.writeable = False
         out = []
         new = object.__new__
-        for cen, r, t0, sw in zip(
-            center, radius.tolist(), theta0.tolist(), sweep.tolist(), strict=True
-        ):
+        for cen, r, t0, sw in zip(c, radius.tolist(), theta0.tolist(), sweep.tolist(), strict=True):
             arc = new(cls)
             attrs = arc.__dict__  # checked as __post_init__ does: set the fields
             attrs["center"], attrs["radius"], attrs["theta0"], attrs["sweep"] = cen, r, t0, sw
@@ -330,6 +304,59 @@ class ArcSegment:
             theta0 = float(np.arctan2(s0[1] - c[1], s0[0] - c[0]))
             return [ArcSegment(c, self.radius * k, theta0, -self.sweep if mirror else self.sweep)]
         return CurveSegment.from_function(self._mapped(Am, bv))
+
+
+def bulge_arc_numbers(
+    p0: np.ndarray, p1: np.ndarray, bulge: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The numbers of the arcs `ArcSegment.from_bulge` makes, many at once.
+
+    The same operations as `ArcSegment.from_bulge`, element by element, so the same
+    numbers to the bit.
+
+    Parameters
+    ----------
+    p0, p1 : numpy.ndarray
+        Start and end points, shape (m, 2), m.
+    bulge : numpy.ndarray
+        DXF bulges ``tan(sweep / 4)``, shape (m,).
+
+    Returns
+    -------
+    center : numpy.ndarray
+        Shape (m, 2), m.
+    radius, theta0, sweep : numpy.ndarray
+        Shape (m,): m, rad, rad.
+    ok : numpy.ndarray of bool
+        Shape (m,): where `ArcSegment.from_bulge` makes the arc (elsewhere it raises, and
+        the numbers are meaningless).
+    """
+    ax, ay, bx, by = p0[:, 0], p0[:, 1], p1[:, 0], p1[:, 1]
+    w = bulge
+    chx, chy = bx - ax, by - ay
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # checked below
+        c = np.hypot(chx, chy)
+        sweep = 4.0 * np.arctan(w)
+        radius = c / (2.0 * np.abs(np.sin(sweep / 2.0)))
+        apothem = c / 2.0 / np.tan(sweep / 2.0)
+        center = np.empty((w.size, 2))
+        center[:, 0] = (ax + bx) / 2.0 + apothem * (-chy / c)
+        center[:, 1] = (ay + by) / 2.0 + apothem * (chx / c)
+        theta0 = np.arctan2(ay - center[:, 1], ax - center[:, 0])
+        ok = (
+            np.isfinite(p0).all(axis=1)
+            & np.isfinite(p1).all(axis=1)
+            & np.isfinite(w)
+            & (w != 0)
+            & (c != 0)
+            & np.isfinite(radius)
+            & (radius > 0)
+            & np.isfinite(center).all(axis=1)
+            & np.isfinite(theta0)
+            & (sweep != 0)
+            & (np.abs(sweep) <= 2 * np.pi * (1 + 1e-12))
+        )
+    return center, radius, theta0, sweep, ok
 
 
 def _bezier_to_cheb(ctrl: np.ndarray) -> np.ndarray:
