@@ -310,7 +310,7 @@ def _chain(
     needs_snap = inexact[0::2] | inexact[1::2]
 
     seq, fwd, off, cyc = _walk_chains(partner_arr)
-    seq_l, fwd_l, off_l, cyc_l = seq.tolist(), fwd.tolist(), off.tolist(), cyc.tolist()
+    seq_l, fwd_l, off_l = seq.tolist(), fwd.tolist(), off.tolist()
     snap_l = np.logical_or.reduceat(needs_snap[seq], off[:-1]).tolist()
     # every piece in chain order; segment seq[off[c]] of a cycle, its lowest index, runs
     # as given
@@ -323,25 +323,37 @@ def _chain(
             piece_len[j] = pieces[j].length
     breaks = _chain_breaks(piece_len, off)
     breaks.setflags(write=False)
+    # a single arc or curve is closed when its ends lie within tol and it is longer than
+    # 2 tol (a single line never is)
+    ones = [
+        c
+        for c in np.flatnonzero(np.diff(off) == 1).tolist()
+        if not isinstance(pieces[off_l[c]], LineSegment)
+    ]
+    try_snap = snap_l
+    if ones:
+        first = off[ones]
+        k = seq[first]
+        d = ends[k] - starts[k]
+        cyc[ones] = (np.hypot(d[:, 0], d[:, 1]) <= tol) & (piece_len[first] > 2.0 * tol)
+        for c in ones:
+            if cyc[c] and not _full_circle(pieces[off_l[c]]):
+                try_snap[c] = True
+    cyc_l = cyc.tolist()
     gap_tol = tol * (1.0 + _GAP_SLACK)
-    out: list[Path] = []
-    plain = np.zeros(len(cyc_l), dtype=bool)  # chains as linked, checked all at once below
-    for c, closed in enumerate(cyc_l):
-        lo, hi = off_l[c], off_l[c + 1]
-        chain = pieces[lo:hi]
-        if hi - lo == 1 and not isinstance(chain[0], LineSegment):
-            k = seq_l[lo]
-            s0, e0 = starts[k], ends[k]
-            closed = bool(np.hypot(*(e0 - s0)) <= tol) and chain[0].length > 2.0 * tol
-            cyc[c] = closed
-        if (closed and hi - lo == 1 and not _full_circle(chain[0])) or snap_l[c]:
-            snapped = _snap(chain, closed)
-            if snapped is not chain:
-                out.append(Path(tuple(snapped), closed=closed, gap_tol=gap_tol))
-                continue
-        plain[c] = True
-        # breaks of chain c: the arc length at its pieces' starts and at its end
-        out.append(Path._checked(tuple(chain), closed, gap_tol, breaks[lo + c : hi + c + 1]))
+    # the chains as linked (checked all at once below); chain c's breaks, the arc length at
+    # its pieces' starts and at its end, at off[c] + c in `breaks`
+    out = [
+        Path._checked(tuple(pieces[lo:hi]), closed, gap_tol, breaks[lo + c : hi + c + 1])
+        for c, (lo, hi, closed) in enumerate(zip(off_l, off_l[1:], cyc_l, strict=False))
+    ]
+    plain = np.ones(len(cyc_l), dtype=bool)
+    for c in [c for c, t in enumerate(try_snap) if t]:
+        chain = pieces[off_l[c] : off_l[c + 1]]
+        snapped = _snap(chain, cyc_l[c])
+        if snapped is not chain:
+            out[c] = Path(tuple(snapped), closed=cyc_l[c], gap_tol=gap_tol)
+            plain[c] = False
     _check_plain(out, plain, seq, fwd, off, cyc, segs, starts, ends, gap_tol)
     return out, ~plain
 
