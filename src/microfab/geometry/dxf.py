@@ -48,7 +48,7 @@ import numpy as np
 
 from microfab.core.validate import check_positive
 from microfab.geometry.chain import _chain
-from microfab.geometry.dxf_batch import ARC, SegmentBatch, beyond_reason
+from microfab.geometry.dxf_batch import LINE_BULGE, SegmentBatch, beyond_reason, extent
 from microfab.geometry.layer import MAX_COORDINATE_M, MIN_LENGTH_M, Layer, Skipped
 from microfab.geometry.path import Path
 from microfab.geometry.segments import (
@@ -101,7 +101,6 @@ UNITS_M: dict[str, float] = {
     "foot": 0.3048,
 }
 
-_LINE_BULGE = 1e-12  # |bulge| up to this is a straight segment (sagitta < 1e-12 chord)
 _MAX_DEPTH = 32  # block nesting depth; deeper means a recursive block definition
 _FLAT_RTOL = 1e-9  # relative tolerance on z and on the extrusion's tilt
 _TWO_PI = 2.0 * math.pi
@@ -234,11 +233,10 @@ class _Reader:
     def __init__(self, k: float, flatten_blocks: bool) -> None:
         self.k = k
         self.flatten_blocks = flatten_blocks
-        # None stands for a LINE, whose segment `finish` makes with the others in one go
         self.batch = SegmentBatch()
-        # the batch's lists, appended to directly (see SegmentBatch)
-        self.segments, self.lines, self.arcs = self.batch.slots, self.batch.lines, self.batch.arcs
-        self._mark = self.batch.mark()  # where the polyline `_poly` puts in the batch starts
+        # the batch's slots and lines, appended to directly (see SegmentBatch)
+        self.segments, self.lines = self.batch.slots, self.batch.lines
+        self._mark = self.batch.mark()  # where what `_poly` puts in the batch starts
         self.skipped: list[Skipped] = []
         self.handlers: dict[str, Callable[[object], Sequence[Segment | None]]] = {
             "LINE": self.line,
@@ -371,38 +369,16 @@ class _Reader:
     ) -> list[Segment]:
         """Lines and bulge arcs through vertices (drawing units) scaled to metres.
 
-        Within the bounds, the edges go into the batch as numbers (`_STORED`, or
-        `_PENDING` with arcs, whose reach is only known at the end); otherwise the
-        segments are made here, to be refused.
+        Held in the batch as numbers when it takes them (`_STORED`, or `_PENDING` with
+        arcs, whose reach is only known at the end); else made here, to be refused.
         """
-        n = len(xy)
-        if n < 2:
-            raise _SkipEntityError(f"fewer than two vertices ({n})")
-        k, limit = self.k, MAX_COORDINATE_M
-        pts = [(x * k, y * k) for x, y in xy]
-        if not all(abs(x) <= limit and abs(y) <= limit for x, y in pts):  # or not finite
-            return self._poly_segments(xy, bulges, closed)
+        if len(xy) < 2:
+            raise _SkipEntityError(f"fewer than two vertices ({len(xy)})")
         self._mark = self.batch.mark()
-        slots, lines, arcs = self.segments, self.lines, self.arcs
-        n_slots = len(slots)
-        with_arcs = False
-        for i in range(n if closed else n - 1):
-            j = i + 1 if i + 1 < n else 0
-            (x0, y0), (x1, y1) = xy[i], xy[j]
-            if x0 == x1 and y0 == y1:
-                continue
-            b = bulges[i]
-            # a bulge below 1e-12 bows the chord by less than 1e-12 of it: a line
-            if abs(b) <= _LINE_BULGE:
-                lines += (*pts[i], *pts[j])
-                slots.append(None)
-            else:
-                arcs += (*pts[i], *pts[j], b)
-                slots.append(ARC)
-                with_arcs = True
-        if len(slots) == n_slots:
-            raise _SkipEntityError("all vertices coincide (zero length)")
-        return _PENDING if with_arcs else _STORED
+        held = self.batch.add_polyline(xy, bulges, closed, self.k)
+        if held is None:
+            return self._poly_segments(xy, bulges, closed)
+        return _PENDING if held else _STORED
 
     def _poly_segments(
         self, xy: Sequence[tuple[float, float]], bulges: Sequence[float], closed: bool
@@ -416,7 +392,7 @@ class _Reader:
                 continue
             p0, p1, b = (x0 * k, y0 * k), (x1 * k, y1 * k), bulges[i]
             out.append(
-                LineSegment(p0, p1) if abs(b) <= _LINE_BULGE else ArcSegment.from_bulge(p0, p1, b)
+                LineSegment(p0, p1) if abs(b) <= LINE_BULGE else ArcSegment.from_bulge(p0, p1, b)
             )
         if not out:
             raise _SkipEntityError("all vertices coincide (zero length)")
@@ -537,24 +513,6 @@ def _gc_paused() -> Iterator[None]:
             gc.enable()
 
 
-def _extent(others: Sequence[Segment], starts: np.ndarray, ends: np.ndarray) -> float:
-    """Largest side of a box around the segments' end points and arcs' circles, m.
-
-    ``others`` are the segments other than lines (lines add no more than their ends).
-    """
-    pts = [starts, ends]
-    arcs = [s for s in others if isinstance(s, ArcSegment)]
-    if arcs:
-        c = np.array([s.center for s in arcs])
-        r = np.array([s.radius for s in arcs])[:, None]
-        pts += [c - r, c + r]
-    curves = [s for s in others if isinstance(s, CurveSegment)]
-    if curves:
-        pts.append(np.array([s.point(np.array([0.5]))[0] for s in curves]))
-    allp = np.vstack(pts)
-    return float(np.max(np.ptp(allp, axis=0)))
-
-
 def read_dxf(
     path: str | os.PathLike[str],
     *,
@@ -628,7 +586,7 @@ def read_dxf(
         raise ValueError(f"{name}: no importable geometry; skipped: {what}")
     with _gc_paused():
         if tol is None:
-            tol = max(1e-6 * _extent(others, starts, ends), 1e-9)
+            tol = max(1e-6 * extent(others, starts, ends), 1e-9)
         contours, snapped = _chain(segments, tol, (starts, ends))
         kept: list[Path] = []
         moved: list[int] = []  # kept contours whose segments the chaining moved

@@ -18,6 +18,7 @@ have put it.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,13 +27,14 @@ from microfab.geometry.chain import segment_endpoints
 from microfab.geometry.layer import MAX_COORDINATE_M, Skipped
 from microfab.geometry.segments import (
     ArcSegment,
+    CurveSegment,
     LineSegment,
     Segment,
     bulge_arc_numbers,
     segment_reach,
 )
 
-__all__ = ["ARC", "SegmentBatch", "beyond_reason"]
+__all__ = ["ARC", "LINE_BULGE", "SegmentBatch", "beyond_reason", "extent"]
 
 
 class _ArcSlot:
@@ -46,6 +48,10 @@ class _ArcSlot:
 
 #: Placeholder in `SegmentBatch.slots` for an arc held as numbers (a line's is None).
 ARC = _ArcSlot()
+
+#: A polyline edge whose |bulge| is at most this is straight: its sagitta is below 1e-12 of
+#: its chord (assumed: far below a drawing's precision).
+LINE_BULGE = 1e-12
 
 
 def beyond_reason(reach: float) -> str:
@@ -106,6 +112,51 @@ class SegmentBatch:
                 skip_at=skip_at, kind=kind, ref=ref, slots=(s0, s1), lines=(l0, l1), arcs=(a0, a1)
             )
         )
+
+    def add_polyline(
+        self, xy: Sequence[tuple[float, float]], bulges: Sequence[float], closed: bool, k: float
+    ) -> bool | None:
+        """Hold a polyline's edges: lines, and arcs where ``|bulge| > LINE_BULGE``.
+
+        Parameters
+        ----------
+        xy : sequence of (float, float)
+            The vertices, drawing units; edges between coinciding vertices are dropped.
+        bulges : sequence of float
+            Each vertex's bulge (of the edge it starts).
+        closed : bool
+            Whether an edge joins the last vertex to the first.
+        k : float
+            Metres per drawing unit.
+
+        Returns
+        -------
+        bool or None
+            Whether arcs are held (the polyline must then `wait`); None when nothing is
+            held: a vertex is not finite or lies beyond ``±MAX_COORDINATE_M``, or there
+            is no edge (the caller makes the segments, to be refused).
+        """
+        limit, n = MAX_COORDINATE_M, len(xy)
+        pts = [(x * k, y * k) for x, y in xy]
+        if not all(abs(x) <= limit and abs(y) <= limit for x, y in pts):  # or not finite
+            return None
+        slots, lines, arcs = self.slots, self.lines, self.arcs
+        n_slots = len(slots)
+        with_arcs = False
+        for i in range(n if closed else n - 1):
+            j = i + 1 if i + 1 < n else 0
+            (x0, y0), (x1, y1) = xy[i], xy[j]
+            if x0 == x1 and y0 == y1:
+                continue
+            b = bulges[i]
+            if abs(b) <= LINE_BULGE:
+                lines += (*pts[i], *pts[j])
+                slots.append(None)
+            else:
+                arcs += (*pts[i], *pts[j], b)
+                slots.append(ARC)
+                with_arcs = True
+        return with_arcs if len(slots) > n_slots else None
 
     def finish(
         self, skipped: list[Skipped]
@@ -194,3 +245,26 @@ class SegmentBatch:
         if not reach <= MAX_COORDINATE_M:
             return beyond_reason(reach)
         return segs
+
+
+def extent(others: Sequence[Segment], starts: np.ndarray, ends: np.ndarray) -> float:
+    """Largest side of a box around the segments' end points and arcs' circles, m.
+
+    Parameters
+    ----------
+    others : sequence of Segment
+        The segments other than lines (a line adds no more than its ends).
+    starts, ends : numpy.ndarray
+        All the segments' end points, shape (n, 2), m.
+    """
+    pts = [starts, ends]
+    arcs = [s for s in others if isinstance(s, ArcSegment)]
+    if arcs:
+        c = np.array([s.center for s in arcs])
+        r = np.array([s.radius for s in arcs])[:, None]
+        pts += [c - r, c + r]
+    curves = [s for s in others if isinstance(s, CurveSegment)]
+    if curves:
+        pts.append(np.array([s.point(np.array([0.5]))[0] for s in curves]))
+    allp = np.vstack(pts)
+    return float(np.max(np.ptp(allp, axis=0)))
