@@ -258,7 +258,8 @@ def _segment_lengths(
     segments: Sequence[Segment], starts: np.ndarray, ends: np.ndarray
 ) -> np.ndarray:
     """Each segment's ``length`` (to the bit), m: a line's from its end points, at once."""
-    d = ends - starts
+    with np.errstate(over="ignore"):  # absurd coordinates: an infinite length, as the line's
+        d = ends - starts
     # math.hypot, as LineSegment.length (numpy's hypot differs in the last bit at times)
     lengths = np.array(list(map(math.hypot, d[:, 0].tolist(), d[:, 1].tolist())))
     for i, s in enumerate(segments):

@@ -97,7 +97,7 @@ class SegmentBatch:
         self._pending: list[_Pending] = []
 
     def mark(self) -> tuple[int, int, int]:
-        """Numbers of slots, lines and arcs so far: where an entity's own start."""
+        """Numbers of slots, lines and arcs so far: where the next entity's start."""
         return len(self.slots), len(self.lines) // 4, len(self.arcs) // 5
 
     def wait(self, mark: tuple[int, int, int], skip_at: int, kind: str, ref: str) -> None:
@@ -181,7 +181,7 @@ class SegmentBatch:
         rows = np.array(self.arcs, dtype=float).reshape(-1, 5)
         center, radius, theta0, sweep, ok = bulge_arc_numbers(rows[:, :2], rows[:, 2:4], rows[:, 4])
         with np.errstate(over="ignore", invalid="ignore"):
-            # an arc's reach as `segment_reach` has it (its length is finite when ok)
+            # each arc's reach, as `segment_reach` gives it wherever it is within the bounds
             reach = np.maximum(np.abs(center[:, 0]), np.abs(center[:, 1])) + radius
         good = ok & (reach <= MAX_COORDINATE_M)
         slots = self.slots
