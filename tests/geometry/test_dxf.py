@@ -614,3 +614,15 @@ def test_contours_shorter_than_a_nanometre_are_skipped(tmp_path):
     assert len(layer) == 1
     assert [s.kind for s in layer.skipped] == ["contour"]
     assert "shorter than 1e-09 m" in layer.skipped[0].reason
+
+
+def test_a_contour_moved_beyond_a_kilometre_by_snapping_is_refused(tmp_path):
+    # a half circle touching x = 1000 m whose end is snapped 1.4e-4 m out to a short arc:
+    # its refitted circle reaches past 1000 m (each entity alone lies within)
+    doc, msp = new_doc(6)
+    msp.add_arc((999.5, 0.0), 0.5, 270, 90)
+    msp.add_arc((999.5001 - 0.1, 0.5001), 0.1, 0, 30)
+    p = save(doc, tmp_path, "edge.dxf")
+    assert len(read_dxf(p)) == 2  # not joined at the default tolerance (1e-6 of the size)
+    with pytest.raises(ValueError, match=r"^edge\.dxf: contour #0 has coordinates up to 1e\+03 m"):
+        read_dxf(p, tol=1e-3)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.geometry.chain import chain_segments, segment_endpoints
+from microfab.geometry.chain import _chain, chain_segments, segment_endpoints
 from microfab.geometry.path import Path
 from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment
 
@@ -86,6 +86,7 @@ def test_chained_paths_equal_those_the_path_constructor_builds() -> None:
         assert plain.closed == p.closed and plain.gap_tol == p.gap_tol
         assert len(plain.segments) == len(p.segments)
         assert all(same_segment(a, b) for a, b in zip(plain.segments, p.segments, strict=True))
+        assert np.array_equal(plain.breaks, p.breaks) and not p.breaks.flags.writeable
     again = chain_segments(segs, tol, endpoints=segment_endpoints(segs))
     assert len(again) == len(paths)
     for p, q in zip(paths, again, strict=True):
@@ -107,3 +108,32 @@ def test_segment_endpoints_of_a_subclass_and_of_a_non_segment() -> None:
     np.testing.assert_allclose(e[1], (-1, 0), atol=1e-15)
     with pytest.raises(TypeError, match="not a segment"):
         segment_endpoints([object()])  # type: ignore[list-item]
+
+
+def test_chain_tells_the_snapped_paths_and_gives_the_others_their_breaks() -> None:
+    gap = 1e-10  # within the tolerance, above rounding noise: snapped
+    segs = scattered()
+    for x in (100.0, 103.0):
+        segs += [
+            LineSegment((x, 0), (x + 1, 0)),
+            LineSegment((x + 1, 0), (x + 1, 1 + gap * (x == 103.0))),
+            LineSegment((x + 1, 1), (x, 1)),
+            LineSegment((x, 1), (x, 0)),
+        ]
+    segs.append(ArcSegment((110.0, 0.0), 0.5, 0.0, 2 * np.pi - 1e-2))  # open by 5e-3 m
+    segs.append(ArcSegment((112.0, 0.0), 0.5, 0.0, 2 * np.pi - 1e-10))  # closed within tol
+    paths, snapped = _chain(segs, 1e-9)
+    assert snapped.shape == (len(paths),)
+
+    def given(s: object) -> bool:
+        return any(same_segment(s, g) or same_segment(s, g.reversed()) for g in segs)
+
+    for p, moved in zip(paths, snapped.tolist(), strict=True):
+        assert moved == (not all(given(s) for s in p.segments))
+        # the breaks of a chain as linked come with it, those of a snapped one when asked
+        assert ("breaks" in vars(p)) == (not moved)
+        fresh = Path(p.segments, closed=p.closed, gap_tol=p.gap_tol)
+        assert np.array_equal(p.breaks, fresh.breaks) and p.length == fresh.length
+    # the square with a gap is snapped, nothing else (a near-full circle keeps its gap)
+    assert snapped.sum() == 1 and paths[int(np.argmax(snapped))].closed
+    assert [p.closed for p in paths[-2:]] == [False, True] and not snapped[-2:].any()

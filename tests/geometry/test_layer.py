@@ -79,6 +79,18 @@ def test_require_extent_refuses_empty_absurd_and_tiny_layers() -> None:
     assert ok.require_extent() is ok
 
 
+def test_require_extent_only_checks_the_named_contours() -> None:
+    far = Layer((circle(0.01), circle(1.0, center=(2e3, 0.0)), square(1e-12)), source="f")
+    assert far.require_extent(only=[0]) is far  # a reader vouches for the others
+    assert far.require_extent(only=()) is far
+    with pytest.raises(ValueError, match=r"f: contour #1 has coordinates up to 2e\+03 m"):
+        far.require_extent(only=[2, 1])  # the lowest index first, as a full check
+    with pytest.raises(ValueError, match=r"f: contour #2 is 4e-12 m long"):
+        far.require_extent(only=[2])
+    with pytest.raises(ValueError, match="no contours"):
+        Layer(()).require_extent(only=())
+
+
 @pytest.mark.parametrize(
     "spec, match",
     [

@@ -35,6 +35,7 @@ Rules
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -250,26 +251,54 @@ def chain_segments(
     >>> [p.closed for p in chain_segments(sq, 1e-9)]
     [True]
     """
+    return _chain(segments, tol, endpoints)[0]
+
+
+def _segment_lengths(
+    segments: Sequence[Segment], starts: np.ndarray, ends: np.ndarray
+) -> np.ndarray:
+    """Each segment's ``length`` (to the bit), m: a line's from its end points, at once."""
+    with np.errstate(over="ignore"):  # absurd coordinates: an infinite length, as the line's
+        d = ends - starts
+    # math.hypot, as LineSegment.length (numpy's hypot differs in the last bit at times)
+    lengths = np.array(list(map(math.hypot, d[:, 0].tolist(), d[:, 1].tolist())))
+    for i, s in enumerate(segments):
+        if not isinstance(s, LineSegment):
+            # an arc's radius times sweep is its length; a curve's is its quadrature
+            lengths[i] = s.radius * abs(s.sweep) if isinstance(s, ArcSegment) else s.length
+    return lengths
+
+
+def _chain(
+    segments: Sequence[Segment],
+    tol: float,
+    endpoints: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[list[Path], np.ndarray]:
+    """`chain_segments`, and which paths hold snapped (moved) segments.
+
+    Returns
+    -------
+    paths : list of Path
+        As `chain_segments` returns them.
+    snapped : numpy.ndarray of bool
+        Shape (len(paths),): True where the path's segments were moved to close gaps;
+        the others' are the given segments, some reversed (same reach, same lengths).
+    """
     tol = check_positive("chaining tolerance tol", tol, "m")
     starts, ends = segment_endpoints(segments) if endpoints is None else endpoints
     if starts.shape != (len(segments), 2) or ends.shape != starts.shape:
         raise ValueError(f"endpoints must be two ({len(segments)}, 2) arrays")
-    # zero length: a line whose ends coincide (its length is their distance), an arc by
-    # radius times sweep (its length), a curve by its length
-    moved = np.any(starts != ends, axis=1).tolist()
-    keep = [
-        m
-        if isinstance(s, LineSegment)
-        else (s.radius * abs(s.sweep) > 0 if isinstance(s, ArcSegment) else s.length > 0)
-        for s, m in zip(segments, moved, strict=True)
-    ]
+    # zero length: a line whose ends coincide (its length, their distance, is 0 exactly
+    # then and only then), an arc by radius times sweep, a curve by its length
+    lengths = _segment_lengths(segments, starts, ends)
+    keep = lengths > 0
     segs = list(segments)
-    if not all(keep):
-        segs = [s for s, k in zip(segments, keep, strict=True) if k]
-        starts, ends = starts[keep], ends[keep]
+    if not keep.all():
+        segs = [s for s, k in zip(segments, keep.tolist(), strict=True) if k]
+        starts, ends, lengths = starts[keep], ends[keep], lengths[keep]
     n = len(segs)
     if n == 0:
-        return []
+        return [], np.zeros(0, dtype=bool)
     points = np.empty((2 * n, 2))
     points[0::2] = starts
     points[1::2] = ends
@@ -282,32 +311,71 @@ def chain_segments(
     needs_snap = inexact[0::2] | inexact[1::2]
 
     seq, fwd, off, cyc = _walk_chains(partner_arr)
-    seq_l, off_l, cyc_l = seq.tolist(), off.tolist(), cyc.tolist()
+    seq_l, fwd_l, off_l = seq.tolist(), fwd.tolist(), off.tolist()
     snap_l = np.logical_or.reduceat(needs_snap[seq], off[:-1]).tolist()
     # every piece in chain order; segment seq[off[c]] of a cycle, its lowest index, runs
     # as given
-    pieces = [
-        segs[k] if f else segs[k].reversed() for k, f in zip(seq_l, fwd.tolist(), strict=True)
+    pieces = [segs[k] if f else segs[k].reversed() for k, f in zip(seq_l, fwd_l, strict=True)]
+    # the pieces' lengths: a reversed line or arc has its segment's to the bit, a
+    # reversed curve its own quadrature
+    piece_len = lengths[seq]
+    for j in np.flatnonzero(~fwd).tolist():
+        if isinstance(pieces[j], CurveSegment):
+            piece_len[j] = pieces[j].length
+    breaks = _chain_breaks(piece_len, off)
+    breaks.setflags(write=False)
+    # a single arc or curve is closed when its ends lie within tol and it is longer than
+    # 2 tol (a single line never is)
+    ones = [
+        c
+        for c in np.flatnonzero(np.diff(off) == 1).tolist()
+        if not isinstance(pieces[off_l[c]], LineSegment)
     ]
+    try_snap = snap_l
+    if ones:
+        first = off[ones]
+        k = seq[first]
+        d = ends[k] - starts[k]
+        cyc[ones] = (np.hypot(d[:, 0], d[:, 1]) <= tol) & (piece_len[first] > 2.0 * tol)
+        for c in ones:
+            if cyc[c] and not _full_circle(pieces[off_l[c]]):
+                try_snap[c] = True
+    cyc_l = cyc.tolist()
     gap_tol = tol * (1.0 + _GAP_SLACK)
-    out: list[Path] = []
-    plain = np.zeros(len(cyc_l), dtype=bool)  # chains as linked, checked all at once below
-    for c, closed in enumerate(cyc_l):
-        lo, hi = off_l[c], off_l[c + 1]
-        chain = pieces[lo:hi]
-        if hi - lo == 1 and not isinstance(chain[0], LineSegment):
-            k = seq_l[lo]
-            s0, e0 = starts[k], ends[k]
-            closed = bool(np.hypot(*(e0 - s0)) <= tol) and chain[0].length > 2.0 * tol
-            cyc[c] = closed
-        if (closed and hi - lo == 1 and not _full_circle(chain[0])) or snap_l[c]:
-            snapped = _snap(chain, closed)
-            if snapped is not chain:
-                out.append(Path(tuple(snapped), closed=closed, gap_tol=gap_tol))
-                continue
-        plain[c] = True
-        out.append(Path._checked(tuple(chain), closed, gap_tol))
+    # the chains as linked (checked all at once below); chain c's breaks, the arc length at
+    # its pieces' starts and at its end, at off[c] + c in `breaks`
+    out = [
+        Path._checked(tuple(pieces[lo:hi]), closed, gap_tol, breaks[lo + c : hi + c + 1])
+        for c, (lo, hi, closed) in enumerate(zip(off_l, off_l[1:], cyc_l, strict=False))
+    ]
+    plain = np.ones(len(cyc_l), dtype=bool)
+    for c in [c for c, t in enumerate(try_snap) if t]:
+        chain = pieces[off_l[c] : off_l[c + 1]]
+        snapped = _snap(chain, cyc_l[c])
+        if snapped is not chain:
+            out[c] = Path(tuple(snapped), closed=cyc_l[c], gap_tol=gap_tol)
+            plain[c] = False
     _check_plain(out, plain, seq, fwd, off, cyc, segs, starts, ends, gap_tol)
+    return out, ~plain
+
+
+@njit(cache=True)
+def _chain_breaks(lengths: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """Each chain's `Path.breaks`, one after another (chain c at ``off[c] + c``).
+
+    ``0`` and then the running sum of the chain's piece lengths, added in order as
+    ``numpy.cumsum`` adds them, so that they equal the breaks a `Path` computes.
+    """
+    n_chains = off.size - 1
+    out = np.empty(lengths.size + n_chains)
+    for c in range(n_chains):
+        at = off[c] + c
+        acc = 0.0
+        out[at] = acc
+        for j in range(off[c], off[c + 1]):
+            acc += lengths[j]
+            at += 1
+            out[at] = acc
     return out
 
 

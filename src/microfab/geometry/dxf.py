@@ -47,8 +47,10 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from microfab.core.validate import check_positive
-from microfab.geometry.chain import chain_segments, segment_endpoints
+from microfab.geometry.chain import _chain
+from microfab.geometry.dxf_batch import LINE_BULGE, SegmentBatch, beyond_reason, extent
 from microfab.geometry.layer import MAX_COORDINATE_M, MIN_LENGTH_M, Layer, Skipped
+from microfab.geometry.path import Path
 from microfab.geometry.segments import (
     ArcSegment,
     CurveSegment,
@@ -99,7 +101,6 @@ UNITS_M: dict[str, float] = {
     "foot": 0.3048,
 }
 
-_LINE_BULGE = 1e-12  # |bulge| up to this is a straight segment (sagitta < 1e-12 chord)
 _MAX_DEPTH = 32  # block nesting depth; deeper means a recursive block definition
 _FLAT_RTOL = 1e-9  # relative tolerance on z and on the extrusion's tilt
 _TWO_PI = 2.0 * math.pi
@@ -152,6 +153,12 @@ _EZDXF_READ_ERRORS = (
 # ezdxf reports the repairs it makes (duplicate handles, ...) through logging; without a
 # handler Python prints them on stderr, which would break a command's one-line error.
 logging.getLogger("ezdxf").addHandler(logging.NullHandler())
+
+
+#: What a handler returns when it has put the entity in the batch: accepted (a LINE, a
+#: polyline without bulges) or, with arcs, pending until `SegmentBatch.finish`
+_STORED: list[None] = [None]
+_PENDING: list[None] = [None]
 
 
 class _SkipEntityError(Exception):
@@ -212,9 +219,12 @@ def _ref(entity: object, parent_ref: str) -> str:
     return handle if handle else parent_ref
 
 
-def _is_plus_z(entity: object) -> bool:
-    e = entity.dxf.extrusion  # type: ignore[attr-defined]
-    return e[0] == 0 and e[1] == 0 and e[2] > 0
+def _orientation(entity: object) -> tuple[float, bool]:
+    """`_plane_sign`, and whether the extrusion is exactly +z (no OCS transform needed)."""
+    ex, ey, ez = entity.dxf.extrusion  # type: ignore[attr-defined]
+    if ex == 0 and ey == 0 and ez > 0:
+        return 1.0, True
+    return _plane_sign(entity), False
 
 
 class _Reader:
@@ -223,9 +233,10 @@ class _Reader:
     def __init__(self, k: float, flatten_blocks: bool) -> None:
         self.k = k
         self.flatten_blocks = flatten_blocks
-        # None stands for a LINE, whose segment `finish` makes with the others in one go
-        self.segments: list[Segment | None] = []
-        self.lines: list[float] = []  # x0, y0, x1, y1 (m) of every LINE, in order
+        self.batch = SegmentBatch()
+        # the batch's slots and lines, appended to directly (see SegmentBatch)
+        self.segments, self.lines = self.batch.slots, self.batch.lines
+        self._mark = self.batch.mark()  # where what `_poly` puts in the batch starts
         self.skipped: list[Skipped] = []
         self.handlers: dict[str, Callable[[object], Sequence[Segment | None]]] = {
             "LINE": self.line,
@@ -240,11 +251,11 @@ class _Reader:
     # ------------------------------------------------------------------ dispatch
     def entity(self, e: object, parent_ref: str, depth: int) -> None:
         kind = e.dxftype()  # type: ignore[attr-defined]
-        if kind in ("INSERT", "MINSERT"):
-            self.insert(e, _ref(e, parent_ref), depth)
-            return
         handler = self.handlers.get(kind)
         if handler is None:
+            if kind in ("INSERT", "MINSERT"):
+                self.insert(e, _ref(e, parent_ref), depth)
+                return
             reason = _SKIP_REASONS.get(kind, "unsupported entity type")
             self.skipped.append(Skipped(kind, reason, _ref(e, parent_ref)))
             return
@@ -257,17 +268,14 @@ class _Reader:
             # corrupt values (NaN coordinates, a curve that does not fit, ...)
             self.skipped.append(Skipped(kind, f"invalid geometry: {exc}", _ref(e, parent_ref)))
             return
-        reach = max((segment_reach(s) for s in segs if s is not None), default=0.0)
+        if segs is _STORED:  # in the batch, checked
+            return
+        if segs is _PENDING:  # in the batch, checked but for its arcs
+            self.batch.wait(self._mark, len(self.skipped), kind, _ref(e, parent_ref))
+            return
+        reach = max(map(segment_reach, segs), default=0.0)  # type: ignore[arg-type]
         if not reach <= MAX_COORDINATE_M:
-            what = f"{reach:.3g} m" if np.isfinite(reach) else "non-finite coordinates"
-            self.skipped.append(
-                Skipped(
-                    kind,
-                    f"invalid geometry: reaches {what}, beyond ±{MAX_COORDINATE_M:g} m "
-                    "(a corrupt value, or the wrong units?)",
-                    _ref(e, parent_ref),
-                )
-            )
+            self.skipped.append(Skipped(kind, beyond_reason(reach), _ref(e, parent_ref)))
             return
         self.segments.extend(segs)
 
@@ -320,40 +328,19 @@ class _Reader:
             _check_flat((s.z, t.z), size, "end points")
         if size == 0:
             raise _SkipEntityError("zero length")
-        k = self.k
-        xy = (s.x * k, s.y * k, t.x * k, t.y * k)
-        if not all(map(math.isfinite, xy)):
-            return [LineSegment(xy[:2], xy[2:])]  # raises the segment's own error
-        reach = max(map(abs, xy))
-        if reach > MAX_COORDINATE_M:  # as entity() checks the other segments
-            raise _SkipEntityError(
-                f"invalid geometry: reaches {reach:.3g} m, beyond ±{MAX_COORDINATE_M:g} m "
-                "(a corrupt value, or the wrong units?)"
-            )
-        self.lines.extend(xy)
-        return [None]
-
-    def finish(self) -> tuple[list[Segment], np.ndarray, np.ndarray]:
-        """The segments in drawing order (the LINEs' made in one go), and their end points.
-
-        The end points are those of `segment_endpoints`; the LINEs' come from their
-        coordinates, the others' from the segments.
-        """
-        if not self.lines:
-            segs: list[Segment] = self.segments  # type: ignore[assignment]
-            return (segs, *segment_endpoints(segs))
-        coords = np.array(self.lines).reshape(-1, 4)
-        lines = iter(LineSegment.many(coords))
-        segs = [next(lines) if s is None else s for s in self.segments]
-        is_line = np.array([s is None for s in self.segments])
-        starts, ends = np.empty((len(segs), 2)), np.empty((len(segs), 2))
-        starts[is_line], ends[is_line] = coords[:, :2], coords[:, 2:]
-        others = np.flatnonzero(~is_line).tolist()
-        starts[others], ends[others] = segment_endpoints([segs[i] for i in others])
-        return segs, starts, ends
+        k, limit = self.k, MAX_COORDINATE_M
+        x0, y0, x1, y1 = s.x * k, s.y * k, t.x * k, t.y * k
+        if not (abs(x0) <= limit and abs(y0) <= limit and abs(x1) <= limit and abs(y1) <= limit):
+            xy = (x0, y0, x1, y1)  # not finite, or too far: refused
+            if not all(map(math.isfinite, xy)):
+                return [LineSegment(xy[:2], xy[2:])]  # raises the segment's own error
+            raise _SkipEntityError(beyond_reason(max(map(abs, xy))))  # as entity() does
+        self.lines += (x0, y0, x1, y1)
+        self.segments.append(None)
+        return _STORED
 
     def arc(self, e: object) -> list[Segment]:
-        sign = _plane_sign(e)
+        sign, plus_z = _orientation(e)
         c = e.dxf.center  # type: ignore[attr-defined]
         r = float(e.dxf.radius)  # type: ignore[attr-defined]
         if not (math.isfinite(r) and r > 0):
@@ -364,7 +351,7 @@ class _Reader:
             a0 = math.radians(float(e.dxf.start_angle))  # type: ignore[attr-defined]
             span = (float(e.dxf.end_angle) - float(e.dxf.start_angle)) % 360.0  # type: ignore[attr-defined]
             sweep = math.radians(span) if span > 0 else _TWO_PI  # equal angles: full circle
-        if _is_plus_z(e):
+        if plus_z:
             cx, cy, theta0 = c.x, c.y, a0
         else:
             # OCS -> WCS: the arc runs counter-clockwise about the extrusion, i.e.
@@ -380,40 +367,43 @@ class _Reader:
     def _poly(
         self, xy: Sequence[tuple[float, float]], bulges: Sequence[float], closed: bool
     ) -> list[Segment]:
-        """Lines and bulge arcs through vertices (drawing units) scaled to metres."""
+        """Lines and bulge arcs through vertices (drawing units) scaled to metres.
+
+        Held in the batch as numbers when it takes them (`_STORED`, or `_PENDING` with
+        arcs, whose reach is only known at the end); else made here, to be refused.
+        """
         if len(xy) < 2:
             raise _SkipEntityError(f"fewer than two vertices ({len(xy)})")
-        k = self.k
-        n = len(xy)
-        edges = range(n if closed else n - 1)
-        pts = np.array(xy, dtype=float) * k  # vertices, m: one array, rows shared by edges
-        pts.flags.writeable = False
-        finite = bool(np.all(np.isfinite(pts)))  # else the segments raise their own errors
+        self._mark = self.batch.mark()
+        held = self.batch.add_polyline(xy, bulges, closed, self.k)
+        if held is None:
+            return self._poly_segments(xy, bulges, closed)
+        return _PENDING if held else _STORED
+
+    def _poly_segments(
+        self, xy: Sequence[tuple[float, float]], bulges: Sequence[float], closed: bool
+    ) -> list[Segment]:
+        """`_poly`'s segments made one by one (they raise their errors)."""
+        k, n = self.k, len(xy)
         out: list[Segment] = []
-        for i in edges:
+        for i in range(n if closed else n - 1):
             (x0, y0), (x1, y1) = xy[i], xy[(i + 1) % n]
             if x0 == x1 and y0 == y1:
                 continue
-            b = bulges[i]
-            # a bulge below 1e-12 bows the chord by less than 1e-12 of it: a line
-            straight = abs(b) <= _LINE_BULGE
-            if not finite:  # the segments raise their errors
-                p0, p1 = (x0 * k, y0 * k), (x1 * k, y1 * k)
-                out.append(LineSegment(p0, p1) if straight else ArcSegment.from_bulge(p0, p1, b))
-            elif straight:
-                out.append(LineSegment._unchecked(pts[i], pts[(i + 1) % n]))
-            else:
-                out.append(ArcSegment._from_bulge(x0 * k, y0 * k, x1 * k, y1 * k, float(b)))
+            p0, p1, b = (x0 * k, y0 * k), (x1 * k, y1 * k), bulges[i]
+            out.append(
+                LineSegment(p0, p1) if abs(b) <= LINE_BULGE else ArcSegment.from_bulge(p0, p1, b)
+            )
         if not out:
             raise _SkipEntityError("all vertices coincide (zero length)")
         return out
 
     def lwpolyline(self, e: object) -> list[Segment]:
-        sign = _plane_sign(e)
+        sign, plus_z = _orientation(e)
         # an LWPOLYLINE iterates as (x, y, start width, end width, bulge): one array
         pts = [(x, y, b) for x, y, _, _, b in np.array(list(e), dtype=float).tolist()]  # type: ignore[call-overload]
         bulges = [b * sign for _, _, b in pts]
-        if _is_plus_z(e):
+        if plus_z:
             xy = [(x, y) for x, y, _ in pts]
         else:
             elev = float(e.dxf.elevation)  # type: ignore[attr-defined]
@@ -439,11 +429,11 @@ class _Reader:
                 size = max(max(xs) - min(xs), max(ys) - min(ys))
                 _check_flat([p.z for p in loc], size, "vertices")
             return self._poly([(p.x, p.y) for p in loc], [0.0] * len(loc), closed)
-        sign = _plane_sign(e)
+        sign, plus_z = _orientation(e)
         bulges = [float(v.dxf.bulge) * sign for v in verts]
         elev = float(e.dxf.elevation.z)  # type: ignore[attr-defined]
         pts = [(v.dxf.location.x, v.dxf.location.y, elev) for v in verts]
-        if _is_plus_z(e):
+        if plus_z:
             xy = [(x, y) for x, y, _ in pts]
         else:
             xy = [(p.x, p.y) for p in e.ocs().points_to_wcs(pts)]  # type: ignore[attr-defined]
@@ -523,21 +513,6 @@ def _gc_paused() -> Iterator[None]:
             gc.enable()
 
 
-def _extent(segments: Sequence[Segment], starts: np.ndarray, ends: np.ndarray) -> float:
-    """Largest side of a box around the segments' end points and arcs' circles, m."""
-    pts = [starts, ends]
-    arcs = [s for s in segments if isinstance(s, ArcSegment)]
-    if arcs:
-        c = np.array([s.center for s in arcs])
-        r = np.array([s.radius for s in arcs])[:, None]
-        pts += [c - r, c + r]
-    curves = [s for s in segments if isinstance(s, CurveSegment)]
-    if curves:
-        pts.append(np.array([s.point(np.array([0.5]))[0] for s in curves]))
-    allp = np.vstack(pts)
-    return float(np.max(np.ptp(allp, axis=0)))
-
-
 def read_dxf(
     path: str | os.PathLike[str],
     *,
@@ -601,7 +576,7 @@ def read_dxf(
         for e in doc.modelspace():
             reader.entity(e, "", 0)
         del doc
-        segments, starts, ends = reader.finish()
+        segments, starts, ends, others = reader.batch.finish(reader.skipped)
 
     if not segments:
         counts = Counter(s.kind for s in reader.skipped)
@@ -611,14 +586,21 @@ def read_dxf(
         raise ValueError(f"{name}: no importable geometry; skipped: {what}")
     with _gc_paused():
         if tol is None:
-            tol = max(1e-6 * _extent(segments, starts, ends), 1e-9)
-        contours = chain_segments(segments, tol, endpoints=(starts, ends))
-    kept = [c for c in contours if c.length >= MIN_LENGTH_M]
-    for c in contours:
-        if c.length < MIN_LENGTH_M:  # a CAD artefact far below any fabrication scale
-            x, y = (float(v) for v in c.start)
-            reason = f"shorter than {MIN_LENGTH_M:g} m ({c.length:.3g} m)"
-            reader.skipped.append(Skipped("contour", reason, f"at ({x:.6g}, {y:.6g}) m"))
-    if not kept:
-        raise ValueError(f"{name}: no importable geometry; every contour is shorter than 1 nm")
-    return Layer(tuple(kept), tuple(reader.skipped), name).require_extent()
+            tol = max(1e-6 * extent(others, starts, ends), 1e-9)
+        contours, snapped = _chain(segments, tol, (starts, ends))
+        kept: list[Path] = []
+        moved: list[int] = []  # kept contours whose segments the chaining moved
+        for c, snap in zip(contours, snapped.tolist(), strict=True):
+            if c.length >= MIN_LENGTH_M:
+                if snap:
+                    moved.append(len(kept))
+                kept.append(c)
+            elif c.length < MIN_LENGTH_M:  # a CAD artefact far below any fabrication scale
+                x, y = (float(v) for v in c.start)
+                reason = f"shorter than {MIN_LENGTH_M:g} m ({c.length:.3g} m)"
+                reader.skipped.append(Skipped("contour", reason, f"at ({x:.6g}, {y:.6g}) m"))
+        if not kept:
+            raise ValueError(f"{name}: no importable geometry; every contour is shorter than 1 nm")
+        # every segment of the other contours is an entity's, checked within the bounds
+        # by _Reader.entity (reversing keeps a segment's reach)
+        return Layer(tuple(kept), tuple(reader.skipped), name).require_extent(only=moved)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -132,13 +132,19 @@ class Layer:
             raise ValueError("the layer has no contours")
         return self
 
-    def require_extent(self, limit_m: float = MAX_COORDINATE_M) -> Layer:
+    def require_extent(
+        self, limit_m: float = MAX_COORDINATE_M, *, only: Iterable[int] | None = None
+    ) -> Layer:
         """Return the layer if it has contours, all within ``±limit_m`` and not too short.
 
         Parameters
         ----------
         limit_m : float
             Largest coordinate allowed, m (default `MAX_COORDINATE_M`).
+        only : iterable of int, optional
+            Indices of the contours to check, for a reader that has checked the others
+            (every one of their segments within ``limit_m``, their lengths at least
+            `MIN_LENGTH_M`); all of them by default.
 
         Raises
         ------
@@ -151,7 +157,8 @@ class Layer:
         if not self.contours:
             skipped = f" (skipped: {len(self.skipped)} item(s))" if self.skipped else ""
             raise ValueError(f"{src}: no contours to draw{skipped}")
-        for i, c in enumerate(self.contours):
+        for i in range(len(self.contours)) if only is None else sorted(only):
+            c = self.contours[i]
             reach = max(segment_reach(s) for s in c.segments)
             if not reach <= limit_m:
                 what = f"coordinates up to {reach:.3g} m"

@@ -172,17 +172,28 @@ class Path:
 
     # ----------------------------------------------------------------- construction
     @classmethod
-    def _checked(cls, segments: tuple[Segment, ...], closed: bool, gap_tol: float) -> Path:
+    def _checked(
+        cls,
+        segments: tuple[Segment, ...],
+        closed: bool,
+        gap_tol: float,
+        breaks: np.ndarray | None = None,
+    ) -> Path:
         """The path `Path(segments, closed, gap_tol)` makes, for a caller that has checked it.
 
         For builders of many paths (:func:`~microfab.geometry.chain.chain_segments`) that
         check all their chains at once: every segment is a `LineSegment`, `ArcSegment`
-        or `CurveSegment` of nonzero length, and the gaps are within ``gap_tol``.
+        or `CurveSegment` of nonzero length, and the gaps are within ``gap_tol``. The
+        caller may pass the `breaks` too, read-only, as `breaks` computes them (to the
+        bit: 0, then the running sum of the segments' lengths in order).
         """
         path = object.__new__(cls)
-        object.__setattr__(path, "segments", segments)
-        object.__setattr__(path, "closed", closed)
-        object.__setattr__(path, "gap_tol", gap_tol)
+        attrs = path.__dict__  # frozen: set the fields as __init__ would
+        attrs["segments"] = segments
+        attrs["closed"] = closed
+        attrs["gap_tol"] = gap_tol
+        if breaks is not None:
+            attrs["breaks"] = breaks  # the cached property's value
         return path
 
     @classmethod

@@ -27,7 +27,15 @@ from numpy.polynomial import chebyshev as cheb
 
 from microfab.core.validate import check_finite, check_positive
 
-__all__ = ["ArcSegment", "CurveSegment", "LineSegment", "Segment", "segment_bbox", "segment_reach"]
+__all__ = [
+    "ArcSegment",
+    "CurveSegment",
+    "LineSegment",
+    "Segment",
+    "bulge_arc_numbers",
+    "segment_bbox",
+    "segment_reach",
+]
 
 GL_X, GL_W = np.polynomial.legendre.leggauss(10)
 N_PANELS = 16
@@ -194,6 +202,26 @@ class ArcSegment:
         return cls.from_numbers(cx, cy, radius, theta0, sweep)
 
     @classmethod
+    def _many_checked(
+        cls, center: np.ndarray, radius: np.ndarray, theta0: np.ndarray, sweep: np.ndarray
+    ) -> list[ArcSegment]:
+        """Arcs from rows of numbers that `from_numbers` accepts, made in one go.
+
+        ``center`` (m, 2), m; ``radius``, ``theta0``, ``sweep`` (m,). The centres are
+        read-only views of one copy of ``center``.
+        """
+        c = np.array(center, dtype=float).reshape(-1, 2)
+        c.flags.writeable = False
+        out = []
+        new = object.__new__
+        for cen, r, t0, sw in zip(c, radius.tolist(), theta0.tolist(), sweep.tolist(), strict=True):
+            arc = new(cls)
+            attrs = arc.__dict__  # checked as __post_init__ does: set the fields
+            attrs["center"], attrs["radius"], attrs["theta0"], attrs["sweep"] = cen, r, t0, sw
+            out.append(arc)
+        return out
+
+    @classmethod
     def from_numbers(
         cls, cx: float, cy: float, radius: float, theta0: float, sweep: float
     ) -> ArcSegment:
@@ -276,6 +304,59 @@ class ArcSegment:
             theta0 = float(np.arctan2(s0[1] - c[1], s0[0] - c[0]))
             return [ArcSegment(c, self.radius * k, theta0, -self.sweep if mirror else self.sweep)]
         return CurveSegment.from_function(self._mapped(Am, bv))
+
+
+def bulge_arc_numbers(
+    p0: np.ndarray, p1: np.ndarray, bulge: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The numbers of the arcs `ArcSegment.from_bulge` makes, many at once.
+
+    The same operations as `ArcSegment.from_bulge`, element by element, so the same
+    numbers to the bit.
+
+    Parameters
+    ----------
+    p0, p1 : numpy.ndarray
+        Start and end points, shape (m, 2), m.
+    bulge : numpy.ndarray
+        DXF bulges ``tan(sweep / 4)``, shape (m,).
+
+    Returns
+    -------
+    center : numpy.ndarray
+        Shape (m, 2), m.
+    radius, theta0, sweep : numpy.ndarray
+        Shape (m,): m, rad, rad.
+    ok : numpy.ndarray of bool
+        Shape (m,): where `ArcSegment.from_bulge` makes the arc (elsewhere it raises, and
+        the numbers are meaningless).
+    """
+    ax, ay, bx, by = p0[:, 0], p0[:, 1], p1[:, 0], p1[:, 1]
+    w = bulge
+    chx, chy = bx - ax, by - ay
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # checked below
+        c = np.hypot(chx, chy)
+        sweep = 4.0 * np.arctan(w)
+        radius = c / (2.0 * np.abs(np.sin(sweep / 2.0)))
+        apothem = c / 2.0 / np.tan(sweep / 2.0)
+        center = np.empty((w.size, 2))
+        center[:, 0] = (ax + bx) / 2.0 + apothem * (-chy / c)
+        center[:, 1] = (ay + by) / 2.0 + apothem * (chx / c)
+        theta0 = np.arctan2(ay - center[:, 1], ax - center[:, 0])
+        ok = (
+            np.isfinite(p0).all(axis=1)
+            & np.isfinite(p1).all(axis=1)
+            & np.isfinite(w)
+            & (w != 0)
+            & (c != 0)
+            & np.isfinite(radius)
+            & (radius > 0)
+            & np.isfinite(center).all(axis=1)
+            & np.isfinite(theta0)
+            & (sweep != 0)
+            & (np.abs(sweep) <= 2 * np.pi * (1 + 1e-12))
+        )
+    return center, radius, theta0, sweep, ok
 
 
 def _bezier_to_cheb(ctrl: np.ndarray) -> np.ndarray:
@@ -456,19 +537,31 @@ def _fit_piece(
 Segment = LineSegment | ArcSegment | CurveSegment
 
 
+#: Below this reach (m) a segment's length cannot overflow: a line's is at most 2√2 times
+#: its reach, an arc's 2π(1 + 1e-12) times, a degree-d curve's at most 2√2 d² times
+#: (Markov's bound on the derivative of a polynomial bounded by the reach on [-1, 1]), so
+#: `segment_reach` does not compute it (a curve's length needs its quadrature).
+_REACH_LENGTH_SAFE = 1e150
+
+
 def segment_reach(seg: Segment) -> float:
     """An upper bound of ``max(|x|, |y|)`` over a segment, m; inf when not finite.
 
     Cheap (no sampling): the end points of a line, the centre plus the radius of an arc,
-    the sum of the Chebyshev coefficients' magnitudes of a curve (``|T_k| <= 1``).
+    the sum of the Chebyshev coefficients' magnitudes of a curve (``|T_k| <= 1``). Also
+    inf when the segment's length is not finite, which only a reach beyond 1e150 m allows.
     """
+    # plain floats: this runs once per DXF entity and per contour, keep it cheap
     if isinstance(seg, ArcSegment):
-        r = float(np.max(np.abs(seg.center))) + seg.radius
+        cx, cy = seg.center.tolist()
+        r = max(abs(cx), abs(cy)) + seg.radius
     elif isinstance(seg, CurveSegment):
         r = float(np.max(np.sum(np.abs(seg.coef), axis=0)))
-    else:  # a line: four floats (this runs once per DXF entity, keep it cheap)
+    else:  # a line
         (a, b), (c, d) = seg.start.tolist(), seg.end.tolist()
         r = max(abs(a), abs(b), abs(c), abs(d))
+    if r <= _REACH_LENGTH_SAFE:
+        return r
     return r if math.isfinite(r) and math.isfinite(seg.length) else float("inf")
 
 
