@@ -205,6 +205,8 @@ def test_rbf_kernel_equals_python_loop():
     )
     log = ctl.replay(p, v, a, fast.measured)
     np.testing.assert_allclose(log.command, fast.command, rtol=0, atol=1e-15)
+    # the state's s accessor reads what the kernel logged last
+    np.testing.assert_array_equal(ctl.error_function(fast.final_state.controller), log.s[-1])
 
 
 def test_ce_kernel_equals_python_loop_and_tracks():

@@ -290,6 +290,11 @@ class RBFAdaptive(CompiledController):
         nl = self.n_nodes
         return np.array(state[: N_AXES * nl]).reshape(N_AXES, nl)
 
+    def error_function(self, state: np.ndarray) -> np.ndarray:
+        """``s = λe + ė`` of both axes at the last sample, mm/s, shape (2,) (a copy)."""
+        isv = _layout(self.n_nodes)[3]
+        return np.array(state[isv : isv + N_AXES])
+
     def step(
         self, state: np.ndarray, window: ReferenceWindow, measurement: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:

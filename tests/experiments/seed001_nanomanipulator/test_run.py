@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -12,6 +13,7 @@ from microfab.experiments.seed001_nanomanipulator.cure import cure_circles
 from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig
 from microfab.experiments.seed001_nanomanipulator.run import (
     JobConfig,
+    RCSettings,
     TwinSettings,
     job_segments,
     run_job,
@@ -78,8 +80,11 @@ def test_rc_converges_below_the_first_period(default_run):
     assert np.all(m.period_rms_nm[:, -1] < 0.7 * m.period_rms_nm[:, 0])
 
 
-def test_resume_after_interruption_is_bit_identical(tmp_path):
-    whole = run_job(SMALL)
+@pytest.mark.parametrize("carry", [False, True])
+def test_resume_after_interruption_is_bit_identical(tmp_path, carry):
+    # 5 chunks: the first transfer and circle 1; circle 2 then starts after the resume
+    config = dataclasses.replace(SMALL, rc=RCSettings(carry=carry))
+    whole = run_job(config)
 
     class StopError(Exception):
         pass
@@ -89,8 +94,8 @@ def test_resume_after_interruption_is_bit_identical(tmp_path):
             raise StopError
 
     with pytest.raises(StopError):
-        run_job(SMALL, tmp_path, stop_after)
-    again = run_job(SMALL, tmp_path)
+        run_job(config, tmp_path, stop_after)
+    again = run_job(config, tmp_path)
     assert again.resumed_from == 5
     for name in ("output", "measured", "command", "laser", "weight_norm", "s"):
         np.testing.assert_array_equal(getattr(again, name), getattr(whole, name), err_msg=name)
@@ -109,8 +114,6 @@ def test_another_config_refuses_the_saved_run(tmp_path):
 
 
 def test_carry_seeds_the_next_circle(tmp_path):
-    from microfab.experiments.seed001_nanomanipulator.run import RCSettings
-
     plain = run_job(SMALL)
     carried = run_job(JobConfig(pattern=SMALL.pattern, rc=RCSettings(carry=True)))
     m0, m1 = plain.metrics(), carried.metrics()

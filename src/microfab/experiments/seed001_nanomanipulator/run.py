@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -361,7 +360,6 @@ class _Saved:
     chunk: int
     loop: LoopState | None
     gate: np.ndarray | None
-    carry: RCMemory | None
 
 
 def _chunks(segs: tuple[Segment, ...], n_period: int) -> list[tuple[int, int, int]]:
@@ -460,6 +458,26 @@ class _Runner:
             starts=tuple(s0 + j * self.N for j in range(self.ref.periods)),
         )
 
+    def carried_state(
+        self,
+        ctrl: PluginRC,
+        k: int,
+        previous: np.ndarray,
+        measured: np.ndarray,
+        command: np.ndarray,
+    ) -> np.ndarray:
+        """Start state of circle segment ``k`` whose RC memory is the last circle's final one.
+
+        ``previous`` is the final controller state of the circle before; the memory keeps
+        its phase (every circle starts at the same angle), the RBF starts afresh.
+        """
+        j = max(i for i in range(k) if self.segs[i].circle is not None)
+        last = self.controller(j, measured, command)
+        memory = last.memory_of(previous)
+        return ctrl.state_from(
+            dataclasses.replace(memory, config=ctrl.config, samples=0, inner=ctrl.inner.init())
+        )
+
     def rbf_of(self, ctrl: Any) -> RBFAdaptive:
         return ctrl.inner if isinstance(ctrl, PluginRC) else ctrl
 
@@ -484,13 +502,6 @@ def _save(path: Path, saved: _Saved, fingerprint: str) -> None:
         }
     if saved.gate is not None:
         arrays["gate"] = saved.gate
-    if saved.carry is not None:
-        arrays["carry_memory"] = saved.carry.memory
-        arrays["carry_error"] = saved.carry.error
-        arrays["carry_current"] = saved.carry.error_current
-        arrays["carry_inner"] = saved.carry.inner
-        arrays["carry_samples"] = np.int64(saved.carry.samples)
-        arrays["carry_config"] = np.array(json.dumps(saved.carry.config.to_json()))
     atomic_save_npz(path, **arrays)
 
 
@@ -514,21 +525,8 @@ def _load(path: Path, fingerprint: str) -> _Saved:
                 observer=np.zeros(0),
                 command=z["command"].copy(),
             )
-        carry = None
-        if "carry_memory" in z:
-            carry = RCMemory(
-                config=RCConfig.from_json(json.loads(str(z["carry_config"]))),
-                memory=z["carry_memory"].copy(),
-                error=z["carry_error"].copy(),
-                error_current=z["carry_current"].copy(),
-                samples=int(z["carry_samples"]),
-                inner=z["carry_inner"].copy(),
-            )
         return _Saved(
-            chunk=int(z["chunk"]),
-            loop=loop,
-            gate=z["gate"].copy() if "gate" in z else None,
-            carry=carry,
+            chunk=int(z["chunk"]), loop=loop, gate=z["gate"].copy() if "gate" in z else None
         )
 
 
@@ -572,7 +570,7 @@ def run_job(
     fp = cfg.fingerprint()
     run_dir = None if out is None else Path(out) / "run"
     state_file = None if run_dir is None else run_dir / "state.npz"
-    saved = _Saved(chunk=0, loop=None, gate=None, carry=None)
+    saved = _Saved(chunk=0, loop=None, gate=None)
     if state_file is not None and state_file.exists():
         saved = _load(state_file, fp)
         assert run_dir is not None
@@ -591,7 +589,7 @@ def run_job(
                 if "final_controller" in z:
                     finals[int(z["final_circle"])] = z["final_controller"].copy()
     resumed = saved.chunk
-    state, gate_state, carry = saved.loop, saved.gate, saved.carry
+    state, gate_state = saved.loop, saved.gate
     task = "nanomanipulator job"
     total = len(run.chunks)
     if progress:
@@ -600,31 +598,16 @@ def run_job(
         k, a, b = run.chunks[c]
         seg = run.segs[k]
         ctrl = run.controller(k, YM, U)
-        first = a == seg.start
-        if first:
+        if a == seg.start:  # a new controller takes over the plant where it is
             cst = ctrl.init()
             if seg.circle is not None:
                 gate_state = None
-                if carry is not None and isinstance(ctrl, PluginRC):
-                    cst = ctrl.state_from(
-                        dataclasses.replace(
-                            carry, config=ctrl.config, samples=0, inner=ctrl.inner.init()
-                        )
-                    )
-            state = (
-                None
-                if state is None
-                else LoopState(
-                    plant=state.plant, controller=cst, observer=np.zeros(0), command=state.command
-                )
+                if cfg.rc.carry and seg.circle > 0 and isinstance(ctrl, PluginRC):
+                    cst = run.carried_state(ctrl, k, finals[seg.circle - 1], YM, U)
+            plant0, cmd0 = (
+                (run.plant.init(), np.zeros(2)) if state is None else (state.plant, state.command)
             )
-            if state is None:
-                state = LoopState(
-                    plant=run.plant.init(),
-                    controller=cst,
-                    observer=np.zeros(0),
-                    command=np.zeros(2),
-                )
+            state = LoopState(plant=plant0, controller=cst, observer=np.zeros(0), command=cmd0)
         li, lw, ls = [], [], []
         step = cfg.log_every if seg.circle is not None else b - a
         p = a
@@ -645,19 +628,15 @@ def run_job(
                 inner = run.inner_state(ctrl, state.controller)
                 li.append(q - 1)
                 lw.append(np.linalg.norm(rbf.weights(inner), axis=1))
-                nl = rbf.n_nodes
-                # state layout of RBFAdaptive: [..., z(6), s(2), v(2)] at the end
-                ls.append(inner[-4:-2].copy() if nl else np.zeros(2))
+                ls.append(rbf.error_function(inner))
             p = q
         if seg.circle is not None:
             g = run.gate_config(seg)
-            gr = run_gate((ref.position - YM)[a:b], g, gate_state)
+            gr = run_gate(ref.position[a:b] - YM[a:b], g, gate_state)
             laser[a:b] = gr.laser
             gate_state = gr.state
             if b == seg.stop:
                 finals[seg.circle] = state.controller.copy()
-                if cfg.rc.carry and isinstance(ctrl, PluginRC):
-                    carry = ctrl.memory_of(state.controller)
         log_i += li
         log_w += lw
         log_s += ls
@@ -680,7 +659,7 @@ def run_job(
                 **last,
             )
             assert state_file is not None
-            _save(state_file, _Saved(chunk=c + 1, loop=state, gate=gate_state, carry=carry), fp)
+            _save(state_file, _Saved(chunk=c + 1, loop=state, gate=gate_state), fp)
         if progress:
             progress(task, c + 1, total)
     circles = _circle_runs(run, laser, YM, U, finals)
