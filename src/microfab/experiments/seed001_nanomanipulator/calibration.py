@@ -180,24 +180,16 @@ def write_noise(fit: NoiseFit, path: str | Path, *, source: str | Path | None = 
         text = resources.files("microfab.data").joinpath("nanomanipulator_twin.toml").read_text()
     else:
         text = Path(source).read_text(encoding="utf-8")
-    values = list(_LINE.finditer(text))
-    sources = list(_SOURCE.finditer(text))
-    if len(values) != 2 or len(sources) != 2:
+    if len(_LINE.findall(text)) != 2 or len(_SOURCE.findall(text)) != 2:
         raise ValueError("the twin data file must hold noise_rms_mm for [axes.x] and [axes.y]")
-    out = text
-    for a in (1, 0):  # replace from the end so the offsets stay valid
-        ax = "xy"[a]
-        src = (
-            f'noise_rms_mm_source = "calibrated: `microfab calibrate nanomanipulator` fits the '
-            f"sensor noise so that the four-circle job's axial RMS is seed 001 §4.2's "
-            f'{_TARGET[a]} nm ({ax}); got {fit.axial_rms_nm[a]:.1f} nm in {fit.runs} runs"'
-        )
-        s, v = sources[a], values[a]
-        lo, hi = sorted((s, v), key=lambda m: m.start())
-        first = f"noise_rms_mm = {fit.noise_rms_nm[a] * 1e-6:.4e}" if lo is v else src
-        second = src if lo is v else f"noise_rms_mm = {fit.noise_rms_nm[a] * 1e-6:.4e}"
-        out = out[: hi.start()] + second + out[hi.end() :]
-        out = out[: lo.start()] + first + out[lo.end() :]
+    values = iter(f"noise_rms_mm = {v * 1e-6:.4e}" for v in fit.noise_rms_nm)  # x, then y
+    sources = iter(
+        f'noise_rms_mm_source = "calibrated: `microfab calibrate nanomanipulator` fits the '
+        f"sensor noise so that the four-circle job's axial RMS is seed 001 §4.2's "
+        f'{_TARGET[a]} nm ({"xy"[a]}); got {fit.axial_rms_nm[a]:.1f} nm in {fit.runs} runs"'
+        for a in range(2)
+    )
+    out = _SOURCE.sub(lambda _: next(sources), _LINE.sub(lambda _: next(values), text))
     p = Path(path)
     atomic_write_text(p, out)
     return p

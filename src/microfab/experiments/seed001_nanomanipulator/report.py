@@ -70,7 +70,7 @@ def fig_effort(run: JobRun) -> MplFigure:
     return fig
 
 
-def fig_cure(cure: CircleCure, run: JobRun) -> MplFigure:
+def fig_cure(cure: CircleCure) -> MplFigure:
     """Cured resin of one circle: whole loop and the closing point, per print."""
     names = [p for p in PRINTS if p in cure.prints]
     fig = new_figure(3.0 * len(names), 5.6)
@@ -183,7 +183,7 @@ def write_report(result: NanomanipulatorResult, out: Path, title: str) -> Path:
         figs.append(
             Figure(
                 name=f"cure_{c.circle + 1}.png",
-                png=render_png(fig_cure(c, run)),
+                png=render_png(fig_cure(c)),
                 caption=f"Redraws seed 001 Figs. 14-15 for circle {c.circle + 1}: cured "
                 "resin of the gated print, the warm-up-compensated one and an ungated "
                 "first loop; below, the closing point.",
