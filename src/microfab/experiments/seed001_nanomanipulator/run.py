@@ -73,7 +73,7 @@ __all__ = [
 ]
 
 Progress = Callable[[str, int, int | None], None]
-_HANDOVER_MEAN = 50  # samples averaged for the hand-over point (5 ms at 10 kHz): assumed
+_HANDOVER_MEAN_S = 5e-3  # assumed: time averaged for the hand-over point (0.25 of the 50 Hz mode)
 _STATE_VERSION = 1
 
 
@@ -435,7 +435,7 @@ class _Runner:
             rbf = self.circle_rbf(seg.circle)
             a = seg.start
             if a > 0:
-                lo = max(a - _HANDOVER_MEAN, 0)
+                lo = max(a - max(round(_HANDOVER_MEAN_S / self.ref.dt), 1), 0)
                 r = self.ref
                 rbf = handover(
                     rbf,
