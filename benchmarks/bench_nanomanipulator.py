@@ -16,7 +16,7 @@ Prints, in one run on this machine:
    ``microfab run`` runs it, in multiples of real time (goal >= 50x).
 
 numba compilation is excluded: every path is run once on a short piece first. Timings are
-the best of a few repeats (the machine may be shared). No asserts: the figures are printed
+the best of 3 to 5 repeats (the machine may be shared). No asserts: the figures are printed
 next to their goals.
 
 Run: ``make bench`` or ``python benchmarks/bench_nanomanipulator.py``.
@@ -143,7 +143,7 @@ def python_run(s: Setup, sl: slice, state: LoopState, gate_cfg: GateConfig) -> o
     return x
 
 
-def bench_compiled(periods: int = 20, repeats: int = 3) -> tuple[int, float, float, float]:
+def bench_compiled(periods: int = 20, repeats: int = 5) -> tuple[int, float, float, float]:
     """Samples, simulate s, gate s and total steps/s of the compiled path over a whole circle.
 
     Also prints where the gate opened (a check that the loop converged as in `compare`).
@@ -167,7 +167,7 @@ def bench_compiled(periods: int = 20, repeats: int = 3) -> tuple[int, float, flo
     return n, t_sim, t_gate, n / t_all
 
 
-def bench_parts(periods: int = 20, repeats: int = 3) -> dict[str, float]:
+def bench_parts(periods: int = 20, repeats: int = 5) -> dict[str, float]:
     """Steps/s of `simulate` on the whole circle with the controller taken apart.
 
     The twin under a PID (`PID.tuned` as in `compare`: 200 Hz crossover), under the bare RBF,
@@ -217,7 +217,7 @@ def job_real_time_factor() -> tuple[float, float, float]:
     Four circles of five periods each (20 periods, with the moves, pauses and ramps
     between them: 26.2 s simulated), `run_job` with its per-period checkpoints written to
     a temporary folder and ‖Ŵ‖/s logged, then the metrics. The cured-line maps and the
-    report figures are timed apart (they are not part of the loop). Best of 2 after a
+    report figures are timed apart (they are not part of the loop). Best of 3 after a
     warm-up. Returns ``(job x real time, job wall s, cured lines wall s)``.
     """
     import tempfile
@@ -229,7 +229,7 @@ def job_real_time_factor() -> tuple[float, float, float]:
     cfg = JobConfig(pattern=PatternConfig(n_circles=4, periods=5))
     run_job(JobConfig(pattern=PatternConfig(n_circles=1, periods=1)))  # compile
     best, run = np.inf, None
-    for _ in range(2):
+    for _ in range(3):
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
             run = run_job(cfg, tmp)
@@ -251,7 +251,7 @@ def main() -> None:
         f"({rbf_shape[0]} centres per axis on {rbf_shape[1]}-D z; RBFConfig() default "
         f"l = {RBFConfig().n_nodes}) in the plug-in RC, + laser gate"
     )
-    print(f"\n1. compiled, one circle of 20 periods at {rate:g} Hz, best of 3")
+    print(f"\n1. compiled, one circle of 20 periods at {rate:g} Hz, best of 5")
     n, t_sim, t_gate, steps = bench_compiled()
     print(f"  {n} samples")
     print(f"  simulate             {t_sim:8.3f} s   {n / t_sim:12.3g} steps/s")

@@ -178,3 +178,27 @@ def test_compiled_controller_without_kernel_is_refused():
     ok.params = np.array([np.nan])
     with pytest.raises(ValueError, match="NaN"):
         ok.packed_params()
+
+
+def test_packed_params_checks_writeable_params_at_every_call():
+    class WithKernel(CompiledController):
+        preview = 1
+        kernel_step = _dummy_step
+
+        def init(self) -> np.ndarray:
+            return np.zeros(0)
+
+    ok = WithKernel()
+    ok.params = np.zeros(2)  # writeable: checked every time
+    ok.packed_params()
+    ok.params[0] = np.inf
+    with pytest.raises(ValueError, match="NaN or inf"):
+        ok.packed_params()
+    frozen = np.zeros(2)
+    frozen.setflags(write=False)
+    ok.params = frozen
+    assert ok.packed_params() is frozen
+    frozen.setflags(write=True)  # made writeable again: checked again
+    frozen[1] = np.nan
+    with pytest.raises(ValueError, match="NaN or inf"):
+        ok.packed_params()

@@ -394,7 +394,10 @@ class Loop:
     observer: Observer | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.controller, Controller):
+        # The members of the Controller / Observer protocols, checked by hasattr as a
+        # runtime_checkable isinstance does, without its per-call cost (a `Loop` is
+        # built at every `simulate` call).
+        if not _has(self.controller, ("preview", "init", "step")):
             raise TypeError(
                 f"controller must have preview, init() and step(); got "
                 f"{type(self.controller).__name__}"
@@ -405,7 +408,7 @@ class Loop:
             raise TypeError(
                 f"feedforward must have apply(trajectory); got {type(self.feedforward).__name__}"
             )
-        if self.observer is not None and not isinstance(self.observer, Observer):
+        if self.observer is not None and not _has(self.observer, ("n_outputs", "init", "step")):
             raise TypeError(
                 f"observer must have n_outputs, init() and step(); got "
                 f"{type(self.observer).__name__}"
@@ -415,6 +418,10 @@ class Loop:
     def preview(self) -> int:
         """The controller's preview in samples."""
         return int(self.controller.preview)
+
+
+def _has(obj: object, names: tuple[str, ...]) -> bool:
+    return all(hasattr(obj, n) for n in names)
 
 
 def as_loop(controller: Controller | Loop) -> Loop:

@@ -247,7 +247,9 @@ def rc_sample(
     of period ``j - 1``; row-major (phase, axis). ``qc = 1 - q``.
     """
     prev = ph - 1 if ph > 0 else n - 1
-    lead = (ph + m) % n
+    lead = ph + m  # 0 <= m < n (RCConfig): one wrap at most, no integer division
+    if lead >= n:
+        lead -= n
     for a in range(na):
         xk = M[ph * na + a] + kr * Ep[lead * na + a]
         M[ph * na + a] = q * M[prev * na + a] + qc * xk
@@ -347,9 +349,11 @@ def _rc_class(inner_kernel: Any) -> type[PluginRC]:
         W = x[w0 : w0 + pv * no * na].reshape((pv, no, na))
         dt = p[8]
         for i in range(pv):
-            j = (ph + i) % n
-            jp = (j + 1) % n
-            jm = (j - 1) % n
+            j = ph + i
+            while j >= n:  # the preview may exceed a (short) period
+                j -= n
+            jp = j + 1 if j + 1 < n else 0
+            jm = j - 1 if j > 0 else n - 1
             for d in range(no):
                 for a in range(na):
                     W[i, d, a] = ref[k + i, d, a]

@@ -101,9 +101,17 @@ class Compiled(ABC):
                 f"{type(p).__name__}"
                 + (f" of dtype {p.dtype} and shape {p.shape}" if isinstance(p, np.ndarray) else "")
             )
-        if not np.all(np.isfinite(p)):
+        memo = getattr(self, "__dict__", {})
+        if memo.get("_checked_params") is p and not p.flags.writeable:
+            return p  # checked before, and read-only since
+        if not np.isfinite(p).all():
             raise ValueError(f"{type(self).__name__}.params holds NaN or inf")
-        return np.ascontiguousarray(p)
+        p = np.ascontiguousarray(p)
+        if not p.flags.writeable and p.flags.owndata:
+            # Read-only and owning its data: it changes only if made writeable again
+            # (tested above), so check it once (the compiled loop asks at every call).
+            memo["_checked_params"] = p
+        return p
 
 
 def pack_lti(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> np.ndarray:

@@ -66,7 +66,7 @@ def compiled_loop(
         place as described in `run_loop`.
     """
 
-    @njit
+    @njit(nogil=True)  # other threads (checkpoint writers) run meanwhile
     def loop(
         pp: np.ndarray,
         px: np.ndarray,

@@ -107,7 +107,7 @@ def _as_2d(a: np.ndarray, name: str) -> np.ndarray:
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape[0] == 0:
         raise ValueError(f"{name} must be shaped (n_samples >= 1, n_axes), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name} holds NaN or inf")
     return arr
 

@@ -208,14 +208,15 @@ def pattern_reference(config: PatternConfig, dt: float) -> PatternReference:
     here = np.zeros(2)
     count = 0
     centres = circle_centres(config)
+    radial = np.column_stack([np.cos(theta), np.sin(theta)])  # the same for every circle
+    tangent = np.column_stack([-radial[:, 1], radial[:, 0]])
+    ring_v = R * dtheta[:, None] * tangent
+    ring_a = R * ddtheta[:, None] * tangent - (R * dtheta**2)[:, None] * radial
+    z = np.zeros((n_pause, 2))
     for c in centres:
-        ring = c[None, :] + R * np.column_stack([np.cos(theta), np.sin(theta)])
+        ring = c[None, :] + R * radial
         p, v, a = _min_jerk(here, ring[0], n_move, dt)
         hold = np.repeat(ring[:1], n_pause, axis=0)
-        z = np.zeros((n_pause, 2))
-        tangent = np.column_stack([-np.sin(theta), np.cos(theta)])
-        ring_v = R * dtheta[:, None] * tangent
-        ring_a = R * ddtheta[:, None] * tangent - (dtheta**2)[:, None] * (ring - c[None, :])
         pos += [p, hold, ring]
         vel += [v, z, ring_v]
         acc += [a, z, ring_a]

@@ -19,14 +19,17 @@ Sensor noise is drawn once for the whole job from ``twin.seed`` (the disturbance
 use the same seed), so a run is reproducible to the bit.
 
 Interruption: with an ``out`` directory the run saves, after every period-long chunk,
-the chunk's signals (``run/chunks/NNNNN.npz``) and then the loop state (plant, RBF
-weights, RC memory, gate state: ``run/state.npz``), each atomically. Running the same
+one file ``run/chunks/NNNNN.npz`` with the chunk's signals and the loop state after it
+(plant, RBF weights, RC memory, gate state), atomically (`checkpoint`), on a worker
+thread while the next chunk runs (`BackgroundWriter`; an interruption waits for the
+files already handed over). Running the same
 config again resumes after the last saved chunk and gives bit-identical results; a
 different config refuses to touch the saved run.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import math
@@ -45,6 +48,7 @@ from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.core.limits import MachineLimits, check_trajectory
 from microfab.core.validate import check_int, check_nonnegative, check_positive
+from microfab.experiments.seed001_nanomanipulator.checkpoint import Chunk, load_chunks, save_chunk
 from microfab.experiments.seed001_nanomanipulator.metrics import (
     TrackingMetrics,
     pattern_metrics,
@@ -54,7 +58,7 @@ from microfab.experiments.seed001_nanomanipulator.pattern import (
     PatternReference,
     pattern_reference,
 )
-from microfab.io.atomic import atomic_save_npz
+from microfab.io.background import BackgroundWriter
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
@@ -74,7 +78,6 @@ __all__ = [
 
 Progress = Callable[[str, int, int | None], None]
 _HANDOVER_MEAN_S = 5e-3  # assumed: time averaged for the hand-over point (0.25 of the 50 Hz mode)
-_STATE_VERSION = 1
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -353,15 +356,6 @@ class JobRun:
 
 
 # ---------------------------------------------------------------------------- running
-@dataclass
-class _Saved:
-    """The loop state between chunks (what ``state.npz`` holds)."""
-
-    chunk: int
-    loop: LoopState | None
-    gate: np.ndarray | None
-
-
 def _chunks(segs: tuple[Segment, ...], n_period: int) -> list[tuple[int, int, int]]:
     """``(segment index, start, stop)`` of every chunk: segments cut into periods."""
     out = []
@@ -375,7 +369,7 @@ def _chunks(segs: tuple[Segment, ...], n_period: int) -> list[tuple[int, int, in
 
 
 class _Runner:
-    """Builds the controllers of a job and runs its chunks (state in `_Saved`)."""
+    """Builds the controllers of a job and runs its chunks."""
 
     def __init__(self, config: JobConfig) -> None:
         self.config = config
@@ -486,47 +480,72 @@ class _Runner:
             return ctrl.inner_state(state)
         return state
 
+    def run_chunk(
+        self,
+        c: int,
+        state: LoopState | None,
+        gate_state: np.ndarray | None,
+        signals: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+        finals: dict[int, np.ndarray],
+    ) -> Chunk:
+        """Simulate chunk ``c`` from ``state``; fill ``signals`` ``(Y, YM, U, laser)``.
 
-def _save(path: Path, saved: _Saved, fingerprint: str) -> None:
-    lp = saved.loop
-    arrays: dict[str, Any] = {
-        "version": np.int64(_STATE_VERSION),
-        "fingerprint": np.array(fingerprint),
-        "chunk": np.int64(saved.chunk),
-    }
-    if lp is not None:
-        arrays |= {
-            "plant": lp.plant,
-            "controller": lp.controller,
-            "command": lp.command,
-        }
-    if saved.gate is not None:
-        arrays["gate"] = saved.gate
-    atomic_save_npz(path, **arrays)
-
-
-def _load(path: Path, fingerprint: str) -> _Saved:
-    with np.load(path, allow_pickle=False) as z:
-        if int(z["version"]) != _STATE_VERSION:
-            raise ValueError(
-                f"{path}: saved run format {int(z['version'])}, this microfab reads "
-                f"{_STATE_VERSION}; remove {path.parent} to start again"
+        ``finals`` maps each finished circle to its final controller state (for the RC
+        memory a circle may carry). The returned `Chunk` holds views of ``signals`` and
+        the loop state after the chunk.
+        """
+        Y, YM, U, laser = signals
+        ref, cfg = self.ref, self.config
+        k, a, b = self.chunks[c]
+        seg = self.segs[k]
+        ctrl = self.controller(k, YM, U)
+        if state is None or a == seg.start:  # a new controller takes over the plant
+            cst = ctrl.init()
+            if seg.circle is not None:
+                gate_state = None
+                if cfg.rc.carry and seg.circle > 0 and isinstance(ctrl, PluginRC):
+                    cst = self.carried_state(ctrl, k, finals[seg.circle - 1], YM, U)
+            plant0, cmd0 = (
+                (self.plant.init(), np.zeros(2)) if state is None else (state.plant, state.command)
             )
-        if str(z["fingerprint"]) != fingerprint:
-            raise ValueError(
-                f"{path.parent} holds a run of another job configuration; use another "
-                "output folder, or remove it to start again"
+            state = LoopState(plant=plant0, controller=cst, observer=np.zeros(0), command=cmd0)
+        li, lw, ls = [], [], []
+        step = cfg.log_every if seg.circle is not None else b - a
+        for p in range(a, b, step):
+            q = min(p + step, b)
+            res = simulate(
+                self.plant,
+                ctrl,
+                ref.position[p:q],
+                self.noise[p:q],
+                state,
+                derivatives=(ref.velocity[p:q], ref.acceleration[p:q]),
             )
-        loop = None
-        if "plant" in z:
-            loop = LoopState(
-                plant=z["plant"].copy(),
-                controller=z["controller"].copy(),
-                observer=np.zeros(0),
-                command=z["command"].copy(),
-            )
-        return _Saved(
-            chunk=int(z["chunk"]), loop=loop, gate=z["gate"].copy() if "gate" in z else None
+            Y[p:q], YM[p:q], U[p:q] = res.output, res.measured, res.command
+            state = res.final_state
+            if seg.circle is not None:
+                rbf = self.rbf_of(ctrl)
+                inner = self.inner_state(ctrl, state.controller)
+                li.append(q - 1)
+                lw.append(np.linalg.norm(rbf.weights(inner), axis=1))
+                ls.append(rbf.error_function(inner))
+        ends = seg.circle is not None and b == seg.stop
+        if seg.circle is not None:
+            gr = run_gate(ref.position[a:b] - YM[a:b], self.gate_config(seg), gate_state)
+            laser[a:b] = gr.laser
+            gate_state = gr.state
+        return Chunk(
+            output=Y[a:b],
+            measured=YM[a:b],
+            command=U[a:b],
+            laser=laser[a:b],
+            log_index=np.asarray(li, dtype=np.int64),
+            log_w=np.asarray(lw, dtype=float).reshape(-1, 2),
+            log_s=np.asarray(ls, dtype=float).reshape(-1, 2),
+            loop=state,
+            gate=gate_state,
+            final_circle=seg.circle if ends else None,
+            final_controller=state.controller.copy() if ends else None,
         )
 
 
@@ -569,99 +588,36 @@ def run_job(
     finals: dict[int, np.ndarray] = {}  # circle -> controller state at its end
     fp = cfg.fingerprint()
     run_dir = None if out is None else Path(out) / "run"
-    state_file = None if run_dir is None else run_dir / "state.npz"
-    saved = _Saved(chunk=0, loop=None, gate=None)
-    if state_file is not None and state_file.exists():
-        saved = _load(state_file, fp)
-        assert run_dir is not None
-        for c in range(saved.chunk):
-            with np.load(run_dir / "chunks" / f"{c:05d}.npz", allow_pickle=False) as z:
-                _, a, b = run.chunks[c]
-                Y[a:b], YM[a:b], U[a:b], laser[a:b] = (
-                    z["output"],
-                    z["measured"],
-                    z["command"],
-                    z["laser"],
-                )
-                log_i += z["log_index"].tolist()
-                log_w += list(z["log_w"])
-                log_s += list(z["log_s"])
-                if "final_controller" in z:
-                    finals[int(z["final_circle"])] = z["final_controller"].copy()
-    resumed = saved.chunk
-    state, gate_state = saved.loop, saved.gate
+    saved = [] if run_dir is None else load_chunks(run_dir, fp, len(run.chunks))
+    state: LoopState | None = None
+    gate_state: np.ndarray | None = None  # of the circle being run (kept over a transfer)
+    for c, ch in enumerate(saved):
+        _, a, b = run.chunks[c]
+        Y[a:b], YM[a:b], U[a:b], laser[a:b] = ch.output, ch.measured, ch.command, ch.laser
+    resumed = len(saved)
     task = "nanomanipulator job"
     total = len(run.chunks)
     if progress:
         progress(task, resumed, total)
-    for c in range(resumed, total):
-        k, a, b = run.chunks[c]
-        seg = run.segs[k]
-        ctrl = run.controller(k, YM, U)
-        if a == seg.start:  # a new controller takes over the plant where it is
-            cst = ctrl.init()
-            if seg.circle is not None:
-                gate_state = None
-                if cfg.rc.carry and seg.circle > 0 and isinstance(ctrl, PluginRC):
-                    cst = run.carried_state(ctrl, k, finals[seg.circle - 1], YM, U)
-            plant0, cmd0 = (
-                (run.plant.init(), np.zeros(2)) if state is None else (state.plant, state.command)
-            )
-            state = LoopState(plant=plant0, controller=cst, observer=np.zeros(0), command=cmd0)
-        li, lw, ls = [], [], []
-        step = cfg.log_every if seg.circle is not None else b - a
-        p = a
-        while p < b:
-            q = min(p + step, b)
-            res = simulate(
-                run.plant,
-                ctrl,
-                ref.position[p:q],
-                run.noise[p:q],
-                state,
-                derivatives=(ref.velocity[p:q], ref.acceleration[p:q]),
-            )
-            Y[p:q], YM[p:q], U[p:q] = res.output, res.measured, res.command
-            state = res.final_state
-            if seg.circle is not None:
-                rbf = run.rbf_of(ctrl)
-                inner = run.inner_state(ctrl, state.controller)
-                li.append(q - 1)
-                lw.append(np.linalg.norm(rbf.weights(inner), axis=1))
-                ls.append(rbf.error_function(inner))
-            p = q
-        if seg.circle is not None:
-            g = run.gate_config(seg)
-            gr = run_gate(ref.position[a:b] - YM[a:b], g, gate_state)
-            laser[a:b] = gr.laser
-            gate_state = gr.state
-            if b == seg.stop:
-                finals[seg.circle] = state.controller.copy()
-        log_i += li
-        log_w += lw
-        log_s += ls
-        if run_dir is not None:
-            last: dict[str, Any] = {}
-            if seg.circle is not None and b == seg.stop:
-                last = {
-                    "final_circle": np.int64(seg.circle),
-                    "final_controller": finals[seg.circle],
-                }
-            atomic_save_npz(
-                run_dir / "chunks" / f"{c:05d}.npz",
-                output=Y[a:b],
-                measured=YM[a:b],
-                command=U[a:b],
-                laser=laser[a:b],
-                log_index=np.asarray(li, dtype=np.int64),
-                log_w=np.asarray(lw).reshape(-1, 2),
-                log_s=np.asarray(ls).reshape(-1, 2),
-                **last,
-            )
-            assert state_file is not None
-            _save(state_file, _Saved(chunk=c + 1, loop=state, gate=gate_state), fp)
-        if progress:
-            progress(task, c + 1, total)
+    writer = BackgroundWriter() if run_dir is not None else contextlib.nullcontext()
+    with writer:  # checkpoints are written while the next chunk runs
+        for c in range(total):
+            if c < resumed:
+                ch = saved[c]
+            else:
+                ch = run.run_chunk(c, state, gate_state, (Y, YM, U, laser), finals)
+                if isinstance(writer, BackgroundWriter):
+                    assert run_dir is not None
+                    writer.submit(save_chunk, run_dir, c, ch, fp)
+            state, gate_state = ch.loop, ch.gate
+            log_i += ch.log_index.tolist()
+            log_w += list(ch.log_w)
+            log_s += list(ch.log_s)
+            if ch.final_circle is not None:
+                assert ch.final_controller is not None
+                finals[ch.final_circle] = ch.final_controller
+            if progress and c >= resumed:
+                progress(task, c + 1, total)
     circles = _circle_runs(run, laser, YM, U, finals)
     return JobRun(
         config=cfg,
