@@ -1,4 +1,4 @@
-"""`BackgroundWriter`: order, waiting on close, errors raised in the caller, no save after a failure."""
+"""`BackgroundWriter`: order, close waits, errors reach the caller, none saved after a failure."""
 
 from __future__ import annotations
 
