@@ -21,6 +21,7 @@ from microfab.core.compiled import pack_lti
 from microfab.plants.base import LTIPlant, Plant
 from microfab.plants.lti import DiscreteLTI
 from microfab.sim.loop import (
+    LoopStepper,
     filter_reference,
     is_compiled,
     reference_array,
@@ -296,3 +297,36 @@ def test_pack_lti_layout():
     assert p.dtype == np.float64
     np.testing.assert_array_equal(p[:3], [2, 1, 1])
     assert p.size == 3 + 4 + 2 + 2 + 1
+
+
+def test_stepper_in_pieces_equals_one_simulate_call():
+    plant = LTIPlant(DiscreteLTI([[0.95, 0.01], [-0.5, 0.9]], [[0.0], [0.1]], [[1.0, 0.0]],
+                                 [[0.0]], DT))  # fmt: skip
+    ctrl = p_controller(3.0)
+    rng = np.random.default_rng(0)
+    ref = np.sin(np.arange(700) * 0.02)[:, None]
+    noise = 1e-3 * rng.standard_normal((700, 1))
+    whole = simulate(plant, ctrl, ref, noise)
+    stepper = LoopStepper(plant, ctrl, ref, noise)
+    for m in (1, 0, 250, 3, 10_000):
+        stepper.advance(m)
+    assert stepper.position == 700 and stepper.advance(5) == 700
+    got = stepper.result()
+    for name in ("output", "measured", "command", "reference"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(whole, name), err_msg=name)
+    np.testing.assert_array_equal(got.final_state.plant, whole.final_state.plant)
+    part = LoopStepper(plant, ctrl, ref, noise)
+    part.advance(300)
+    mid = part.result()  # a copy of the state: advancing further does not change it
+    before = np.array(mid.final_state.plant)
+    part.advance()
+    np.testing.assert_array_equal(mid.final_state.plant, before)
+    assert mid.output.shape == (300, 1)
+    with pytest.raises(ValueError, match="n_samples"):
+        part.advance(-1)
+
+
+def test_stepper_refuses_a_python_loop():
+    plant = CubicSpringMass(k=100.0, k3=4e5, c=8.0, m=1.0, dt=DT)
+    with pytest.raises(TypeError, match="use simulate"):
+        LoopStepper(plant, p_controller(1.0), np.zeros((5, 1)))

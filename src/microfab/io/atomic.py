@@ -10,14 +10,13 @@ temporary file is removed, the target is left untouched and the exception propag
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import os
 import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -76,6 +75,24 @@ def _remove(path: Path) -> None:
         os.unlink(path)
 
 
+def _atomic_write(path: str | os.PathLike[str], write: Callable[[BinaryIO], object]) -> None:
+    """``write(fh)`` into a temporary file beside ``path``, sync it, rename it onto ``path``."""
+    target = _prepare(path)
+    fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    tmp = Path(name)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        _fix_mode(tmp, target)
+        os.replace(tmp, target)
+    except BaseException:
+        _remove(tmp)
+        raise
+    _fsync_dir(target.parent)
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` atomically.
 
@@ -93,20 +110,7 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         Whatever writing, syncing or renaming raised; the target is then unchanged and no
         temporary file is left behind.
     """
-    target = _prepare(path)
-    fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    tmp = Path(name)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        _fix_mode(tmp, target)
-        os.replace(tmp, target)
-    except BaseException:
-        _remove(tmp)
-        raise
-    _fsync_dir(target.parent)
+    _atomic_write(path, lambda fh: fh.write(data))
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str, encoding: str = "utf-8") -> None:
@@ -170,9 +174,9 @@ def atomic_save_npz(path: str | os.PathLike[str], **arrays: Any) -> None:
     **arrays : array_like
         Arrays to store, by name, as for :func:`numpy.savez`.
     """
-    buf = io.BytesIO()
-    np.savez(buf, **arrays)
-    atomic_write_bytes(path, buf.getbuffer())
+    # Straight into the temporary file: building the archive in a BytesIO first cost
+    # more than the write (its buffer grows by copies; 2 ms of 3.5 for 1.4 MB).
+    _atomic_write(path, lambda fh: np.savez(fh, **arrays))
 
 
 @contextlib.contextmanager

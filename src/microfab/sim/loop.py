@@ -37,6 +37,7 @@ from microfab.trajectory.base import Trajectory
 
 __all__ = [
     "LoopState",
+    "LoopStepper",
     "filter_reference",
     "is_compiled",
     "reference_array",
@@ -307,44 +308,146 @@ def simulate(
         return simulate_python(
             plant, loop, reference, noise, state, axes, derivatives=derivatives, periodic=periodic
         )
-    loop, R, nz = _prepare(plant, loop, reference, noise, derivatives, periodic, axes)
-    st = LoopState.at_rest(plant, loop) if state is None else state.copy()
-    ctrl = loop.controller
-    if loop.observer is None:
-        obs_step, op, n_est = passthrough_step, _EMPTY, plant.n_outputs
-    else:
-        (obs_step,) = loop.observer.kernels()  # type: ignore[attr-defined]
-        op, n_est = loop.observer.packed_params(), loop.observer.n_outputs  # type: ignore[attr-defined]
-    out_k, upd_k = plant.kernels()  # type: ignore[attr-defined]
-    (step_k,) = ctrl.kernels()  # type: ignore[attr-defined]
-    n = nz.shape[0]
-    y = np.empty((n, plant.n_outputs))
-    ym = np.empty_like(y)
-    u = np.empty((n, plant.n_inputs))
-    compiled_loop(out_k, upd_k, step_k, obs_step)(
-        plant.packed_params(),  # type: ignore[attr-defined]
-        st.plant,
-        ctrl.packed_params(),  # type: ignore[attr-defined]
-        st.controller,
-        op,
-        st.observer,
-        R,
-        nz,
-        st.command,
-        np.empty(n_est),
-        y,
-        ym,
-        u,
+    stepper = LoopStepper(
+        plant, loop, reference, noise, state, axes, derivatives=derivatives, periodic=periodic
     )
-    return SimResult(
-        dt=plant.dt,
-        reference=np.array(R[:n, 0]),
-        output=y,
-        measured=ym,
-        command=u,
-        axes=axes,
-        final_state=st,
-    )
+    stepper.advance()
+    return stepper.result()
+
+
+class LoopStepper:
+    """A compiled closed loop run in pieces: checked and allocated once, then `advance`.
+
+    `simulate` checks its inputs, copies the state and allocates its outputs at every
+    call, some 0.1 ms; a job that stops every few hundred samples (to log a controller's
+    internals, to checkpoint) pays that many times. A stepper does it once for the whole
+    reference and then runs the compiled loop from where it stopped: ``advance(m)`` runs
+    the next ``m`` samples in place. The samples are those of one `simulate` call over
+    the whole reference (a preview controller sees the true next samples at a stop).
+
+    Parameters
+    ----------
+    plant, controller, reference, noise, state, axes, derivatives, periodic
+        As for `simulate`; every part must run in the compiled loop (`is_compiled`).
+
+    Attributes
+    ----------
+    n_samples : int
+        Samples of the loop reference.
+    position : int
+        Samples run so far.
+
+    Raises
+    ------
+    TypeError
+        When a part of the loop has no compiled kernels (use `simulate`).
+
+    Examples
+    --------
+    >>> from microfab.control.base import LTIController
+    >>> from microfab.plants.base import LTIPlant
+    >>> from microfab.plants.lti import DiscreteLTI
+    >>> plant = LTIPlant(DiscreteLTI([[0.9]], [[0.1]], [[1.0]], [[0.0]], 1e-3))
+    >>> gain = LTIController(DiscreteLTI(np.zeros((0, 0)), np.zeros((0, 1)),
+    ...                                  np.zeros((1, 0)), [[2.0]], 1e-3))
+    >>> stepper = LoopStepper(plant, gain, np.ones((100, 1)))
+    >>> stepper.advance(40), stepper.advance(), stepper.position
+    (40, 100, 100)
+    >>> whole = simulate(plant, gain, np.ones((100, 1)))
+    >>> bool(np.array_equal(stepper.result().output, whole.output))
+    True
+    """
+
+    def __init__(
+        self,
+        plant: Plant,
+        controller: Controller | Loop,
+        reference: np.ndarray,
+        noise: np.ndarray | None = None,
+        state: LoopState | None = None,
+        axes: tuple[str, ...] = (),
+        *,
+        derivatives: Sequence[np.ndarray] = (),
+        periodic: bool = False,
+    ) -> None:
+        loop = as_loop(controller)
+        if not is_compiled(plant, loop):
+            raise TypeError(
+                "LoopStepper runs the compiled loop only; a part of this loop has no "
+                "compiled kernels: use simulate (it falls back to the Python loop)"
+            )
+        loop, R, nz = _prepare(plant, loop, reference, noise, derivatives, periodic, axes)
+        self.plant, self.axes = plant, axes
+        self._st = LoopState.at_rest(plant, loop) if state is None else state.copy()
+        ctrl = loop.controller
+        if loop.observer is None:
+            obs_step, op, n_est = passthrough_step, _EMPTY, plant.n_outputs
+        else:
+            (obs_step,) = loop.observer.kernels()  # type: ignore[attr-defined]
+            op, n_est = loop.observer.packed_params(), loop.observer.n_outputs  # type: ignore[attr-defined]
+        out_k, upd_k = plant.kernels()  # type: ignore[attr-defined]
+        (step_k,) = ctrl.kernels()  # type: ignore[attr-defined]
+        self._run = compiled_loop(out_k, upd_k, step_k, obs_step)
+        self._pp = plant.packed_params()  # type: ignore[attr-defined]
+        self._cp = ctrl.packed_params()  # type: ignore[attr-defined]
+        self._op = op
+        self._R, self._noise = R, nz
+        self.n_samples = nz.shape[0]
+        self.position = 0
+        self._est = np.empty(n_est)
+        self._y = np.empty((self.n_samples, plant.n_outputs))
+        self._ym = np.empty_like(self._y)
+        self._u = np.empty((self.n_samples, plant.n_inputs))
+
+    def advance(self, n_samples: int | None = None) -> int:
+        """Run the next ``n_samples`` samples (default: to the end); return `position`.
+
+        Stops at the end of the reference; advancing there does nothing.
+        """
+        p = self.position
+        q = self.n_samples
+        if n_samples is not None:
+            q = min(p + check_int("n_samples", n_samples, 0, "samples"), q)
+        if q > p:
+            st = self._st
+            self._run(
+                self._pp,
+                st.plant,
+                self._cp,
+                st.controller,
+                self._op,
+                st.observer,
+                self._R[p:],
+                self._noise[p:q],
+                st.command,
+                self._est,
+                self._y[p:q],
+                self._ym[p:q],
+                self._u[p:q],
+            )
+            self.position = q
+        return self.position
+
+    @property
+    def state(self) -> LoopState:
+        """The loop state after the samples run so far (live: `advance` changes it).
+
+        Take ``state.copy()`` to keep it.
+        """
+        return self._st
+
+    def result(self) -> SimResult:
+        """Signals of the samples run so far and a copy of the state after them."""
+        n = self.position
+        return SimResult(
+            dt=self.plant.dt,
+            reference=np.array(self._R[:n, 0]),
+            output=self._y[:n],
+            measured=self._ym[:n],
+            command=self._u[:n],
+            axes=self.axes,
+            final_state=self._st.copy() if n < self.n_samples else self._st,
+        )
 
 
 def simulate_python(

@@ -80,9 +80,11 @@ def test_rc_converges_below_the_first_period(default_run):
     assert np.all(m.period_rms_nm[:, -1] < 0.7 * m.period_rms_nm[:, 0])
 
 
-@pytest.mark.parametrize("carry", [False, True])
-def test_resume_after_interruption_is_bit_identical(tmp_path, carry):
-    # 5 chunks: the first transfer and circle 1; circle 2 then starts after the resume
+@pytest.mark.parametrize(("carry", "checkpoint_s"), [(False, 1.0), (True, 1.0), (False, 0.0)])
+def test_resume_after_interruption_is_bit_identical(tmp_path, carry, checkpoint_s):
+    # 5 chunks: the first transfer and circle 1; circle 2 then starts after the resume.
+    # checkpoint_s 1: the small job runs in well under 1 s, so the 5 chunks are saved by
+    # the interruption itself; 0: one checkpoint per chunk.
     config = dataclasses.replace(SMALL, rc=RCSettings(carry=carry))
     whole = run_job(config)
 
@@ -94,8 +96,11 @@ def test_resume_after_interruption_is_bit_identical(tmp_path, carry):
             raise StopError
 
     with pytest.raises(StopError):
-        run_job(config, tmp_path, stop_after)
-    again = run_job(config, tmp_path)
+        run_job(config, tmp_path, stop_after, checkpoint_s=checkpoint_s)
+    files = sorted(p.name for p in (tmp_path / "run" / "chunks").glob("*.npz"))
+    if checkpoint_s == 0.0:
+        assert files == [f"{c:05d}.npz" for c in range(5)]
+    again = run_job(config, tmp_path, checkpoint_s=checkpoint_s)
     assert again.resumed_from == 5
     for name in ("output", "measured", "command", "laser", "weight_norm", "s"):
         np.testing.assert_array_equal(getattr(again, name), getattr(whole, name), err_msg=name)

@@ -1,15 +1,20 @@
-"""Checkpoints of a seed 001 job: one atomic file per period-long chunk (`run.run_job`).
+"""Checkpoints of a seed 001 job (`run.run_job`): period-long chunks saved in batches.
 
-Each chunk file ``run/chunks/NNNNN.npz`` is a whole checkpoint: the chunk's signals, its
-log points, and the loop state after it (plant, controller with its RBF weights and RC
-memory, last command, gate state), stamped with the format version and the job's
-fingerprint. One file per chunk means one write and one ``fsync`` per period; a file is
-either complete (written to a temporary name, synced, renamed: `atomic_save_npz`) or
-absent, so the run resumes after the last chunk whose file exists.
+A checkpoint file ``run/chunks/NNNNN.npz`` (``NNNNN`` its first chunk) holds one or more
+consecutive chunks: their signals and log points, concatenated, the circles they end
+(with those circles' final controller states), and the loop state after its last chunk
+(plant, controller with its RBF weights and RC memory, last command, gate state), stamped
+with the format version and the job's fingerprint. It is written atomically
+(`atomic_save_npz`): complete or absent. The run resumes after the last chunk of the
+last file in the unbroken sequence from chunk 0.
+
+How many chunks a file holds is the writer's choice (`run.run_job` saves at most once
+per ``checkpoint_s`` of wall time, and always when interrupted); reading does not care.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,17 +24,17 @@ import numpy as np
 from microfab.io.atomic import atomic_save_npz
 from microfab.sim.loop import LoopState
 
-__all__ = ["Chunk", "chunk_path", "load_chunks", "save_chunk"]
+__all__ = ["FORMAT_VERSION", "Chunk", "chunk_path", "load_chunks", "save_chunks"]
 
-#: Format of the chunk files (2: one file per chunk with the loop state in it; 1 kept a
-#: separate ``run/state.npz``).
-FORMAT_VERSION = 2
+#: Format of the checkpoint files (3: several chunks per file; 2 had one chunk per file;
+#: 1 kept a separate ``run/state.npz``).
+FORMAT_VERSION = 3
 _OLD_STATE = "state.npz"  # format 1
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Chunk:
-    """One saved chunk: its signals and the loop state after it.
+    """One period-long chunk of a job: its signals and the loop state after it.
 
     Attributes
     ----------
@@ -41,10 +46,11 @@ class Chunk:
         Samples (job index) of the log points, int, shape (m,).
     log_w, log_s : numpy.ndarray
         ‖Ŵ‖ (V) and ``s`` (mm/s) per axis at the log points, shape (m, 2).
-    loop : LoopState
-        Plant, controller and last command after the chunk (no observer).
+    loop : LoopState or None
+        Plant, controller and last command after the chunk (no observer). None for a
+        chunk read back from inside a checkpoint file (only the last one's is saved).
     gate : numpy.ndarray or None
-        Laser gate state after the chunk (None outside a circle).
+        Laser gate state after the chunk (None outside a circle, or with ``loop`` None).
     final_circle : int or None
         The circle this chunk ends, if it ends one.
     final_controller : numpy.ndarray or None
@@ -58,55 +64,67 @@ class Chunk:
     log_index: np.ndarray
     log_w: np.ndarray
     log_s: np.ndarray
-    loop: LoopState
+    loop: LoopState | None
     gate: np.ndarray | None = None
     final_circle: int | None = None
     final_controller: np.ndarray | None = None
 
 
-def chunk_path(run_dir: Path, index: int) -> Path:
-    """``run_dir/chunks/NNNNN.npz`` of chunk ``index``."""
-    return run_dir / "chunks" / f"{index:05d}.npz"
+def chunk_path(run_dir: Path, first: int) -> Path:
+    """``run_dir/chunks/NNNNN.npz``: the checkpoint whose first chunk is ``first``."""
+    return run_dir / "chunks" / f"{first:05d}.npz"
 
 
-def save_chunk(run_dir: Path, index: int, chunk: Chunk, fingerprint: str) -> None:
-    """Write chunk ``index`` with the loop state after it, atomically (one file).
+def save_chunks(run_dir: Path, first: int, chunks: Sequence[Chunk], fingerprint: str) -> None:
+    """Write chunks ``first, first + 1, ...`` and the state after the last, atomically.
 
     Parameters
     ----------
     run_dir : pathlib.Path
         The run folder (``out/run``).
-    index : int
-        Chunk number, from 0.
-    chunk : Chunk
-        What to save.
+    first : int
+        Number of the first chunk, from 0.
+    chunks : sequence of Chunk
+        Consecutive chunks (at least one); the last must carry its ``loop`` state.
     fingerprint : str
         `JobConfig.fingerprint` of the job.
     """
+    if not chunks:
+        raise ValueError("save_chunks needs at least one chunk")
+    last = chunks[-1]
+    if last.loop is None:
+        raise ValueError("the last chunk of a checkpoint must carry its loop state")
+    ends = [c for c in chunks if c.final_circle is not None]
     arrays: dict[str, Any] = {
         "version": np.int64(FORMAT_VERSION),
         "fingerprint": np.array(fingerprint),
-        "output": chunk.output,
-        "measured": chunk.measured,
-        "command": chunk.command,
-        "laser": chunk.laser,
-        "log_index": np.asarray(chunk.log_index, dtype=np.int64),
-        "log_w": np.asarray(chunk.log_w, dtype=float).reshape(-1, 2),
-        "log_s": np.asarray(chunk.log_s, dtype=float).reshape(-1, 2),
-        "plant": chunk.loop.plant,
-        "controller": chunk.loop.controller,
-        "last_command": chunk.loop.command,
+        "sizes": np.array([c.laser.shape[0] for c in chunks], dtype=np.int64),
+        "log_sizes": np.array([c.log_index.shape[0] for c in chunks], dtype=np.int64),
+        "output": np.concatenate([c.output for c in chunks]),
+        "measured": np.concatenate([c.measured for c in chunks]),
+        "command": np.concatenate([c.command for c in chunks]),
+        "laser": np.concatenate([c.laser for c in chunks]),
+        "log_index": np.concatenate([np.asarray(c.log_index, dtype=np.int64) for c in chunks]),
+        "log_w": np.concatenate([np.reshape(c.log_w, (-1, 2)) for c in chunks]),
+        "log_s": np.concatenate([np.reshape(c.log_s, (-1, 2)) for c in chunks]),
+        "ends_at": np.array([i for i, c in enumerate(chunks) if c.final_circle is not None]),
+        "final_circles": np.array([c.final_circle for c in ends], dtype=np.int64),
+        "plant": last.loop.plant,
+        "controller": last.loop.controller,
+        "last_command": last.loop.command,
     }
-    if chunk.gate is not None:
-        arrays["gate"] = chunk.gate
-    if chunk.final_circle is not None:
-        assert chunk.final_controller is not None
-        arrays["final_circle"] = np.int64(chunk.final_circle)
-        arrays["final_controller"] = chunk.final_controller
-    atomic_save_npz(chunk_path(run_dir, index), **arrays)
+    if ends:
+        arrays["final_controllers"] = np.stack([c.final_controller for c in ends])
+    if last.gate is not None:
+        arrays["gate"] = last.gate
+    atomic_save_npz(chunk_path(run_dir, first), **arrays)
 
 
-def _load(path: Path, fingerprint: str) -> Chunk:
+def _split(a: np.ndarray, sizes: np.ndarray) -> list[np.ndarray]:
+    return np.split(a, np.cumsum(sizes)[:-1])
+
+
+def _load(path: Path, fingerprint: str) -> list[Chunk]:
     with np.load(path, allow_pickle=False) as z:
         version = int(z["version"]) if "version" in z else 1
         if version != FORMAT_VERSION:
@@ -119,35 +137,44 @@ def _load(path: Path, fingerprint: str) -> Chunk:
                 f"{path.parent.parent} holds a run of another job configuration; use "
                 "another output folder, or remove it to start again"
             )
-        final = "final_circle" in z
-        return Chunk(
-            output=z["output"],
-            measured=z["measured"],
-            command=z["command"],
-            laser=z["laser"],
-            log_index=z["log_index"],
-            log_w=z["log_w"],
-            log_s=z["log_s"],
-            loop=LoopState(
-                plant=z["plant"],
-                controller=z["controller"],
-                observer=np.zeros(0),
-                command=z["last_command"],
-            ),
-            gate=z["gate"] if "gate" in z else None,
-            final_circle=int(z["final_circle"]) if final else None,
-            final_controller=z["final_controller"] if final else None,
+        sizes, log_sizes = z["sizes"], z["log_sizes"]
+        sig = {k: _split(z[k], sizes) for k in ("output", "measured", "command", "laser")}
+        logs = {k: _split(z[k], log_sizes) for k in ("log_index", "log_w", "log_s")}
+        ends = dict(zip(z["ends_at"].tolist(), z["final_circles"].tolist(), strict=True))
+        finals = z["final_controllers"] if ends else None
+        loop = LoopState(
+            plant=z["plant"],
+            controller=z["controller"],
+            observer=np.zeros(0),
+            command=z["last_command"],
         )
+        gate = z["gate"] if "gate" in z else None
+    out = []
+    n = sizes.shape[0]
+    for i in range(n):
+        j = list(ends).index(i) if i in ends else None
+        out.append(
+            Chunk(
+                **{k: v[i] for k, v in sig.items()},
+                **{k: v[i] for k, v in logs.items()},
+                loop=loop if i == n - 1 else None,
+                gate=gate if i == n - 1 else None,
+                final_circle=ends.get(i),
+                final_controller=None if j is None or finals is None else finals[j],
+            )
+        )
+    return out
 
 
 def load_chunks(run_dir: Path, fingerprint: str, total: int) -> list[Chunk]:
-    """The saved chunks 0, 1, ... up to the first missing one (at most ``total``).
+    """The saved chunks 0, 1, ... up to the first missing checkpoint (at most ``total``).
 
     Raises
     ------
     ValueError
-        When a chunk file belongs to another job configuration or format (including the
-        format-1 ``state.npz``); nothing is changed then.
+        When a checkpoint belongs to another job configuration or format (including
+        the format-1 ``state.npz``), or holds more chunks than the job; nothing is
+        changed then.
     """
     if (run_dir / _OLD_STATE).exists():
         raise ValueError(
@@ -155,9 +182,11 @@ def load_chunks(run_dir: Path, fingerprint: str, total: int) -> list[Chunk]:
             f"format {FORMAT_VERSION}; remove {run_dir} to start again"
         )
     out: list[Chunk] = []
-    for c in range(total):
-        path = chunk_path(run_dir, c)
+    while len(out) < total:
+        path = chunk_path(run_dir, len(out))
         if not path.exists():
             break
-        out.append(_load(path, fingerprint))
+        out += _load(path, fingerprint)
+    if len(out) > total:
+        raise ValueError(f"{run_dir} holds more chunks than this job; remove it to start again")
     return out

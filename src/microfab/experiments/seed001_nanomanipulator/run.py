@@ -18,13 +18,13 @@ twin, one sample at a time (`microfab.sim.loop.simulate`, compiled):
 Sensor noise is drawn once for the whole job from ``twin.seed`` (the disturbance phases
 use the same seed), so a run is reproducible to the bit.
 
-Interruption: with an ``out`` directory the run saves, after every period-long chunk,
-one file ``run/chunks/NNNNN.npz`` with the chunk's signals and the loop state after it
-(plant, RBF weights, RC memory, gate state), atomically (`checkpoint`), on a worker
-thread while the next chunk runs (`BackgroundWriter`; an interruption waits for the
-files already handed over). Running the same
-config again resumes after the last saved chunk and gives bit-identical results; a
-different config refuses to touch the saved run.
+Interruption: the job runs in period-long chunks. With an ``out`` directory it saves
+the chunks run since the last save and the loop state after them (plant, RBF weights,
+RC memory, gate state) in one file ``run/chunks/NNNNN.npz``, atomically (`checkpoint`),
+at most once per ``checkpoint_s`` of wall time and always when interrupted, on a worker
+thread while the next chunks run (`BackgroundWriter`; an interruption waits for the
+files handed over). Running the same config again resumes after the last saved chunk
+and gives bit-identical results; a different config refuses to touch the saved run.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import contextlib
 import dataclasses
 import hashlib
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,7 +49,11 @@ from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.core.limits import MachineLimits, check_trajectory
 from microfab.core.validate import check_int, check_nonnegative, check_positive
-from microfab.experiments.seed001_nanomanipulator.checkpoint import Chunk, load_chunks, save_chunk
+from microfab.experiments.seed001_nanomanipulator.checkpoint import (
+    Chunk,
+    load_chunks,
+    save_chunks,
+)
 from microfab.experiments.seed001_nanomanipulator.metrics import (
     TrackingMetrics,
     pattern_metrics,
@@ -62,7 +67,7 @@ from microfab.io.background import BackgroundWriter
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
-from microfab.sim.loop import LoopState, simulate
+from microfab.sim.loop import LoopState, LoopStepper
 
 __all__ = [
     "CircleRun",
@@ -509,26 +514,28 @@ class _Runner:
                 (self.plant.init(), np.zeros(2)) if state is None else (state.plant, state.command)
             )
             state = LoopState(plant=plant0, controller=cst, observer=np.zeros(0), command=cmd0)
+        stepper = LoopStepper(
+            self.plant,
+            ctrl,
+            ref.position[a:b],
+            self.noise[a:b],
+            state,
+            derivatives=(ref.velocity[a:b], ref.acceleration[a:b]),
+        )
         li, lw, ls = [], [], []
-        step = cfg.log_every if seg.circle is not None else b - a
-        for p in range(a, b, step):
-            q = min(p + step, b)
-            res = simulate(
-                self.plant,
-                ctrl,
-                ref.position[p:q],
-                self.noise[p:q],
-                state,
-                derivatives=(ref.velocity[p:q], ref.acceleration[p:q]),
-            )
-            Y[p:q], YM[p:q], U[p:q] = res.output, res.measured, res.command
-            state = res.final_state
-            if seg.circle is not None:
-                rbf = self.rbf_of(ctrl)
-                inner = self.inner_state(ctrl, state.controller)
-                li.append(q - 1)
+        if seg.circle is None:
+            stepper.advance()
+        else:  # stop every log_every samples to log ‖Ŵ‖ and s
+            rbf = self.rbf_of(ctrl)
+            while stepper.position < stepper.n_samples:
+                q = stepper.advance(cfg.log_every)
+                inner = self.inner_state(ctrl, stepper.state.controller)
+                li.append(a + q - 1)
                 lw.append(np.linalg.norm(rbf.weights(inner), axis=1))
                 ls.append(rbf.error_function(inner))
+        res = stepper.result()
+        Y[a:b], YM[a:b], U[a:b] = res.output, res.measured, res.command
+        state = res.final_state
         ends = seg.circle is not None and b == seg.stop
         if seg.circle is not None:
             gr = run_gate(ref.position[a:b] - YM[a:b], self.gate_config(seg), gate_state)
@@ -553,6 +560,8 @@ def run_job(
     config: JobConfig | None = None,
     out: str | Path | None = None,
     progress: Progress | None = None,
+    *,
+    checkpoint_s: float = 1.0,
 ) -> JobRun:
     """Run a nanomanipulator MSL job on the twin (module notes).
 
@@ -564,6 +573,11 @@ def run_job(
         Folder for the resumable run (``out/run``); None runs in memory.
     progress : callable, optional
         ``progress(task, done, total)`` per chunk.
+    checkpoint_s : float
+        With ``out``: save the chunks run at most once per this many wall seconds
+        (assumed 1 s: at most a second of work is redone after a hard kill), and always
+        at the end and when interrupted by an exception (``KeyboardInterrupt``
+        included). 0 saves every chunk.
 
     Returns
     -------
@@ -576,6 +590,7 @@ def run_job(
         or a saved run of another configuration in ``out``.
     """
     cfg = config or JobConfig()
+    check_nonnegative("checkpoint_s", checkpoint_s, "s")
     run = _Runner(cfg)
     ref = run.ref
     check_trajectory(ref.trajectory(), MachineLimits.seed001_stage())
@@ -599,25 +614,42 @@ def run_job(
     total = len(run.chunks)
     if progress:
         progress(task, resumed, total)
+    pending: list[Chunk] = []  # chunks run and not yet handed to the writer
+    first_pending = resumed  # number of the first of them
+    last_save = time.monotonic()
+
+    def flush(writer: BackgroundWriter) -> None:
+        nonlocal pending, first_pending, last_save
+        assert run_dir is not None
+        writer.submit(save_chunks, run_dir, first_pending, pending, fp)
+        first_pending += len(pending)
+        pending, last_save = [], time.monotonic()
+
     writer = BackgroundWriter() if run_dir is not None else contextlib.nullcontext()
-    with writer:  # checkpoints are written while the next chunk runs
-        for c in range(total):
-            if c < resumed:
-                ch = saved[c]
-            else:
-                ch = run.run_chunk(c, state, gate_state, (Y, YM, U, laser), finals)
-                if isinstance(writer, BackgroundWriter):
-                    assert run_dir is not None
-                    writer.submit(save_chunk, run_dir, c, ch, fp)
-            state, gate_state = ch.loop, ch.gate
-            log_i += ch.log_index.tolist()
-            log_w += list(ch.log_w)
-            log_s += list(ch.log_s)
-            if ch.final_circle is not None:
-                assert ch.final_controller is not None
-                finals[ch.final_circle] = ch.final_controller
-            if progress and c >= resumed:
-                progress(task, c + 1, total)
+    with writer:  # checkpoints are written while the next chunks run
+        try:
+            for c in range(total):
+                if c < resumed:
+                    ch = saved[c]
+                else:
+                    ch = run.run_chunk(c, state, gate_state, (Y, YM, U, laser), finals)
+                    if isinstance(writer, BackgroundWriter):
+                        pending.append(ch)
+                        if time.monotonic() - last_save >= checkpoint_s or c == total - 1:
+                            flush(writer)
+                if ch.loop is not None:
+                    state, gate_state = ch.loop, ch.gate
+                log_i += ch.log_index.tolist()
+                log_w += list(ch.log_w)
+                log_s += list(ch.log_s)
+                if ch.final_circle is not None:
+                    assert ch.final_controller is not None
+                    finals[ch.final_circle] = ch.final_controller
+                if progress and c >= resumed:
+                    progress(task, c + 1, total)
+        finally:  # interrupted: save the chunks run (leaving the block waits for it)
+            if pending and isinstance(writer, BackgroundWriter):
+                flush(writer)
     circles = _circle_runs(run, laser, YM, U, finals)
     return JobRun(
         config=cfg,
