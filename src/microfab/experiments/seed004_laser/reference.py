@@ -1,0 +1,301 @@
+"""Drawing → time-based spline → sampled reference for the seed 004 stage.
+
+Seed 004 §IV.A: the drawing is parsed, its "coordinate data" interpolated, and a time-based
+spline (eq. (1), `microfab.trajectory.spline.TimeSpline`) turns the points into position,
+velocity and acceleration references for the controller. The seed gives no speed, knot
+spacing or start-up; ours (assumed, stated here and in `ContourMotion`):
+
+* **Time law**: the stage rests on the contour, speeds up along it with the rate
+  ``v (3τ² − 2τ³)`` over ``ramp_s`` (continuous acceleration, no jerk step at the joins),
+  runs ``laps`` whole laps at the constant tangential speed ``v`` (the "constant
+  tangential velocity" of seed 004 eq. (6)), slows down the same way and rests. Lap 1
+  starts at the contour's start point when full speed is reached, so "after lap 1" is
+  well defined; the ramps run over the contour before and after it.
+* **Knots**: the spline passes through points of the exact contour at times of that law,
+  one knot every ``knot_spacing_m`` of arc length at full speed (at most ``L / 64``
+  apart; the ramps get the same time spacing). Measured on a 30 µm circle at 1 mm/s with
+  1 µm knots: radius within 4 pm, tangential speed within 1e-8 inside a lap and 2e-5 at
+  the joins with the ramps. End conditions: at rest (zero velocity and acceleration) at both ends.
+* **Sampling**: at the controller's rate (10 kHz assumed, seed 004 gives none).
+
+Corners: a time-based spline through a sharp corner at constant speed rounds it and needs
+a large acceleration there; the limit check (`check_reference`) refuses what the stage
+cannot do, naming axis, time, value and limit. Lower the speed or round the corners.
+
+Limits checked before anything is emitted (seed 004 Table I): workspace (travel ±25 mm
+assumed), speed 0.1 m/s, acceleration 5 m/s² (`MachineLimits.seed004_stage`, analytic
+and sampled), and per axis the force the moving mass needs, ``M a``, against the 12 N
+peak and its RMS over the whole reference against the 3 N continuous force.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
+from microfab.core.validate import check_int, check_nonnegative, check_positive
+from microfab.experiments.seed004_laser import paper
+from microfab.geometry.path import Path
+from microfab.trajectory.base import Trajectory
+from microfab.trajectory.spline import TimeSpline
+
+__all__ = ["ContourMotion", "ContourReference", "check_force", "contour_reference"]
+
+_MIN_KNOTS_PER_LAP = 64  # assumed: a coarser lap would show the spline's polygon
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContourMotion:
+    """How the stage runs a closed contour (all assumed: seed 004 gives no speeds).
+
+    Parameters
+    ----------
+    speed_m_s : float
+        Tangential speed ``v`` on the laps, m/s (default 1 mm/s, issue 15's Fig. 3 speed).
+    laps : int
+        Whole laps at full speed (>= 1).
+    ramp_s : float or None
+        Duration of the speed-up and of the slow-down, s; default
+        ``max(0.02 s, 3 v / (a_max / 2))`` with a_max = 5 m/s² (seed 004 Table I): the
+        ramp then needs at most half the acceleration limit along the path.
+    rest_s : float
+        Rest before the ramp and after the slow-down, s (default 10 ms: the loop settles
+        on the first point; the end rest shows the final error).
+    knot_spacing_m : float
+        Arc length between spline knots at full speed, m (default 1 µm; at most L/64).
+    sample_rate_hz : float
+        Controller rate, Hz (default 10 kHz, assumed: Ts = 100 µs).
+    """
+
+    speed_m_s: float = 1e-3
+    laps: int = 3
+    ramp_s: float | None = None
+    rest_s: float = 0.01
+    knot_spacing_m: float = 1e-6
+    sample_rate_hz: float = 1e4
+
+    def __post_init__(self) -> None:
+        check_positive("speed_m_s", self.speed_m_s, "m/s")
+        check_int("laps", self.laps, 1, "laps")
+        if self.ramp_s is not None:
+            check_positive("ramp_s", self.ramp_s, "s")
+        check_nonnegative("rest_s", self.rest_s, "s")
+        check_positive("knot_spacing_m", self.knot_spacing_m, "m")
+        check_positive("sample_rate_hz", self.sample_rate_hz, "Hz")
+
+    @property
+    def ramp(self) -> float:
+        """The ramp duration used, s."""
+        if self.ramp_s is not None:
+            return self.ramp_s
+        return max(0.02, 3.0 * self.speed_m_s / (0.5 * paper.MAX_ACCELERATION_M_S2))
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ContourReference:
+    """A sampled reference along a closed contour.
+
+    Attributes
+    ----------
+    path : Path
+        The exact contour, m.
+    motion : ContourMotion
+        How it is run.
+    spline : TimeSpline
+        The time-based spline (seed 004 eq. (1)).
+    trajectory : Trajectory
+        Samples at ``motion.sample_rate_hz``: position (m), velocity (m/s), acceleration
+        (m/s²), shape (n, 2); ``trajectory.s`` the arc length along the contour (m,
+        unwrapped: it grows past L on later laps; negative during the speed-up).
+    lap_starts : numpy.ndarray
+        Sample index where each full-speed lap starts, shape (laps,), and where the last
+        ends at index ``lap_starts[-1] + lap_samples``.
+    lap_samples : int
+        Samples per lap at full speed (rounded).
+    """
+
+    path: Path
+    motion: ContourMotion
+    spline: TimeSpline
+    trajectory: Trajectory
+    lap_starts: np.ndarray
+    lap_samples: int
+
+    @property
+    def dt(self) -> float:
+        """Sample time, s."""
+        return float(self.trajectory.dt)
+
+    def lap(self, i: int) -> slice:
+        """Samples of full-speed lap ``i`` (from 0)."""
+        a = int(self.lap_starts[i])
+        return slice(a, a + self.lap_samples)
+
+
+def _time_law(motion: ContourMotion, length: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Knot times (s) and arc lengths (m, unwrapped) of the time law; lap-1 start time."""
+    v, tr = motion.speed_m_s, motion.ramp
+    ramp_len = 0.5 * v * tr  # ∫ v (3τ² − 2τ³) dt over the ramp
+    cruise = motion.laps * length / v
+    dt_k = min(motion.knot_spacing_m, length / _MIN_KNOTS_PER_LAP) / v
+    t0 = motion.rest_s
+    t1 = t0 + tr  # lap 1 starts (s = 0)
+    t2 = t1 + cruise
+    t3 = t2 + tr
+    n_r = max(math.ceil(tr / dt_k), 3)
+    n_c = max(math.ceil(cruise / dt_k), 2)
+
+    def up(tau: np.ndarray) -> np.ndarray:  # ∫ (3τ² − 2τ³) dτ, τ in [0, 1]
+        return tau**3 - 0.5 * tau**4
+
+    tau_r = np.linspace(0.0, 1.0, n_r + 1)
+    t_up = t0 + tau_r * tr
+    s_up = -ramp_len + v * tr * up(tau_r)
+    t_cr = np.linspace(t1, t2, n_c + 1)[1:]
+    s_cr = v * (t_cr - t1)
+    t_dn = t2 + tau_r[1:] * tr
+    s_dn = motion.laps * length + v * tr * (tau_r[1:] - up(tau_r[1:]))
+    t = np.concatenate([[0.0] if t0 > 0 else [], t_up, t_cr, t_dn])
+    s = np.concatenate([[-ramp_len] if t0 > 0 else [], s_up, s_cr, s_dn])
+    if motion.rest_s > 0:
+        t = np.append(t, t3 + motion.rest_s)
+        s = np.append(s, s[-1])
+    return t, s, t1
+
+
+def contour_reference(path: Path, motion: ContourMotion | None = None) -> ContourReference:
+    """The sampled reference that runs ``motion.laps`` laps of a closed contour.
+
+    Parameters
+    ----------
+    path : Path
+        A closed contour, m.
+    motion : ContourMotion, optional
+        Speed, laps, ramps, knots, rate (defaults: see `ContourMotion`).
+
+    Returns
+    -------
+    ContourReference
+
+    Raises
+    ------
+    ValueError
+        If the path is not closed.
+    """
+    m = motion or ContourMotion()
+    if not path.closed:
+        raise ValueError(
+            "the seed 004 reference runs laps of a closed contour; this path is open "
+            "(close it in the drawing, or pick a closed contour)"
+        )
+    L = float(path.length)
+    t, s, t1 = _time_law(m, L)
+    pts = path.point(np.mod(s, L))
+    # rest at the ends: two equal points in a row are a rest, which the "rest" spline
+    # cannot take (its first and last intervals get the extra breakpoints); drop the
+    # duplicated rest knots and hold the ends by the spline's own end conditions.
+    keep = np.ones(t.size, dtype=bool)
+    if m.rest_s > 0:
+        keep[0] = keep[-1] = False
+    spline = TimeSpline.fit(t[keep], pts[keep], bc="rest", axes=("x", "y"))
+    traj = spline.sample(m.sample_rate_hz, s_knots=s[keep], s_times=t[keep])
+    if m.rest_s > 0:
+        traj = _pad_rest(traj, m.rest_s)
+    dt = float(traj.dt)
+    lap_samples = round(L / m.speed_m_s / dt)
+    first = round(t1 / dt)
+    starts = first + np.round(np.arange(m.laps) * L / m.speed_m_s / dt).astype(np.int64)
+    return ContourReference(
+        path=path,
+        motion=m,
+        spline=spline,
+        trajectory=traj,
+        lap_starts=starts,
+        lap_samples=int(lap_samples),
+    )
+
+
+def _pad_rest(traj: Trajectory, rest_s: float) -> Trajectory:
+    """``traj`` (starting at ``rest_s``) with the rests before and after it sampled."""
+    dt = float(traj.dt)
+    n = round(rest_s / dt)
+    pos = np.asarray(traj.position)
+    z = np.zeros((n, pos.shape[1]))
+
+    def pad(a: np.ndarray | None, first: np.ndarray, last: np.ndarray) -> np.ndarray | None:
+        if a is None:
+            return None
+        return np.concatenate([np.broadcast_to(first, (n, *a.shape[1:])), a,
+                               np.broadcast_to(last, (n, *a.shape[1:]))])  # fmt: skip
+
+    s = None if traj.s is None else pad(np.asarray(traj.s), traj.s[0], traj.s[-1])
+    return Trajectory(
+        dt=dt,
+        position=pad(pos, pos[0], pos[-1]),
+        velocity=pad(traj.velocity, z[0], z[0]),
+        acceleration=pad(traj.acceleration, z[0], z[0]),
+        jerk=pad(traj.jerk, z[0], z[0]),
+        axes=traj.axes,
+        at_rest=True,
+        s=s,
+    )
+
+
+def check_force(
+    acceleration: np.ndarray,
+    masses_kg: tuple[float, float],
+    dt: float,
+    *,
+    peak_n: float = paper.PEAK_FORCE_N,
+    continuous_n: float = paper.CONTINUOUS_FORCE_N,
+    axes: tuple[str, ...] = ("x", "y"),
+) -> None:
+    """Refuse a reference whose inertial force exceeds the motor's peak or continuous force.
+
+    Parameters
+    ----------
+    acceleration : numpy.ndarray
+        Reference acceleration, m/s², shape (n, n_axes).
+    masses_kg : tuple of float
+        Moving mass per axis, kg (the lower axis carries the upper one).
+    dt : float
+        Sample time, s (for the time named in the message).
+    peak_n, continuous_n : float
+        Peak and continuous force, N (seed 004 Table I: 12 N, 3 N).
+    axes : tuple of str
+        Axis names for the message.
+
+    Raises
+    ------
+    LimitViolation
+        Naming the axis, the time (peak) or the whole run (RMS), the value and the limit.
+    """
+    a = np.asarray(acceleration, dtype=float)
+    for k, ax in enumerate(axes):
+        f = masses_kg[k] * a[:, k]
+        i = int(np.argmax(np.abs(f)))
+        if abs(f[i]) > peak_n:
+            raise LimitViolation(
+                f"axis {ax}: force {f[i]:.4g} N (mass {masses_kg[k]:g} kg x acceleration "
+                f"{a[i, k]:.4g} m/s^2) at t = {i * dt:.6g} s exceeds the peak force "
+                f"{peak_n:g} N (seed 004 Table I); nothing was emitted"
+            )
+        rms = float(np.sqrt(np.mean(f**2)))
+        if rms > continuous_n:
+            raise LimitViolation(
+                f"axis {ax}: RMS force {rms:.4g} N over the whole reference "
+                f"(t = 0 to {(a.shape[0] - 1) * dt:.6g} s) exceeds the continuous force "
+                f"{continuous_n:g} N (seed 004 Table I); nothing was emitted"
+            )
+
+
+def check_reference(
+    ref: ContourReference, limits: MachineLimits, masses_kg: tuple[float, float]
+) -> None:
+    """All the limit checks of the module notes on a reference (raises `LimitViolation`)."""
+    check_trajectory(ref.trajectory, limits)
+    assert ref.trajectory.acceleration is not None
+    check_force(ref.trajectory.acceleration, masses_kg, ref.dt)
