@@ -22,6 +22,7 @@ from microfab.plants.lmw_stage import (
     load_params,
 )
 from microfab.plants.lti import block_diag, discretize
+from microfab.plants.sourced_toml import sources_of
 from microfab.sim.loop import is_compiled, simulate, simulate_python
 
 DT = 1e-4
@@ -393,6 +394,11 @@ def test_data_file_values_have_sources():
             assert data["axes"][ax][f"{key}_source"].startswith("seed 004 Table I")
     assert data["encoder"]["encoder_resolution_m_source"].startswith("seed 004 Table I")
     assert "0.6 kg" in data["axes"]["y"]["nominal_mass_kg_source"]
+    # the flat listing of the sources (for reports)
+    sources = sources_of(None, "lmw_stage.toml")
+    assert len(sources) == n_values
+    assert sources["axes.x.peak_force_n"] == data["axes"]["x"]["peak_force_n_source"]
+    assert sources["switches.friction"].startswith("assumed: ")
 
 
 def test_data_file_strictness(tmp_path):
