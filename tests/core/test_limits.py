@@ -202,3 +202,31 @@ def test_seed001_stage_limits():
         check_trajectory(circle(0.075e-3, 1.45e-3, 1.0), lim)  # beyond +1.5 mm
     with pytest.raises(LimitViolation, match="velocity"):
         check_trajectory(circle(0.075e-3, 0.25e-3, 50.0), lim)  # 23.6 mm/s > 20 mm/s
+
+
+def test_seed004_stage_limits():
+    lim = MachineLimits.seed004_stage()
+    assert lim.axes == ("x", "y")
+    assert lim.workspace == ((-0.025, 0.025), (-0.025, 0.025))  # assumed ±25 mm
+    assert lim.velocity == (0.1, 0.1)  # seed 004 Table I
+    assert lim.acceleration == (5.0, 5.0)  # seed 004 Table I
+    assert lim.jerk == (float("inf"), float("inf"))
+
+    def circle(radius_m: float, speed_m_s: float) -> Trajectory:
+        n = round(2 * np.pi * radius_m / speed_m_s / 1e-4)  # one period, wrapped
+        w = 2 * np.pi / (n * 1e-4)
+        ph = w * np.arange(n) * 1e-4
+        pos = radius_m * np.column_stack([np.cos(ph), np.sin(ph)])
+        vel = radius_m * w * np.column_stack([-np.sin(ph), np.cos(ph)])
+        acc = -radius_m * w * w * np.column_stack([np.cos(ph), np.sin(ph)])
+        return Trajectory(dt=1e-4, position=pos, velocity=vel, acceleration=acc, at_rest=False)
+
+    # seed 004 Fig. 7: a 100 µm circle at 10 mm/s needs 1 m/s^2, inside Table I
+    check_trajectory(circle(100e-6, 0.01), lim)
+    # about the same speed on a 10 µm circle (63 samples a lap) needs 9.95 m/s^2 > 5 m/s^2
+    with pytest.raises(LimitViolation, match=r"axis x: acceleration -9\.94\d* m/s\^2 .* limit 5 m"):
+        check_trajectory(circle(10e-6, 0.01), lim)
+    with pytest.raises(LimitViolation, match=r"velocity -?0\.12\d* m/s .* limit 0\.1 m/s"):
+        check_trajectory(circle(5e-3, 0.12), lim)
+    with pytest.raises(LimitViolation, match="position"):
+        check_trajectory(circle(0.03, 0.05), lim)

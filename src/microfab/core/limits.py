@@ -198,6 +198,19 @@ class MachineLimits:
             acceleration=(5.0, 5.0),
         )
 
+    @classmethod
+    def seed004_stage(cls) -> MachineLimits:
+        """The precise planar XY stage of seed 004 (laser micromachining); no jerk limit.
+
+        Speed and acceleration from the seed; the travel is assumed (the seed gives none).
+        """
+        return cls(
+            # assumed: ±25 mm per axis, a 50 mm stroke for a 0.6 kg direct-drive stage
+            workspace=((-0.025, 0.025), (-0.025, 0.025)),
+            velocity=(0.1, 0.1),  # seed 004 Table I: max. velocity 0.1 m/s
+            acceleration=(5.0, 5.0),  # seed 004 Table I: max. acceleration 5 m/s^2
+        )
+
     def with_jerk(self, jerk: float | tuple[float, ...]) -> MachineLimits:
         """A copy with the jerk limit replaced (one value for all axes, or per axis)."""
         j = (float(jerk),) * len(self.axes) if np.isscalar(jerk) else tuple(jerk)  # type: ignore[arg-type]
