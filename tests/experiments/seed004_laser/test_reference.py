@@ -1,0 +1,74 @@
+"""Seed 004 reference: time law, laps, spline accuracy, limit refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from microfab.core.limits import LimitViolation, MachineLimits
+from microfab.experiments.seed004_laser.reference import (
+    ContourMotion,
+    check_force,
+    check_reference,
+    contour_reference,
+)
+from microfab.geometry.path import Path
+from microfab.geometry.shapes import circle, rectangle
+
+
+def test_laps_run_at_constant_speed_on_the_exact_circle():
+    R = 30e-6
+    ref = contour_reference(circle(R), ContourMotion(speed_m_s=1e-3, laps=2))
+    traj = ref.trajectory
+    for i in range(2):
+        lap = ref.lap(i)
+        v = np.hypot(*traj.velocity[lap].T)
+        # the spline's C² joins with the ramps leave 2e-5 at a lap's ends, 1e-8 inside
+        np.testing.assert_allclose(v, 1e-3, rtol=5e-5)
+        np.testing.assert_allclose(v[200:-200], 1e-3, rtol=1e-7)
+        r = np.hypot(*traj.position[lap].T)
+        assert np.max(np.abs(r - R)) < 1e-11  # the spline is on the circle to < 10 pm
+    # lap 1 starts on the contour's start point, at full speed
+    np.testing.assert_allclose(traj.position[ref.lap_starts[0]], circle(R).start, atol=2e-9)
+    # at rest at both ends
+    assert np.all(traj.velocity[0] == 0) and np.all(traj.velocity[-1] == 0)
+
+
+def test_speed_ramp_respects_half_the_acceleration_limit_along_the_path():
+    ref = contour_reference(circle(5e-3), ContourMotion(speed_m_s=0.05, laps=1))
+    a = ref.trajectory.acceleration
+    v = ref.trajectory.velocity
+    speed = np.hypot(*v.T)
+    tang = np.einsum("ij,ij->i", a, v) / np.maximum(speed, 1e-30)
+    assert np.max(np.abs(tang)) <= 0.5 * 5.0 * 1.01
+
+
+def test_open_paths_are_refused():
+    with pytest.raises(ValueError, match="open"):
+        contour_reference(Path.polyline([[0, 0], [1e-4, 0], [1e-4, 1e-4]]))
+
+
+def test_limits_refuse_speed_and_force_naming_axis_time_value_limit():
+    limits = MachineLimits.seed004_stage()
+    fast = contour_reference(circle(10e-3), ContourMotion(speed_m_s=0.12, laps=1))
+    with pytest.raises(LimitViolation, match=r"axis [xy]: .*velocity"):
+        check_reference(fast, limits, (1.2, 0.6))
+    # 0.05 m/s on a 1 mm radius: v²/R = 2.5 m/s² (within 5) but 3 kg x 2.5 = 7.5 N RMS > 3 N
+    ok = contour_reference(circle(1e-3), ContourMotion(speed_m_s=0.05, laps=3))
+    with pytest.raises(LimitViolation, match=r"RMS force .* continuous force 3 N"):
+        check_reference(ok, limits, (3.0, 3.0))
+    check_reference(ok, limits, (1.2, 0.6))  # the seed's masses pass
+    a = np.zeros((10, 2))
+    a[4, 1] = 30.0
+    with pytest.raises(LimitViolation, match=r"axis y: force 18 N .* t = 0.0004 s .* 12 N"):
+        check_force(a, (1.2, 0.6), 1e-4)
+
+
+def test_a_sharp_corner_is_refused_at_speed():
+    sq = rectangle(2e-3, 2e-3)
+    with pytest.raises(LimitViolation, match="acceleration"):
+        check_reference(
+            contour_reference(sq, ContourMotion(speed_m_s=0.05, laps=1)),
+            MachineLimits.seed004_stage(),
+            (1.2, 0.6),
+        )
