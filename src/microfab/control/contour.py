@@ -43,15 +43,20 @@ left to the axis controllers: zero correction along ``t``. Under exact tracking 
 ``ε̇`` vanish and so does the correction.
 
 **At rest and at corners** the tangent is undefined. The correction is weighted by
-``w(|ṙ|)``, 0 below ``min_speed_m_s``, 1 above twice it, a smoothstep between: a path
-that stops at a corner (the constant-speed planner stops there) fades the correction out
-on the way in, turns its normal while at rest, and fades it in along the new normal on
-the way out, with no step in the command; the axis controllers hold both directions
-throughout. A path that turns at speed is a curve of high curvature, handled as any
-curve.
+``w``: its target is 0 below ``min_speed_m_s``, 1 above twice it, a smoothstep between,
+and ``w`` follows the target down at once but rises at most ``dt / fade_in_s`` a sample.
+A path that stops at a corner (the constant-speed planner stops there) drops the
+correction as it comes to rest (the normal error of the old direction, which the
+correction has kept small, is all it acted on), turns its normal while at rest, and
+takes the correction in along the new normal over ``fade_in_s`` on the way out, even
+when the reference leaves the speed band within a sample (1 m/s² does): the errors that
+the stop left along the new normal (the old direction's settling) are not kicked at
+once. The axis controllers hold both directions throughout. A path that turns at speed
+is a curve of high curvature, handled as any curve.
 
 Gains (assumed; the seed gives none): ``k_pc = ω_cc²``, ``k_vc = 2 ζ_c ω_cc`` with
-``ω_cc / 2π`` = 100 Hz (twice the axis loop's default) and ``ζ_c`` = 1. A config is
+``ω_cc / 2π`` = 100 Hz (twice the axis loop's default) and ``ζ_c`` = 1; ``fade_in_s`` =
+2 ms (a fifth of the contour loop's period). A config is
 refused when the axis loop with the normal gains added (``K_p + k_pc``, ``K_v + k_vc``,
 the worst case of a normal along an axis) is unstable on the nominal plant.
 
@@ -91,7 +96,7 @@ __all__ = [
 
 # offsets in the inner controller's state (see PreviewDOB): v̂ and filtered ẋ_ref per axis
 _NS_IN, _S_V, _S_VREF = 16, 12, 13
-_HDR = 4  # k_pc, k_vc, min speed, spare
+_HDR = 4  # k_pc, k_vc, min speed, dt / fade-in time
 _XS = 6  # state: Δa (2), ε, ε̇, w, spare
 
 
@@ -111,6 +116,9 @@ class ContourConfig:
     min_speed_m_s : float
         Reference speed below which the correction is off, m/s; full above twice it
         (assumed 0.1 mm/s: a hundredth of the seed's 10 mm/s, Fig. 7).
+    fade_in_s : float
+        Shortest time over which the correction's weight rises from 0 to 1, s (assumed
+        2 ms); at least one sample.
 
     Raises
     ------
@@ -123,6 +131,7 @@ class ContourConfig:
     bandwidth_hz: float = 100.0  # assumed
     damping: float = 1.0  # assumed
     min_speed_m_s: float = 1e-4  # assumed
+    fade_in_s: float = 2e-3  # assumed
 
     def __post_init__(self) -> None:
         if not isinstance(self.inner, PreviewDOBConfig):
@@ -135,6 +144,12 @@ class ContourConfig:
         check_positive("bandwidth_hz (ω_cc/2π of the contour loop)", self.bandwidth_hz, "Hz")
         check_positive("damping (ζ_c of the contour loop)", self.damping)
         check_positive("min_speed_m_s", self.min_speed_m_s, "m/s")
+        check_positive("fade_in_s", self.fade_in_s, "s")
+        if self.fade_in_s < self.inner.dt:
+            raise ValueError(
+                f"fade_in_s must be at least one sample (dt = {self.inner.dt:g} s), got "
+                f"{self.fade_in_s:g} s; raise it"
+            )
         check_normal_gains(self.inner, self.k_pc, self.k_vc, "contour compensator")
 
     @property
@@ -199,7 +214,7 @@ def contour_step(
     pdob_measure(pin, xin, r, ym)
     vx = r[1, 0]
     vy = r[1, 1]
-    w = speed_weight(math.sqrt(vx * vx + vy * vy), p[2])
+    w = min(speed_weight(math.sqrt(vx * vx + vy * vy), p[2]), x[4] + p[3])
     eps = 0.0
     epsd = 0.0
     x[0] = 0.0
@@ -233,8 +248,9 @@ class ContourCompensator(CompiledController):
 
     Notes
     -----
-    ``params = [k_pc, k_vc, min speed, 0, inner params]``; state ``[Δa_x, Δa_y (m/s²), ε
-    (m), ε̇ (m/s), w, 0, inner state]`` (the correction terms of the last sample).
+    ``params = [k_pc, k_vc, min speed, dt / fade_in_s, inner params]``; state ``[Δa_x,
+    Δa_y (m/s²), ε (m), ε̇ (m/s), w, 0, inner state]`` (the correction terms of the last
+    sample).
     Measurement ``(x, y)`` m, command ``(i_x, i_y)`` A; the reference window must carry
     velocity and acceleration.
     """
@@ -251,7 +267,7 @@ class ContourCompensator(CompiledController):
         self.n_inputs = 2
         self.n_outputs = 2
         self.preview = 1
-        head = [config.k_pc, config.k_vc, config.min_speed_m_s, 0.0]
+        head = [config.k_pc, config.k_vc, config.min_speed_m_s, self.dt / config.fade_in_s]
         self.params = np.concatenate([head, self.inner.params]).astype(np.float64)
         self.params.setflags(write=False)
 
@@ -276,7 +292,8 @@ class ContourCompensator(CompiledController):
         ax, ay = float(window.acceleration[0, 0]), float(window.acceleration[0, 1])
         sp = math.sqrt(vx * vx + vy * vy)
         s = (sp - cfg.min_speed_m_s) / cfg.min_speed_m_s
-        w = 0.0 if s <= 0.0 else 1.0 if s >= 1.0 else s * s * (3.0 - 2.0 * s)
+        target = 0.0 if s <= 0.0 else 1.0 if s >= 1.0 else s * s * (3.0 - 2.0 * s)
+        w = min(target, x[4] + self.params[3])
         eps = epsd = 0.0
         da = np.zeros(2)
         if w > 0.0:
