@@ -29,20 +29,31 @@ chattering about the minimum. The seed gives neither the law nor its constants; 
 Far from focus the output falls much faster than ``ρ`` and the stage runs at ``V``
 towards focus; near the minimum the output cannot keep up with ``r`` and the search
 keeps oscillating in a band about the minimum, reversing each time the output has
-risen relative to the falling reference. With the discontinuous law ``sgn(−σ)``
-switches at the full speed ``±V`` whenever noise moves ``σ`` across 0 near the
-reversals (chattering); the continuous law slows down through ``|σ| < h`` instead.
+risen relative to the falling reference. The discontinuous law reverses at the full
+speed ``±V``, and a stage with a velocity lag ``τ`` runs on by about ``V τ`` each time:
+a limit cycle of some ``2 V τ`` peak to peak about focus (plus the switching of
+``sgn(−σ)`` whenever noise moves ``σ`` across 0, chattering). The continuous law slows
+down through ``|σ| < h`` and reverses smoothly.
 
 Defaults (assumed, for a detector whose output rises by 1 unit from focus to one
 Rayleigh length, e.g. ``y = offset + gain (1 + ((z − z_f)/z_R)²)`` with gain 1): ``V``
-= 3.5 mm/s (500 µm off focus within ~0.15 s), ``ρ`` = 12 units/s, ``h`` = 6e-3 units;
+= 5 mm/s (500 µm off focus in ~0.1 s), ``ρ`` = 4 units/s, ``h`` = 4e-3 units;
 `SlidingModeFocusConfig.for_gain` scales ``ρ`` and ``h`` to another gain. Chosen on such
 a stand-in (z_R = 86 µm, a 5 ms velocity lag on the z stage, detector noise 5e-5 units
-RMS): both laws reach and keep ±27 µm (half the 54 µm depth of focus of seed 004
-§II-A); the continuous law's steady oscillation is ~1 µm peak to peak, the
-discontinuous law's 5-10 µm. With 2e-4 units of noise the continuous law's grows to
-~3-5 µm and the ratio falls to ~3: the gain of the continuous law over the
-discontinuous one is the chattering it removes, which the noise sets.
+RMS), where both laws reach and keep ±27 µm (half the 54 µm depth of focus of seed 004
+§II-A) from 30 µm to 2 mm off focus: the discontinuous law's steady oscillation is
+~40 µm peak to peak (±21 µm, the lag's overrun), the continuous law's 1.5-4.5 µm. What
+the choice trades (measured on that stand-in, 3 s runs):
+
+* the gap comes from the lag: with τ = 2 ms both oscillate by ~3-6 µm; with τ = 10 ms
+  both overrun ±27 µm (lower ``V`` for a slower stage);
+* the continuous law's oscillation grows with the detector noise (~7 µm at 2e-4 units);
+* without noise the continuous law can settle into a fast small dither (its command
+  cycles through the boundary layer every ``4h/ρ`` = 4 ms, faster than the stage's lag)
+  anywhere in a band of about ±24 µm about focus, and stay there; the detector noise
+  is what walks it to the centre (within ~1 µm at 5e-5 units). Settings that centre
+  without noise (``h/ρ`` longer than the lag) leave the continuous law at most about
+  twice as good as the discontinuous one on this stand-in.
 
 `SlidingModeFocus` is a `microfab.control.base.CompiledController` with one input: it
 reads ``measurement[0]``, the detector output, and ignores any further entries (the
@@ -143,13 +154,13 @@ class SlidingModeFocusConfig:
     Parameters
     ----------
     speed_m_s : float
-        Search speed ``V``, m/s (assumed 3.5 mm/s).
+        Search speed ``V``, m/s (assumed 5 mm/s).
     fall_rate : float
         ``ρ``, rate at which the reference on the detector output falls, detector
-        units/s (assumed 12 for a unit detector gain).
+        units/s (assumed 4 for a unit detector gain).
     h : float
         Hysteresis of the direction relay and boundary layer of eqs. 16-17, detector
-        units (assumed 6e-3 for a unit gain).
+        units (assumed 4e-3 for a unit gain).
     continuous : bool
         The continuous law (eqs. 16-17, default) or the discontinuous baseline.
     initial_direction : int
@@ -158,9 +169,9 @@ class SlidingModeFocusConfig:
         Sample time, s (assumed 100 µs, as the stage loop).
     """
 
-    speed_m_s: float = 3.5e-3  # assumed
-    fall_rate: float = 12.0  # assumed, unit detector gain
-    h: float = 6e-3  # assumed, unit detector gain
+    speed_m_s: float = 5e-3  # assumed
+    fall_rate: float = 4.0  # assumed, unit detector gain
+    h: float = 4e-3  # assumed, unit detector gain
     continuous: bool = True
     initial_direction: int = 1
     dt: float = 1e-4  # assumed: 10 kHz
@@ -185,8 +196,8 @@ class SlidingModeFocusConfig:
     def for_gain(cls, gain: float, **kwargs: Any) -> SlidingModeFocusConfig:
         """The defaults with ``ρ`` and ``h`` scaled to a detector gain (units per z_R²)."""
         g = check_positive("gain (detector output from focus to one Rayleigh length)", gain)
-        kwargs.setdefault("fall_rate", 12.0 * g)
-        kwargs.setdefault("h", 6e-3 * g)
+        kwargs.setdefault("fall_rate", 4.0 * g)
+        kwargs.setdefault("h", 4e-3 * g)
         return cls(**kwargs)
 
     def with_(self, **changes: Any) -> SlidingModeFocusConfig:
