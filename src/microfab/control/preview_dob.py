@@ -27,10 +27,10 @@ Discretisation at the sample time ``dt`` (python-control ``c2d``):
   biproper, ``g1 s² / (s² + g2 s + g1)``): **Tustin**. Of ZOH, FOH and Tustin it is the
   one that keeps the DOB identity of the nominal ZOH plant best:
   ``|Q_zoh − (M_n/K_fn) F P_zoh|`` per A of current, with ``F`` the discretised
-  ``Q s²`` and ``P_zoh`` the ZOH double integrator, is 7e-6 / 7e-4 at 10 / 100 Hz for
-  Tustin, 8e-3 / 9e-3 for FOH and 8 / 0.9 for ZOH (10 kHz, ``Q`` at 500 Hz): a ZOH ``Q s²``
-  sees the sampled position half a sample late and would estimate a large spurious
-  disturbance from every acceleration.
+  ``Q s²`` and ``P_zoh`` the ZOH double integrator, is 7e-6 / 6e-4 at 10 / 100 Hz for
+  Tustin, 8e-3 / 8e-3 for FOH and 9 / 0.9 for ZOH (10 kHz, ``Q`` at 500 Hz, ζ_q = 1,
+  ``M_n/K_fn`` = 0.12 kg A/N): a ZOH ``Q s²`` sees the sampled position half a sample
+  late and would estimate a large spurious disturbance from every acceleration.
 * ``ẋ_fb``: the filtered differentiator of `microfab.control.velocity.VelocityEstimator`
   (Tustin). Its low-pass lags a moving stage by about ``2ζ_v/ω_v`` s, which eq. 3 would
   read as a velocity error ``(2ζ_v/ω_v) ẍ`` and turn into a tracking error of
