@@ -1,0 +1,327 @@
+"""Task-space contour error compensator on top of the axis controllers (seed 004 eqs. 5-15).
+
+Seed 004 describes the task as a constraint ``φ(x, y) = 0`` (the contour, eq. 5) and a
+tangential velocity ``v(t)`` (eq. 6); at the reference point, ``J = [∇φᵀ; ∇φ⊥ᵀ]`` (eqs. 7,
+14, gradient normalised) maps the stage velocity to the normal and tangential velocities
+(eq. 13, ``J v = [0, v(t)]``) and its derivative maps accelerations (eq. 15,
+``J a + J̇ v``). Two misprints of the seed, read as follows: eq. 15 says "taking the
+derivative of (15)" for the derivative of (13), whose right-hand side is then
+``[0, v̇(t)]`` (the seed writes ``[0, v(t)]``); its ``[j̇]`` is ``J̇``. The seed stops at "the
+design of the controller is fairly simple after this point"; our law:
+
+**Geometry from the reference.** The rows of the reference window carry ``r = (x, y)``,
+``ṙ`` and ``r̈``; for a time-parametrised path the unit tangent, normal and signed
+curvature follow exactly from them:
+
+``t = ṙ / |ṙ|``,  ``n = t`` rotated by +90°,  ``κ = (ẋ ÿ − ẏ ẍ) / |ṙ|³``,
+
+so ``J = [nᵀ; tᵀ]`` (orthonormal: ``J⁻¹ = Jᵀ``) and ``ṅ = −κ |ṙ| t``, ``ṫ = κ |ṙ| n``.
+
+**Contour error.** ``ε = nᵀ (p − p_d)`` (``p`` measured, ``p_d`` reference): the normal
+component of the tracking error, the first-order contour error at the reference point.
+Its derivative is exact for the moving frame,
+
+``ε̇ = nᵀ (v − ṙ) + κ |ṙ| tᵀ (p_d − p)``,
+
+with ``v − ṙ`` the filtered velocity error of the axis controllers (the estimated
+velocity against the reference velocity through the same low-pass,
+`microfab.control.preview_dob`).
+
+**Correction.** Eq. 15 solved for the acceleration is ``a = J⁻¹ (a* − J̇ v)``. With
+``a* = [a*_n, v̇]`` and ``v = ṙ`` this is the reference acceleration ``r̈`` itself (the
+normal acceleration the path needs, ``κ |ṙ|² n``, is ``−J⁻¹ J̇ ṙ``), which the axis
+controllers already apply through ``K_a ẍ_ref`` (eq. 3). What remains is the feedback on
+the contour error, in the normal direction only,
+
+``Δa = J⁻¹ [a*_n, 0]ᵀ = n a*_n``,   ``a*_n = −k_vc ε̇ − k_pc ε``,
+
+added to ``ẍ_d`` of eq. 3 before eq. 4 turns it into current; the normal error then obeys
+``ε̈ + (K_v + k_vc) ε̇ + (K_p + k_pc) ε ≈ 0``. The part of ``J̇ v`` that the reference does
+not hold, ``J̇ (v − ṙ)``, is a product of curvature, speed and velocity error (second
+order, and noisy through ``v``): left out. The tangential channel (tracking ``v(t)``) is
+left to the axis controllers: zero correction along ``t``. Under exact tracking ``ε`` and
+``ε̇`` vanish and so does the correction.
+
+**At rest and at corners** the tangent is undefined. The correction is weighted by
+``w``: its target is 0 below ``min_speed_m_s``, 1 above twice it, a smoothstep between,
+and ``w`` follows the target down at once but rises at most ``dt / fade_in_s`` a sample.
+A path that stops at a corner (the constant-speed planner stops there) drops the
+correction as it comes to rest (the normal error of the old direction, which the
+correction has kept small, is all it acted on), turns its normal while at rest, and
+takes the correction in along the new normal over ``fade_in_s`` on the way out, even
+when the reference leaves the speed band within a sample (1 m/s² does): the errors that
+the stop left along the new normal (the old direction's settling) are not kicked at
+once. The axis controllers hold both directions throughout. A path that turns at speed
+is a curve of high curvature, handled as any curve.
+
+Gains (assumed; the seed gives none): ``k_pc = ω_cc²``, ``k_vc = 2 ζ_c ω_cc`` with
+``ω_cc / 2π`` = 100 Hz (twice the axis loop's default) and ``ζ_c`` = 1; ``fade_in_s`` =
+2 ms (a fifth of the contour loop's period). A config is
+refused when the axis loop with the normal gains added (``K_p + k_pc``, ``K_v + k_vc``,
+the worst case of a normal along an axis) is unstable on the nominal plant.
+
+`ContourCompensator` wraps a `microfab.control.preview_dob.PreviewDOB` (composition):
+its kernel calls the inner controller's two halves (`pdob_measure`, `pdob_command`)
+with the correction in between. The inner kernel is always the PreviewDOB's, so it is
+called directly rather than bound per inner kernel as `microfab.control.repetitive`
+must for any inner controller.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from microfab.control.base import CompiledController, ReferenceWindow
+from microfab.control.preview_dob import (
+    PreviewDOB,
+    PreviewDOBConfig,
+    check_stable,
+    pdob_command,
+    pdob_measure,
+)
+from microfab.core.validate import check_positive
+
+__all__ = [
+    "ContourCompensator",
+    "ContourConfig",
+    "contour_step",
+    "path_frame",
+    "speed_weight",
+]
+
+# offsets in the inner controller's state (see PreviewDOB): v̂ and filtered ẋ_ref per axis
+_NS_IN, _S_V, _S_VREF = 16, 12, 13
+_HDR = 4  # k_pc, k_vc, min speed, dt / fade-in time
+_XS = 6  # state: Δa (2), ε, ε̇, w, spare
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContourConfig:
+    """Settings of the contour compensator (seed 004 eqs. 5-15), validated.
+
+    Parameters
+    ----------
+    inner : PreviewDOBConfig
+        The two axis controllers (x, y) the correction sits on.
+    bandwidth_hz : float
+        ``ω_cc / 2π`` of ``k_pc = ω_cc²``, ``k_vc = 2 ζ_c ω_cc``, Hz (assumed 100 Hz:
+        twice the axis loop's default).
+    damping : float
+        ``ζ_c`` (assumed 1).
+    min_speed_m_s : float
+        Reference speed below which the correction is off, m/s; full above twice it
+        (assumed 0.1 mm/s: a hundredth of the seed's 10 mm/s, Fig. 7).
+    fade_in_s : float
+        Shortest time over which the correction's weight rises from 0 to 1, s (assumed
+        2 ms); at least one sample.
+
+    Raises
+    ------
+    ValueError
+        On an inner config without two axes, non-positive gains or speed, or an axis
+        loop that is unstable with the normal gains added.
+    """
+
+    inner: PreviewDOBConfig
+    bandwidth_hz: float = 100.0  # assumed
+    damping: float = 1.0  # assumed
+    min_speed_m_s: float = 1e-4  # assumed
+    fade_in_s: float = 2e-3  # assumed
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.inner, PreviewDOBConfig):
+            raise ValueError(f"inner must be a PreviewDOBConfig, got {type(self.inner).__name__}")
+        if self.inner.n_axes != 2:
+            raise ValueError(
+                f"the contour compensator works on two axes (x, y); the inner config has "
+                f"{self.inner.n_axes}"
+            )
+        check_positive("bandwidth_hz (ω_cc/2π of the contour loop)", self.bandwidth_hz, "Hz")
+        check_positive("damping (ζ_c of the contour loop)", self.damping)
+        check_positive("min_speed_m_s", self.min_speed_m_s, "m/s")
+        check_positive("fade_in_s", self.fade_in_s, "s")
+        if self.fade_in_s < self.inner.dt:
+            raise ValueError(
+                f"fade_in_s must be at least one sample (dt = {self.inner.dt:g} s), got "
+                f"{self.fade_in_s:g} s; raise it"
+            )
+        check_normal_gains(self.inner, self.k_pc, self.k_vc, "contour compensator")
+
+    @property
+    def k_pc(self) -> float:
+        """``k_pc = ω_cc²``, 1/s²."""
+        return (2.0 * math.pi * self.bandwidth_hz) ** 2
+
+    @property
+    def k_vc(self) -> float:
+        """``k_vc = 2 ζ_c ω_cc``, 1/s."""
+        return 2.0 * self.damping * 2.0 * math.pi * self.bandwidth_hz
+
+
+def check_normal_gains(inner: PreviewDOBConfig, k_p: float, k_v: float, what: str) -> None:
+    """Refuse normal gains that make an axis loop unstable (normal along that axis).
+
+    Raises
+    ------
+    ValueError
+        Naming the gains and the fix.
+    """
+    for a in range(inner.n_axes):
+        try:
+            check_stable(inner, a, inner.k_p + k_p, inner.k_v + k_v, f" with the {what}")
+        except ValueError as err:
+            raise ValueError(
+                f"{err}; the {what} adds {k_p:.4g} 1/s² and {k_v:.4g} 1/s in the normal "
+                "direction: lower its bandwidth_hz"
+            ) from None
+
+
+@njit(cache=True, inline="always")
+def speed_weight(speed: float, v_min: float) -> float:
+    """Weight of the correction: 0 below ``v_min``, 1 above ``2 v_min``, smoothstep between."""
+    s = (speed - v_min) / v_min
+    if s <= 0.0:
+        return 0.0
+    if s >= 1.0:
+        return 1.0
+    return s * s * (3.0 - 2.0 * s)
+
+
+@njit(cache=True, inline="always")
+def path_frame(vx: float, vy: float, ax: float, ay: float) -> tuple[float, float, float, float]:
+    """``(speed, t_x, t_y, κ|ṙ|)`` from the reference velocity and acceleration.
+
+    ``κ|ṙ| = (ẋÿ − ẏẍ)/|ṙ|²`` (1/s); the caller checks that the speed is not zero.
+    """
+    sp2 = vx * vx + vy * vy
+    sp = math.sqrt(sp2)
+    return sp, vx / sp, vy / sp, (vx * ay - vy * ax) / sp2
+
+
+@njit(cache=True)
+def contour_step(
+    p: np.ndarray, x: np.ndarray, ref: np.ndarray, k: int, ym: np.ndarray, u: np.ndarray
+) -> None:
+    """Kernel of `ContourCompensator`: inner measure, normal correction, inner command."""
+    pin = p[_HDR:]
+    xin = x[_XS:]
+    r = ref[k]
+    pdob_measure(pin, xin, r, ym)
+    vx = r[1, 0]
+    vy = r[1, 1]
+    w = min(speed_weight(math.sqrt(vx * vx + vy * vy), p[2]), x[4] + p[3])
+    eps = 0.0
+    epsd = 0.0
+    x[0] = 0.0
+    x[1] = 0.0
+    if w > 0.0:
+        _sp, tx, ty, ks = path_frame(vx, vy, r[2, 0], r[2, 1])
+        nx = -ty
+        ny = tx
+        ex = r[0, 0] - ym[0]
+        ey = r[0, 1] - ym[1]
+        evx = xin[_S_VREF] - xin[_S_V]
+        evy = xin[_NS_IN + _S_VREF] - xin[_NS_IN + _S_V]
+        eps = -(nx * ex + ny * ey)
+        epsd = -(nx * evx + ny * evy) + ks * (tx * ex + ty * ey)
+        an = w * (-p[1] * epsd - p[0] * eps)
+        x[0] = an * nx
+        x[1] = an * ny
+    x[2] = eps
+    x[3] = epsd
+    x[4] = w
+    pdob_command(pin, xin, r, ym, x[0:2], u)
+
+
+class ContourCompensator(CompiledController):
+    """`PreviewDOB` on both axes plus the normal contour correction (module docstring).
+
+    Parameters
+    ----------
+    config : ContourConfig
+        Inner controllers and contour gains.
+
+    Notes
+    -----
+    ``params = [k_pc, k_vc, min speed, dt / fade_in_s, inner params]``; state ``[Δa_x,
+    Δa_y (m/s²), ε (m), ε̇ (m/s), w, 0, inner state]`` (the correction terms of the last
+    sample).
+    Measurement ``(x, y)`` m, command ``(i_x, i_y)`` A; the reference window must carry
+    velocity and acceleration.
+    """
+
+    kernel_step: Any = contour_step
+
+    def __init__(self, config: ContourConfig) -> None:
+        if not isinstance(config, ContourConfig):
+            raise TypeError(f"config must be a ContourConfig, got {type(config).__name__}")
+        self.config = config
+        self.inner = PreviewDOB(config.inner)
+        self.dt = self.inner.dt
+        self.n_axes = 2
+        self.n_inputs = 2
+        self.n_outputs = 2
+        self.preview = 1
+        head = [config.k_pc, config.k_vc, config.min_speed_m_s, self.dt / config.fade_in_s]
+        self.params = np.concatenate([head, self.inner.params]).astype(np.float64)
+        self.params.setflags(write=False)
+
+    def init(self) -> np.ndarray:
+        """No correction yet, the inner controllers at rest."""
+        return np.concatenate([np.zeros(_XS), self.inner.init()])
+
+    def step(
+        self, state: np.ndarray, window: ReferenceWindow, measurement: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One sample in Python (the reference of the kernel); ``state`` is not modified."""
+        if window.velocity is None or window.acceleration is None:
+            raise ValueError(
+                "the contour compensator needs a reference with velocity and acceleration"
+            )
+        x = np.array(state, dtype=np.float64, copy=True)
+        ym = np.asarray(measurement, dtype=float)
+        xin = x[_XS:]  # a view: the inner halves write into x
+        self.inner.measure(xin, window, ym)
+        cfg = self.config
+        vx, vy = float(window.velocity[0, 0]), float(window.velocity[0, 1])
+        ax, ay = float(window.acceleration[0, 0]), float(window.acceleration[0, 1])
+        sp = math.sqrt(vx * vx + vy * vy)
+        s = (sp - cfg.min_speed_m_s) / cfg.min_speed_m_s
+        target = 0.0 if s <= 0.0 else 1.0 if s >= 1.0 else s * s * (3.0 - 2.0 * s)
+        w = min(target, x[4] + self.params[3])
+        eps = epsd = 0.0
+        da = np.zeros(2)
+        if w > 0.0:
+            sp2 = vx * vx + vy * vy
+            tx, ty = vx / sp, vy / sp
+            ks = (vx * ay - vy * ax) / sp2
+            nx, ny = -ty, tx
+            ex = float(window.position[0, 0]) - float(ym[0])
+            ey = float(window.position[0, 1]) - float(ym[1])
+            evx = xin[_S_VREF] - xin[_S_V]
+            evy = xin[_NS_IN + _S_VREF] - xin[_NS_IN + _S_V]
+            eps = -(nx * ex + ny * ey)
+            epsd = -(nx * evx + ny * evy) + ks * (tx * ex + ty * ey)
+            an = w * (-self.params[1] * epsd - self.params[0] * eps)
+            da[:] = (an * nx, an * ny)
+        x[0:2] = da
+        x[2], x[3], x[4] = eps, epsd, w
+        u = self.inner.command(xin, window, ym, da)
+        return u, x
+
+    def inner_state(self, state: np.ndarray) -> np.ndarray:
+        """The inner `PreviewDOB`'s part of ``state`` (a view)."""
+        return np.asarray(state)[_XS:]
+
+    def contour_error(self, state: np.ndarray) -> float:
+        """``ε`` of the last sample, m (0 where the correction was off)."""
+        return float(np.asarray(state)[2])
+
+    def correction(self, state: np.ndarray) -> np.ndarray:
+        """``Δa`` added to ``ẍ_d`` at the last sample, m/s², shape (2,)."""
+        return np.array(np.asarray(state)[0:2])
