@@ -1,2 +1,5 @@
-"""Seed 004: laser micromachining workstation (linear-motor XY stage, preview + DOB,
-contour compensation, sliding-mode autofocus)."""
+"""Seed 004: laser micromachining workstation.
+
+Linear-motor XY stage, preview control with disturbance observer, contour compensation,
+sliding-mode autofocus.
+"""

@@ -1,0 +1,102 @@
+"""Seed 004 figures of merit: axis tracking errors (Fig. 3) and contour error (Figs. 4, 7).
+
+* Axis errors ``e = r − y`` per axis (Fig. 3): the fraction of samples under the seed's
+  "generally lower than 0.5 µm" and the peak ("reaching 0.8 µm at the peak points").
+* Contour error: the signed distance of each measured (or true) position to the exact
+  drawing (`microfab.geometry.project.project_points`: the foot point on the contour, not
+  the reference point of the same time, which mixes lag along the path into it). Per lap:
+  maximum and RMS (Fig. 7: "after lap 1 the correction cuts the maximum ≥ 2x").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from microfab.core.validate import check_positive
+from microfab.experiments.seed004_laser import paper
+from microfab.geometry.path import Path
+from microfab.geometry.project import project_points
+
+__all__ = ["AxisErrors", "ContourErrors", "axis_errors", "contour_errors"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class AxisErrors:
+    """Tracking errors per axis over a stretch of samples (seed 004 Fig. 3).
+
+    Attributes
+    ----------
+    fraction_below : tuple of float
+        Fraction of samples with ``|e| < band_m``, per axis (x, y).
+    peak_m : tuple of float
+        Largest ``|e|`` per axis, m.
+    rms_m : tuple of float
+        RMS per axis, m.
+    band_m : float
+        The band, m (seed 004 §IV.A: 0.5 µm).
+    """
+
+    fraction_below: tuple[float, float]
+    peak_m: tuple[float, float]
+    rms_m: tuple[float, float]
+    band_m: float
+
+
+def axis_errors(
+    reference: np.ndarray, measured: np.ndarray, band_m: float = paper.FIG3_TYPICAL_ERROR_M
+) -> AxisErrors:
+    """`AxisErrors` of ``reference − measured``, both m, shape (n, 2)."""
+    r = np.asarray(reference, dtype=float)
+    y = np.asarray(measured, dtype=float)
+    if r.shape != y.shape or r.ndim != 2 or r.shape[1] != 2 or r.shape[0] == 0:
+        raise ValueError(
+            f"reference and measured must both be shaped (n >= 1, 2) in m, got {r.shape} "
+            f"and {y.shape}"
+        )
+    check_positive("band_m", band_m, "m")
+    e = np.abs(r - y)
+    return AxisErrors(
+        fraction_below=tuple(float(v) for v in np.mean(e < band_m, axis=0)),  # type: ignore[arg-type]
+        peak_m=tuple(float(v) for v in e.max(axis=0)),  # type: ignore[arg-type]
+        rms_m=tuple(float(v) for v in np.sqrt(np.mean(e**2, axis=0))),  # type: ignore[arg-type]
+        band_m=band_m,
+    )
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ContourErrors:
+    """Contour error of a trace against the exact drawing.
+
+    Attributes
+    ----------
+    error_m : numpy.ndarray
+        Signed distance to the contour per sample, m, shape (n,) (sign: see
+        `microfab.geometry.project.project_points`).
+    lap_max_m : numpy.ndarray
+        Largest ``|error|`` per lap, m, shape (laps,).
+    lap_rms_m : numpy.ndarray
+        RMS per lap, m, shape (laps,).
+    """
+
+    error_m: np.ndarray
+    lap_max_m: np.ndarray
+    lap_rms_m: np.ndarray
+
+    def after_first_lap_max(self) -> float:
+        """Largest ``|error|`` over the laps after the first, m (Fig. 7)."""
+        if self.lap_max_m.size < 2:
+            raise ValueError("needs at least two laps")
+        return float(self.lap_max_m[1:].max())
+
+
+def contour_errors(
+    path: Path, positions: np.ndarray, laps: list[slice] | tuple[slice, ...]
+) -> ContourErrors:
+    """`ContourErrors` of ``positions`` (m, shape (n, 2)) against ``path`` over ``laps``."""
+    p = np.asarray(positions, dtype=float)
+    err = np.asarray(project_points(path, p).distance, dtype=float)
+    lap_max = np.array([np.max(np.abs(err[s])) for s in laps])
+    lap_rms = np.array([np.sqrt(np.mean(err[s] ** 2)) for s in laps])
+    return ContourErrors(error_m=err, lap_max_m=lap_max, lap_rms_m=lap_rms)

@@ -1,0 +1,137 @@
+"""Seed 004 contour runs on the twin: Fig. 7's correction, feedforward, DOB, mass error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from microfab.core.limits import LimitViolation
+from microfab.experiments.seed004_laser import paper
+from microfab.experiments.seed004_laser.reference import ContourMotion
+from microfab.experiments.seed004_laser.run import (
+    ContourJob,
+    ControlSettings,
+    TwinSettings,
+    contour_path,
+    run_contour,
+)
+
+
+def _fig7(law: str, speed: float, radius: float = paper.FIG7_SIZE_M, noise: bool = False):
+    return run_contour(
+        ContourJob(
+            drawing=f"circle:radius={radius!r}",
+            motion=ContourMotion(speed_m_s=speed, laps=3),
+            control=ControlSettings(law=law),
+            twin=TwinSettings(noise=noise),
+        )
+    )
+
+
+@pytest.mark.parametrize("radius", [100e-6, 50e-6])
+def test_fig7_correction_halves_the_contour_error_after_lap_one(radius):
+    # seed 004 §IV.D, Fig. 7: 100 µm circle at 10 mm/s (simulation, noise off); radius
+    # read as the radius, 50 µm also run (issue 15)
+    base = _fig7("preview-dob", paper.FIG7_SPEED_M_S, radius).contour.after_first_lap_max()
+    comp = _fig7("contour", paper.FIG7_SPEED_M_S, radius).contour.after_first_lap_max()
+    assert base >= paper.PROJECT_CHOICES["fig7_gain_min"] * comp, (base, comp)
+
+
+def _low_speed_change(nonlinear: bool) -> tuple[float, float]:
+    v = paper.PROJECT_CHOICES["fig7_low_speed_m_s"]
+    out = []
+    for law in ("preview-dob", "contour"):
+        run = run_contour(
+            ContourJob(
+                drawing="circle:radius=100e-6",
+                motion=ContourMotion(speed_m_s=v, laps=3),
+                control=ControlSettings(law=law),
+                twin=TwinSettings(noise=False, nonlinear=nonlinear),
+            )
+        )
+        out.append(run.contour.after_first_lap_max())
+    return out[0], out[1]
+
+
+def test_fig7_correction_barely_matters_at_low_speed_on_the_linear_twin():
+    # seed 004 §IV.D: "almost no significant contribution ... at low speeds" (a simulation)
+    base, comp = _low_speed_change(nonlinear=False)
+    assert abs(base - comp) < paper.PROJECT_CHOICES["fig7_low_speed_change_m"], (base, comp)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="with the twin's LuGre friction the correction also removes quadrant-glitch "
+    "contour error at 1 mm/s: 130 nm -> 32 nm after lap 1 (a 98 nm change, not < 50 nm); "
+    "on the linear twin the change is 0.01 nm",
+)
+def test_fig7_correction_barely_matters_at_low_speed_on_the_full_twin():
+    base, comp = _low_speed_change(nonlinear=True)
+    assert abs(base - comp) < paper.PROJECT_CHOICES["fig7_low_speed_change_m"], (base, comp)
+
+
+def test_acceleration_feedforward_cuts_the_error_twentyfold():
+    job = ContourJob(
+        drawing="circle:radius=100e-6",
+        motion=ContourMotion(speed_m_s=10e-3, laps=2),
+        control=ControlSettings(law="preview-dob"),
+        twin=TwinSettings(noise=False),
+    )
+    with_ff = run_contour(job).axis.peak_m
+    without = run_contour(job.with_(control=ControlSettings(law="preview-dob", k_a=0.0))).axis
+    assert min(without.peak_m) >= 20 * max(with_ff)
+
+
+@pytest.mark.parametrize(
+    "mass_error",
+    [
+        pytest.param(
+            -0.3,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="a controller mass 30 % low raises the Fig. 3 peak 1.42x on the "
+                "uncalibrated twin (0.196 -> 0.278 µm), and 1.41x with the disturbance "
+                "scaled 5x (0.92 -> 1.30 µm); +30 % lowers it",
+            ),
+        ),
+        0.3,
+    ],
+)
+def test_a_thirty_percent_mass_error_raises_the_fig3_peak_by_at_most_a_fifth(mass_error):
+    job = ContourJob(control=ControlSettings(law="preview-dob"))
+    nominal = max(run_contour(job).axis.peak_m)
+    off = max(run_contour(job.with_(twin=TwinSettings(mass_error=mass_error))).axis.peak_m)
+    assert off <= 1.2 * nominal, (nominal, off)
+
+
+def test_the_force_stays_within_table_one():
+    run = run_contour(ContourJob())
+    assert np.abs(run.force).max() <= paper.PEAK_FORCE_N * (1 + 1e-12)
+    # the replayed plant holds the disturbance the twin saw: finite and not all zero
+    assert np.all(np.isfinite(run.disturbance)) and np.abs(run.disturbance).max() > 0
+
+
+def test_a_reference_beyond_the_stage_is_refused_before_running():
+    with pytest.raises(LimitViolation, match="velocity"):
+        run_contour(ContourJob(drawing="circle:radius=5e-3",
+                               motion=ContourMotion(speed_m_s=0.2, laps=1)))  # fmt: skip
+
+
+def test_drawings_without_the_contour_are_refused():
+    with pytest.raises(ValueError, match="contour = 3 does not exist"):
+        contour_path("circle:radius=1e-4", 3)
+
+
+def test_a_dxf_circle_runs_as_the_shape_circle(tmp_path):
+    ezdxf = pytest.importorskip("ezdxf")
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 13  # micrometres
+    doc.modelspace().add_circle((0.0, 0.0), 30.0)
+    path = tmp_path / "circle.dxf"
+    doc.saveas(path)
+    job = ContourJob(motion=ContourMotion(laps=1))
+    a = run_contour(job)
+    b = run_contour(job.with_(drawing=str(path)))
+    np.testing.assert_allclose(b.reference.trajectory.position, a.reference.trajectory.position,
+                               rtol=0, atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(b.output, a.output, rtol=0, atol=1e-9)
