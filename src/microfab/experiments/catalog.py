@@ -18,6 +18,7 @@ from microfab.experiments.seed001_nanomanipulator.job import (
     NANOMANIPULATOR_REPRODUCTION,
 )
 from microfab.experiments.seed003_inkjet.job import DROPLET_FIG4_REPRODUCTION, DROPLET_SWEEP
+from microfab.experiments.seed004_laser.job import LASER_MICROMACHINING, LASER_REPRODUCTION
 from microfab.io.job import JobFile, JobFileError, parse_job, read_job
 
 __all__ = [
@@ -32,11 +33,18 @@ __all__ = [
 ]
 
 #: Every job kind, by name.
-JOB_KINDS: dict[str, JobKind] = {k.name: k for k in (MSL_ILC, NANOMANIPULATOR_MSL, DROPLET_SWEEP)}
+JOB_KINDS: dict[str, JobKind] = {
+    k.name: k for k in (MSL_ILC, NANOMANIPULATOR_MSL, DROPLET_SWEEP, LASER_MICROMACHINING)
+}
 #: Every reproduction, by name.
 REPRODUCTIONS: dict[str, Reproduction] = {
     r.name: r
-    for r in (MSL_ILC_REPRODUCTION, NANOMANIPULATOR_REPRODUCTION, DROPLET_FIG4_REPRODUCTION)
+    for r in (
+        MSL_ILC_REPRODUCTION,
+        NANOMANIPULATOR_REPRODUCTION,
+        DROPLET_FIG4_REPRODUCTION,
+        LASER_REPRODUCTION,
+    )
 }
 
 

@@ -1,0 +1,139 @@
+"""Figures of seed 004 contour runs: Figs. 3, 4 and 7 redrawn, speed sweep, force.
+
+Physics lives in `run` and `metrics`; this module only draws (matplotlib, through
+`microfab.report.canvas.new_figure`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from matplotlib.figure import Figure as MplFigure
+
+from microfab.experiments.seed004_laser import paper
+from microfab.experiments.seed004_laser.run import ContourRun
+from microfab.geometry.project import project_points
+from microfab.report.canvas import new_figure
+
+__all__ = ["fig_axis_errors", "fig_ballbar", "fig_contour_time", "fig_force", "fig_speed"]
+
+_AXES = (("x", "tab:red"), ("y", "tab:blue"))
+
+
+def _lap_span(ax: object, run: ContourRun) -> None:
+    """Shade the full-speed laps on a time axis."""
+    ref = run.reference
+    a = ref.lap_starts[0] * run.dt
+    b = (ref.lap_starts[-1] + ref.lap_samples) * run.dt
+    ax.axvspan(a, b, color="0.94", zorder=0)  # type: ignore[attr-defined]
+
+
+def fig_axis_errors(run: ContourRun) -> MplFigure:
+    """Seed 004 Fig. 3: x and y tracking errors against time, with the ±0.5 µm band."""
+    fig = new_figure(7.0, 4.2)
+    axes = fig.subplots(2, 1, sharex=True)
+    t = run.time
+    e = (np.asarray(run.reference.trajectory.position) - run.measured) * 1e6
+    band = paper.FIG3_TYPICAL_ERROR_M * 1e6
+    for k, (ax, (name, col)) in enumerate(zip(axes, _AXES, strict=True)):
+        _lap_span(ax, run)
+        ax.plot(t, e[:, k], lw=0.6, color=col)
+        for s in (-band, band):
+            ax.axhline(s, color="k", lw=0.6, ls="--")
+        frac = run.axis.fraction_below[k] * 100
+        ax.set_ylabel(f"e_{name} [µm]")
+        ax.set_title(
+            f"{name}: {frac:.1f} % of lap samples within ±{band:g} µm, peak "
+            f"{run.axis.peak_m[k] * 1e6:.2f} µm (seed: < 0.5, peaks 0.8 µm)",
+            fontsize=8,
+        )
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("time [s] (shaded: full-speed laps)")
+    return fig
+
+
+def fig_ballbar(run: ContourRun, magnify: float | None = None) -> MplFigure:
+    """Seed 004 Fig. 4, ballbar style: the contour and the trace, radial error magnified.
+
+    Each measured point is drawn at its foot point on the contour plus ``magnify`` times
+    its contour error along the normal (default: the error's largest value shown as 15 %
+    of the contour's size).
+    """
+    path = run.reference.path
+    ref = run.reference
+    sl = slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
+    pr = project_points(path, run.measured[sl])
+    bb = path.bbox
+    size = max(bb[2] - bb[0], bb[3] - bb[1])
+    worst = float(np.max(np.abs(pr.distance))) or 1.0
+    m = magnify if magnify is not None else 0.15 * size / worst
+    shown = pr.foot + m * pr.distance[:, None] * pr.normal
+    fig = new_figure(5.2, 5.2)
+    ax = fig.subplots()
+    pts = path.flatten(size * 1e-4)
+    ax.plot(pts[:, 0] * 1e6, pts[:, 1] * 1e6, color="k", lw=0.8, label="drawing")
+    ax.plot(shown[:, 0] * 1e6, shown[:, 1] * 1e6, color="tab:green", lw=0.6,
+            label=f"measured, error x{m:.3g}")  # fmt: skip
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [µm]")
+    ax.set_ylabel("y [µm]")
+    ax.legend(loc="upper right", fontsize=7)
+    ax.set_title(f"Contour error magnified {m:.3g}x (largest {worst * 1e9:.0f} nm)", fontsize=8)
+    return fig
+
+
+def fig_contour_time(runs: Mapping[str, ContourRun]) -> MplFigure:
+    """Seed 004 Fig. 7 as a time plot: contour error of each run (label → run)."""
+    fig = new_figure(7.0, 3.2)
+    ax = fig.subplots()
+    first = next(iter(runs.values()))
+    _lap_span(ax, first)
+    for label, run in runs.items():
+        worst = run.contour.after_first_lap_max() * 1e9
+        ax.plot(run.time, run.contour.error_m * 1e9, lw=0.7,
+                label=f"{label}: max after lap 1 {worst:.0f} nm")  # fmt: skip
+    ax.set_xlabel("time [s] (shaded: full-speed laps)")
+    ax.set_ylabel("contour error [nm]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig
+
+
+def fig_speed(rows: Sequence[Mapping[str, float | str]]) -> MplFigure:
+    """Largest contour error after lap 1 against speed, one line per law.
+
+    ``rows``: dicts with ``law``, ``speed_mm_s`` and ``contour_max_nm``.
+    """
+    fig = new_figure(5.6, 3.6)
+    ax = fig.subplots()
+    for law in sorted({str(r["law"]) for r in rows}):
+        pts = sorted(
+            (float(r["speed_mm_s"]), float(r["contour_max_nm"])) for r in rows if r["law"] == law
+        )
+        ax.loglog(*zip(*pts, strict=True), "o-", label=law)
+    ax.set_xlabel("tangential speed [mm/s]")
+    ax.set_ylabel("max contour error after lap 1 [nm]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig
+
+
+def fig_force(run: ContourRun) -> MplFigure:
+    """Motor force of both axes against the 12 N peak; RMS against the 3 N continuous."""
+    fig = new_figure(7.0, 3.0)
+    ax = fig.subplots()
+    rms = np.sqrt(np.mean(run.force**2, axis=0))
+    for k, (name, col) in enumerate(_AXES):
+        ax.plot(run.time, run.force[:, k], lw=0.6, color=col,
+                label=f"{name} (RMS {rms[k]:.3g} N / {paper.CONTINUOUS_FORCE_N:g} N)")  # fmt: skip
+    top = max(float(np.abs(run.force).max()) * 1.2, 1e-3)
+    if top > 0.5 * paper.PEAK_FORCE_N:
+        for s in (-paper.PEAK_FORCE_N, paper.PEAK_FORCE_N):
+            ax.axhline(s, color="k", lw=0.6, ls="--")
+    ax.set_title(f"Motor force (Table I: {paper.PEAK_FORCE_N:g} N peak)", fontsize=8)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("force [N]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig

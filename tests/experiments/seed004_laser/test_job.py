@@ -1,0 +1,96 @@
+"""The laser-micromachining job: defaults, example, refusals, run, resume, report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from microfab.cli import app
+from microfab.core.limits import LimitViolation
+from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
+from microfab.experiments.kinds import no_progress
+from microfab.experiments.seed004_laser.job import LaserJob
+from microfab.experiments.seed004_laser.run import ContourJob
+from microfab.io.job import JobFileError
+
+EXAMPLE = Path(__file__).parents[3] / "examples" / "laser_micromachining.toml"
+
+
+def _job(tmp_path: Path, body: str) -> Path:
+    p = tmp_path / "job.toml"
+    p.write_text('[job]\nkind = "laser-micromachining"\n' + body, encoding="utf-8")
+    return p
+
+
+def test_registered_with_its_reproduction():
+    assert "laser-micromachining" in JOB_KINDS
+    assert "laser-micromachining" in REPRODUCTIONS
+
+
+def test_example_and_empty_sections_are_the_defaults(tmp_path):
+    cfg = load_job(EXAMPLE).config
+    assert isinstance(cfg, LaserJob)
+    assert cfg.run == ContourJob()
+    assert load_job(_job(tmp_path, "")).config == cfg
+
+
+@pytest.mark.parametrize(
+    ("body", "match"),
+    [
+        ("[control]\nspeed = 1\n", r"unknown key"),
+        ("[focusing]\n", r"unknown section"),
+        ('[control]\nlaw = "fuzzy"\n', r"law must be one of"),
+        ("[control]\nbandwidth_hz = 0.0\n", r"bandwidth_hz"),
+        ("[control]\ndob_bandwidth_hz = 6000.0\n", r"Nyquist"),
+        ('[drawing]\nsource = "circle:radius=1e-4"\ncontour = 2\n', r"contour = 2"),
+        ("[trajectory]\nspeed_mm_s = 0.0\n", r"speed_m_s"),
+        ('[drawing]\nsource = "circle:radius=2e-3"\n[trajectory]\nspeed_mm_s = 99.0\n',
+         r"axis [xy]: (acceleration|RMS force|force)"),
+        ("[sweep]\nspeeds_mm_s = [0.0]\n", r"speeds_mm_s"),
+    ],
+)  # fmt: skip
+def test_bad_input_is_refused(tmp_path, body, match):
+    with pytest.raises((ValueError, JobFileError, LimitViolation), match=match):
+        load_job(_job(tmp_path, body))
+
+
+def test_cli_refuses_a_reference_beyond_table_one_and_writes_nothing(tmp_path):
+    out = tmp_path / "out"
+    p = tmp_path / "job.toml"
+    p.write_text(
+        f'[job]\nkind = "laser-micromachining"\nout = "{out.as_posix()}"\n'
+        '[drawing]\nsource = "circle:radius=2e-3"\n[trajectory]\nspeed_mm_s = 99.0\n',
+        encoding="utf-8",
+    )
+    res = CliRunner().invoke(app, ["run", str(p)])
+    assert res.exit_code == 2, res.output
+    assert res.output.startswith("error:") and "axis x" in res.output and "3 N" in res.output
+    assert not out.exists()
+
+
+def test_a_job_runs_resumes_its_sweep_and_writes_its_report(tmp_path):
+    kind = JOB_KINDS["laser-micromachining"]
+    cfg = load_job(_job(tmp_path, "[trajectory]\nlaps = 2\n[sweep]\nspeeds_mm_s = [0.5]\n")).config
+    out = tmp_path / "out"
+    first = kind.run(cfg, out, no_progress)
+    assert len(first.sweep) == 2 and not first.failures()  # both laws at 0.5 mm/s
+    assert first.baseline is not None
+    points = sorted((out / "sweep" / "points").iterdir())
+    stamps = [p.stat().st_mtime_ns for p in points]
+    again = kind.run(cfg, out, no_progress)
+    assert [p.stat().st_mtime_ns for p in sorted((out / "sweep" / "points").iterdir())] == stamps
+    assert again.sweep == first.sweep
+    report = kind.write_report(again, out, "laser")
+    assert report.exists() and (out / "ballbar.png").exists()
+    assert (out / "summary.json").exists()
+
+
+def test_reproduction_prints_the_seed_beside_ours():
+    res = REPRODUCTIONS["laser-micromachining"].run({"seed": 0}, no_progress)
+    d = res.data
+    assert d is not None
+    assert abs(d["depth_of_focus_um"] - 54.0) <= 0.05 * 54.0
+    for v in d["fig7_nm"].values():
+        assert v["preview-dob"] >= 2.0 * v["contour"]
