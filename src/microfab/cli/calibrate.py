@@ -1,4 +1,4 @@
-"""``microfab calibrate galvo|nanomanipulator``: refit a twin to its seed's numbers."""
+"""``microfab calibrate galvo|nanomanipulator|laser``: refit a twin to its seed's numbers."""
 
 from __future__ import annotations
 
@@ -77,4 +77,34 @@ def calibrate_nanomanipulator_cmd(
     if write is not None:
         src = None if config is None else config.twin.params_file
         write_noise(fit, write, source=src)
+        console.print(f"wrote {write}")
+
+
+@calibrate_app.command("laser")
+def calibrate_laser_cmd(
+    write: Annotated[
+        Path | None,
+        typer.Option(help="Write a stage twin data file with the fitted disturbance scale here."),
+    ] = None,
+) -> None:
+    """Fit the seed 004 stage twin's disturbance scale to Fig. 3's 0.8 µm peak error."""
+    from microfab.cli._kit import fail
+    from microfab.experiments.seed004_laser.calibration import fit_disturbance_scale, write_scale
+
+    try:
+        fit = fit_disturbance_scale(
+            progress=lambda k, s, p: console.print(
+                f"run {k}: disturbance scale {s:.4g} -> peak {p:.3f} µm"
+            )
+        )
+    except ValueError as exc:
+        fail(str(exc))
+    fx, fy = (v * 100 for v in fit.fraction_below)
+    console.print(
+        f"disturbance scale {fit.scale:.4g}: peak {fit.peak_um[0]:.3f} / {fit.peak_um[1]:.3f} "
+        f"µm (x / y; seed 0.8, the larger fitted); within ±0.5 µm {fx:.1f} / {fy:.1f} % "
+        "(the check; seed 'generally')"
+    )
+    if write is not None:
+        write_scale(fit, write)
         console.print(f"wrote {write}")

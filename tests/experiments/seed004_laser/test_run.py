@@ -70,16 +70,47 @@ def test_fig7_correction_barely_matters_at_low_speed_on_the_full_twin():
     assert abs(base - comp) < paper.PROJECT_CHOICES["fig7_low_speed_change_m"], (base, comp)
 
 
-def test_acceleration_feedforward_cuts_the_error_twentyfold():
+def _feedforward_gain(nonlinear: bool) -> float:
     job = ContourJob(
         drawing="circle:radius=100e-6",
         motion=ContourMotion(speed_m_s=10e-3, laps=2),
         control=ControlSettings(law="preview-dob"),
-        twin=TwinSettings(noise=False),
+        twin=TwinSettings(noise=False, nonlinear=nonlinear),
     )
     with_ff = run_contour(job).axis.peak_m
     without = run_contour(job.with_(control=ControlSettings(law="preview-dob", k_a=0.0))).axis
-    assert min(without.peak_m) >= 20 * max(with_ff)
+    return min(without.peak_m) / max(with_ff)
+
+
+def test_acceleration_feedforward_cuts_the_error_twentyfold_on_the_linear_twin():
+    assert _feedforward_gain(nonlinear=False) >= 20.0  # measured 36x
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="on the calibrated twin the friction left with K_a = 1 (peak 1.09 µm at "
+    "10 mm/s on the 100 µm circle) caps the gain at 9.3x (K_a = 0: 10.0 µm)",
+)
+def test_acceleration_feedforward_cuts_the_error_twentyfold_on_the_full_twin():
+    assert _feedforward_gain(nonlinear=True) >= 20.0
+
+
+def test_fig3_peak_is_the_seeds_on_the_calibrated_twin():
+    # fitted (calibration.fit_disturbance_scale): a regression check of the shipped file
+    run = run_contour(ContourJob(control=ControlSettings(law="preview-dob")))
+    peak = max(run.axis.peak_m)
+    assert abs(peak / paper.FIG3_PEAK_ERROR_M - 1) <= paper.PROJECT_CHOICES["fig3_peak_tolerance"]
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="with the disturbance fitted to the 0.8 µm peak, 91.1 % (x) / 88.3 % (y) of the "
+    "samples are within ±0.5 µm, not >= 95 %: the twin's friction errors are broader "
+    "than the seed's 'generally lower than 0.5 µm' suggests",
+)
+def test_fig3_errors_are_generally_below_half_a_micron():
+    run = run_contour(ContourJob(control=ControlSettings(law="preview-dob")))
+    assert min(run.axis.fraction_below) >= paper.PROJECT_CHOICES["fig3_fraction_below_typical"]
 
 
 @pytest.mark.parametrize(
@@ -90,8 +121,8 @@ def test_acceleration_feedforward_cuts_the_error_twentyfold():
             marks=pytest.mark.xfail(
                 strict=True,
                 reason="a controller mass 30 % low raises the Fig. 3 peak 1.42x on the "
-                "uncalibrated twin (0.196 -> 0.278 µm), and 1.41x with the disturbance "
-                "scaled 5x (0.92 -> 1.30 µm); +30 % lowers it",
+                "calibrated twin (0.800 -> 1.137 µm; 1.42x before calibration too); "
+                "+30 % lowers it (0.617 µm)",
             ),
         ),
         0.3,
@@ -129,9 +160,11 @@ def test_a_dxf_circle_runs_as_the_shape_circle(tmp_path):
     doc.modelspace().add_circle((0.0, 0.0), 30.0)
     path = tmp_path / "circle.dxf"
     doc.saveas(path)
-    job = ContourJob(motion=ContourMotion(laps=1))
+    job = ContourJob(motion=ContourMotion(laps=1), twin=TwinSettings(nonlinear=False))
     a = run_contour(job)
     b = run_contour(job.with_(drawing=str(path)))
     np.testing.assert_allclose(b.reference.trajectory.position, a.reference.trajectory.position,
-                               rtol=0, atol=1e-9)  # fmt: skip
-    np.testing.assert_allclose(b.output, a.output, rtol=0, atol=1e-9)
+                               rtol=0, atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(b.output, a.output, rtol=0, atol=1e-9)  # true positions, 1 nm
+    # With the 10 nm encoder on, a 1e-20 m difference of the references can flip one count
+    # (measured: true positions then differ by up to 3.5 nm): the run is compared without it.

@@ -243,8 +243,12 @@ class ContourRun:
         What ran.
     reference : ContourReference
         The reference (spline, samples, laps).
-    output, measured : numpy.ndarray
-        True and measured (encoder + noise) positions, m, shape (n, 2).
+    output : numpy.ndarray
+        True positions, m, shape (n, 2) (replayed from the twin's state).
+    encoder : numpy.ndarray
+        Encoder counts as positions (10 nm steps), m, shape (n, 2).
+    measured : numpy.ndarray
+        What the controller saw: encoder plus interpolation noise, m, shape (n, 2).
     command : numpy.ndarray
         Current references, A, shape (n, 2).
     force : numpy.ndarray
@@ -262,6 +266,7 @@ class ContourRun:
     job: ContourJob
     reference: ContourReference
     output: np.ndarray
+    encoder: np.ndarray
     measured: np.ndarray
     command: np.ndarray
     force: np.ndarray
@@ -317,17 +322,22 @@ def run_contour(job: ContourJob | None = None) -> ContourRun:
     _replay_plant(stage.packed_params(), s0.copy(), res.command, type(stage).kernel_update, states)
     force = np.array([stage.force(s) for s in states])
     dist = np.array([stage.disturbance(s) for s in states])
+    # the true position at sample k is the state after sample k - 1 (the simulator's
+    # output is the quantised encoder)
+    before = np.vstack([s0[None, :], states[:-1]])
+    true = np.array([stage.linear_state(s)[[0, 3]] for s in before])
     laps = [ref.lap(i) for i in range(job.motion.laps)]
     full = slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
     return ContourRun(
         job=job,
         reference=ref,
-        output=res.output,
+        output=true,
+        encoder=res.output,
         measured=res.measured,
         command=res.command,
         force=force,
         disturbance=dist,
         axis=axis_errors(pos[full], res.measured[full]),
-        contour=contour_errors(path, res.output, laps),
+        contour=contour_errors(path, true, laps),
         contour_measured=contour_errors(path, res.measured, laps),
     )
