@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import microfab.geometry.project as project_module
 from microfab.geometry.path import Path
 from microfab.geometry.project import Projection, project_points, project_points_scalar
 from microfab.geometry.project_index import PathIndex
@@ -281,14 +282,24 @@ def test_hint_never_changes_the_result(make: object) -> None:
         _same(project_points(path, p, hint=hint), plain)
 
 
-def test_grids_agree_with_every_segment(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_candidate_routes_agree(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the grids, the sample tree alone, and every segment: the same answer, bit for bit
     p, _ = _tracked(regular_polygon(500, 100 * UM), 2000, 8)
     p[::7] *= 1.5  # and farther out
-    for make in (lambda: regular_polygon(500, 100 * UM), _slot_with_spline):
+    walk = np.cumsum(_rng(9).normal(0.0, 10 * UM, (300, 2)), axis=0)  # a tangled polyline
+    p = np.vstack([p, _rng(10).uniform(walk.min(axis=0), walk.max(axis=0), (1000, 2))])
+    for make in (
+        lambda: regular_polygon(500, 100 * UM),
+        lambda: Path.polyline(walk),
+        _slot_with_spline,
+    ):
         with_grids = project_points(make(), p)
         with monkeypatch.context() as mp:
             mp.setattr(PathIndex, "n_levels", lambda self: 0)
-            every = project_points(make(), p)  # a new path: a new index, without grids
+            tree = project_points(make(), p)  # a new path: a new index, without grids
+            mp.setattr(project_module, "_ALL_SEGMENTS", 10**9)
+            every = project_points(make(), p)
+        _same(with_grids, tree)
         _same(with_grids, every)
 
 
