@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_droplet.py
 	$(BIN)/python benchmarks/bench_sweep.py
 	$(BIN)/python benchmarks/bench_nanomanipulator.py
+	$(BIN)/python benchmarks/bench_contour_error.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples

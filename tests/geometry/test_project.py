@@ -310,6 +310,8 @@ def test_bad_arguments_are_refused() -> None:
         project_points(path, [1.0, 2.0])
     with pytest.raises(ValueError, match="finite"):
         project_points(path, [[0.0, np.nan]])
+    with pytest.raises(ValueError, match="overflow"):
+        project_points(path, [[0.0, 1e200]])
     with pytest.raises(ValueError, match="hint"):
         project_points(path, [[0.0, 0.0]], hint=[0.0, 1.0])
     with pytest.raises(ValueError, match="hint"):

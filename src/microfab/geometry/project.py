@@ -79,6 +79,8 @@ _INDEX: weakref.WeakKeyDictionary[Path, PathIndex] = weakref.WeakKeyDictionary()
 _GRID_LEVELS = 2
 #: Up to this many segments, a point no grid settles is measured against all of them.
 _ALL_SEGMENTS = 16
+#: Largest coordinate of a point, m (as for a segment: its square stays finite).
+_MAX_COORD = 1e150
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,6 +147,11 @@ def _points(points: object) -> np.ndarray:
     if not np.all(np.isfinite(p)):
         i = int(np.flatnonzero(~np.all(np.isfinite(p), axis=1))[0])
         raise ValueError(f"points must be finite (m): point {i} is {p[i].tolist()}")
+    if p.size and np.max(np.abs(p)) > _MAX_COORD:
+        raise ValueError(
+            f"points must lie within ±{_MAX_COORD:g} m (their squared distances must not "
+            f"overflow), got a coordinate of {np.max(np.abs(p)):.3g} m"
+        )
     return p
 
 

@@ -321,18 +321,23 @@ class _Group:
 def _improve(
     best_u: np.ndarray, best_d: np.ndarray, item: np.ndarray, u: np.ndarray, d: np.ndarray
 ) -> None:
-    """Keep, per pair, the smaller distance (ties: the smaller u), in place."""
+    """Keep, per pair, the smaller distance (ties: the smaller u), in place.
+
+    ``item`` (the pair of each candidate) is sorted: the intervals are made pair after
+    pair and keep that order through every filter and split.
+    """
     if item.size == 0:
         return
-    order = np.lexsort((u, d, item))
-    it = item[order]
-    first = np.ones(it.size, dtype=bool)
-    first[1:] = it[1:] != it[:-1]
-    sel = order[first]
-    k = item[sel]
-    better = (d[sel] < best_d[k]) | ((d[sel] == best_d[k]) & (u[sel] < best_u[k]))
-    best_d[k[better]] = d[sel][better]
-    best_u[k[better]] = u[sel][better]
+    head = np.ones(item.size, dtype=bool)
+    head[1:] = item[1:] != item[:-1]
+    starts = np.flatnonzero(head)
+    gid = np.cumsum(head) - 1
+    dmin = np.minimum.reduceat(d, starts)
+    umin = np.minimum.reduceat(np.where(d == dmin[gid], u, np.inf), starts)
+    k = item[starts]
+    better = (dmin < best_d[k]) | ((dmin == best_d[k]) & (umin < best_u[k]))
+    best_d[k[better]] = dmin[better]
+    best_u[k[better]] = umin[better]
 
 
 class CurveBank:
