@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import gc
 import itertools
 import math
+import weakref
 
 import numpy as np
 import pytest
@@ -318,6 +320,15 @@ def test_bad_arguments_are_refused() -> None:
         project_points(path, [[0.0, 0.0]], hint=[np.inf])
     with pytest.raises(TypeError, match="Path"):
         project_points([[0.0, 0.0], [1.0, 0.0]], [[0.0, 0.0]])  # type: ignore[arg-type]
+
+
+def test_the_cached_index_does_not_keep_the_path_alive() -> None:
+    path = regular_polygon(50, 100 * UM)
+    project_points(path, [[0.0, 0.0]])
+    ref = weakref.ref(path)
+    del path
+    gc.collect()
+    assert ref() is None
 
 
 def test_projection_is_read_only_and_empty_input_works() -> None:

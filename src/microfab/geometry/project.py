@@ -295,7 +295,7 @@ def _settle_tree(
 
 def _hint_bound(idx: PathIndex, p: np.ndarray, h: np.ndarray) -> np.ndarray:
     """Distance (m) of each point to the hint's segment and its two neighbours, rounded up."""
-    k0, _ = idx.path.locate(h)
+    k0 = idx.segment_at(h)
     prv, nxt = idx.prev[k0], idx.next[k0]
     cand = np.column_stack([k0, np.where(prv >= 0, prv, k0), np.where(nxt >= 0, nxt, k0)])
     pt = np.repeat(np.arange(k0.size), 3)

@@ -103,7 +103,7 @@ class PathIndex:
     def __init__(self, path: Path) -> None:
         segs = path.segments
         m = len(segs)
-        self.path = path
+        self.closed = path.closed  # no reference to the path: it keys a weak cache of us
         self.n_seg = m
         self.kind = np.array(
             [
@@ -188,6 +188,13 @@ class PathIndex:
         self._cell0: float | None = None
         self._levels: list[GridLevel] = []
         self._tree: tuple[cKDTree, np.ndarray, float] | None = None
+
+    def segment_at(self, s: np.ndarray) -> np.ndarray:
+        """Segment at arc length ``s`` (m; wrapped on a closed path, clipped on an open one)."""
+        total = float(self.breaks[-1])
+        sv = np.mod(s, total) if self.closed else np.clip(s, 0.0, total)
+        k = np.searchsorted(self.breaks, sv, side="right") - 1
+        return np.clip(k, 0, self.n_seg - 1)
 
     # ------------------------------------------------------------------ pairs
     def end_tangent(self, seg: np.ndarray, *, at_end: bool) -> np.ndarray:
