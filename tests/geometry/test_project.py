@@ -5,6 +5,7 @@ from __future__ import annotations
 import gc
 import itertools
 import math
+import pathlib
 import weakref
 
 import numpy as np
@@ -13,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import microfab.geometry.project as project_module
+from microfab.geometry.dxf import read_dxf
 from microfab.geometry.path import Path
 from microfab.geometry.project import Projection, project_points, project_points_scalar
 from microfab.geometry.project_index import PathIndex
@@ -231,6 +233,34 @@ def test_mixed_path_matches_the_scalar_reference() -> None:
     # inside the counter-clockwise contour: positive
     assert project_points(path, [[50 * UM, 20 * UM]]).distance[0] > 0
     assert project_points(path, [[50 * UM, -5 * UM]]).distance[0] < 0
+
+
+def test_contours_read_from_a_dxf_file(tmp_path: pathlib.Path) -> None:
+    ezdxf = pytest.importorskip("ezdxf")
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 4  # mm
+    msp = doc.modelspace()
+    msp.add_lwpolyline(
+        [(0, 0, 0.4), (1, 0, 0), (1, 0.5, -0.3), (0, 0.5, 0)], format="xyb", close=True
+    )
+    # a slot in loose entities: two lines and two half circles
+    msp.add_line((2, 0), (3, 0))
+    msp.add_arc((3, 0.25), 0.25, -90, 90)
+    msp.add_line((3, 0.5), (2, 0.5))
+    msp.add_arc((2, 0.25), 0.25, 90, 270)
+    msp.add_open_spline([(4, 0), (4.3, 0.6), (4.6, -0.2), (5, 0.3)], degree=3)
+    doc.saveas(tmp_path / "parts.dxf")
+    layer = read_dxf(tmp_path / "parts.dxf")
+    kinds = {type(seg) for path in layer for seg in path.segments}
+    assert kinds == {LineSegment, ArcSegment, CurveSegment}
+    rng = _rng(11)
+    for path in layer:
+        x0, y0, x1, y1 = path.bbox
+        p = rng.uniform([x0 - 2e-4, y0 - 2e-4], [x1 + 2e-4, y1 + 2e-4], (12, 2))
+        proj = project_points(path, p)
+        ref = project_points_scalar(path, p)
+        assert np.allclose(proj.distance, ref.distance, rtol=0, atol=1e-13)
+        assert np.allclose(path.point(proj.s), proj.foot, rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize(
