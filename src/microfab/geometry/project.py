@@ -17,18 +17,19 @@ beyond an end of an open path, along that end's own normal (ahead of the end: po
 
 Algorithm and exactness
 -----------------------
-1. *Candidates* (:mod:`~.project_index`). Two uniform grids, of cells ``c0`` and
-   ``4 c0`` (``c0`` about the median segment length, halved while the lists are long),
-   list in each cell every segment that comes within ``ρ`` (the cell's side) of the
-   cell: each segment is cut into pieces no longer than the cell, each piece has a box
-   that provably holds it, and a piece is registered in every cell its box grown by
-   ``ρ`` touches. A point takes its cell's list at the finer grid; if the nearest listed
-   segment is at most ``ρ`` away it is the nearest of all: the true nearest segment is
-   then at most ``ρ`` from the point, hence from its cell, hence listed. Otherwise the
-   point tries the coarser grid, and after it a k-d tree of path samples: every point
-   of a segment lies within ``h`` of one of that segment's samples, so with ``ds`` the
-   distance to the nearest sample (a path point, so ``d* <= ds``), the nearest segment
-   owns a sample within ``d* + h <= ds + h``; the candidates are the owners of all
+1. *Candidates* (:mod:`~.project_index`). Uniform grids of cells ``c0``, ``4 c0``,
+   ``16 c0``, ... (``c0`` about the median segment length, halved while its lists are
+   long; the coarser grids for as long as their lists stay short) list in each cell
+   every segment that comes within ``ρ`` (the cell's side) of the cell: each segment is
+   cut into pieces no longer than the cell, each piece has a box that provably holds
+   it, and a piece is registered in every cell that its box grown by ``ρ`` touches. A
+   point takes its cell's list at the finest grid; if the nearest listed segment is at
+   most ``ρ`` away it is the nearest of all: the true nearest segment is then at most
+   ``ρ`` from the point, hence from its cell, hence listed. Otherwise the point tries the
+   next coarser grid, and after the last a k-d tree of path samples: every point of a
+   segment lies within ``h`` of one of that segment's samples, so with ``ds`` the
+   distance to the nearest sample (a path point, so ``d* <= ds``) the nearest segment
+   owns a sample within ``d* + h <= ds + h``; the candidates are the owners of all the
    samples in that ball. (A path of at most 16 segments skips the tree: every segment
    is a candidate; a path of one segment has no grids.)
 2. *Lines and arcs* in closed form, vectorised over all (point, candidate) pairs: the
@@ -44,14 +45,15 @@ Every bound is loosened by the coordinates' rounding (64 ε times their magnitud
 that rounding never removes the nearest segment.
 
 ``hint`` (the previous arc length of each point, for a trace that moves along the path)
-bounds the distance of a point that the finer grid did not settle by its distance to
-the hint's segment and that segment's neighbours: the point goes straight to the coarser
-grid or the tree, whichever certifies that bound, and the bound prunes the search on
-curves. It does not change the result: each stage's candidates hold every segment
-within the bound (a fortiori the nearest ones); a line's or an arc's distance does not
-depend on the bound, and a curve's search only drops intervals that cannot come below
-it, every other step depending on the interval alone (:mod:`~.project_curve`); so the
-winner is the same minimum, with the same tie rule, bit for bit.
+bounds the distance of a point that the finest grid did not settle by its distance to
+the segment at the hint: the point goes straight to the first coarser grid (or the tree)
+that certifies that bound, skipping the grids between, and the bound prunes the search
+on curves and narrows the tree's ball. It does not change the result: each stage's
+candidates hold every segment within the bound (a fortiori the nearest ones); a line's
+or an arc's distance does not depend on the bound, and a curve's search only drops
+intervals that cannot come below it, every other step depending on the interval alone
+(:mod:`~.project_curve`); so the winner is the same minimum, with the same tie rule,
+bit for bit.
 
 :func:`project_points_scalar` is the slow reference: per point and per segment piece,
 `scipy.optimize.minimize_scalar` (bounded Brent) on the segment's parameter.
@@ -75,8 +77,6 @@ from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Se
 __all__ = ["Projection", "project_points", "project_points_scalar"]
 
 _INDEX: weakref.WeakKeyDictionary[Path, PathIndex] = weakref.WeakKeyDictionary()
-#: Grid levels tried (cells of the finest size and four times it) before the sample tree.
-_GRID_LEVELS = 2
 #: Up to this many segments, a point no grid settles is measured against all of them.
 _ALL_SEGMENTS = 16
 #: Largest coordinate of a point, m (as for a segment: its square stays finite).
@@ -207,7 +207,7 @@ def project_points(path: Path, points: object, *, hint: object = None) -> Projec
     par = np.zeros(n)
     dist = np.full(n, np.inf)
     ub = np.full(n, np.inf)
-    n_lv = min(idx.n_levels(), _GRID_LEVELS)
+    n_lv = idx.usable_levels()
     first = np.zeros(n, dtype=np.int64)
     if hint is not None:
         h = np.array(hint, dtype=float)
@@ -294,13 +294,12 @@ def _settle_tree(
 
 
 def _hint_bound(idx: PathIndex, p: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Distance (m) of each point to the hint's segment and its two neighbours, rounded up."""
+    """Distance (m) of each point to the segment at its hint, rounded up: a path distance."""
     k0 = idx.segment_at(h)
-    prv, nxt = idx.prev[k0], idx.next[k0]
-    cand = np.column_stack([k0, np.where(prv >= 0, prv, k0), np.where(nxt >= 0, nxt, k0)])
-    pt = np.repeat(np.arange(k0.size), 3)
-    d, _ = idx.nearest(cand.ravel(), pt, p[:, 0].copy(), p[:, 1].copy(), np.full(k0.size, np.inf))
-    return d.reshape(-1, 3).min(axis=1) * (1.0 + 1e-9) + idx.eps
+    d, _ = idx.nearest(
+        k0, np.arange(k0.size), p[:, 0].copy(), p[:, 1].copy(), np.full(k0.size, np.inf)
+    )
+    return d * (1.0 + 1e-9) + idx.eps
 
 
 def _finish(

@@ -40,6 +40,8 @@ _MAX_CURVE_PIECES = 1 << 16
 _LEVEL_RATIO = 4.0
 #: Most segments a cell of the finest grid lists on average (else its cell is halved).
 _MEAN_LIST = 8
+#: Most segments a cell lists on average for its grid to be used (else the k-d tree).
+_MAX_MEAN_LIST = 64
 #: Most (point, segment) pairs evaluated at once when every segment is a candidate.
 _CHUNK_PAIRS = 1 << 20
 
@@ -186,6 +188,7 @@ class PathIndex:
         self._cell_floor = max(self.size * 2.0**-16, float(self.breaks[-1]) * 2.0**-20)
         self._cell_start = min(max(median, self._cell_floor), self.size / 32.0)
         self._cell0: float | None = None
+        self._usable: int | None = None
         self._levels: list[GridLevel] = []
         self._tree: tuple[cKDTree, np.ndarray, float] | None = None
 
@@ -373,6 +376,25 @@ class PathIndex:
         while self.n_seg > 1 and self.cell0 * _LEVEL_RATIO**n < self.size:
             n += 1
         return n
+
+    def usable_levels(self) -> int:
+        """Grid levels worth trying: up to the first whose lists are long, at least one.
+
+        A coarse grid over a dense drawing lists hundreds of segments per cell, each an
+        exact distance to compute per point: past `_MAX_MEAN_LIST` a k-d tree of samples
+        finds the candidates for less. The levels are built here (once).
+        """
+        if self._usable is None:
+            n = self.n_levels()
+            use = min(n, 1)
+            while use < n and not self._dense(self.level(use)):
+                use += 1
+            self._usable = use
+        return self._usable
+
+    @staticmethod
+    def _dense(grid: GridLevel) -> bool:
+        return grid.segs.size > _MAX_MEAN_LIST * grid.keys.size
 
     @property
     def cell0(self) -> float:
