@@ -335,6 +335,42 @@ def test_candidate_routes_agree(monkeypatch: pytest.MonkeyPatch) -> None:
         _same(with_grids, every)
 
 
+def _bumps() -> Path:
+    """60 half circles of 5 µm radius in a row and a spline back, turned by 0.3 rad."""
+    x = np.arange(61) * 10 * UM
+    segs: list[Segment] = [
+        ArcSegment.from_bulge((x[i], 0.0), (x[i + 1], 0.0), 1.0 if i % 2 else -1.0)
+        for i in range(60)
+    ]
+    ctrl = np.array([[x[-1], 0.0], [x[-1], 200 * UM], [0.0, -150 * UM], [0.0, 0.0]])
+    segs.append(CurveSegment.from_bezier(ctrl))
+    # turned, so that the arcs' quarter pieces bulge out of their chords' boxes
+    return Path(tuple(segs), closed=True).rotated(0.3)
+
+
+def test_grid_lists_every_segment_within_its_radius() -> None:
+    # the invariant the grids rest on, checked point by point on dense samples
+    path = _bumps()
+    idx = PathIndex(path)
+    assert idx.usable_levels() >= 2
+    for lv in range(idx.usable_levels()):
+        g = idx.level(lv)
+        listed = np.repeat(g.keys, np.diff(g.offsets)) * idx.n_seg + g.segs
+        for k, (s0, s1) in enumerate(itertools.pairwise(path.breaks)):
+            q = path.point(np.linspace(s0, s1, 400)[1:-1])  # inside segment k
+            # every cell whose square comes within ρ of a sample must list segment k
+            ix = np.floor((q[:, 0] - g.x0) / g.cell).astype(int)
+            iy = np.floor((q[:, 1] - g.y0) / g.cell).astype(int)
+            for dx, dy in itertools.product(range(-2, 3), repeat=2):
+                cx, cy = ix + dx, iy + dy
+                lo_x, lo_y = g.x0 + cx * g.cell, g.y0 + cy * g.cell
+                gap_x = np.maximum(np.maximum(lo_x - q[:, 0], q[:, 0] - lo_x - g.cell), 0.0)
+                gap_y = np.maximum(np.maximum(lo_y - q[:, 1], q[:, 1] - lo_y - g.cell), 0.0)
+                near = np.hypot(gap_x, gap_y) <= g.radius * (1.0 - 1e-6)
+                code = (cx * g.ny + cy)[near] * idx.n_seg + k
+                assert np.all(np.isin(code, listed)), (lv, k, dx, dy)
+
+
 # --------------------------------------------------------------------- checks
 def test_bad_arguments_are_refused() -> None:
     path = circle(100 * UM)
