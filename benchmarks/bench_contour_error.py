@@ -1,8 +1,9 @@
 """Contour error of a tracked trace: vectorised foot points against the scalar baseline.
 
 For each contour (seed 004 §IV.D: a circle of 100 µm radius; a DXF-like rounded rectangle
-of 400 × 200 µm with 20 µm corner arcs, lines and arcs; and, to show the candidate grids
-at work, a 2000-gon of 100 µm radius) the trace is ``n`` points (default 100 000) spaced
+of 400 × 200 µm with 20 µm corner arcs, lines and arcs; and, beyond the brief, a DXF-like
+slot with a cubic spline, for the curve search, and a 2000-gon of 100 µm radius, for the
+candidate grids) the trace is ``n`` points (default 100 000) spaced
 evenly along the contour, as a constant-speed trajectory samples it, each moved by a
 uniform ±1 µm in x and in y. Printed, figures only:
 
@@ -30,10 +31,25 @@ import numpy as np
 
 from microfab.geometry.path import Path
 from microfab.geometry.project import Projection, project_points, project_points_scalar
+from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment
 from microfab.geometry.shapes import circle, rectangle, regular_polygon
 
 UM = 1e-6
 JITTER = 1.0 * UM  # ±, m, uniform in each axis
+
+
+def slot_with_spline() -> Path:
+    """A DXF-like closed contour (100 x 80 µm): lines, two bulge arcs and a cubic spline."""
+    P = np.array([[0, 0], [100, 0], [100, 40], [60, 40], [0, 40]], dtype=float) * UM
+    ctrl = np.array([[60, 40], [40, 80], [20, 0], [0, 40]], dtype=float) * UM
+    segs = (
+        LineSegment(P[0], P[1]),
+        ArcSegment.from_bulge(P[1], P[2], 1.0),
+        LineSegment(P[2], P[3]),
+        CurveSegment.from_bezier(ctrl),
+        ArcSegment.from_bulge(P[4], P[0], 0.4),
+    )
+    return Path(segs, closed=True)
 
 
 def tracked(path: Path, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -105,6 +121,7 @@ def main(n: int = 100_000, n_ref: int = 300) -> None:
             "rounded rectangle 400 x 200 µm, r = 20 µm",
             rectangle(400 * UM, 200 * UM, corner_radius=20 * UM),
         ),
+        ("DXF-like slot: lines, bulge arcs, a cubic spline", slot_with_spline()),
         ("2000-gon r = 100 µm", regular_polygon(2000, 100 * UM)),
     ]
     for name, path in contours:

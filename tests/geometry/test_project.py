@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import gc
 import itertools
 import math
+import pathlib
+import weakref
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import microfab.geometry.project as project_module
+from microfab.geometry.dxf import read_dxf
 from microfab.geometry.path import Path
 from microfab.geometry.project import Projection, project_points, project_points_scalar
 from microfab.geometry.project_index import PathIndex
@@ -230,6 +235,34 @@ def test_mixed_path_matches_the_scalar_reference() -> None:
     assert project_points(path, [[50 * UM, -5 * UM]]).distance[0] < 0
 
 
+def test_contours_read_from_a_dxf_file(tmp_path: pathlib.Path) -> None:
+    ezdxf = pytest.importorskip("ezdxf")
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 4  # mm
+    msp = doc.modelspace()
+    msp.add_lwpolyline(
+        [(0, 0, 0.4), (1, 0, 0), (1, 0.5, -0.3), (0, 0.5, 0)], format="xyb", close=True
+    )
+    # a slot in loose entities: two lines and two half circles
+    msp.add_line((2, 0), (3, 0))
+    msp.add_arc((3, 0.25), 0.25, -90, 90)
+    msp.add_line((3, 0.5), (2, 0.5))
+    msp.add_arc((2, 0.25), 0.25, 90, 270)
+    msp.add_open_spline([(4, 0), (4.3, 0.6), (4.6, -0.2), (5, 0.3)], degree=3)
+    doc.saveas(tmp_path / "parts.dxf")
+    layer = read_dxf(tmp_path / "parts.dxf")
+    kinds = {type(seg) for path in layer for seg in path.segments}
+    assert kinds == {LineSegment, ArcSegment, CurveSegment}
+    rng = _rng(11)
+    for path in layer:
+        x0, y0, x1, y1 = path.bbox
+        p = rng.uniform([x0 - 2e-4, y0 - 2e-4], [x1 + 2e-4, y1 + 2e-4], (12, 2))
+        proj = project_points(path, p)
+        ref = project_points_scalar(path, p)
+        assert np.allclose(proj.distance, ref.distance, rtol=0, atol=1e-13)
+        assert np.allclose(path.point(proj.s), proj.foot, rtol=0, atol=1e-15)
+
+
 @pytest.mark.parametrize(
     "make",
     [
@@ -281,15 +314,61 @@ def test_hint_never_changes_the_result(make: object) -> None:
         _same(project_points(path, p, hint=hint), plain)
 
 
-def test_grids_agree_with_every_segment(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_candidate_routes_agree(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the grids, the sample tree alone, and every segment: the same answer, bit for bit
     p, _ = _tracked(regular_polygon(500, 100 * UM), 2000, 8)
     p[::7] *= 1.5  # and farther out
-    for make in (lambda: regular_polygon(500, 100 * UM), _slot_with_spline):
+    walk = np.cumsum(_rng(9).normal(0.0, 10 * UM, (300, 2)), axis=0)  # a tangled polyline
+    p = np.vstack([p, _rng(10).uniform(walk.min(axis=0), walk.max(axis=0), (1000, 2))])
+    for make in (
+        lambda: regular_polygon(500, 100 * UM),
+        lambda: Path.polyline(walk),
+        _slot_with_spline,
+    ):
         with_grids = project_points(make(), p)
         with monkeypatch.context() as mp:
             mp.setattr(PathIndex, "n_levels", lambda self: 0)
-            every = project_points(make(), p)  # a new path: a new index, without grids
+            tree = project_points(make(), p)  # a new path: a new index, without grids
+            mp.setattr(project_module, "_ALL_SEGMENTS", 10**9)
+            every = project_points(make(), p)
+        _same(with_grids, tree)
         _same(with_grids, every)
+
+
+def _bumps() -> Path:
+    """60 half circles of 5 µm radius in a row and a spline back, turned by 0.3 rad."""
+    x = np.arange(61) * 10 * UM
+    segs: list[Segment] = [
+        ArcSegment.from_bulge((x[i], 0.0), (x[i + 1], 0.0), 1.0 if i % 2 else -1.0)
+        for i in range(60)
+    ]
+    ctrl = np.array([[x[-1], 0.0], [x[-1], 200 * UM], [0.0, -150 * UM], [0.0, 0.0]])
+    segs.append(CurveSegment.from_bezier(ctrl))
+    # turned, so that the arcs' quarter pieces bulge out of their chords' boxes
+    return Path(tuple(segs), closed=True).rotated(0.3)
+
+
+def test_grid_lists_every_segment_within_its_radius() -> None:
+    # the invariant the grids rest on, checked point by point on dense samples
+    path = _bumps()
+    idx = PathIndex(path)
+    assert idx.usable_levels() >= 2
+    for lv in range(idx.usable_levels()):
+        g = idx.level(lv)
+        listed = np.repeat(g.keys, np.diff(g.offsets)) * idx.n_seg + g.segs
+        for k, (s0, s1) in enumerate(itertools.pairwise(path.breaks)):
+            q = path.point(np.linspace(s0, s1, 400)[1:-1])  # inside segment k
+            # every cell whose square comes within ρ of a sample must list segment k
+            ix = np.floor((q[:, 0] - g.x0) / g.cell).astype(int)
+            iy = np.floor((q[:, 1] - g.y0) / g.cell).astype(int)
+            for dx, dy in itertools.product(range(-2, 3), repeat=2):
+                cx, cy = ix + dx, iy + dy
+                lo_x, lo_y = g.x0 + cx * g.cell, g.y0 + cy * g.cell
+                gap_x = np.maximum(np.maximum(lo_x - q[:, 0], q[:, 0] - lo_x - g.cell), 0.0)
+                gap_y = np.maximum(np.maximum(lo_y - q[:, 1], q[:, 1] - lo_y - g.cell), 0.0)
+                near = np.hypot(gap_x, gap_y) <= g.radius * (1.0 - 1e-6)
+                code = (cx * g.ny + cy)[near] * idx.n_seg + k
+                assert np.all(np.isin(code, listed)), (lv, k, dx, dy)
 
 
 # --------------------------------------------------------------------- checks
@@ -299,12 +378,23 @@ def test_bad_arguments_are_refused() -> None:
         project_points(path, [1.0, 2.0])
     with pytest.raises(ValueError, match="finite"):
         project_points(path, [[0.0, np.nan]])
+    with pytest.raises(ValueError, match="overflow"):
+        project_points(path, [[0.0, 1e200]])
     with pytest.raises(ValueError, match="hint"):
         project_points(path, [[0.0, 0.0]], hint=[0.0, 1.0])
     with pytest.raises(ValueError, match="hint"):
         project_points(path, [[0.0, 0.0]], hint=[np.inf])
     with pytest.raises(TypeError, match="Path"):
         project_points([[0.0, 0.0], [1.0, 0.0]], [[0.0, 0.0]])  # type: ignore[arg-type]
+
+
+def test_the_cached_index_does_not_keep_the_path_alive() -> None:
+    path = regular_polygon(50, 100 * UM)
+    project_points(path, [[0.0, 0.0]])
+    ref = weakref.ref(path)
+    del path
+    gc.collect()
+    assert ref() is None
 
 
 def test_projection_is_read_only_and_empty_input_works() -> None:

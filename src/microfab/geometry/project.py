@@ -17,27 +17,43 @@ beyond an end of an open path, along that end's own normal (ahead of the end: po
 
 Algorithm and exactness
 -----------------------
-1. *Candidates.* A stack of uniform grids (:class:`~.project_index.GridLevel`; cells of
-   side ``ρ = c0 · 4^l``, ``c0`` the median segment length) lists in each cell every
-   segment that comes within ``ρ`` of the cell (rigorous piece boxes, see
-   :mod:`~.project_index`). A point takes its cell's list at the finest level; if the
-   nearest listed segment is at most ``ρ`` away, it is the nearest of all: the true
-   nearest segment is then at most ``ρ`` from the point, hence from its cell, hence
-   listed. Otherwise the point moves to the next level; above the last, every segment is
-   a candidate.
+1. *Candidates* (:mod:`~.project_index`). Uniform grids of cells ``c0``, ``4 c0``,
+   ``16 c0``, ... (``c0`` about the median segment length, halved while its lists are
+   long; the coarser grids for as long as their lists stay short) list in each cell
+   every segment that comes within ``ρ`` (the cell's side) of the cell: each segment is
+   cut into pieces no longer than the cell, each piece has a box that provably holds
+   it, and a piece is registered in every cell that its box grown by ``ρ`` touches. A
+   point takes its cell's list at the finest grid; if the nearest listed segment is at
+   most ``ρ`` away it is the nearest of all: the true nearest segment is then at most
+   ``ρ`` from the point, hence from its cell, hence listed. Otherwise the point tries the
+   next coarser grid, and after the last a k-d tree of path samples: every point of a
+   segment lies within ``h`` of one of that segment's samples, so with ``ds`` the
+   distance to the nearest sample (a path point, so ``d* <= ds``) the nearest segment
+   owns a sample within ``d* + h <= ds + h``; the candidates are the owners of all the
+   samples in that ball. (A path of at most 16 segments skips the tree: every segment
+   is a candidate; a path of one segment has no grids.)
 2. *Lines and arcs* in closed form, vectorised over all (point, candidate) pairs: the
    clipped orthogonal projection; the radial point if its angle lies in the sweep, else
-   the nearer end.
+   the nearer end (the distance to a circle point grows with the angle away from the
+   radial one).
 3. *Polynomial curves* by branch and bound with safeguarded Newton steps on the distance
-   derivative (:mod:`~.project_curve`), to 1e-13 m, after a box test against the best
-   line or arc distance of the same point.
+   derivative (:mod:`~.project_curve`), to 1e-13 m, after a test of the curve's box
+   against the best line or arc distance of the same point.
 4. Per point, the smallest distance wins; ties go to the lower segment index.
 
+Every bound is loosened by the coordinates' rounding (64 ε times their magnitude) so
+that rounding never removes the nearest segment.
+
 ``hint`` (the previous arc length of each point, for a trace that moves along the path)
-gives an upper bound, the distance to the path point there: the point starts at the
-finest grid level whose ``ρ`` covers that bound (no failed finer levels) and the bound
-prunes curve pieces. It does not change the result: every level's list holds all
-segments within the bound, and the winner is the same minimum with the same tie rule.
+bounds the distance of a point that the finest grid did not settle by its distance to
+the segment at the hint: the point goes straight to the first coarser grid (or the tree)
+that certifies that bound, skipping the grids between, and the bound prunes the search
+on curves and narrows the tree's ball. It does not change the result: each stage's
+candidates hold every segment within the bound (a fortiori the nearest ones); a line's
+or an arc's distance does not depend on the bound, and a curve's search only drops
+intervals that cannot come below it, every other step depending on the interval alone
+(:mod:`~.project_curve`); so the winner is the same minimum, with the same tie rule,
+bit for bit.
 
 :func:`project_points_scalar` is the slow reference: per point and per segment piece,
 `scipy.optimize.minimize_scalar` (bounded Brent) on the segment's parameter.
@@ -61,6 +77,10 @@ from microfab.geometry.segments import ArcSegment, CurveSegment, LineSegment, Se
 __all__ = ["Projection", "project_points", "project_points_scalar"]
 
 _INDEX: weakref.WeakKeyDictionary[Path, PathIndex] = weakref.WeakKeyDictionary()
+#: Up to this many segments, a point no grid settles is measured against all of them.
+_ALL_SEGMENTS = 16
+#: Largest coordinate of a point, m (as for a segment: its square stays finite).
+_MAX_COORD = 1e150
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,6 +147,11 @@ def _points(points: object) -> np.ndarray:
     if not np.all(np.isfinite(p)):
         i = int(np.flatnonzero(~np.all(np.isfinite(p), axis=1))[0])
         raise ValueError(f"points must be finite (m): point {i} is {p[i].tolist()}")
+    if p.size and np.max(np.abs(p)) > _MAX_COORD:
+        raise ValueError(
+            f"points must lie within ±{_MAX_COORD:g} m (their squared distances must not "
+            f"overflow), got a coordinate of {np.max(np.abs(p)):.3g} m"
+        )
     return p
 
 
@@ -182,7 +207,7 @@ def project_points(path: Path, points: object, *, hint: object = None) -> Projec
     par = np.zeros(n)
     dist = np.full(n, np.inf)
     ub = np.full(n, np.inf)
-    n_lv = idx.n_levels()
+    n_lv = idx.usable_levels()
     first = np.zeros(n, dtype=np.int64)
     if hint is not None:
         h = np.array(hint, dtype=float)
@@ -191,16 +216,19 @@ def project_points(path: Path, points: object, *, hint: object = None) -> Projec
                 f"hint must be a finite arc length (m) per point, shape ({n},), got shape "
                 f"{h.shape}" + ("" if h.shape != (n,) else " with a value that is not finite")
             )
-    radii = idx.cell0 * 4.0 ** np.arange(n_lv) * (1.0 - 1e-9) - idx.eps
+    radii = (idx.cell0 if n_lv else 0.0) * 4.0 ** np.arange(n_lv) * (1.0 - 1e-9) - idx.eps
     todo = np.arange(n)
-    for lv in range(n_lv + 1):  # the grid levels, then every segment
+    for lv in range(n_lv + 1):  # the grid levels, then the rest
         if lv == 1 and hint is not None and todo.size:
             # the points the finest grid did not settle: bound them by the hint's
             # segment and go straight to the level that certifies that bound
             ub[todo] = np.minimum(ub[todo], _hint_bound(idx, p[todo], h[todo]))
             first[todo] = np.searchsorted(radii, ub[todo])
         if lv == n_lv:
-            _settle_all(idx, p, todo, ub, seg, par, dist)
+            if idx.n_seg <= _ALL_SEGMENTS:
+                _settle_all(idx, p, todo, ub, seg, par, dist)
+            else:
+                _settle_tree(idx, p, todo, ub, seg, par, dist)
             break
         sel = todo[first[todo] <= lv]
         if not sel.size:
@@ -214,7 +242,9 @@ def project_points(path: Path, points: object, *, hint: object = None) -> Projec
         ok = (win >= 0) & (dmin <= grid.radius * (1.0 - 1e-9) - idx.eps)
         seg[sel[ok]], par[sel[ok]], dist[sel[ok]] = cand[win[ok]], prm[win[ok]], dmin[ok]
         ub[sel] = np.minimum(ub[sel], dmin)
-        todo = np.setdiff1d(todo, sel[ok], assume_unique=True)
+        left = np.ones(n, dtype=bool)
+        left[sel[ok]] = False
+        todo = todo[left[todo]]
     return _finish(idx, p, seg, par, dist, radial=True)
 
 
@@ -241,14 +271,35 @@ def _settle_all(
         seg[sel], par[sel], dist[sel] = cand[win], prm[win], dmin
 
 
+def _settle_tree(
+    idx: PathIndex,
+    p: np.ndarray,
+    todo: np.ndarray,
+    ub: np.ndarray,
+    seg: np.ndarray,
+    par: np.ndarray,
+    dist: np.ndarray,
+) -> None:
+    """The points ``todo`` against the segments the sample tree finds; results in place."""
+    if not todo.size:
+        return
+    counts, cand, bound = idx.tree_candidates(p[todo], ub[todo])
+    sel = todo
+    pt = np.repeat(np.arange(sel.size), counts)
+    d, prm = idx.nearest(cand, pt, p[sel, 0], p[sel, 1], bound)
+    win, dmin = _select(counts, d)
+    if not np.all(np.isfinite(dmin)):  # cannot happen: the nearest sample's segment is there
+        raise RuntimeError("projection lost every candidate (report this path and point)")
+    seg[sel], par[sel], dist[sel] = cand[win], prm[win], dmin
+
+
 def _hint_bound(idx: PathIndex, p: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Distance (m) of each point to the hint's segment and its two neighbours, rounded up."""
-    k0, _ = idx.path.locate(h)
-    prv, nxt = idx.prev[k0], idx.next[k0]
-    cand = np.column_stack([k0, np.where(prv >= 0, prv, k0), np.where(nxt >= 0, nxt, k0)])
-    pt = np.repeat(np.arange(k0.size), 3)
-    d, _ = idx.nearest(cand.ravel(), pt, p[:, 0].copy(), p[:, 1].copy(), np.full(k0.size, np.inf))
-    return d.reshape(-1, 3).min(axis=1) * (1.0 + 1e-9) + idx.eps
+    """Distance (m) of each point to the segment at its hint, rounded up: a path distance."""
+    k0 = idx.segment_at(h)
+    d, _ = idx.nearest(
+        k0, np.arange(k0.size), p[:, 0].copy(), p[:, 1].copy(), np.full(k0.size, np.inf)
+    )
+    return d * (1.0 + 1e-9) + idx.eps
 
 
 def _finish(

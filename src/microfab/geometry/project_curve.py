@@ -3,31 +3,41 @@
 The squared distance ``D(u) = |f(u) − p|²`` of a point ``p`` to a curve ``f(u), u ∈ [0, 1]``
 is minimised by branch and bound on ``u``, vectorised over every pair and every interval:
 
-1. the ends ``u = 0`` and ``u = 1`` are candidates, and ``[0, 1]`` is cut into ``n0``
-   equal intervals (``n0`` from the degree);
-2. each round evaluates, at the midpoint ``m`` of every live interval ``[m − h, m + h]``,
-   ``f``, ``f'`` and ``f''`` (Clenshaw), makes the midpoint a candidate, and bounds the
-   interval rigorously with the global coefficient bounds ``M2 ≥ max|f''|``,
-   ``M3 ≥ max|f'''|`` (sums of the Chebyshev coefficients' magnitudes, ``|T_k| ≤ 1``):
-   speed ``≤ s1 = |f'(m)| + M2 h``, ``|f''| ≤ s2 = |f''(m)| + M3 h``, distance
-   ``≤ dmax = d(m) + s1 h``; the lower bound of the distance on the interval is the larger
-   of ``d(m) − s1 h`` (Lipschitz) and ``sqrt(D(m) − |D'(m)| h − (s1² + dmax s2) h²)``
-   (Taylor, ``|D''| / 2 ≤ s1² + dmax s2``);
+1. the ends ``u = 0`` and ``u = 1`` are candidates, and ``[0, 1]`` is cut into 8 equal
+   intervals;
+2. each round evaluates ``f`` at the midpoint ``m`` of every live interval
+   ``[m − h, m + h]`` (Clenshaw) and makes it a candidate; an interval with
+   ``d(m) − M1 h`` above the pair's upper bound is dropped at once (``M1 ≥ max|f'|``);
+   the others get ``f'`` and ``f''`` there, and rigorous bounds from the global
+   coefficient bounds ``M2 ≥ max|f''|``, ``M3 ≥ max|f'''|`` (sums of the Chebyshev
+   coefficients' magnitudes, ``|T_k| ≤ 1``): speed ``≤ s1 = |f'(m)| + M2 h``,
+   ``|f''| ≤ s2 = |f''(m)| + M3 h``, distance ``≤ dmax = d(m) + s1 h``; the lower bound of
+   the distance on the interval is the larger of ``d(m) − s1 h`` (Lipschitz) and
+   ``sqrt(D(m) − |D'(m)| h − (s1² + dmax s2) h²)`` (Taylor, ``|D''| / 2 ≤ s1² + dmax s2``);
 3. an interval whose lower bound exceeds the pair's upper bound (the best candidate so
-   far, or a smaller bound the caller knows: another segment's distance) is dropped; it
-   cannot hold the minimum;
+   far, or a smaller bound the caller knows: another segment's distance, or the radius
+   beyond which the caller has no use for the distance) is dropped: it cannot hold the
+   minimum;
 4. an interval on which ``D`` is provably convex, ``D''/2 ≥ |f'(m)|² + (f(m) − p)·f''(m)
-   − (3 s1 s2 + dmax M3) h > 0``, holds at most one local minimum, found by Newton's
-   method on ``D'/2 = (f − p)·f'`` safeguarded by bisection (the bracket keeps the sign
-   change), or at an end of the interval if ``D'`` does not change sign there;
+   − (3 s1 s2 + dmax M3) h > 0``, holds at most one local minimum: at the end towards
+   which ``D'`` points if ``D'`` keeps its sign there, else at the root of
+   ``D'/2 = (f − p)·f'`` in the bracket, found by Newton steps (false position, then
+   bisection, when a step leaves the bracket) until the foot moves by less than
+   ``tol / 1000``;
 5. an interval whose midpoint is within ``tol`` of its lower bound is done (its points
-   cannot beat the midpoint by more than ``tol``); any other interval is halved.
+   cannot beat the midpoint by more than ``tol``); any other interval is halved. Where
+   ``D`` is flat (a point near a centre of curvature: the Taylor bounds cannot see the
+   cancellation) an interval halved twice gets a third bound, ``e_0 − Σ|e_k|`` from the
+   Chebyshev coefficients ``e_k`` of ``D`` itself on the interval (a polynomial of
+   degree 2d, interpolated exactly at 2d + 1 points), which settles it at once.
 
 The minimum is in some interval that is never dropped (its lower bound is at most the
 minimum, which is at most every upper bound), and that interval ends in Newton's root or
 in a midpoint within ``tol``: the result is the global minimum to ``tol`` (Newton's roots
-to rounding). The work is adaptive: a point near a curve is settled in one round (its
-intervals are convex), a point near a centre of curvature (``D`` flat) needs a few rounds.
+to rounding). Every decision about an interval except the drop depends on the interval
+alone, so a different upper bound (a ``hint``) never changes which candidate wins. The
+work is adaptive: a point near a curve is settled in one or two rounds (its intervals are
+convex), a point far from it drops most intervals at once.
 """
 
 from __future__ import annotations
@@ -83,7 +93,7 @@ class _Group:
         d1, d2, d3 = (np.stack(d) for d in zip(*(c.derivative_coefs for c in curves), strict=True))
         # by term first, so that one term of many rows is a contiguous gather
         self.ct = [np.ascontiguousarray(np.moveaxis(c, 1, 0)) for c in (c0, d1, d2, d3)]
-        self.m1, self.m2, self.m3 = _bound(d1), _bound(d2), _bound(d3)
+        self.m0, self.m1, self.m2, self.m3 = _bound(c0), _bound(d1), _bound(d2), _bound(d3)
         self.m2_xy = np.abs(d2).sum(axis=1) * _COEF_BOUND_PAD  # per coordinate, (g, 2)
         self.table = np.stack([c.length_table for c in curves])
         self.degree = curves[0].degree
@@ -174,7 +184,8 @@ class _Group:
         ``D(u) = |f(u) − p|²`` is a polynomial of degree 2d: interpolation at 2d + 1
         Chebyshev points of the interval gives its coefficients ``e_k`` exactly (up to
         rounding), and ``D ≥ e_0 − Σ_{k≥1} |e_k|`` there (``|T_k| ≤ 1``), less a rounding
-        margin of ``8 (2d + 1) ε max D``.
+        margin of ``8 (2d + 1) ε (max D + 2 sqrt(max D) X)``, ``X`` the size of the
+        coordinates (``f − p`` is rounded to ``ε X``).
         """
         nodes, basis = self.dct
         k = nodes.size
@@ -183,7 +194,10 @@ class _Group:
         r = self.eval(0, rr, u) - np.repeat(p, k, axis=0)
         dv = (r[:, 0] ** 2 + r[:, 1] ** 2).reshape(-1, k)
         e = dv @ basis  # (n, 2d + 1) coefficients
-        margin = 8.0 * k * np.finfo(float).eps * dv.max(axis=1)
+        # rounding: of the sums, and of f - p (absolute: epsilon times the coordinates)
+        big = dv.max(axis=1)
+        coords = self.m0[rows] + np.abs(p).max(axis=1)
+        margin = 8.0 * k * np.finfo(float).eps * (big + 2.0 * np.sqrt(big) * coords)
         lb_d = e[:, 0] - np.abs(e[:, 1:]).sum(axis=1) - margin
         return np.sqrt(np.maximum(lb_d, 0.0))
 
@@ -242,7 +256,7 @@ class _Group:
             lo, hi, g_lo, g_hi = lo[keep], hi[keep], g_lo[keep], g_hi[keep]
             if live.size == 0:
                 break
-        u[live] = x  # not reached in practice: the bracket halves at worst every step
+        u[live] = np.clip(x, lo, hi)  # not reached in practice: the bracket halves at worst
         r = self.eval(0, rows, u) - p
         return u, np.sqrt(r[:, 0] ** 2 + r[:, 1] ** 2)
 
@@ -307,18 +321,23 @@ class _Group:
 def _improve(
     best_u: np.ndarray, best_d: np.ndarray, item: np.ndarray, u: np.ndarray, d: np.ndarray
 ) -> None:
-    """Keep, per pair, the smaller distance (ties: the smaller u), in place."""
+    """Keep, per pair, the smaller distance (ties: the smaller u), in place.
+
+    ``item`` (the pair of each candidate) is sorted: the intervals are made pair after
+    pair and keep that order through every filter and split.
+    """
     if item.size == 0:
         return
-    order = np.lexsort((u, d, item))
-    it = item[order]
-    first = np.ones(it.size, dtype=bool)
-    first[1:] = it[1:] != it[:-1]
-    sel = order[first]
-    k = item[sel]
-    better = (d[sel] < best_d[k]) | ((d[sel] == best_d[k]) & (u[sel] < best_u[k]))
-    best_d[k[better]] = d[sel][better]
-    best_u[k[better]] = u[sel][better]
+    head = np.ones(item.size, dtype=bool)
+    head[1:] = item[1:] != item[:-1]
+    starts = np.flatnonzero(head)
+    gid = np.cumsum(head) - 1
+    dmin = np.minimum.reduceat(d, starts)
+    umin = np.minimum.reduceat(np.where(d == dmin[gid], u, np.inf), starts)
+    k = item[starts]
+    better = (dmin < best_d[k]) | ((dmin == best_d[k]) & (umin < best_u[k]))
+    best_d[k[better]] = dmin[better]
+    best_u[k[better]] = umin[better]
 
 
 class CurveBank:
