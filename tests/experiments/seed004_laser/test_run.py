@@ -61,9 +61,9 @@ def test_fig7_correction_barely_matters_at_low_speed_on_the_linear_twin():
 
 @pytest.mark.xfail(
     strict=True,
-    reason="with the twin's LuGre friction the correction also removes quadrant-glitch "
-    "contour error at 1 mm/s: 130 nm -> 32 nm after lap 1 (a 98 nm change, not < 50 nm); "
-    "on the linear twin the change is 0.01 nm",
+    reason="with the calibrated twin's LuGre friction the correction also removes "
+    "quadrant-glitch contour error at 1 mm/s: 531 nm -> 116 nm after lap 1 (a 414 nm "
+    "change, not < 50 nm); on the linear twin the change is 0.01 nm",
 )
 def test_fig7_correction_barely_matters_at_low_speed_on_the_full_twin():
     base, comp = _low_speed_change(nonlinear=True)
