@@ -23,9 +23,7 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass, fields, replace
-from importlib import resources
 from typing import Any
 
 import numpy as np
@@ -38,6 +36,7 @@ from microfab.core.validate import (
     check_nonnegative,
     check_positive,
 )
+from microfab.plants.sourced_toml import read_sourced
 
 __all__ = [
     "AXES",
@@ -321,23 +320,6 @@ _SECTIONS = {  # TOML section -> the fields it holds (per-axis fields under [axe
 }
 
 
-def _read_table(table: dict[str, Any], known: tuple[str, ...], where: str) -> dict[str, Any]:
-    """The values of a TOML table; unknown keys, missing keys or sources refused."""
-    out = {}
-    for key, val in table.items():
-        base = key.removesuffix("_source")
-        if base not in known:
-            raise ValueError(f"{where}: unknown key {key!r}; known: {', '.join(known)}")
-        if key == base:
-            if f"{key}_source" not in table:
-                raise ValueError(f"{where}: {key} has no {key}_source string; state its source")
-            out[key] = tuple(val) if isinstance(val, list) else val
-    missing = [k for k in known if k not in out]
-    if missing:
-        raise ValueError(f"{where}: missing {', '.join(missing)}")
-    return out
-
-
 def load_params(path: str | os.PathLike[str] | None = None) -> NanomanipulatorParams:
     """Read the twin's parameters from a TOML file (default ``data/nanomanipulator_twin.toml``).
 
@@ -348,27 +330,9 @@ def load_params(path: str | os.PathLike[str] | None = None) -> NanomanipulatorPa
     ValueError
         Naming the file, the section and the key.
     """
-    if path is None:
-        origin = "data/nanomanipulator_twin.toml"
-        text = resources.files("microfab.data").joinpath("nanomanipulator_twin.toml").read_text()
-    else:
-        origin = os.fspath(path)
-        with open(path, "rb") as fh:
-            text = fh.read().decode()
-    data = tomllib.loads(text)
-    unknown = sorted(set(data) - {*_SECTIONS, "axes"})
-    if unknown:
-        raise ValueError(
-            f"{origin}: unknown section [{unknown[0]}]; known: {sorted(_SECTIONS)}, axes"
-        )
-    values: dict[str, Any] = {}
-    for sec, known in _SECTIONS.items():
-        values.update(_read_table(data.get(sec, {}), known, f"{origin} [{sec}]"))
-    axes = data.get("axes", {})
-    if sorted(axes) != list(AXES):
-        raise ValueError(f"{origin}: [axes] needs the tables x and y, got {sorted(axes)}")
-    per = [_read_table(axes[ax], tuple(_PER_AXIS), f"{origin} [axes.{ax}]") for ax in AXES]
-    values.update({k: (per[0][k], per[1][k]) for k in _PER_AXIS})
+    values = read_sourced(
+        path, "nanomanipulator_twin.toml", _SECTIONS, per_axis=tuple(_PER_AXIS), axes=AXES
+    )
     return NanomanipulatorParams(**values)
 
 

@@ -7,9 +7,8 @@ seed (its table or equation), ``"assumed: <why>"`` otherwise. Per-axis values li
 sections and keys, values without a source, sources that are not non-empty strings and
 missing values, each with one message naming the file, the section and the key.
 
-The nanomanipulator twin keeps its own copy of these rules
-(`microfab.plants.nanomanipulator_params`); the seed 004 twins (`microfab.plants.lmw_stage`,
-`microfab.plants.lmw_focus`) read their files here.
+The nanomanipulator twin (`microfab.plants.nanomanipulator_params`) and the seed 004 twins
+(`microfab.plants.lmw_stage`, `microfab.plants.lmw_focus`) read their files here.
 """
 
 from __future__ import annotations
