@@ -76,9 +76,9 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from microfab.control.base import CompiledController, ReferenceWindow
+from microfab.control.base import ReferenceWindow
 from microfab.control.preview_dob import (
-    PreviewDOB,
+    PreviewDOBAddOn,
     PreviewDOBConfig,
     check_stable,
     pdob_command,
@@ -238,7 +238,7 @@ def contour_step(
     pdob_command(pin, xin, r, ym, x[0:2], u)
 
 
-class ContourCompensator(CompiledController):
+class ContourCompensator(PreviewDOBAddOn):
     """`PreviewDOB` on both axes plus the normal contour correction (module docstring).
 
     Parameters
@@ -257,36 +257,23 @@ class ContourCompensator(CompiledController):
 
     kernel_step: Any = contour_step
 
+    head_states = _XS
+    name = "contour compensator"
+
     def __init__(self, config: ContourConfig) -> None:
         if not isinstance(config, ContourConfig):
             raise TypeError(f"config must be a ContourConfig, got {type(config).__name__}")
         self.config = config
-        self.inner = PreviewDOB(config.inner)
-        self.dt = self.inner.dt
-        self.n_axes = 2
-        self.n_inputs = 2
-        self.n_outputs = 2
-        self.preview = 1
-        head = [config.k_pc, config.k_vc, config.min_speed_m_s, self.dt / config.fade_in_s]
-        self.params = np.concatenate([head, self.inner.params]).astype(np.float64)
-        self.params.setflags(write=False)
-
-    def init(self) -> np.ndarray:
-        """No correction yet, the inner controllers at rest."""
-        return np.concatenate([np.zeros(_XS), self.inner.init()])
+        self._setup(
+            config.inner,
+            [config.k_pc, config.k_vc, config.min_speed_m_s, config.inner.dt / config.fade_in_s],
+        )
 
     def step(
         self, state: np.ndarray, window: ReferenceWindow, measurement: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """One sample in Python (the reference of the kernel); ``state`` is not modified."""
-        if window.velocity is None or window.acceleration is None:
-            raise ValueError(
-                "the contour compensator needs a reference with velocity and acceleration"
-            )
-        x = np.array(state, dtype=np.float64, copy=True)
-        ym = np.asarray(measurement, dtype=float)
-        xin = x[_XS:]  # a view: the inner halves write into x
-        self.inner.measure(xin, window, ym)
+        x, ym, xin = self._begin(state, window, measurement)
         cfg = self.config
         vx, vy = float(window.velocity[0, 0]), float(window.velocity[0, 1])
         ax, ay = float(window.acceleration[0, 0]), float(window.acceleration[0, 1])
@@ -313,10 +300,6 @@ class ContourCompensator(CompiledController):
         x[2], x[3], x[4] = eps, epsd, w
         u = self.inner.command(xin, window, ym, da)
         return u, x
-
-    def inner_state(self, state: np.ndarray) -> np.ndarray:
-        """The inner `PreviewDOB`'s part of ``state`` (a view)."""
-        return np.asarray(state)[_XS:]
 
     def contour_error(self, state: np.ndarray) -> float:
         """``ε`` of the last sample, m (0 where the correction was off)."""

@@ -36,9 +36,14 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from microfab.control.base import CompiledController, ReferenceWindow
+from microfab.control.base import ReferenceWindow
 from microfab.control.contour import check_normal_gains
-from microfab.control.preview_dob import PreviewDOB, PreviewDOBConfig, pdob_command, pdob_measure
+from microfab.control.preview_dob import (
+    PreviewDOBAddOn,
+    PreviewDOBConfig,
+    pdob_command,
+    pdob_measure,
+)
 from microfab.control.velocity import N_ESTIMATOR_PARAMS, estimator_step
 from microfab.core.validate import check_positive
 
@@ -120,7 +125,7 @@ def cross_coupled_step(
     pdob_command(pin, xin, r, ym, x[0:2], u)
 
 
-class CrossCoupled(CompiledController):
+class CrossCoupled(PreviewDOBAddOn):
     """`PreviewDOB` on both axes plus Koren's cross-coupled PD (module docstring).
 
     Parameters
@@ -137,37 +142,21 @@ class CrossCoupled(CompiledController):
 
     kernel_step: Any = cross_coupled_step
 
+    head_states = _XS
+    name = "cross-coupled controller"
+
     def __init__(self, config: CrossCoupledConfig) -> None:
         if not isinstance(config, CrossCoupledConfig):
             raise TypeError(f"config must be a CrossCoupledConfig, got {type(config).__name__}")
         self.config = config
-        self.inner = PreviewDOB(config.inner)
-        self.dt = self.inner.dt
-        self.n_axes = 2
-        self.n_inputs = 2
-        self.n_outputs = 2
-        self.preview = 1
-        self._phi = config.inner.estimator.discrete(self.dt)
-        head = [config.k_p, config.k_d, config.min_speed_m_s, 0.0]
-        self.params = np.concatenate([head, self._phi, self.inner.params]).astype(np.float64)
-        self.params.setflags(write=False)
-
-    def init(self) -> np.ndarray:
-        """No coupling yet (``C = 0``), the inner controllers at rest."""
-        return np.concatenate([np.zeros(_XS), self.inner.init()])
+        self._phi = config.inner.estimator.discrete(config.inner.dt)
+        self._setup(config.inner, [config.k_p, config.k_d, config.min_speed_m_s, 0.0, *self._phi])
 
     def step(
         self, state: np.ndarray, window: ReferenceWindow, measurement: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """One sample in Python (the reference of the kernel); ``state`` is not modified."""
-        if window.velocity is None or window.acceleration is None:
-            raise ValueError(
-                "the cross-coupled controller needs a reference with velocity and acceleration"
-            )
-        x = np.array(state, dtype=np.float64, copy=True)
-        ym = np.asarray(measurement, dtype=float)
-        xin = x[_XS:]
-        self.inner.measure(xin, window, ym)
+        x, ym, xin = self._begin(state, window, measurement)
         vx, vy = float(window.velocity[0, 0]), float(window.velocity[0, 1])
         sp = math.sqrt(vx * vx + vy * vy)
         if sp >= self.config.min_speed_m_s:
@@ -181,10 +170,6 @@ class CrossCoupled(CompiledController):
         x[4], x[5] = eps, epsd
         u = self.inner.command(xin, window, ym, x[0:2].copy())
         return u, x
-
-    def inner_state(self, state: np.ndarray) -> np.ndarray:
-        """The inner `PreviewDOB`'s part of ``state`` (a view)."""
-        return np.asarray(state)[_XS:]
 
     def contour_error_estimate(self, state: np.ndarray) -> float:
         """Koren's ``ε_K`` of the last sample, m (``−ε`` of the compensator)."""

@@ -98,6 +98,7 @@ from microfab.plants.lti import DiscreteLTI
 
 __all__ = [
     "PreviewDOB",
+    "PreviewDOBAddOn",
     "PreviewDOBConfig",
     "PreviewDOBLog",
     "axis_model",
@@ -394,3 +395,50 @@ class PreviewDOB(CompiledController):
         u, d, v = (np.empty((n, na)) for _ in range(3))
         _replay(self.params, x, R, ym, u, d, v)
         return PreviewDOBLog(command=u, disturbance=d, velocity=v, final_state=x)
+
+
+class PreviewDOBAddOn(CompiledController):
+    """Base of a controller that adds an acceleration correction to two `PreviewDOB` axes.
+
+    The contour compensator (`microfab.control.contour`) and Koren's cross-coupled
+    controller (`microfab.control.cross_coupled`) both keep ``head_states`` states of
+    their own ahead of the inner controllers' state, let the inner controllers measure,
+    compute a correction ``Δa`` (m/s², added to ``ẍ_d`` of eq. 3) and let them command.
+    A subclass sets ``head_states`` and ``name``, calls `_setup` from ``__init__`` and
+    uses `_begin` at the start of its Python ``step``.
+    """
+
+    head_states: int = 0
+    name: str = "controller"
+
+    def _setup(self, inner: PreviewDOBConfig, head: Any) -> None:
+        """The inner controllers, sizes and ``params = [head, inner params]``."""
+        self.inner = PreviewDOB(inner)
+        self.dt = self.inner.dt
+        self.n_axes = 2
+        self.n_inputs = 2
+        self.n_outputs = 2
+        self.preview = 1
+        self.params = np.concatenate([np.asarray(head, dtype=float), self.inner.params])
+        self.params = self.params.astype(np.float64)
+        self.params.setflags(write=False)
+
+    def init(self) -> np.ndarray:
+        """No correction yet, the inner controllers at rest."""
+        return np.concatenate([np.zeros(self.head_states), self.inner.init()])
+
+    def inner_state(self, state: np.ndarray) -> np.ndarray:
+        """The inner `PreviewDOB`'s part of ``state`` (a view)."""
+        return np.asarray(state)[self.head_states :]
+
+    def _begin(
+        self, state: np.ndarray, window: ReferenceWindow, measurement: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(state copy, measurement, inner state view)`` after the inner measurement."""
+        if window.velocity is None or window.acceleration is None:
+            raise ValueError(f"the {self.name} needs a reference with velocity and acceleration")
+        x = np.array(state, dtype=np.float64, copy=True)
+        ym = np.asarray(measurement, dtype=float)
+        xin = x[self.head_states :]  # a view: the inner halves write into x
+        self.inner.measure(xin, window, ym)
+        return x, ym, xin
