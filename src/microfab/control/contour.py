@@ -134,16 +134,7 @@ class ContourConfig:
     fade_in_s: float = 2e-3  # assumed
 
     def __post_init__(self) -> None:
-        if not isinstance(self.inner, PreviewDOBConfig):
-            raise ValueError(f"inner must be a PreviewDOBConfig, got {type(self.inner).__name__}")
-        if self.inner.n_axes != 2:
-            raise ValueError(
-                f"the contour compensator works on two axes (x, y); the inner config has "
-                f"{self.inner.n_axes}"
-            )
-        check_positive("bandwidth_hz (ω_cc/2π of the contour loop)", self.bandwidth_hz, "Hz")
-        check_positive("damping (ζ_c of the contour loop)", self.damping)
-        check_positive("min_speed_m_s", self.min_speed_m_s, "m/s")
+        check_addon_config(self, "contour compensator", "contour loop")
         check_positive("fade_in_s", self.fade_in_s, "s")
         if self.fade_in_s < self.inner.dt:
             raise ValueError(
@@ -161,6 +152,23 @@ class ContourConfig:
     def k_vc(self) -> float:
         """``k_vc = 2 ζ_c ω_cc``, 1/s."""
         return 2.0 * self.damping * 2.0 * math.pi * self.bandwidth_hz
+
+
+def check_addon_config(cfg: Any, what: str, loop: str) -> None:
+    """The checks a `PreviewDOBAddOn` config shares: two inner axes, positive gains.
+
+    ``cfg`` has ``inner``, ``bandwidth_hz``, ``damping`` and ``min_speed_m_s``; ``what``
+    names the controller and ``loop`` its loop in the messages.
+    """
+    if not isinstance(cfg.inner, PreviewDOBConfig):
+        raise ValueError(f"inner must be a PreviewDOBConfig, got {type(cfg.inner).__name__}")
+    if cfg.inner.n_axes != 2:
+        raise ValueError(
+            f"the {what} works on two axes (x, y); the inner config has {cfg.inner.n_axes}"
+        )
+    check_positive(f"bandwidth_hz (ω_cc/2π of the {loop})", cfg.bandwidth_hz, "Hz")
+    check_positive(f"damping (ζ_c of the {loop})", cfg.damping)
+    check_positive("min_speed_m_s", cfg.min_speed_m_s, "m/s")
 
 
 def check_normal_gains(inner: PreviewDOBConfig, k_p: float, k_v: float, what: str) -> None:

@@ -37,7 +37,7 @@ import numpy as np
 from numba import njit
 
 from microfab.control.base import ReferenceWindow
-from microfab.control.contour import check_normal_gains
+from microfab.control.contour import check_addon_config, check_normal_gains
 from microfab.control.preview_dob import (
     PreviewDOBAddOn,
     PreviewDOBConfig,
@@ -45,7 +45,6 @@ from microfab.control.preview_dob import (
     pdob_measure,
 )
 from microfab.control.velocity import N_ESTIMATOR_PARAMS, estimator_step
-from microfab.core.validate import check_positive
 
 __all__ = ["CrossCoupled", "CrossCoupledConfig", "cross_coupled_step"]
 
@@ -77,16 +76,7 @@ class CrossCoupledConfig:
     min_speed_m_s: float = 1e-4  # assumed
 
     def __post_init__(self) -> None:
-        if not isinstance(self.inner, PreviewDOBConfig):
-            raise ValueError(f"inner must be a PreviewDOBConfig, got {type(self.inner).__name__}")
-        if self.inner.n_axes != 2:
-            raise ValueError(
-                f"the cross-coupled controller works on two axes (x, y); the inner config "
-                f"has {self.inner.n_axes}"
-            )
-        check_positive("bandwidth_hz (ω_cc/2π of the cross-coupled PD)", self.bandwidth_hz, "Hz")
-        check_positive("damping (ζ_c of the cross-coupled PD)", self.damping)
-        check_positive("min_speed_m_s", self.min_speed_m_s, "m/s")
+        check_addon_config(self, "cross-coupled controller", "cross-coupled PD")
         check_normal_gains(self.inner, self.k_p, self.k_d, "cross-coupled controller")
 
     @property
