@@ -29,6 +29,7 @@ import numpy as np
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed004_laser import paper
+from microfab.experiments.seed004_laser.margins import AxisMargins, axis_margins, margins_table
 from microfab.experiments.seed004_laser.reference import ContourMotion
 from microfab.experiments.seed004_laser.run import (
     LAWS,
@@ -36,6 +37,8 @@ from microfab.experiments.seed004_laser.run import (
     ContourRun,
     ControlSettings,
     TwinSettings,
+    make_controller,
+    make_stage,
     run_contour,
 )
 from microfab.experiments.sweep import run_sweep
@@ -152,7 +155,7 @@ def _checked_config(sec: dict[str, dict[str, Any]]) -> LaserJob:
     """`config_from_sections`, then the controller checks (stability with the twin)."""
     from microfab.core.limits import MachineLimits
     from microfab.experiments.seed004_laser.reference import check_reference, contour_reference
-    from microfab.experiments.seed004_laser.run import contour_path, make_controller, make_stage
+    from microfab.experiments.seed004_laser.run import contour_path
 
     cfg = config_from_sections(sec)
     path = contour_path(cfg.run.drawing, cfg.run.contour)  # refuses a drawing without it
@@ -214,6 +217,7 @@ class LaserResult:
     baseline: ContourRun | None
     sweep: tuple[dict[str, Any], ...]
     sweep_failures: tuple[str, ...] = ()
+    margins: tuple[AxisMargins, ...] = ()
 
     def comparison(self) -> tuple[Table, ...]:
         """Tracking beside seed 004 §IV.A (Fig. 3) and the contour runs (Fig. 7)."""
@@ -256,6 +260,8 @@ class LaserResult:
             ],
         )
         tables = [t1, t2]
+        if self.margins:
+            tables.append(margins_table(self.margins))
         if self.sweep:
             tables.append(
                 Table(
@@ -298,6 +304,16 @@ class LaserResult:
             "sweep": list(self.sweep),
             "failures": list(self.failures()),
         }
+        out["margins"] = [
+            {
+                "axis": m.axis,
+                "crossover_hz": m.margins.pm_freq_hz,
+                "phase_margin_deg": m.margins.pm_deg,
+                "gain_margin_db": m.margins.gm_db,
+                "sensitivity_peak_db": m.sensitivity_peak_db,
+            }
+            for m in self.margins
+        ]
         if self.baseline is not None:
             out["baseline_contour_lap_max_nm"] = (self.baseline.contour.lap_max_m * 1e9).tolist()
         return out
@@ -328,8 +344,17 @@ def _run(config: LaserJob, out: Path, progress: Progress) -> LaserResult:
         rows = res.rows
         failures = tuple(f"speed {f.point.speed_mm_s:g} mm/s, {f.point.law}: {f.error}"
                          for f in res.failed)  # fmt: skip
+    stage = make_stage(config.run.twin)
+    law = config.run.control.law  # the axis controllers of the run (without the add-on)
+    axes_law = law if law in ("preview-dob", "preview", "pd") else "preview-dob"
+    inner = make_controller(dataclasses.replace(config.run.control, law=axes_law), stage)
     result = LaserResult(
-        config=config, main=main, baseline=base, sweep=rows, sweep_failures=failures
+        config=config,
+        main=main,
+        baseline=base,
+        sweep=rows,
+        sweep_failures=failures,
+        margins=axis_margins(stage, inner),
     )
     atomic_write_json(out / "summary.json", result.summary())
     return result
