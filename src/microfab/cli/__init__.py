@@ -1,7 +1,8 @@
 """The ``microfab`` command: one sub-command or group per module of this package.
 
 ``run``, ``kinds``, ``reproduce`` (`run.py`), ``ilc step`` (`ilc.py`), ``rc step``
-(`rc.py`), ``nanomanipulator analyze`` (`nanomanipulator.py`), ``calibrate``
+(`rc.py`), ``nanomanipulator analyze`` (`nanomanipulator.py`), ``laser analyze``
+(`laser.py`), ``calibrate``
 (`calibrate.py`), ``path show`` and ``trajectory`` (`geometry.py`), ``droplet``
 (`droplet.py`); `_kit.py` holds the console, errors, progress bars and tables.
 """
@@ -18,6 +19,7 @@ from microfab.cli.calibrate import calibrate_app
 from microfab.cli.droplet import droplet_app
 from microfab.cli.geometry import path_app, trajectory_cmd
 from microfab.cli.ilc import ilc_app
+from microfab.cli.laser import laser_app
 from microfab.cli.nanomanipulator import nanomanipulator_app
 from microfab.cli.rc import rc_app
 from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
@@ -30,7 +32,8 @@ HELP = """From a part drawing and a micro-fabrication machine to machine command
 Command groups: run (a job of any kind, default the galvo MSL twin; writes its report),
 kinds (the job kinds and reproductions), reproduce NAME (a seed paper's tables beside
 ours), ilc (learning on real hardware through files), rc (seed 001 repetitive control on
-hardware through files), nanomanipulator (seed 001 metrics of a measured trace), calibrate
+hardware through files), nanomanipulator (seed 001 metrics of a measured trace), laser
+(seed 004 axis and contour errors of a measured trace), calibrate
 (refit a twin), path (inspect a drawing), trajectory (a limit-safe reference along a
 drawing), droplet (drop-on-demand inkjet: simulate, sweep, render, analyse frames).
 """
@@ -77,11 +80,12 @@ def _root(
 app.command("run")(run_cmd)
 app.command("kinds")(kinds_cmd)
 app.command("reproduce")(reproduce_cmd)
-for _sub in (ilc_app, rc_app, nanomanipulator_app, calibrate_app, path_app, droplet_app):
+for _sub in (ilc_app, rc_app, nanomanipulator_app, laser_app, calibrate_app, path_app, droplet_app):
     _sub.rich_markup_mode = _MARKUP
 app.add_typer(ilc_app, name="ilc", context_settings=_SETTINGS)
 app.add_typer(rc_app, name="rc", context_settings=_SETTINGS)
 app.add_typer(nanomanipulator_app, name="nanomanipulator", context_settings=_SETTINGS)
+app.add_typer(laser_app, name="laser", context_settings=_SETTINGS)
 app.add_typer(calibrate_app, name="calibrate", context_settings=_SETTINGS)
 app.add_typer(path_app, name="path", context_settings=_SETTINGS)
 app.add_typer(droplet_app, name="droplet", context_settings=_SETTINGS)

@@ -12,58 +12,85 @@ import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
 from microfab.experiments.seed004_laser import paper
+from microfab.experiments.seed004_laser.metrics import AxisErrors
 from microfab.experiments.seed004_laser.run import ContourRun
+from microfab.geometry.path import Path
 from microfab.geometry.project import project_points
 from microfab.report.canvas import new_figure
 
-__all__ = ["fig_axis_errors", "fig_ballbar", "fig_contour_time", "fig_force", "fig_speed"]
+__all__ = [
+    "fig_axis_errors",
+    "fig_ballbar",
+    "fig_contour_time",
+    "fig_force",
+    "fig_speed",
+    "plot_axis_errors",
+    "plot_ballbar",
+    "plot_contour_time",
+]
 
 _AXES = (("x", "tab:red"), ("y", "tab:blue"))
 
 
-def _lap_span(ax: object, run: ContourRun) -> None:
-    """Shade the full-speed laps on a time axis."""
+def _lap_span(ax: object, span: tuple[float, float] | None) -> None:
+    """Shade the full-speed laps (``span``: start and end time, s) on a time axis."""
+    if span is not None:
+        ax.axvspan(*span, color="0.94", zorder=0)  # type: ignore[attr-defined]
+
+
+def _run_span(run: ContourRun) -> tuple[float, float]:
     ref = run.reference
-    a = ref.lap_starts[0] * run.dt
-    b = (ref.lap_starts[-1] + ref.lap_samples) * run.dt
-    ax.axvspan(a, b, color="0.94", zorder=0)  # type: ignore[attr-defined]
+    return ref.lap_starts[0] * run.dt, (ref.lap_starts[-1] + ref.lap_samples) * run.dt
 
 
-def fig_axis_errors(run: ContourRun) -> MplFigure:
-    """Seed 004 Fig. 3: x and y tracking errors against time, with the ±0.5 µm band."""
+def plot_axis_errors(
+    time: np.ndarray,
+    reference: np.ndarray,
+    measured: np.ndarray,
+    axis: AxisErrors,
+    span: tuple[float, float] | None = None,
+) -> MplFigure:
+    """Seed 004 Fig. 3: x and y tracking errors against time, with the ±0.5 µm band.
+
+    ``time`` (s, (n,)), ``reference`` and ``measured`` (m, (n, 2)); ``axis`` the errors'
+    figures (`metrics.axis_errors`); ``span`` the laps' time span to shade.
+    """
     fig = new_figure(7.0, 4.2)
     axes = fig.subplots(2, 1, sharex=True)
-    t = run.time
-    e = (np.asarray(run.reference.trajectory.position) - run.measured) * 1e6
-    band = paper.FIG3_TYPICAL_ERROR_M * 1e6
+    e = (np.asarray(reference) - np.asarray(measured)) * 1e6
+    band = axis.band_m * 1e6
     for k, (ax, (name, col)) in enumerate(zip(axes, _AXES, strict=True)):
-        _lap_span(ax, run)
-        ax.plot(t, e[:, k], lw=0.6, color=col)
+        _lap_span(ax, span)
+        ax.plot(time, e[:, k], lw=0.6, color=col)
         for s in (-band, band):
             ax.axhline(s, color="k", lw=0.6, ls="--")
-        frac = run.axis.fraction_below[k] * 100
+        frac = axis.fraction_below[k] * 100
         ax.set_ylabel(f"e_{name} [µm]")
         ax.set_title(
             f"{name}: {frac:.1f} % of lap samples within ±{band:g} µm, peak "
-            f"{run.axis.peak_m[k] * 1e6:.2f} µm (seed: < 0.5, peaks 0.8 µm)",
+            f"{axis.peak_m[k] * 1e6:.2f} µm (seed: < 0.5, peaks 0.8 µm)",
             fontsize=8,
         )
         ax.grid(True, alpha=0.3)
-    axes[-1].set_xlabel("time [s] (shaded: full-speed laps)")
+    axes[-1].set_xlabel("time [s]" + (" (shaded: full-speed laps)" if span else ""))
     return fig
 
 
-def fig_ballbar(run: ContourRun, magnify: float | None = None) -> MplFigure:
+def fig_axis_errors(run: ContourRun) -> MplFigure:
+    """`plot_axis_errors` of a twin run."""
+    return plot_axis_errors(
+        run.time, run.reference.trajectory.position, run.measured, run.axis, _run_span(run)
+    )
+
+
+def plot_ballbar(path: Path, measured: np.ndarray, magnify: float | None = None) -> MplFigure:
     """Seed 004 Fig. 4, ballbar style: the contour and the trace, radial error magnified.
 
-    Each measured point is drawn at its foot point on the contour plus ``magnify`` times
-    its contour error along the normal (default: the error's largest value shown as 15 %
-    of the contour's size).
+    Each measured point (m, (n, 2)) is drawn at its foot point on the contour plus
+    ``magnify`` times its contour error along the normal (default: the error's largest
+    value shown as 15 % of the contour's size).
     """
-    path = run.reference.path
-    ref = run.reference
-    sl = slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
-    pr = project_points(path, run.measured[sl])
+    pr = project_points(path, measured)
     bb = path.bbox
     size = max(bb[2] - bb[0], bb[3] - bb[1])
     worst = float(np.max(np.abs(pr.distance))) or 1.0
@@ -83,21 +110,37 @@ def fig_ballbar(run: ContourRun, magnify: float | None = None) -> MplFigure:
     return fig
 
 
-def fig_contour_time(runs: Mapping[str, ContourRun]) -> MplFigure:
-    """Seed 004 Fig. 7 as a time plot: contour error of each run (label → run)."""
+def fig_ballbar(run: ContourRun, magnify: float | None = None) -> MplFigure:
+    """`plot_ballbar` of a twin run's full-speed laps."""
+    ref = run.reference
+    sl = slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
+    return plot_ballbar(ref.path, run.measured[sl], magnify)
+
+
+def plot_contour_time(
+    series: Mapping[str, tuple[np.ndarray, np.ndarray, float]],
+    span: tuple[float, float] | None = None,
+) -> MplFigure:
+    """Contour error against time: ``label -> (time s, error m, max after lap 1 m)``."""
     fig = new_figure(7.0, 3.2)
     ax = fig.subplots()
-    first = next(iter(runs.values()))
-    _lap_span(ax, first)
-    for label, run in runs.items():
-        worst = run.contour.after_first_lap_max() * 1e9
-        ax.plot(run.time, run.contour.error_m * 1e9, lw=0.7,
-                label=f"{label}: max after lap 1 {worst:.0f} nm")  # fmt: skip
-    ax.set_xlabel("time [s] (shaded: full-speed laps)")
+    _lap_span(ax, span)
+    for label, (t, err, worst) in series.items():
+        ax.plot(t, err * 1e9, lw=0.7, label=f"{label}: max after lap 1 {worst * 1e9:.0f} nm")
+    ax.set_xlabel("time [s]" + (" (shaded: full-speed laps)" if span else ""))
     ax.set_ylabel("contour error [nm]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
     return fig
+
+
+def fig_contour_time(runs: Mapping[str, ContourRun]) -> MplFigure:
+    """Seed 004 Fig. 7 as a time plot: contour error of each run (label → run)."""
+    first = next(iter(runs.values()))
+    series = {
+        k: (r.time, r.contour.error_m, r.contour.after_first_lap_max()) for k, r in runs.items()
+    }
+    return plot_contour_time(series, _run_span(first))
 
 
 def fig_speed(rows: Sequence[Mapping[str, float | str]]) -> MplFigure:
