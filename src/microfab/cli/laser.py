@@ -1,9 +1,9 @@
-"""``microfab laser analyze``: seed 004 figures of merit from a measured trace."""
+"""``microfab laser export|analyze``: the seed 004 stage on hardware, through files."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -36,8 +36,19 @@ def analyze_cmd(
     json_path: Annotated[
         Path | None, typer.Option("--json", help="Write the figures as JSON here.")
     ] = None,
+    replay: Annotated[
+        bool,
+        typer.Option(help="Run our controller on the recorded encoder; compare its current."),
+    ] = False,
+    job: Annotated[
+        Path | None, typer.Option(help="The job whose [control] and [twin] the run used.")
+    ] = None,
 ) -> None:
-    """Axis and contour errors of a measured trace against the exact drawing (seed 004)."""
+    """Axis and contour errors of a measured trace against the exact drawing (seed 004).
+
+    With --replay the trace must also hold current_x, current_y (A) and, for an exact
+    comparison, the exported reference derivatives ref_vx, ref_vy, ref_ax, ref_ay.
+    """
     from microfab.experiments.seed004_laser.analyze import (
         analysis_table,
         analyze_file,
@@ -52,8 +63,60 @@ def analyze_cmd(
     except (OSError, ValueError) as exc:
         fail(f"{trace}: {exc}")
     print_table(analysis_table(a))
+    summary = a.summary()
+    if replay:
+        from microfab.experiments.seed004_laser.hardware import replay_trace
+        from microfab.io.trace import read_trace
+
+        control = twin = None
+        if job is not None:
+            cfg = _laser_job(job)
+            control, twin = cfg.run.control, cfg.run.twin
+        try:
+            r = replay_trace(read_trace(trace), control, twin)
+        except (OSError, ValueError) as exc:
+            fail(f"{trace}: {exc}")
+        rx, ry = (v * 1e3 for v in r.rms_difference_a)
+        mx, my = (v * 1e3 for v in r.max_difference_a)
+        how = "exported derivatives" if r.exact_derivatives else "differenced derivatives"
+        console.print(
+            f"replay ({how}): our current against the recorded one, RMS {rx:.4g} / {ry:.4g} "
+            f"mA, max {mx:.4g} / {my:.4g} mA (x / y)"
+        )
+        summary["replay"] = {
+            "rms_difference_a": list(r.rms_difference_a),
+            "max_difference_a": list(r.max_difference_a),
+            "exact_derivatives": r.exact_derivatives,
+        }
     if json_path is not None:
-        atomic_write_json(json_path, a.summary())
+        atomic_write_json(json_path, summary)
         console.print(f"wrote {json_path}")
     if out is not None:
         console.print(f"report: {write_analysis(a, out, f'Measured trace {trace.name}')}")
+
+
+def _laser_job(path: Path) -> Any:
+    """The checked config of a laser-micromachining job file (exits 2 otherwise)."""
+    from microfab.experiments.catalog import load_job
+    from microfab.experiments.seed004_laser.job import LaserJob
+
+    try:
+        loaded = load_job(path)
+    except (OSError, ValueError) as exc:
+        fail(str(exc))
+    if not isinstance(loaded.config, LaserJob):
+        fail(f"{path}: not a laser-micromachining job (kind {loaded.kind.name!r})")
+    return loaded.config
+
+
+@laser_app.command("export")
+def export_cmd(
+    job: Annotated[Path, typer.Argument(help="A laser-micromachining job file.")],
+    out: Annotated[Path, typer.Option(help="Folder for reference.csv and controller.json.")],
+) -> None:
+    """Write a job's reference and discrete controller for a real-time target (seed 004)."""
+    from microfab.experiments.seed004_laser.hardware import export_job
+
+    cfg = _laser_job(job)
+    ref, spec = export_job(cfg, out)
+    console.print(f"wrote {ref} and {spec}")
