@@ -37,3 +37,15 @@ def test_bad_settings_are_refused():
         fit_disturbance_scale(
             FIG3_JOB.with_(twin=TwinSettings(disturbance_scale=0.2)), max_runs=2, rtol=1e-6
         )
+
+
+def test_cli_calibrate_laser_writes_a_twin_file(tmp_path):
+    from typer.testing import CliRunner
+
+    from microfab.cli import app
+
+    out = tmp_path / "twin.toml"
+    res = CliRunner().invoke(app, ["calibrate", "laser", "--write", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "within ±0.5 µm" in res.output
+    assert load_params(out).disturbance_scale == pytest.approx(load_params().disturbance_scale)
