@@ -287,17 +287,24 @@ class LMWStage(CompiledPlant):
         return out
 
     def force(self, state: np.ndarray) -> np.ndarray:
-        """Motor force ``K_f i`` per axis now, N, shape (2,) (within ±F_peak when limited)."""
+        """Motor force ``K_f i`` per axis now, N: shape (2,), or (n, 2) for states (n, 11).
+
+        Within ±F_peak when limited.
+        """
         c = self.config
-        return np.array([c.force_constant_n_per_a[a] * state[a * _N_AXIS + 2] for a in range(2)])
+        s = np.asarray(state)
+        return np.stack(
+            [c.force_constant_n_per_a[a] * s[..., a * _N_AXIS + 2] for a in range(2)], axis=-1
+        )
 
     def disturbance(self, state: np.ndarray) -> np.ndarray:
-        """True ``F_l`` per axis, N, shape (2,): its mean over the last sample."""
-        return np.array(state[_I_FL : _I_FL + 2])
+        """True ``F_l`` per axis (its mean over the last sample), N: shape (2,) or (n, 2)."""
+        return np.array(np.asarray(state)[..., _I_FL : _I_FL + 2])
 
     def linear_state(self, state: np.ndarray) -> np.ndarray:
-        """The states of `linear_model`, ``[x, ẋ, i]`` of x then y, shape (6,)."""
-        return np.concatenate([state[0:3], state[_N_AXIS : _N_AXIS + 3]])
+        """The states of `linear_model`, ``[x, ẋ, i]`` of x then y: shape (6,) or (n, 6)."""
+        s = np.asarray(state)
+        return np.concatenate([s[..., 0:3], s[..., _N_AXIS : _N_AXIS + 3]], axis=-1)
 
     def noise_rms_m(self) -> np.ndarray:
         """Encoder interpolation noise rms per axis (x, y), m, shape (2,): for the simulators."""

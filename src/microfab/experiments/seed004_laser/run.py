@@ -21,9 +21,9 @@ of seed 004 or a baseline (`ControlSettings.law`):
 
 The controllers are given the twin's nominal model (``M_n``, ``K_fn``); the twin uses
 the true values, 10 % off (data file). Encoder noise is drawn from ``twin.seed``, so a
-run is reproducible to the bit. The run returns the signals, the true disturbance force
-and the controller's estimate of it per sample (both replayed from the run: the twin and
-the controller are deterministic given the commands and measurements), and the errors of
+run is reproducible to the bit. The run returns the signals, the true positions, motor
+force and disturbance force per sample (replayed from the run's commands: the twin is
+deterministic given them, `microfab.sim.replay.replay_plant`), and the errors of
 `metrics`.
 """
 
@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from microfab.control.contour import ContourCompensator, ContourConfig
 from microfab.control.cross_coupled import CrossCoupled, CrossCoupledConfig
@@ -57,6 +56,7 @@ from microfab.experiments.seed004_laser.reference import (
 from microfab.geometry.path import Path
 from microfab.plants.lmw_stage import LMWStage, lmw_stage_twin
 from microfab.sim.loop import LoopState, simulate
+from microfab.sim.replay import replay_plant
 
 __all__ = [
     "LAWS",
@@ -224,15 +224,6 @@ def make_controller(cs: ControlSettings, stage: LMWStage, mass_error: float = 0.
     return PreviewDOB(inner)
 
 
-@njit(cache=True)
-def _replay_plant(p: np.ndarray, s: np.ndarray, u: np.ndarray, upd: Any, out: np.ndarray) -> None:
-    """Run a plant kernel over recorded commands, keeping its state after each sample."""
-    for k in range(u.shape[0]):
-        upd(p, s, u[k])
-        for i in range(s.shape[0]):
-            out[k, i] = s[i]
-
-
 @dataclass(frozen=True, kw_only=True, eq=False)
 class ContourRun:
     """A finished contour run.
@@ -318,14 +309,12 @@ def run_contour(job: ContourJob | None = None) -> ContourRun:
     s0 = stage.state_at((float(pos[0, 0]), float(pos[0, 1])))
     start = LoopState(plant=s0, controller=ctrl.init(), observer=np.zeros(0), command=np.zeros(2))
     res = simulate(stage, ctrl, pos, noise, start, derivatives=(traj.velocity, traj.acceleration))
-    states = np.empty((n, s0.shape[0]))
-    _replay_plant(stage.packed_params(), s0.copy(), res.command, type(stage).kernel_update, states)
-    force = np.array([stage.force(s) for s in states])
-    dist = np.array([stage.disturbance(s) for s in states])
+    states = replay_plant(stage, res.command, s0)  # the twin's state after each sample
+    force = stage.force(states)
+    dist = stage.disturbance(states)
     # the true position at sample k is the state after sample k - 1 (the simulator's
     # output is the quantised encoder)
-    before = np.vstack([s0[None, :], states[:-1]])
-    true = np.array([stage.linear_state(s)[[0, 3]] for s in before])
+    true = stage.linear_state(np.vstack([s0[None, :], states[:-1]]))[:, [0, 3]]
     laps = [ref.lap(i) for i in range(job.motion.laps)]
     full = slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
     return ContourRun(
