@@ -94,3 +94,13 @@ def test_reproduction_prints_the_seed_beside_ours():
     assert abs(d["depth_of_focus_um"] - 54.0) <= 0.05 * 54.0
     for v in d["fig7_nm"].values():
         assert v["preview-dob"] >= 2.0 * v["contour"]
+
+
+def test_a_one_lap_job_without_sweep_writes_its_report(tmp_path):
+    kind = JOB_KINDS["laser-micromachining"]
+    body = "[trajectory]\nlaps = 1\n[sweep]\nspeeds_mm_s = []\n"
+    cfg = load_job(_job(tmp_path, body)).config
+    out = tmp_path / "out"
+    res = kind.run(cfg, out, no_progress)
+    assert res.sweep == ()
+    assert kind.write_report(res, out, "one lap").exists()

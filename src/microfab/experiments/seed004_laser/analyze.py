@@ -208,7 +208,6 @@ def write_analysis(a: TraceAnalysis, out: str | FilePath, title: str) -> FilePat
     from microfab.report.canvas import render_png
     from microfab.report.page import Figure, page_html, write_page
 
-    worst = a.contour.after_first_lap_max() if len(a.laps) > 1 else a.contour.lap_max_m.max()
     figs = [
         Figure(name="axis_errors.png",
                png=render_png(plot_axis_errors(a.time, a.reference, a.measured, a.axis)),
@@ -217,8 +216,7 @@ def write_analysis(a: TraceAnalysis, out: str | FilePath, title: str) -> FilePat
                caption="As seed 004 Fig. 4, ballbar style: the measured path, its contour "
                "error magnified."),
         Figure(name="contour_time.png",
-               png=render_png(plot_contour_time({"measured": (a.time, a.contour.error_m,
-                                                             float(worst))})),
+               png=render_png(plot_contour_time({"measured": (a.time, a.contour)})),
                caption="Contour error of the encoder against the exact drawing."),
     ]  # fmt: skip
     text = page_html(

@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.metrics import AxisErrors
+from microfab.experiments.seed004_laser.metrics import AxisErrors, ContourErrors
 from microfab.experiments.seed004_laser.run import ContourRun
 from microfab.geometry.path import Path
 from microfab.geometry.project import project_points
@@ -118,15 +118,16 @@ def fig_ballbar(run: ContourRun, magnify: float | None = None) -> MplFigure:
 
 
 def plot_contour_time(
-    series: Mapping[str, tuple[np.ndarray, np.ndarray, float]],
+    series: Mapping[str, tuple[np.ndarray, ContourErrors]],
     span: tuple[float, float] | None = None,
 ) -> MplFigure:
-    """Contour error against time: ``label -> (time s, error m, max after lap 1 m)``."""
+    """Contour error against time: ``label -> (time s (n,), ContourErrors)``."""
     fig = new_figure(7.0, 3.2)
     ax = fig.subplots()
     _lap_span(ax, span)
-    for label, (t, err, worst) in series.items():
-        ax.plot(t, err * 1e9, lw=0.7, label=f"{label}: max after lap 1 {worst * 1e9:.0f} nm")
+    for label, (t, ce) in series.items():
+        ax.plot(t, ce.error_m * 1e9, lw=0.7,
+                label=f"{label}: {ce.steady_label} {ce.steady_max() * 1e9:.0f} nm")  # fmt: skip
     ax.set_xlabel("time [s]" + (" (shaded: full-speed laps)" if span else ""))
     ax.set_ylabel("contour error [nm]")
     ax.grid(True, alpha=0.3)
@@ -137,9 +138,7 @@ def plot_contour_time(
 def fig_contour_time(runs: Mapping[str, ContourRun]) -> MplFigure:
     """Seed 004 Fig. 7 as a time plot: contour error of each run (label → run)."""
     first = next(iter(runs.values()))
-    series = {
-        k: (r.time, r.contour.error_m, r.contour.after_first_lap_max()) for k, r in runs.items()
-    }
+    series = {k: (r.time, r.contour) for k, r in runs.items()}
     return plot_contour_time(series, _run_span(first))
 
 

@@ -188,9 +188,7 @@ def speed_point(job: ContourJob, point: SpeedPoint) -> dict[str, Any]:
     return {
         "law": point.law,
         "speed_mm_s": point.speed_mm_s,
-        "contour_max_nm": run.contour.after_first_lap_max() * 1e9
-        if run.job.motion.laps > 1
-        else float(run.contour.lap_max_m.max() * 1e9),
+        "contour_max_nm": run.contour.steady_max() * 1e9,
         "contour_rms_nm": float(np.sqrt(np.mean(run.contour.lap_rms_m**2)) * 1e9),
         "axis_peak_um": max(run.axis.peak_m) * 1e6,
         "force_peak_n": float(np.abs(run.force).max()),
@@ -246,13 +244,16 @@ class LaserResult:
             runs.append(("without correction", self.baseline))
         t2 = Table(
             title="Contour error against the exact drawing (true position)",
-            columns=("run", "max after lap 1 [nm]", "RMS [nm]", "measured max [nm]"),
+            columns=(
+                "run",
+                "max after lap 1 (or of the only lap) [nm]",
+                "RMS [nm]",
+                "measured max [nm]",
+            ),
             rows=[
                 (
                     name,
-                    f"{r.contour.after_first_lap_max() * 1e9:.1f}"
-                    if r.contour.lap_max_m.size > 1
-                    else f"{r.contour.lap_max_m.max() * 1e9:.1f}",
+                    f"{r.contour.steady_max() * 1e9:.1f}",
                     f"{np.sqrt(np.mean(r.contour.lap_rms_m**2)) * 1e9:.1f}",
                     f"{r.contour_measured.lap_max_m.max() * 1e9:.1f}",
                 )

@@ -90,6 +90,20 @@ class ContourErrors:
             raise ValueError("needs at least two laps")
         return float(self.lap_max_m[1:].max())
 
+    def steady_max(self) -> float:
+        """`after_first_lap_max` when there are two laps or more, else the one lap's max, m.
+
+        The figure the reports quote: lap 1 starts from the ramp's transient.
+        """
+        if self.lap_max_m.size >= 2:
+            return self.after_first_lap_max()
+        return float(self.lap_max_m.max())
+
+    @property
+    def steady_label(self) -> str:
+        """How `steady_max` was taken, for labels."""
+        return "max after lap 1" if self.lap_max_m.size >= 2 else "max"
+
 
 def contour_errors(
     path: Path, positions: np.ndarray, laps: list[slice] | tuple[slice, ...]
