@@ -140,8 +140,11 @@ def _load(path: Path, fingerprint: str) -> list[Chunk]:
         sizes, log_sizes = z["sizes"], z["log_sizes"]
         sig = {k: _split(z[k], sizes) for k in ("output", "measured", "command", "laser")}
         logs = {k: _split(z[k], log_sizes) for k in ("log_index", "log_w", "log_s")}
-        ends = dict(zip(z["ends_at"].tolist(), z["final_circles"].tolist(), strict=True))
-        finals = z["final_controllers"] if ends else None
+        # chunk (within the file) -> (circle it ends, that circle's final controller state)
+        ends = {
+            int(i): (int(c), z["final_controllers"][j])
+            for j, (i, c) in enumerate(zip(z["ends_at"], z["final_circles"], strict=True))
+        }
         loop = LoopState(
             plant=z["plant"],
             controller=z["controller"],
@@ -152,15 +155,15 @@ def _load(path: Path, fingerprint: str) -> list[Chunk]:
     out = []
     n = sizes.shape[0]
     for i in range(n):
-        j = list(ends).index(i) if i in ends else None
+        circle, final = ends.get(i, (None, None))
         out.append(
             Chunk(
                 **{k: v[i] for k, v in sig.items()},
                 **{k: v[i] for k, v in logs.items()},
                 loop=loop if i == n - 1 else None,
                 gate=gate if i == n - 1 else None,
-                final_circle=ends.get(i),
-                final_controller=None if j is None or finals is None else finals[j],
+                final_circle=circle,
+                final_controller=final,
             )
         )
     return out
