@@ -16,6 +16,8 @@ from microfab.control.focus import (
     SlidingModeFocusConfig,
     chi,
     chi_scalar,
+    dark_field_area,
+    dark_field_area_scalar,
     relay,
     relay_scalar,
 )
@@ -174,3 +176,81 @@ def test_config_scaling_and_refusals():
             SlidingModeFocusConfig(**kw)
         for w in words:
             assert w in str(err.value), (w, str(err.value))
+
+
+def test_dark_field_area_is_the_log_spot_area():
+    """y = dark + fs exp(−2a²/w²) maps back to ln(w²/2a²), exactly, over a wide range."""
+    dark, fs, a = 0.01, 7.5, 3.8e-6
+    w = np.geomspace(2e-6, 60e-6, 50)
+    y = dark + fs * np.exp(-2 * a * a / (w * w))
+    want = np.log(w * w / (2 * a * a))
+    np.testing.assert_allclose(dark_field_area(y, dark, fs), want, rtol=0, atol=1e-9)
+    got = [dark_field_area_scalar(v, dark, fs) for v in y]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    # readings at or beyond the levels are clipped, not NaN
+    for v in (dark - 1.0, dark, dark + fs, dark + 2 * fs):
+        assert np.isfinite(dark_field_area(v, dark, fs))
+        assert np.isfinite(dark_field_area_scalar(v, dark, fs))
+    with pytest.raises(ValueError, match="full_scale_v"):
+        dark_field_area(1.0, 0.0, 0.0)
+
+
+def test_dark_field_rule():
+    zr, cap, v, tau = 86e-6, 500e-6, 2e-3, 5e-3
+    c = SlidingModeFocusConfig.for_dark_field(
+        rayleigh_range_m=zr, capture_m=cap, speed_m_s=v, lag_s=tau, dark_v=0.01,
+        full_scale_v=7.5,
+    )  # fmt: skip
+    zeta = cap / zr
+    slowest = 2 * zeta / (1 + zeta**2) * v / zr  # d ln q / dt at the far end, 1/s
+    assert c.fall_rate == pytest.approx(0.5 * slowest, rel=1e-12)
+    assert c.h == pytest.approx(c.fall_rate * tau, rel=1e-12)
+    assert c.dark_field == (0.01, 7.5)
+    with pytest.raises(ValueError, match="at least the Rayleigh range"):
+        SlidingModeFocusConfig.for_dark_field(
+            rayleigh_range_m=zr, capture_m=10e-6, speed_m_s=v, lag_s=tau, dark_v=0.0,
+            full_scale_v=1.0,
+        )  # fmt: skip
+    for bad in ((0.0, -1.0), ("a", 1.0), (float("nan"), 1.0)):
+        with pytest.raises(ValueError, match="dark_field"):
+            SlidingModeFocusConfig(dark_field=bad)  # type: ignore[arg-type]
+
+
+@njit(cache=True)
+def _df_output(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
+    d = (x[0] - p[3]) / p[4]
+    y[0] = p[1] + p[2] * math.exp(-1.0 / (1.0 + d * d))
+    y[1] = x[0]
+
+
+class DarkFieldStandIn(FocusStandIn):
+    """A dark-field detector (disc w0/sqrt 2, full scale 7.5 V) on the stand-in stage."""
+
+    kernel_output: Any = _df_output
+
+    def __init__(self, z0: float) -> None:
+        super().__init__(z0, offset=0.01)
+        p = self.params.copy()
+        p[2] = 7.5
+        self.params = p
+
+    def output(self, state: np.ndarray) -> np.ndarray:
+        y = np.empty(2)
+        _df_output(self.params, state, y)
+        return y
+
+
+def test_kernel_and_python_agree_on_the_dark_field_law():
+    cfg = SlidingModeFocusConfig.for_dark_field(
+        rayleigh_range_m=Z_R, capture_m=400e-6, speed_m_s=2e-3, lag_s=TAU, dark_v=0.01,
+        full_scale_v=7.5,
+    )  # fmt: skip
+    n = 4000
+    noise = np.column_stack([6e-5 * np.random.default_rng(5).standard_normal(n), np.zeros(n)])
+    fast = simulate(DarkFieldStandIn(400e-6), SlidingModeFocus(cfg), np.zeros((n, 1)), noise)
+    slow = simulate_python(DarkFieldStandIn(400e-6), SlidingModeFocus(cfg), np.zeros((n, 1)), noise)
+    assert np.any(np.diff(np.sign(fast.command[:, 0])) != 0)
+    assert abs(fast.output[-1, 1]) < abs(fast.output[0, 1])  # it moved towards focus
+    for sig in ("output", "command"):
+        a, b = getattr(fast, sig), getattr(slow, sig)
+        assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(b)), sig

@@ -82,29 +82,64 @@ def test_gaussian_beam_and_depth_of_focus(twin):
 def test_detector_minimum_at_focus(twin):
     c = twin.config
     z = np.linspace(-300e-6, 300e-6, 601) + 0.37e-6
+    smooth = lmw_focus_twin(detector_quantisation=False)  # one strict minimum before rounding
     ys = []
     for zk in z:
         s = twin.init()
         s[0] = zk
-        ys.append(outputs(twin, s)[0])
-        np.testing.assert_allclose(twin.output(s)[0], ys[-1], rtol=1e-14)
+        ys.append(outputs(smooth, s)[0])
+        np.testing.assert_allclose(smooth.output(s)[0], ys[-1], rtol=1e-14)
+        np.testing.assert_allclose(twin.output(s)[0], outputs(twin, s)[0], rtol=1e-14)
     ys = np.array(ys)
     i = int(np.argmin(ys))
     assert abs(z[i] - c.focus_position_m) <= 0.5e-6
     assert np.all(np.diff(ys[: i + 1]) < 0) and np.all(np.diff(ys[i:]) > 0)  # one minimum
-    s = twin.init()
-    s[0] = c.focus_position_m
-    assert outputs(twin, s)[0] == pytest.approx(c.offset_v + c.gain_v, rel=1e-15)
-    # y = offset + gain (w / w0)²
-    s[0] = 120e-6
-    want = c.offset_v + c.gain_v * (c.spot_radius_m(120e-6) / c.waist_radius_m) ** 2
-    assert outputs(twin, s)[0] == pytest.approx(want, rel=1e-13)
-    assert c.detector_v(120e-6) == pytest.approx(want, rel=1e-13)
+    # y = offset + y_fs exp(-2 a² / w²), rounded to the converter's count
+    cnt = c.adc_count_v
+    for zk in (c.focus_position_m, 120e-6, -800e-6):
+        s = twin.init()
+        s[0] = zk
+        w = c.spot_radius_m(zk - c.focus_position_m)
+        exact = c.offset_v + c.full_scale_v * math.exp(
+            -2.0 * (c.stop_radius_ratio * c.waist_radius_m) ** 2 / w**2
+        )
+        assert c.detector_v(zk) == pytest.approx(exact, rel=1e-13)
+        got = outputs(twin, s)[0]
+        assert abs(got - exact) <= 0.5 * cnt + 1e-15
+        assert got / cnt == pytest.approx(round(got / cnt), abs=1e-6)
+
+
+def test_detector_numbers_follow_from_the_components(twin):
+    c = twin.config
+    # full scale R_f ℜ P: 25 kΩ x 0.6 A/W x 0.5 mW (data file, assumed values)
+    assert c.full_scale_v == pytest.approx(2.5e4 * 0.6 * 5e-4, rel=1e-15)
+    assert c.adc_count_v == pytest.approx(20.0 / 2**16, rel=1e-15)
+    # the disc w0/sqrt 2 maximises the rise at focus: curvature y_fs e^-1 per (Δz/z_R)²
+    assert c.curvature_v == pytest.approx(c.full_scale_v / math.e, rel=1e-12)
+    dz = 1e-3 * c.rayleigh_range_m
+    rise = (c.detector_v(dz) - c.detector_v(0.0)) / (dz / c.rayleigh_range_m) ** 2
+    assert rise == pytest.approx(c.curvature_v, rel=1e-5)
+    for ratio in (0.5, 0.9):
+        assert c.with_(stop_radius_ratio=ratio).curvature_v < c.curvature_v
+    # noise budget: RIN, shot and Johnson noise at the focus level, root sum square
+    b = c.noise_budget()
+    y0 = c.full_scale_v * math.exp(-1.0)
+    assert b["rin"] == pytest.approx(y0 * math.sqrt(1e-13 * 5e3), rel=1e-12)
+    assert b["shot"] == pytest.approx(
+        2.5e4 * math.sqrt(2 * 1.602176634e-19 * y0 / 2.5e4 * 5e3), rel=1e-12
+    )
+    assert b["johnson"] == pytest.approx(math.sqrt(4 * 1.380649e-23 * 300 * 2.5e4 * 5e3), rel=1e-12)
+    parts = (b["rin"], b["shot"], b["johnson"])
+    assert b["total"] == pytest.approx(math.sqrt(sum(v * v for v in parts)))
+    assert c.noise_rms_v == b["total"]
+    assert 40e-6 < b["total"] < 100e-6  # 62.6 µV: below one 305 µV count
 
 
 def test_moving_focus_plane(twin):
     rate = 1e-5  # 1 mrad tilt under 10 mm/s
-    moving = lmw_focus_twin(surface_rate_m_s=rate, focus_position_m=20e-6)
+    moving = lmw_focus_twin(
+        surface_rate_m_s=rate, focus_position_m=20e-6, detector_quantisation=False
+    )
     s = moving.init()
     s[2] = 5000.0  # 0.5 s in: z_f = 20 µm + 5 µm
     assert moving.time_s(s) == pytest.approx(0.5)
@@ -191,7 +226,7 @@ def test_compiled_and_python_loops_agree():
 
 
 def test_noise_is_exposed_not_added(twin):
-    np.testing.assert_array_equal(twin.noise_rms(), [5e-4, 0.0])
+    np.testing.assert_array_equal(twin.noise_rms(), [twin.config.noise_rms_v, 0.0])
     s = twin.init()
     np.testing.assert_array_equal(outputs(twin, s), outputs(twin, s))
 
@@ -202,11 +237,15 @@ def test_noise_is_exposed_not_added(twin):
         ({"velocity_lag_s": 0.0}, "velocity_lag_s must be positive"),
         ({"speed_limit_m_s": -1.0}, "speed_limit_m_s must be positive"),
         ({"m_squared": 0.5}, "m_squared must be >= 1"),
-        ({"gain_v": -0.05}, r"gain_v \(detector gain; > 0 for a minimum at focus\)"),
+        ({"power_w": -1e-3}, "power_w must be positive"),
+        ({"stop_radius_ratio": 0.0}, "stop_radius_ratio"),
+        ({"rin_db_hz": 3.0}, "rin_db_hz must be negative"),
+        ({"adc_bits": 12.0}, "adc_bits"),
+        ({"detector_quantisation": 1}, "detector_quantisation must be true or false"),
+        ({"transimpedance_ohm": 1e6}, r"outside the converter's ±10 V"),
         ({"wavelength_m": float("nan")}, "wavelength_m"),
         ({"surface_rate_m_s": float("inf")}, "surface_rate_m_s must be finite"),
         ({"quantisation": "yes"}, "quantisation must be true or false"),
-        ({"noise_rms_v": -1e-3}, "noise_rms_v must be non-negative"),
         ({"pinhole_m": 1e-5}, "unknown focus parameter"),
     ],
 )
@@ -228,7 +267,7 @@ def test_data_file_values_have_sources():
                 continue
             n_values += 1
             assert table[f"{key}_source"].startswith(("seed 004 ", "assumed: ")), key
-    assert n_values == 15
+    assert n_values == 23
     assert data["beam"]["wavelength_m_source"].startswith("seed 004 §II.A")
     assert data["beam"]["waist_diameter_m_source"].startswith("seed 004 §II.A")
 
@@ -244,7 +283,7 @@ def test_data_file_strictness(tmp_path):
         ),
         "m_squared has no m_squared_source": text.replace("m_squared_source", "m_squared_why"),
         r"unknown section \[axes\]": text + '\n[axes.x]\nk = 1\nk_source = "x"\n',
-        r"\[detector\]: missing gain_v": text.replace("gain_v = 0.05\n", ""),
+        r"\[detector\]: missing power_w": text.replace("power_w = 5.0e-4\n", ""),
         "waist_diameter_m must be positive": text.replace(
             "waist_diameter_m = 1.08e-5", "waist_diameter_m = -1.08e-5"
         ),

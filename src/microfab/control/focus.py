@@ -38,22 +38,25 @@ down through ``|σ| < h`` and reverses smoothly.
 Defaults (assumed, for a detector whose output rises by 1 unit from focus to one
 Rayleigh length, e.g. ``y = offset + gain (1 + ((z − z_f)/z_R)²)`` with gain 1): ``V``
 = 5 mm/s (500 µm off focus in ~0.1 s), ``ρ`` = 4 units/s, ``h`` = 4e-3 units;
-`SlidingModeFocusConfig.for_gain` scales ``ρ`` and ``h`` to another gain. Chosen on such
-a stand-in (z_R = 86 µm, a 5 ms velocity lag on the z stage, detector noise 5e-5 units
-RMS), where both laws reach and keep ±27 µm (half the 54 µm depth of focus of seed 004
-§II-A) from 30 µm to 2 mm off focus: the discontinuous law's steady oscillation is
-~40 µm peak to peak (±21 µm, the lag's overrun), the continuous law's 1.5-4.5 µm. What
-the choice trades (measured on that stand-in, 3 s runs):
+`SlidingModeFocusConfig.for_gain` scales ``ρ`` and ``h`` to another gain. On such a
+quadratic stand-in (z_R = 86 µm, a 5 ms velocity lag, detector noise 5e-5 units RMS;
+the unit tests) both laws reach and keep ±27 µm (half the 54 µm depth of focus of seed
+004 §II-A): the discontinuous law's steady oscillation is ~40 µm peak to peak (the lag's
+overrun at 5 mm/s), the continuous law's 1.5-4.5 µm. Without noise the continuous law
+can settle into a fast small dither anywhere in a band of about ±24 µm; the detector
+noise is what walks it to the centre.
 
-* the gap comes from the lag: with τ = 2 ms both oscillate by ~3-6 µm; with τ = 10 ms
-  both overrun ±27 µm (lower ``V`` for a slower stage);
-* the continuous law's oscillation grows with the detector noise (~7 µm at 2e-4 units);
-* without noise the continuous law can settle into a fast small dither (its command
-  cycles through the boundary layer every ``4h/ρ`` = 4 ms, faster than the stage's lag)
-  anywhere in a band of about ±24 µm about focus, and stay there; the detector noise
-  is what walks it to the centre (within ~1 µm at 5e-5 units). Settings that centre
-  without noise (``h/ρ`` longer than the lag) leave the continuous law at most about
-  twice as good as the discontinuous one on this stand-in.
+A real detector saturates: the project's focus twin (`microfab.plants.lmw_focus`) reads
+the beam with a dark-field photodiode whose output flattens far from focus, where the
+reference must still fall slower than the output. There the law runs on the log spot area
+(`dark_field_area`, option ``dark_field``), whose rate of change is of one order over the
+whole range, with constants from a design rule (`SlidingModeFocusConfig.for_dark_field`:
+``ρ`` half the slowest fall over the capture range, ``h = ρ τ``). Measured on that twin
+(2 mm/s stage, 5 ms lag, 500 µm start; `experiments/seed004_laser/focus.py`): both laws
+reach ±27 µm (0.25 s and 0.89 s); steady peak to peak 5.9 µm (continuous) against
+9.0 µm (discontinuous). The detector's noise (63 µV) lies far below ``h``, so the relay
+seldom chatters and both laws keep one stall-reversal cycle; the gap is 1.5x, not the 5x
+seen on the stand-in at 5 mm/s.
 
 `SlidingModeFocus` is a `microfab.control.base.CompiledController` with one input: it
 reads ``measurement[0]``, the detector output, and ignores any further entries (the
@@ -63,6 +66,7 @@ shape (1,) (z velocity, m/s).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -70,13 +74,15 @@ import numpy as np
 from numba import njit
 
 from microfab.control.base import CompiledController, ReferenceWindow
-from microfab.core.validate import check_positive
+from microfab.core.validate import check_finite, check_positive
 
 __all__ = [
     "SlidingModeFocus",
     "SlidingModeFocusConfig",
     "chi",
     "chi_scalar",
+    "dark_field_area",
+    "dark_field_area_scalar",
     "focus_step",
     "relay",
     "relay_scalar",
@@ -147,6 +153,51 @@ def relay_scalar(sigma: float, h: float) -> float:
     return -sigma / (2.0 * h) + 0.5
 
 
+_RATIO_MAX = 1.0 - 1e-12  # keeps −ln(ratio) > 0: a reading at or above full scale maps to ~1e12
+
+
+@njit(cache=True, inline="always")
+def dark_field_area_scalar(y: float, dark: float, full: float) -> float:
+    """`dark_field_area` for one value (numba)."""
+    r = (y - dark) / full
+    if r < 1e-300:
+        r = 1e-300
+    if r > _RATIO_MAX:
+        r = _RATIO_MAX
+    return -math.log(-math.log(r))
+
+
+def dark_field_area(y: np.ndarray | float, dark_v: float, full_scale_v: float) -> np.ndarray:
+    """Log spot area from a dark-field detector: ``ln q = −ln(−ln((y − dark) / full_scale))``.
+
+    A photodiode with an opaque disc of radius ``a`` reads
+    ``y = dark + full_scale exp(−2a² / w²)`` for a Gaussian spot of radius ``w``, so
+    ``q = w² / (2a²)``: the spot area in units of ``2a²``, a parabola in the defocus,
+    ``q = (1 + (Δz/z_R)²) w0² / (2a²)``, and its log ``ln q`` (returned) changes at a
+    rate ``2 ζ ζ̇ / (1 + ζ²)``, ``ζ = Δz/z_R``, that stays of one order from near focus
+    out to where ``y`` meets its full scale, and near focus ``ln q ≈ ζ² + ln(w0²/2a²)``.
+    The focus law can therefore run on ``ln q`` with one set of constants over the whole
+    range; on ``y`` itself its reference would have to fall slower than ``y`` does far
+    from focus, where ``y`` flattens (there a count of the converter is worth some 400
+    counts near focus). The ratio is clipped to ``(0, 1 − 1e-12)``.
+
+    Parameters
+    ----------
+    y : numpy.ndarray or float
+        Detector output, V, any shape.
+    dark_v, full_scale_v : float
+        Dark level and full-scale rise of the detector, V.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``ln q``, same shape (dimensionless).
+    """
+    full = check_positive("full_scale_v", full_scale_v, "V")
+    r = np.clip((np.asarray(y, dtype=float) - dark_v) / full, 1e-300, _RATIO_MAX)
+    return -np.log(-np.log(r))
+
+
 @dataclass(frozen=True, kw_only=True)
 class SlidingModeFocusConfig:
     """Settings of the sliding-mode focus search (module docstring for the law).
@@ -167,6 +218,11 @@ class SlidingModeFocusConfig:
         Direction of the first move, +1 (z up) or −1.
     dt : float
         Sample time, s (assumed 100 µs, as the stage loop).
+    dark_field : tuple of float, optional
+        ``(dark_v, full_scale_v)`` of a dark-field detector, V: the law then works on the
+        log spot area ``ln q`` (`dark_field_area`) instead of ``y``, and
+        ``ρ``, ``h`` are in its unit. Both levels are measured once (beam blocked; far out
+        of focus). None (default): the law works on ``y`` itself.
     """
 
     speed_m_s: float = 5e-3  # assumed
@@ -175,6 +231,7 @@ class SlidingModeFocusConfig:
     continuous: bool = True
     initial_direction: int = 1
     dt: float = 1e-4  # assumed: 10 kHz
+    dark_field: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         check_positive("speed_m_s (search speed V)", self.speed_m_s, "m/s")
@@ -185,6 +242,16 @@ class SlidingModeFocusConfig:
             raise ValueError(f"continuous must be true or false, got {self.continuous!r}")
         if self.initial_direction not in (1, -1) or isinstance(self.initial_direction, bool):
             raise ValueError(f"initial_direction must be +1 or -1, got {self.initial_direction!r}")
+        if self.dark_field is not None:
+            try:
+                dark, full = (float(v) for v in self.dark_field)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"dark_field must be (dark_v, full_scale_v) in V, got {self.dark_field!r}"
+                ) from None
+            check_finite("dark_field[0] (dark level)", dark, "V")
+            check_positive("dark_field[1] (full scale above the dark level)", full, "V")
+            object.__setattr__(self, "dark_field", (dark, full))
         if self.fall_rate * self.dt >= self.h:
             raise ValueError(
                 f"fall_rate * dt = {self.fall_rate * self.dt:g} detector units must stay below "
@@ -200,6 +267,66 @@ class SlidingModeFocusConfig:
         kwargs.setdefault("h", 4e-3 * g)
         return cls(**kwargs)
 
+    @classmethod
+    def for_dark_field(
+        cls,
+        *,
+        rayleigh_range_m: float,
+        capture_m: float,
+        speed_m_s: float,
+        lag_s: float,
+        dark_v: float,
+        full_scale_v: float,
+        **kwargs: Any,
+    ) -> SlidingModeFocusConfig:
+        """The law on a dark-field detector's log spot area, constants by a design rule.
+
+        On ``ln q`` (`dark_field_area`, disc radius ``w0/sqrt 2``) the output falls at
+        ``2 ζ V / (z_R (1 + ζ²))`` when the stage runs at ``V`` towards focus from
+        ``ζ = Δz / z_R``; over ``|Δz| <= capture_m`` (beyond ``z_R``) the slowest fall
+        is at the far end. The rule:
+
+        * ``ρ`` = half that slowest fall, so that the output can keep ahead of the
+          reference everywhere in the capture range (margin 2 for the stage's
+          acceleration);
+        * ``h = ρ τ``: a stall is noticed (``σ`` from ``−h`` to 0) no sooner than the
+          stage's velocity lag ``τ``, so that the law does not reverse before the stage
+          has answered its last command.
+
+        Parameters
+        ----------
+        rayleigh_range_m : float
+            ``z_R`` of the beam, m.
+        capture_m : float
+            Largest defocus the search must start from, m (>= ``z_R``).
+        speed_m_s : float
+            Search speed ``V``, m/s.
+        lag_s : float
+            Velocity lag ``τ`` of the z stage, s.
+        dark_v, full_scale_v : float
+            Dark level and full-scale rise of the detector, V.
+        **kwargs
+            Other settings (``continuous``, ``dt``, ``initial_direction``).
+        """
+        zr = check_positive("rayleigh_range_m", rayleigh_range_m, "m")
+        cap = check_positive("capture_m", capture_m, "m")
+        if cap < zr:
+            raise ValueError(
+                f"capture_m ({cap:g} m) must be at least the Rayleigh range ({zr:g} m): "
+                "the rule takes the slowest fall of ln q at the far end of the range"
+            )
+        v = check_positive("speed_m_s", speed_m_s, "m/s")
+        tau = check_positive("lag_s", lag_s, "s")
+        zeta = cap / zr
+        rho = 0.5 * 2.0 * zeta / (1.0 + zeta * zeta) * v / zr
+        return cls(
+            speed_m_s=v,
+            fall_rate=rho,
+            h=rho * tau,
+            dark_field=(dark_v, full_scale_v),
+            **kwargs,
+        )
+
     def with_(self, **changes: Any) -> SlidingModeFocusConfig:
         """A copy with some settings changed (validated again)."""
         return replace(self, **changes)
@@ -211,9 +338,12 @@ def focus_step(
 ) -> None:
     """Kernel of `SlidingModeFocus`: one sample of the law, state advanced in place.
 
-    ``p = [V, ρ dt, h, continuous, initial direction]``; ``x = [r, d, initialised, σ]``.
+    ``p = [V, ρ dt, h, continuous, initial direction, dark-field on, dark, full scale]``;
+    ``x = [r, d, initialised, σ]``.
     """
     y = ym[0]
+    if p[5] != 0.0:
+        y = dark_field_area_scalar(y, p[6], p[7])
     h = p[2]
     if x[2] == 0.0:
         x[0] = y + h
@@ -270,6 +400,8 @@ class SlidingModeFocus(CompiledController):
                 config.h,
                 float(config.continuous),
                 float(config.initial_direction),
+                float(config.dark_field is not None),
+                *(config.dark_field or (0.0, 1.0)),
             ],
             dtype=np.float64,
         )
@@ -286,6 +418,8 @@ class SlidingModeFocus(CompiledController):
         x = np.array(state, dtype=np.float64, copy=True)
         cfg = self.config
         y = float(np.asarray(measurement, dtype=float).ravel()[0])
+        if cfg.dark_field is not None:
+            y = float(dark_field_area(y, *cfg.dark_field))
         h = cfg.h
         if x[2] == 0.0:
             x[0], x[1], x[2] = y + h, float(cfg.initial_direction), 1.0

@@ -14,12 +14,21 @@ in ref. [23], which the seed does not describe. Ours (every number assumed unles
   ``w(z) = w0 sqrt(1 + ((z - z_f) / z_R)²)``. The depth of focus over which ``w`` grows by
   at most 5 %, ``2 z_R sqrt(1.05² - 1)`` = 55.1 µm, is the seed's "approximately 54 µm"
   (§II.A; `depth_of_focus`).
-* **Detector**: a photodiode behind the optics reading the spot size (e.g. an annular
-  diode around a pinhole in the reflected beam collects the light the pinhole misses, which
-  to first order grows with the spot area), through a transimpedance amplifier:
-  ``y = offset + gain (w(z) / w0)²`` in V, minimal at focus (the seed's Fig. 6a minimises
-  a photocurrent). Its noise (``noise_rms_v``) is not added here: the experiment draws it as
-  the simulator's noise array (`LMWFocus.noise_rms`).
+* **Detector** (a "dark-field" focus sensor; the seed's Fig. 6a minimises a photocurrent):
+  the beam falls on a photodiode whose centre is masked by an opaque disc of radius
+  ``a``; the diode collects the power outside it, ``P exp(-2 a² / w²)`` for a Gaussian spot,
+  smallest at focus and rising to ``P`` far from it. A transimpedance amplifier (gain
+  ``R_f``) turns the photocurrent (responsivity ``ℜ``) into volts:
+  ``y = offset + R_f ℜ P exp(-2 a² / w(z)²)``. With ``a = w0/sqrt 2`` (assumed: the disc
+  that maximises the curvature of ``y`` at focus) the rise from focus is
+  ``y_fs e⁻¹ ((Δz/z_R)² + …)`` for small defocus: `LMWFocusParams.curvature_v`, V per
+  ``(Δz/z_R)²``. The converter rounds ``y`` to its count (``adc_range_v``, ``adc_bits``;
+  ``detector_quantisation`` switch). The noise is not added here (the simulator adds
+  output noise, so it falls after the rounding: an approximation, the converter's staircase
+  is kept); its rms (`LMWFocusParams.noise_rms_v`) follows from a noise budget at the focus
+  level (`LMWFocusParams.noise_budget`): the source's relative intensity noise, the
+  photocurrent's shot noise and the feedback resistor's Johnson noise over the noise
+  bandwidth.
 * **Moving focus plane** (optional, a tilted part moving under the beam): the focus
   position drifts linearly, ``z_f(t) = z_f0 + r t`` with ``r = surface_rate_m_s`` (e.g. a
   1 mrad tilt at 10 mm/s is 10 µm/s); time ``t = k dt`` is the sample counter in the
@@ -40,7 +49,7 @@ import numpy as np
 from numba import njit
 
 import control
-from microfab.core.validate import check_finite, check_nonnegative, check_positive
+from microfab.core.validate import check_finite, check_int, check_nonnegative, check_positive
 from microfab.plants.base import CompiledPlant
 from microfab.plants.lti import DiscreteLTI, discretize
 from microfab.plants.sourced_toml import read_sourced
@@ -59,7 +68,7 @@ __all__ = [
 DOF_GROWTH = 0.05  # assumed: spot radius grows 5 % at the edge of the depth of focus
 
 # flat params (see `LMWFocusParams.pack`)
-_DT, _E, _TEM, _VMAX, _ZF0, _RATE, _ZR, _OFF, _GAIN, _RES, _QUANT = range(11)
+_DT, _E, _TEM, _VMAX, _ZF0, _RATE, _ZR, _OFF, _FS, _RES, _QUANT, _A2, _COUNT, _DQUANT = range(14)
 _N_STATE = 3  # z, v, k
 
 
@@ -95,10 +104,28 @@ class LMWFocusParams:
         z of the focus at ``t = 0``, ``z_f0``, m.
     surface_rate_m_s : float
         Drift of the focus position, m/s (0: a fixed focal plane).
-    offset_v, gain_v : float
-        Detector ``y = offset + gain (w / w0)²``, V (gain > 0: one minimum at focus).
-    noise_rms_v : float
-        Detector noise rms, V (drawn by the experiment, not added by the plant).
+    power_w : float
+        Power of the beam on the focus detector, W.
+    responsivity_a_w : float
+        Photodiode responsivity at the wavelength, A/W.
+    stop_radius_ratio : float
+        Radius of the opaque disc on the diode over ``w0`` (> 0).
+    transimpedance_ohm : float
+        Feedback resistance ``R_f`` of the transimpedance amplifier, Ω.
+    offset_v : float
+        Dark and stray-light offset of the detector output, V.
+    rin_db_hz : float
+        Relative intensity noise of the source, dB/Hz (< 0).
+    noise_bandwidth_hz : float
+        Equivalent noise bandwidth of the detector chain, Hz.
+    temperature_k : float
+        Temperature of the feedback resistor (Johnson noise), K.
+    adc_range_v : float
+        Converter input range ``±adc_range_v``, V.
+    adc_bits : int
+        Converter resolution, bits.
+    detector_quantisation : bool
+        Round the detector output to the converter's count.
 
     Raises
     ------
@@ -118,9 +145,17 @@ class LMWFocusParams:
     m_squared: float
     focus_position_m: float
     surface_rate_m_s: float
+    power_w: float
+    responsivity_a_w: float
+    stop_radius_ratio: float
+    transimpedance_ohm: float
     offset_v: float
-    gain_v: float
-    noise_rms_v: float
+    rin_db_hz: float
+    noise_bandwidth_hz: float
+    temperature_k: float
+    adc_range_v: float
+    adc_bits: int
+    detector_quantisation: bool
 
     def __post_init__(self) -> None:
         check_positive("sample_rate_hz", self.sample_rate_hz, "Hz")
@@ -142,9 +177,32 @@ class LMWFocusParams:
             )
         check_finite("focus_position_m", self.focus_position_m, "m")
         check_finite("surface_rate_m_s", self.surface_rate_m_s, "m/s")
+        check_positive("power_w", self.power_w, "W")
+        check_positive("responsivity_a_w", self.responsivity_a_w, "A/W")
+        check_positive("stop_radius_ratio (disc radius / w0)", self.stop_radius_ratio)
+        check_positive("transimpedance_ohm", self.transimpedance_ohm, "Ω")
         check_finite("offset_v", self.offset_v, "V")
-        check_positive("gain_v (detector gain; > 0 for a minimum at focus)", self.gain_v, "V")
-        check_nonnegative("noise_rms_v", self.noise_rms_v, "V")
+        if not check_finite("rin_db_hz", self.rin_db_hz, "dB/Hz") < 0.0:
+            raise ValueError(
+                f"rin_db_hz must be negative (a noise below the carrier), got "
+                f"{self.rin_db_hz} dB/Hz"
+            )
+        check_positive("noise_bandwidth_hz", self.noise_bandwidth_hz, "Hz")
+        check_positive("temperature_k", self.temperature_k, "K")
+        check_positive("adc_range_v", self.adc_range_v, "V")
+        check_int("adc_bits", self.adc_bits, 2)
+        if not isinstance(self.detector_quantisation, bool):
+            raise ValueError(
+                "switch detector_quantisation must be true or false, got "
+                f"{self.detector_quantisation!r}"
+            )
+        top = self.offset_v + self.full_scale_v
+        if top > self.adc_range_v or self.offset_v < -self.adc_range_v:
+            raise ValueError(
+                f"the detector output spans {self.offset_v:g} to {top:g} V, outside the "
+                f"converter's ±{self.adc_range_v:g} V: lower transimpedance_ohm or power_w, "
+                "or widen adc_range_v"
+            )
 
     @property
     def dt(self) -> float:
@@ -172,11 +230,50 @@ class LMWFocusParams:
         g = check_positive("growth", growth)
         return 2.0 * self.rayleigh_range_m * math.sqrt((1.0 + g) ** 2 - 1.0)
 
+    @property
+    def full_scale_v(self) -> float:
+        """``R_f ℜ P``: the detector's rise from dark to the whole beam, V."""
+        return self.transimpedance_ohm * self.responsivity_a_w * self.power_w
+
+    @property
+    def curvature_v(self) -> float:
+        """Rise of ``y`` per ``(Δz / z_R)²`` at focus, V: ``y_fs 2α e^(-2α)``, ``α = (a/w0)²``."""
+        a2 = 2.0 * self.stop_radius_ratio**2
+        return self.full_scale_v * a2 * math.exp(-a2)
+
+    @property
+    def adc_count_v(self) -> float:
+        """One count of the converter, V: ``2 adc_range_v / 2^bits``."""
+        return 2.0 * self.adc_range_v / 2.0**self.adc_bits
+
     def detector_v(self, defocus_m: float | np.ndarray) -> float | np.ndarray:
-        """Detector output ``offset + gain (w / w0)²`` at a defocus (m), V."""
+        """Detector output ``offset + y_fs exp(-2 a² / w²)`` at a defocus (m), V (not rounded)."""
         r = np.asarray(defocus_m, dtype=float) / self.rayleigh_range_m
-        out = self.offset_v + self.gain_v * (1.0 + r * r)
+        a2 = 2.0 * self.stop_radius_ratio**2
+        out = self.offset_v + self.full_scale_v * np.exp(-a2 / (1.0 + r * r))
         return float(out) if out.ndim == 0 else out
+
+    def noise_budget(self) -> dict[str, float]:
+        """Detector noise rms at the focus level by source, V (``total`` their root sum square).
+
+        ``rin``: ``y sqrt(10^(RIN/10) B)``; ``shot``: ``R_f sqrt(2 q I B)``; ``johnson``:
+        ``sqrt(4 k T R_f B)``, with ``y = y_fs e^(-2α)`` the signal and ``I = y / R_f`` the
+        photocurrent at focus, ``B`` the noise bandwidth. The converter's rounding is not
+        in it (`detector_quantisation` keeps its staircase).
+        """
+        q, k_b = 1.602176634e-19, 1.380649e-23  # C, J/K (SI exact)
+        b = self.noise_bandwidth_hz
+        y = float(self.detector_v(0.0)) - self.offset_v
+        rin = y * math.sqrt(10.0 ** (self.rin_db_hz / 10.0) * b)
+        shot = self.transimpedance_ohm * math.sqrt(2.0 * q * (y / self.transimpedance_ohm) * b)
+        johnson = math.sqrt(4.0 * k_b * self.temperature_k * self.transimpedance_ohm * b)
+        total = math.sqrt(rin * rin + shot * shot + johnson * johnson)
+        return {"rin": rin, "shot": shot, "johnson": johnson, "total": total}
+
+    @property
+    def noise_rms_v(self) -> float:
+        """Detector noise rms, V (`noise_budget` total; drawn by the experiment)."""
+        return self.noise_budget()["total"]
 
     def pack(self) -> np.ndarray:
         """The flat ``float64`` params of the kernels (layout in the module source)."""
@@ -191,9 +288,12 @@ class LMWFocusParams:
                 self.surface_rate_m_s,
                 self.rayleigh_range_m,
                 self.offset_v,
-                self.gain_v,
+                self.full_scale_v,
                 self.encoder_resolution_m,
                 float(self.quantisation),
+                2.0 * self.stop_radius_ratio**2,
+                self.adc_count_v,
+                float(self.detector_quantisation),
             ],
             dtype=np.float64,
         )
@@ -227,7 +327,19 @@ _SECTIONS = {
         "focus_position_m",
         "surface_rate_m_s",
     ),
-    "detector": ("offset_v", "gain_v", "noise_rms_v"),
+    "detector": (
+        "power_w",
+        "responsivity_a_w",
+        "stop_radius_ratio",
+        "transimpedance_ohm",
+        "offset_v",
+        "rin_db_hz",
+        "noise_bandwidth_hz",
+        "temperature_k",
+        "adc_range_v",
+        "adc_bits",
+        "detector_quantisation",
+    ),
 }
 
 
@@ -262,7 +374,9 @@ def kernel_output(p: np.ndarray, s: np.ndarray, y: np.ndarray) -> None:
     """Write ``(detector V, encoder z m)`` into ``y``, shape (2,)."""
     z = s[0]
     r = (z - (p[_ZF0] + p[_RATE] * (s[2] * p[_DT]))) / p[_ZR]
-    y[0] = p[_OFF] + p[_GAIN] * (1.0 + r * r)
+    yd = p[_OFF] + p[_FS] * math.exp(-p[_A2] / (1.0 + r * r))
+    c = p[_COUNT]
+    y[0] = math.floor(yd / c + 0.5) * c if p[_DQUANT] != 0.0 else yd
     q = p[_RES]
     y[1] = math.floor(z / q + 0.5) * q if p[_QUANT] != 0.0 else z
 
@@ -329,10 +443,13 @@ class LMWFocus(CompiledPlant):
         """``(detector y in V, encoder z in m)``, shape (2,)."""
         c = self.config
         w_ratio = self.spot_radius_m(state) / c.waist_radius_m
+        y = c.offset_v + c.full_scale_v * math.exp(-2.0 * c.stop_radius_ratio**2 / w_ratio**2)
+        if c.detector_quantisation:
+            y = math.floor(y / c.adc_count_v + 0.5) * c.adc_count_v
         z = float(state[0])
         q = c.encoder_resolution_m
         zq = math.floor(z / q + 0.5) * q if c.quantisation else z
-        return np.array([c.offset_v + c.gain_v * w_ratio * w_ratio, zq])
+        return np.array([y, zq])
 
     def update(self, state: np.ndarray, command: np.ndarray) -> np.ndarray:
         """State one sample later (a new array): velocity command (m/s) held."""

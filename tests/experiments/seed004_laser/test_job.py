@@ -49,6 +49,9 @@ def test_example_and_empty_sections_are_the_defaults(tmp_path):
         ('[drawing]\nsource = "circle:radius=2e-3"\n[trajectory]\nspeed_mm_s = 99.0\n',
          r"axis [xy]: (acceleration|RMS force|force)"),
         ("[sweep]\nspeeds_mm_s = [0.0]\n", r"speeds_mm_s"),
+        ("[focus]\nduration_s = 0.5\n", r"focus duration_s must exceed 1 s"),
+        ("[focus]\npart_speed_mm_s = 0.0\n", r"part_speed_mm_s must be positive"),
+        ("[focus]\nrun = 1\n", r"run"),
     ],
 )  # fmt: skip
 def test_bad_input_is_refused(tmp_path, body, match):
@@ -84,6 +87,8 @@ def test_a_job_runs_resumes_its_sweep_and_writes_its_report(tmp_path):
     assert again.sweep == first.sweep
     report = kind.write_report(again, out, "laser")
     assert report.exists() and (out / "ballbar.png").exists()
+    assert (out / "focus.png").exists() and (out / "disturbance.png").exists()
+    assert "Autofocus" in report.read_text(encoding="utf-8")
     assert (out / "summary.json").exists()
 
 
@@ -98,9 +103,10 @@ def test_reproduction_prints_the_seed_beside_ours():
 
 def test_a_one_lap_job_without_sweep_writes_its_report(tmp_path):
     kind = JOB_KINDS["laser-micromachining"]
-    body = "[trajectory]\nlaps = 1\n[sweep]\nspeeds_mm_s = []\n"
+    body = "[trajectory]\nlaps = 1\n[sweep]\nspeeds_mm_s = []\n[focus]\nrun = false\n"
     cfg = load_job(_job(tmp_path, body)).config
     out = tmp_path / "out"
     res = kind.run(cfg, out, no_progress)
-    assert res.sweep == ()
+    assert res.sweep == () and res.focus is None
     assert kind.write_report(res, out, "one lap").exists()
+    assert not (out / "focus.png").exists()

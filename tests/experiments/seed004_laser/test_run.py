@@ -13,6 +13,7 @@ from microfab.experiments.seed004_laser.run import (
     ControlSettings,
     TwinSettings,
     contour_path,
+    dob_estimate,
     run_contour,
 )
 
@@ -168,3 +169,18 @@ def test_a_dxf_circle_runs_as_the_shape_circle(tmp_path):
     np.testing.assert_allclose(b.output, a.output, rtol=0, atol=1e-9)  # true positions, 1 nm
     # With the 10 nm encoder on, a 1e-20 m difference of the references can flip one count
     # (measured: true positions then differ by up to 3.5 nm): the run is compared without it.
+
+
+def test_the_dob_estimate_follows_the_true_load_force():
+    """The figure 'estimated vs true disturbance': the replayed DOB on the Fig. 3 run."""
+    run = run_contour(ContourJob(control=ControlSettings(law="preview-dob")))
+    est = dob_estimate(run)  # its replayed currents equal the run's (checked inside)
+    assert est.shape == run.disturbance.shape
+    for k in range(2):
+        true = run.disturbance[:, k]
+        gap = np.sqrt(np.mean((est[:, k] - true) ** 2))
+        assert gap <= 0.25 * np.sqrt(np.mean(true**2))  # measured 12 %
+        assert np.corrcoef(est[:, k], true)[0, 1] >= 0.95
+    other = run_contour(ContourJob(control=ControlSettings(law="contour"), drawing=run.job.drawing))
+    with pytest.raises(ValueError, match="preview-dob"):
+        dob_estimate(other)

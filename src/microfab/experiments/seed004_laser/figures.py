@@ -1,4 +1,4 @@
-"""Figures of seed 004 contour runs: Figs. 3, 4 and 7 redrawn, speed sweep, force.
+"""Figures of seed 004: Figs. 3, 4, 6 and 7 redrawn, speed sweep, force, disturbance.
 
 Physics lives in `run` and `metrics`; this module only draws (matplotlib, through
 `microfab.report.canvas.new_figure`).
@@ -22,11 +22,14 @@ __all__ = [
     "fig_axis_errors",
     "fig_ballbar",
     "fig_contour_time",
+    "fig_disturbance",
     "fig_force",
     "fig_speed",
     "plot_axis_errors",
     "plot_ballbar",
     "plot_contour_time",
+    "plot_disturbance",
+    "plot_focus",
 ]
 
 _AXES = (("x", "tab:red"), ("y", "tab:blue"))
@@ -178,4 +181,57 @@ def fig_force(run: ContourRun) -> MplFigure:
     ax.set_ylabel("force [N]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
+    return fig
+
+
+def plot_disturbance(time: np.ndarray, true: np.ndarray, estimate: np.ndarray) -> MplFigure:
+    """The DOB's estimate of the load force beside the twin's true ``F_l``, per axis.
+
+    ``time`` (s, (n,)), ``true`` and ``estimate`` (N, (n, 2)).
+    """
+    fig = new_figure(7.0, 4.2)
+    axes = fig.subplots(2, 1, sharex=True)
+    for k, (name, col) in enumerate(_AXES):
+        ax = axes[k]
+        ax.plot(time, true[:, k], lw=0.8, color="0.3", label="true F_l (twin)")
+        ax.plot(time, estimate[:, k], lw=0.6, color=col, label="DOB estimate K_fn î_d")
+        gap = float(np.sqrt(np.mean((estimate[:, k] - true[:, k]) ** 2)))
+        ax.set_ylabel(f"{name} force [N]")
+        ax.set_title(f"{name}: RMS of estimate − true {gap:.3g} N", fontsize=8)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    axes[-1].set_xlabel("time [s]")
+    return fig
+
+
+def fig_disturbance(run: ContourRun, estimate: np.ndarray) -> MplFigure:
+    """`plot_disturbance` of a run and its DOB estimate (`run.dob_estimate`)."""
+    return plot_disturbance(run.time, run.disturbance, estimate)
+
+
+def plot_focus(
+    runs: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+    depth_of_focus_m: float,
+) -> MplFigure:
+    """Seed 004 Fig. 6: detector output (a) and z against time (b), with the ±DOF/2 band.
+
+    ``runs``: label -> ``(time s, detector V, z m, focus m)``, each (n,).
+    """
+    fig = new_figure(7.0, 4.6)
+    ax_y, ax_z = fig.subplots(2, 1, sharex=True)
+    for label, (t, y, z, _f) in runs.items():
+        ax_y.plot(t, y, lw=0.7, label=label)
+        ax_z.plot(t, z * 1e6, lw=0.7, label=label)
+    t, _, _, f = next(iter(runs.values()))
+    half = 0.5 * depth_of_focus_m * 1e6
+    ax_z.fill_between(t, f * 1e6 - half, f * 1e6 + half, color="0.9", zorder=0,
+                      label=f"focus ± DOF/2 ({half:.1f} µm)")  # fmt: skip
+    ax_y.set_ylabel("detector [V]")
+    ax_y.set_title("(a) detector output (minimal at focus)", fontsize=8)
+    ax_z.set_ylabel("z [µm]")
+    ax_z.set_title("(b) z encoder", fontsize=8)
+    ax_z.set_xlabel("time [s]")
+    for ax in (ax_y, ax_z):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
     return fig

@@ -9,9 +9,12 @@ from microfab.experiments.seed004_laser.figures import (
     fig_axis_errors,
     fig_ballbar,
     fig_contour_time,
+    fig_disturbance,
     fig_force,
     fig_speed,
+    plot_focus,
 )
+from microfab.experiments.seed004_laser.run import dob_estimate
 
 if TYPE_CHECKING:
     from microfab.experiments.seed004_laser.job import LaserResult
@@ -62,6 +65,33 @@ def write_report(result: LaserResult, out: Path, title: str) -> Path:
         Figure(name="force.png", png=render_png(fig_force(m)),
                caption="Motor force against Table I's 12 N peak and 3 N continuous force."),
     ]  # fmt: skip
+    dob_run = m if m.job.control.law == "preview-dob" else result.baseline
+    if dob_run is not None:
+        figs.append(
+            Figure(
+                name="disturbance.png",
+                png=render_png(fig_disturbance(dob_run, dob_estimate(dob_run))),
+                caption="The DOB's estimate of the load force (eq. 4) beside the twin's true "
+                "F_l (friction, cogging, cable, and the 10 % mass and force-constant "
+                "errors it also absorbs), preview-dob run.",
+            )
+        )
+    if result.focus is not None:
+        st = result.focus
+        runs_f = {"continuous (eqs. 16-17)": st.continuous, "discontinuous": st.discontinuous}
+        if st.tilted is not None:
+            runs_f[f"continuous, tilted {st.tilt_rad * 1e3:g} mrad"] = st.tilted
+        figs.append(
+            Figure(
+                name="focus.png",
+                png=render_png(plot_focus(
+                    {k: (r.time, r.detector, r.z, r.focus) for k, r in runs_f.items()},
+                    st.continuous.depth_of_focus_m,
+                )),
+                caption="Redraws seed 004 Fig. 6: detector output and z encoder of the focus "
+                "search from 500 µm off focus, both laws, band ±DOF/2 about the (fixed) focus.",
+            )
+        )  # fmt: skip
     if result.sweep:
         figs.append(
             Figure(

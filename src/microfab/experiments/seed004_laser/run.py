@@ -55,7 +55,7 @@ from microfab.experiments.seed004_laser.reference import (
 )
 from microfab.geometry.path import Path
 from microfab.plants.lmw_stage import LMWStage, lmw_stage_twin
-from microfab.sim.loop import LoopState, simulate
+from microfab.sim.loop import LoopState, reference_array, simulate
 from microfab.sim.replay import replay_plant
 
 __all__ = [
@@ -65,6 +65,7 @@ __all__ = [
     "ControlSettings",
     "TwinSettings",
     "contour_path",
+    "dob_estimate",
     "make_controller",
     "make_stage",
     "run_contour",
@@ -330,3 +331,37 @@ def run_contour(job: ContourJob | None = None) -> ContourRun:
         contour=contour_errors(path, true, laps),
         contour_measured=contour_errors(path, res.measured, laps),
     )
+
+
+def dob_estimate(run: ContourRun) -> np.ndarray:
+    """The DOB's estimate of ``F_l`` at each sample of a ``preview-dob`` run, N, shape (n, 2).
+
+    The run's controller is replayed on its recorded measurements
+    (`microfab.control.preview_dob.PreviewDOB.replay`); the replayed currents equal the
+    recorded ones (checked to 1e-9 A), so the estimate is the one the loop used. Compare
+    with ``run.disturbance``, the twin's true load force.
+
+    Raises
+    ------
+    ValueError
+        For a run of another law (its currents carry an add-on this replay lacks), or
+        when the replay does not match the recorded currents.
+    """
+    if run.job.control.law != "preview-dob":
+        raise ValueError(
+            f"the DOB estimate is replayed for law 'preview-dob' only, not "
+            f"{run.job.control.law!r}: run the job with compare = true for a preview-dob run"
+        )
+    stage = make_stage(run.job.twin)
+    ctrl = make_controller(run.job.control, stage, run.job.twin.mass_error)
+    traj = run.reference.trajectory
+    ref = reference_array(
+        np.asarray(traj.position),
+        (np.asarray(traj.velocity), np.asarray(traj.acceleration)),
+        ctrl.preview,
+    )
+    log = ctrl.replay(ref, run.measured)
+    gap = float(np.max(np.abs(log.command - run.command)))
+    if gap > 1e-9:
+        raise ValueError(f"the replayed currents differ from the run's by {gap:.3g} A")
+    return log.disturbance
