@@ -27,6 +27,13 @@ def test_every_kind_has_an_example_that_loads():
         assert kind.description and kind.seed
 
 
+def test_every_example_job_file_loads():
+    files = sorted(EXAMPLES.glob("*.toml"))
+    assert len(files) >= len(JOB_KINDS)
+    for f in files:
+        assert load_job(f).kind.name in JOB_KINDS, f.name
+
+
 def test_unknown_names_list_the_known_ones(tmp_path):
     with pytest.raises(KeyError, match=r"known: .*msl-ilc"):
         job_kind("nope")
