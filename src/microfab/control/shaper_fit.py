@@ -40,6 +40,7 @@ from microfab.control.shapers import (
     ShaperName,
     design_shaper,
 )
+from microfab.core.threads import one_blas_thread
 from microfab.core.validate import check_in_range, check_int, check_positive
 
 __all__ = ["ShaperCandidate", "ShaperFit", "ShaperFitConfig", "fit_shaper"]
@@ -214,6 +215,36 @@ def _candidate(
     )
 
 
+def _scan(
+    cfg: ShaperFitConfig,
+    design_freqs: np.ndarray,
+    f: np.ndarray,
+    w: np.ndarray,
+    thr: float,
+    scans: dict[str, tuple[ShaperCandidate, ...]],
+    per_type: dict[str, ShaperCandidate],
+) -> None:
+    """Scan every type over the design frequencies and dampings; fill ``scans``, ``per_type``."""
+    for name in cfg.names:
+        cands = []
+        for fd in design_freqs:
+            for zd in cfg.design_dampings:
+                try:
+                    sh = design_shaper(name, float(fd), zd, v_tol=cfg.v_tol)
+                except ValueError:  # the family does not exist at this damping
+                    continue
+                cands.append(_candidate(sh, f, w, thr, cfg.test_dampings))
+        if not cands:
+            continue
+        best = min(cands, key=lambda c: c.vibrations)
+        chosen = best
+        for c in cands:
+            if c.vibrations < best.vibrations * 1.1 + 0.0005 and c.score < chosen.score:
+                chosen = c
+        scans[name] = tuple(cands)
+        per_type[name] = chosen
+
+
 def fit_shaper(
     freq_hz: np.ndarray,
     response: np.ndarray,
@@ -255,24 +286,8 @@ def fit_shaper(
     design_freqs = np.linspace(lo, hi, cfg.n_freqs)
     scans: dict[str, tuple[ShaperCandidate, ...]] = {}
     per_type: dict[str, ShaperCandidate] = {}
-    for name in cfg.names:
-        cands = []
-        for fd in design_freqs:
-            for zd in cfg.design_dampings:
-                try:
-                    sh = design_shaper(name, float(fd), zd, v_tol=cfg.v_tol)
-                except ValueError:  # the family does not exist at this damping
-                    continue
-                cands.append(_candidate(sh, f, w, thr, cfg.test_dampings))
-        if not cands:
-            continue
-        best = min(cands, key=lambda c: c.vibrations)
-        chosen = best
-        for c in cands:
-            if c.vibrations < best.vibrations * 1.1 + 0.0005 and c.score < chosen.score:
-                chosen = c
-        scans[name] = tuple(cands)
-        per_type[name] = chosen
+    with one_blas_thread():  # many small evaluations: BLAS threads only cost here
+        _scan(cfg, design_freqs, f, w, thr, scans, per_type)
     if not per_type:
         raise ValueError(f"none of {cfg.names} could be designed at dampings {cfg.design_dampings}")
     best_c: ShaperCandidate | None = None

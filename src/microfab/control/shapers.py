@@ -63,6 +63,7 @@ import scipy.signal
 from microfab.control.shaping import Bounds, filter_command, shaped_trajectory
 from microfab.core.arrays import readonly
 from microfab.core.limits import AxisLimits
+from microfab.core.threads import one_blas_thread
 from microfab.core.validate import check_in_range, check_positive
 from microfab.trajectory.base import Trajectory
 
@@ -618,7 +619,8 @@ def design_shaper(
             numeric=False,
             constraint_miss=miss,
         )
-    An, Tn, reached = _numeric_unit(name, float(damping), float(v_tol))
+    with one_blas_thread():  # small systems: BLAS threads only cost here
+        An, Tn, reached = _numeric_unit(name, float(damping), float(v_tol))
     if not An:
         raise ValueError(
             f"no {name} shaper meets its constraints at damping {damping} (v_tol {v_tol}): "

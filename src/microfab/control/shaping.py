@@ -25,8 +25,9 @@ the printed ``1.272e11`` one gets ``8.077e24``.
 (seed 003 §2, "Input shaper (discrete)"). The discrete filter is built from the
 continuous design, not from the seed's printed 4-digit discrete numerator
 ``19.61, -56.99, 55.26, -17.88``: those sum to 0 (a zero at ``z = 1``), so taken literally
-that filter has no static gain; the exact one sums to ``0.00290``, as its denominator
-``1, -3.111, 3.63, -1.882, 0.3659`` does. The poles are ``exp(-p dt)`` exactly; the
+that filter has no static gain; the exact one sums to what its denominator
+``1, -3.111, 3.63, -1.882, 0.3659`` sums to, ``(1 - exp(-p dt))^4 = 0.00244``, which the
+printed digits (+-0.005 each) cannot carry. The poles are ``exp(-p dt)`` exactly; the
 numerator is the one for which the filter reproduces the continuous step response at
 the samples (what ZOH means), computed from the exact step response
 (`microfab.control.shaping_metrics.step_response`).
@@ -81,6 +82,7 @@ from microfab.control.shaping_metrics import (
 )
 from microfab.core.arrays import readonly
 from microfab.core.limits import AxisLimits, LimitViolation, check_command
+from microfab.core.threads import one_blas_thread
 from microfab.core.validate import check_int, check_positive
 from microfab.plants.lti import DiscreteLTI
 from microfab.trajectory.base import Trajectory
@@ -460,7 +462,9 @@ class InverseShaper:
 
     def to_lti(self) -> DiscreteLTI:
         """The discrete filter as a `microfab.plants.lti.DiscreteLTI` (one input, one output)."""
-        A, B, C, D = scipy.signal.tf2ss(self.num_d, self.den_d)
+        nz = np.flatnonzero(self.num_d)
+        num = self.num_d[nz[0] :] if nz.size else self.num_d[-1:]  # z-form: same filter
+        A, B, C, D = scipy.signal.tf2ss(num, self.den_d)
         return DiscreteLTI(A, B, C, D, self.dt)
 
 
@@ -497,11 +501,12 @@ def design_inverse_shaper(
     num = p**cfg.order * (den_g / lead_d) * (num_g[-1] / lead_n)
     den = (den_g[-1] / lead_d) * np.polymul(num_g / lead_n, np.poly([-p] * cfg.order))
     preview = 0
-    if cfg.discretization == "zoh":
-        num_d, den_d = _zoh(num, den, cfg.dt)
-    else:
-        target = (np.array([p**cfg.order]), np.poly([-p] * cfg.order))
-        num_d, den_d, preview = _zpetc((num_g, den_g), target, cfg.dt)
+    with one_blas_thread():  # small matrices: BLAS threads only cost here
+        if cfg.discretization == "zoh":
+            num_d, den_d = _zoh(num, den, cfg.dt)
+        else:
+            target = (np.array([p**cfg.order]), np.poly([-p] * cfg.order))
+            num_d, den_d, preview = _zpetc((num_g, den_g), target, cfg.dt)
     num_d, den_d = _same_length(num_d, den_d)
     return InverseShaper(
         config=cfg,

@@ -55,6 +55,7 @@ import scipy.optimize
 import scipy.signal
 
 import control
+from microfab.core.threads import one_blas_thread
 from microfab.core.validate import check_in_range, check_positive
 
 __all__ = [
@@ -324,11 +325,12 @@ def step_response(model: TransferModel, times_s: np.ndarray | Sequence[float]) -
         Response at those times, shape (n,) (matrix exponential of the time-scaled
         state-space model, no integration error).
     """
-    t = np.atleast_1d(np.asarray(times_s, dtype=float))
-    if not np.all(np.isfinite(t) & (t >= 0.0)):
-        raise ValueError("times_s must be finite and >= 0 s")
-    st = _Step.of(model)
-    return np.array([st.at(float(ti)) for ti in t])
+    with one_blas_thread():  # small matrices: BLAS threads only cost here
+        t = np.atleast_1d(np.asarray(times_s, dtype=float))
+        if not np.all(np.isfinite(t) & (t >= 0.0)):
+            raise ValueError("times_s must be finite and >= 0 s")
+        st = _Step.of(model)
+        return np.array([st.at(float(ti)) for ti in t])
 
 
 def step_settling_time(model: TransferModel, *, band: float = 0.02) -> float:
@@ -347,17 +349,18 @@ def step_settling_time(model: TransferModel, *, band: float = 0.02) -> float:
         Settling time, s (exact to the root finder's tolerance). Seed 003's ``G``:
         869.9 us; ``G S`` with the default inverse shaper: 361.7 us.
     """
-    check_in_range("band", band, 0.0, 1.0, "(fraction of the final value)", low_closed=False)
-    st = _Step.of(model)
-    if st.final == 0.0:
-        raise ValueError("the model's static gain is 0: no settling band")
-    tol = band * abs(st.final)
-    t, y = st.grid()
-    outside = np.flatnonzero(np.abs(y - st.final) > tol)
-    if outside.size == 0:
-        return 0.0
-    k = int(outside[-1])
-    return st.refine(lambda s: abs(st.at(s) - st.final) - tol, float(t[k]), float(t[k + 1]))
+    with one_blas_thread():  # small matrices: BLAS threads only cost here
+        check_in_range("band", band, 0.0, 1.0, "(fraction of the final value)", low_closed=False)
+        st = _Step.of(model)
+        if st.final == 0.0:
+            raise ValueError("the model's static gain is 0: no settling band")
+        tol = band * abs(st.final)
+        t, y = st.grid()
+        outside = np.flatnonzero(np.abs(y - st.final) > tol)
+        if outside.size == 0:
+            return 0.0
+        k = int(outside[-1])
+        return st.refine(lambda s: abs(st.at(s) - st.final) - tol, float(t[k]), float(t[k + 1]))
 
 
 def ramp_speed_time(model: TransferModel, *, fraction: float = 0.95) -> float:
@@ -374,20 +377,23 @@ def ramp_speed_time(model: TransferModel, *, fraction: float = 0.95) -> float:
     fraction : float
         Fraction of the final speed, in (0, 1].
     """
-    check_in_range("fraction", fraction, 0.0, 1.0, "(of the final speed)", low_closed=False)
-    st = _Step.of(model)
-    if st.final == 0.0:
-        raise ValueError("the model's static gain is 0: the speed never reaches a fraction of it")
-    level = fraction * st.final
-    sign = 1.0 if st.final > 0 else -1.0
-    t, y = st.grid()
-    above = np.flatnonzero(sign * (y - level) >= 0.0)
-    if above.size == 0:  # pragma: no cover - a stable model reaches its final value
-        raise ValueError(f"the step response never reaches {fraction:g} of its final value")
-    k = int(above[0])
-    if k == 0:
-        return 0.0
-    return st.refine(lambda s: sign * (st.at(s) - level), float(t[k - 1]), float(t[k]))
+    with one_blas_thread():  # small matrices: BLAS threads only cost here
+        check_in_range("fraction", fraction, 0.0, 1.0, "(of the final speed)", low_closed=False)
+        st = _Step.of(model)
+        if st.final == 0.0:
+            raise ValueError(
+                "the model's static gain is 0: the speed never reaches a fraction of it"
+            )
+        level = fraction * st.final
+        sign = 1.0 if st.final > 0 else -1.0
+        t, y = st.grid()
+        above = np.flatnonzero(sign * (y - level) >= 0.0)
+        if above.size == 0:  # pragma: no cover - a stable model reaches its final value
+            raise ValueError(f"the step response never reaches {fraction:g} of its final value")
+        k = int(above[0])
+        if k == 0:
+            return 0.0
+        return st.refine(lambda s: sign * (st.at(s) - level), float(t[k - 1]), float(t[k]))
 
 
 def step_peak(model: TransferModel) -> tuple[float, float]:
@@ -396,18 +402,19 @@ def step_peak(model: TransferModel) -> tuple[float, float]:
     For a command filter this is the command peak of a unit step (the seed's inverse
     shaper: 23.66 at 19.0 us, continuous).
     """
-    st = _Step.of(model)
-    t, y = st.grid()
-    k = int(np.argmax(np.abs(y)))
-    lo, hi = float(t[max(k - 1, 0)]), float(t[min(k + 1, t.size - 1)])
-    if hi <= lo:
+    with one_blas_thread():  # small matrices: BLAS threads only cost here
+        st = _Step.of(model)
+        t, y = st.grid()
+        k = int(np.argmax(np.abs(y)))
+        lo, hi = float(t[max(k - 1, 0)]), float(t[min(k + 1, t.size - 1)])
+        if hi <= lo:
+            return float(abs(y[k])), float(t[k])
+        res = scipy.optimize.minimize_scalar(
+            lambda s: -abs(st.at(s)), bounds=(lo, hi), method="bounded", options={"xatol": 1e-15}
+        )
+        if -res.fun >= abs(y[k]):
+            return float(-res.fun), float(res.x)
         return float(abs(y[k])), float(t[k])
-    res = scipy.optimize.minimize_scalar(
-        lambda s: -abs(st.at(s)), bounds=(lo, hi), method="bounded", options={"xatol": 1e-15}
-    )
-    if -res.fun >= abs(y[k]):
-        return float(-res.fun), float(res.x)
-    return float(abs(y[k])), float(t[k])
 
 
 def _signal(y: np.ndarray, name: str) -> np.ndarray:
