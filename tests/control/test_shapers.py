@@ -128,6 +128,8 @@ def test_two_and_three_hump_are_solved_where_the_fit_fails_and_refused_past_thei
         design_shaper("2hump_ei", F, 0.5)
     with pytest.raises(ValueError, match=r"no 3hump_ei shaper .* ends near damping 0\.2"):
         design_shaper("3hump_ei", F, 0.5)
+    with pytest.raises(ValueError, match="closed form of 3hump_ei is no shaper"):
+        design_shaper("3hump_ei", F, 0.5, method="closed")
 
 
 def test_other_vibration_tolerances_are_solved():

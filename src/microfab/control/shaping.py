@@ -18,8 +18,10 @@ For the seed's ``G(s) = 1.242e11 / (s^3 + 9517 s^2 + 5.773e7 s + 1.272e11)`` (se
 1.279e16, 4.82e20, 8.076e24, 5.075e28``. The seed says the poles sit at "3000rad/s";
 its own coefficients give ``p^4 = 5.075e28 / 1.272e11`` and ``4 p = 1.279e16 / 1.272e11``,
 i.e. ``p = 2 pi 4000 rad/s`` (25133 rad/s), which is therefore the default
-(``pole_hz = 4000``). Its ``8.076e24`` implies ``a0 = 1.27185e11`` (the unrounded fit); from
-the printed ``1.272e11`` one gets ``8.077e24``.
+(``pole_hz = 4000``); its "6 times the cutoff frequency" fits that too (6 x the model's
+-3 dB bandwidth of 710.6 Hz is 4.26 kHz; 3000 rad/s is 477 Hz). Its ``8.076e24`` implies
+``a0 = 1.27185e11`` (the unrounded fit); from the printed ``1.272e11`` one gets
+``8.077e24``.
 
 **Discretisation.** ZOH at ``dt = 10 us``: the seed's "[fs = 1e-5]" is the period
 (seed 003 §2, "Input shaper (discrete)"). The discrete filter is built from the
