@@ -631,8 +631,8 @@ def design_shaper(
     if not An:
         raise ValueError(
             f"no {name} shaper meets its constraints at damping {damping} (v_tol {v_tol}): "
-            f"the family ends near damping {reached:.3f}; use a shorter family (ei, zvd) "
-            f"or a lower damping"
+            f"the family ends near damping {reached:.3f}; use zvd or mzv (exact at any "
+            f"damping), ei (to damping 0.69), or a lower damping"
         )
     A, T = np.array(An), np.array(Tn) / freq_hz
     miss = abs(float(residual_vibration(A, T, freq_hz, damping)[0]) - target)
