@@ -347,7 +347,7 @@ def step_settling_time(model: TransferModel, *, band: float = 0.02) -> float:
     -------
     float
         Settling time, s (exact to the root finder's tolerance). Seed 003's ``G``:
-        869.9 us; ``G S`` with the default inverse shaper: 361.7 us.
+        869.9 us; ``G S`` with the default inverse shaper: 361.4 us.
     """
     with one_blas_thread():  # small matrices: BLAS threads only cost here
         check_in_range("band", band, 0.0, 1.0, "(fraction of the final value)", low_closed=False)
@@ -368,7 +368,7 @@ def ramp_speed_time(model: TransferModel, *, fraction: float = 0.95) -> float:
 
     The output speed on a unit ramp is the step response, so this is the first time the
     step response reaches ``fraction * H(0)``. Seed 003's ``G``: 787.8 us; ``G S`` with
-    the default inverse shaper: 308.4 us.
+    the default inverse shaper: 308.5 us.
 
     Parameters
     ----------
