@@ -211,6 +211,22 @@ class MachineLimits:
             acceleration=(5.0, 5.0),  # seed 004 Table I: max. acceleration 5 m/s^2
         )
 
+    @classmethod
+    def seed003_slm(cls) -> MachineLimits:
+        """The SLM galvo scanner of seed 003 part 2 at the work plane; no jerk limit.
+
+        All assumed (the seed gives no field or speed) and equal to ``data/galvo_slm.toml``
+        (`microfab.plants.galvo_slm.GalvoSLMPlant.axis_limits` declares them in bit).
+        """
+        field = 32768 * 1.5e-6  # assumed: ±32768 bit of 1.5 µm, ±49.152 mm
+        return cls(
+            workspace=((-field, field), (-field, field)),
+            velocity=(10.0, 10.0),  # assumed: twice the assumed 5 m/s jump speed
+            # assumed: the velocity limit gained within one 10 µs tick (an RTC vector starts
+            # at full speed; a 5 m/s jump from rest is 5e5 m/s^2 sampled)
+            acceleration=(1.0e6, 1.0e6),
+        )
+
     def with_jerk(self, jerk: float | tuple[float, ...]) -> MachineLimits:
         """A copy with the jerk limit replaced (one value for all axes, or per axis)."""
         j = (float(jerk),) * len(self.axes) if np.isscalar(jerk) else tuple(jerk)  # type: ignore[arg-type]
