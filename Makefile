@@ -35,6 +35,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_nanomanipulator.py
 	$(BIN)/python benchmarks/bench_laser.py
 	$(BIN)/python benchmarks/bench_contour_error.py
+	$(BIN)/python benchmarks/bench_slm.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples

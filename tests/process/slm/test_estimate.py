@@ -12,8 +12,6 @@ the tolerances of the acceptance rows leave room for.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -157,25 +155,6 @@ def test_lattice_layer_shaped_cuts_the_scan_time_by_at_least_ten_percent(twin, s
         print("   ", row[0], *(f"{v:.4f}" for v in row[1:]))
     assert cut >= 0.10  # issue 16 acceptance (seed: -9.97 % on the whole bunny)
     assert unshaped.dynamics.share("jump_delay") > with_shaper.dynamics.share("jump_delay")
-
-
-def test_one_lattice_layer_of_1e5_vectors_is_estimated_quickly(twin):
-    spec = LatticeSpec(outline_radius_m=47e-3)  # inside the ±49.15 mm field
-    path = lattice_layer(0.5 * spec.cell_m, spec)
-    assert len(path) > 9e4
-    dynamics_estimate(path, twin)  # compile and build the tables once
-    t0 = time.perf_counter()
-    est = dynamics_estimate(path, twin)
-    t1 = time.perf_counter()
-    naive_estimate(path)
-    t2 = time.perf_counter()
-    simulate_timeline(est.timeline, twin)
-    t3 = time.perf_counter()
-    print(
-        f"\n{len(path)} vectors, {est.timeline.total_ticks} ticks: dynamics-aware estimate "
-        f"{t1 - t0:.3f} s ({(t1 - t0) / (t2 - t1):.0f}x naive, {(t1 - t0) / (t3 - t2):.2f}x a "
-        f"per-sample simulate of {t3 - t2:.3f} s); scan time {est.total_s:.2f} s"
-    )
 
 
 def test_series_puts_a_filter_in_front_of_the_axis(twin, shaped):
