@@ -108,7 +108,7 @@ class ChirpDesign:
         if n < 2 or abs(ratio - n) > _PERIOD_TOL * ratio:
             raise ValueError(
                 f"period_s must be a whole number (>= 2) of samples dt = {dt:g} s, got "
-                f"{period:g} s ({ratio:.6g} samples): use {max(n, 2) * dt:.9g} s"
+                f"{period!r} s ({ratio:.10g} samples): use {max(n, 2) * dt:.10g} s"
             )
         if n_drop >= n_per:
             raise ValueError(

@@ -10,8 +10,10 @@ numbers of zeros and poles (``n_zeros <= n_poles``):
    ``min sum_k |w_k (N(s_k) - H_k D(s_k)) / (H_k D_{i-1}(s_k))|^2`` (``D_0 = 1``, Levy's
    fit) until the coefficients stop changing. With ``sampling`` other than "none" the data
    is first advanced by half a sample, ``H exp(+j w T / 2)``, the hold's main effect.
-   Poles in the right half plane are reflected into the left and the numerator refitted.
-2. **Non-linear least squares.** `scipy.optimize.least_squares` (Levenberg-Marquardt)
+   When the start has poles in the right half plane, a second start has them reflected
+   into the left (numerator refitted).
+2. **Non-linear least squares.** `scipy.optimize.least_squares` (Levenberg-Marquardt,
+   from each start; the lower cost wins)
    minimises ``sum_k |w_k (H_model(f_k) - H_k) / H_k|^2`` over the numerator and monic
    denominator coefficients, with ``w_k`` the coherence ``gamma_k^2`` (1 where it is
    unknown): a relative error, so that every frequency of a Bode plot counts alike, and
@@ -21,8 +23,9 @@ numbers of zeros and poles (``n_zeros <= n_poles``):
    half-sample delay (``"delay"``), or the plain continuous response (``"none"``).
 
 Coefficients are handled in ``s' = s / w_s`` (``w_s`` the geometric mean of the SK
-start's pole magnitudes), where they are of order one. A fit with a pole at or right of
-the imaginary axis is refused (`UnstableFitError`).
+start's pole magnitudes), where they are of order one. When the best fit has a pole at
+or right of the imaginary axis it is refused (`UnstableFitError`), not replaced by a
+worse stable one.
 
 **Why sampling matters (seed's own data rate).** A 100 kHz record of the seed's model is
 its ZOH discretisation, which differs from ``G(j w)`` by up to 6 % in 10 Hz - 2 kHz (the
@@ -41,6 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.optimize
 
+from microfab.core.threads import single_threaded
 from microfab.core.validate import check_int, check_positive
 from microfab.identify.frf import FRF
 from microfab.identify.model import Sampling, TFModel, check_sampling, response_scaled
@@ -79,7 +83,8 @@ class FitResult:
     model : TFModel
         The fitted continuous model (coefficients, poles, gain, bandwidth).
     start : TFModel
-        The Sanathanan-Koerner start (after reflecting unstable poles).
+        The Sanathanan-Koerner start the fit came from (as found, or with its unstable
+        poles reflected).
     frf : FRF
         The data fitted (the band used).
     sampling : {"zoh", "delay", "none"}
@@ -92,7 +97,7 @@ class FitResult:
     max_relative_error : float
         Largest unweighted ``|H_model / H - 1|`` over the band.
     n_evaluations : int
-        Model evaluations of the non-linear least squares.
+        Model evaluations of the non-linear least squares (all starts).
     sk_iterations : int
         Sanathanan-Koerner iterations done.
     """
@@ -201,6 +206,7 @@ def _stable_start(
     return x[::-1], a
 
 
+@single_threaded  # 4x4 matrix work: a BLAS thread team costs 100x (8 ms per expm)
 def fit_tf(
     frf: FRF,
     *,
@@ -292,14 +298,12 @@ def fit_tf(
     s1 = 2j * math.pi * f / w1
     h_sk = h if mode == "none" else h * np.exp(1j * math.pi * f * dt)
     b, a, n_sk = _sk(s1, h_sk, coh, n_z, n_p, n_iter)
-    b, a = _stable_start(s1, h_sk, coh, b, a)
-    start = TFModel.from_scaled(b, a, w1, unit=data.unit)
+    starts = [TFModel.from_scaled(b, a, w1, unit=data.unit)]
+    if not starts[0].is_stable:  # also try it with its unstable poles reflected
+        starts.append(TFModel.from_scaled(*_stable_start(s1, h_sk, coh, b, a), w1, unit=data.unit))
 
     # 2. non-linear least squares in s' = s / ws (ws from the start's poles)
-    ws = start.scale_rad_s
-    b0, a0 = start.scaled(ws)
-    if b0.size < n_z + 1:  # leading zero coefficients were dropped: keep the order
-        b0 = np.concatenate([np.zeros(n_z + 1 - b0.size), b0])
+    ws = starts[0].scale_rad_s
     w = 2 * math.pi * f / ws
     period = None if dt is None else dt * ws
     weight = coh / np.abs(h)
@@ -310,27 +314,40 @@ def fit_tf(
         r = np.concatenate([e.real, e.imag])
         return np.nan_to_num(r, nan=_BIG, posinf=_BIG, neginf=-_BIG)
 
-    x0 = np.concatenate([b0, a0[1:]])
-    sol = scipy.optimize.least_squares(
-        residual,
-        x0,
-        method="lm",
-        x_scale="jac",
-        ftol=_LSQ_TOL,
-        xtol=_LSQ_TOL,
-        gtol=_LSQ_TOL,
-        max_nfev=max_evaluations or 200 * n_coef,
-    )
-    x = sol.x
-    model = TFModel.from_scaled(
-        x[: n_z + 1], np.concatenate([[1.0], x[n_z + 1 :]]), ws, unit=data.unit
-    )
-    poles = model.poles
-    if not np.all(poles.real < 0):
+    runs = []
+    for start in starts:
+        b0, a0 = start.scaled(ws)
+        if b0.size < n_z + 1:  # leading zero coefficients were dropped: keep the order
+            b0 = np.concatenate([np.zeros(n_z + 1 - b0.size), b0])
+        sol = scipy.optimize.least_squares(
+            residual,
+            np.concatenate([b0, a0[1:]]),
+            method="lm",
+            x_scale="jac",
+            ftol=_LSQ_TOL,
+            xtol=_LSQ_TOL,
+            gtol=_LSQ_TOL,
+            max_nfev=max_evaluations or 200 * n_coef,
+        )
+        x = sol.x
+        model = TFModel.from_scaled(
+            x[: n_z + 1], np.concatenate([[1.0], x[n_z + 1 :]]), ws, unit=data.unit
+        )
+        runs.append((float(sol.cost), model, start, int(sol.nfev)))
+    cost, model, start, _ = min(runs, key=lambda r: r[0])
+    if not model.is_stable:
+        poles = model.poles
         bad = ", ".join(f"{p:.4g}" for p in poles[poles.real >= 0])
+        stable = [r for r in runs if r[1].is_stable]
+        alt = (
+            f" (weighted residual rms {math.sqrt(2 * cost / f.size):.3g}; the best stable fit "
+            f"found leaves {math.sqrt(2 * stable[0][0] / f.size):.3g})"
+            if stable
+            else ""
+        )
         raise UnstableFitError(
-            f"the fitted model is unstable: pole(s) {bad} rad/s have a non-negative real part; "
-            f"the data may come from an unstable system or a closed loop, or "
+            f"the fitted model is unstable: pole(s) {bad} rad/s have a non-negative real "
+            f"part{alt}; the data may come from an unstable system or a closed loop, or "
             f"(n_zeros, n_poles) = ({n_z}, {n_p}) does not suit it: change the orders or the band",
             poles,
         )
@@ -343,6 +360,6 @@ def fit_tf(
         dt=dt,
         residual_rms=float(np.sqrt(np.mean(np.abs(coh * rel) ** 2))),
         max_relative_error=float(np.max(np.abs(rel))),
-        n_evaluations=int(sol.nfev),
+        n_evaluations=sum(r[3] for r in runs),
         sk_iterations=n_sk,
     )

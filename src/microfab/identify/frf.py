@@ -29,7 +29,7 @@ over some range, naming the range.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, NamedTuple
 
 import numpy as np
 import scipy.signal
@@ -47,6 +47,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "FRF",
+    "CoherenceRange",
     "LowCoherenceError",
     "estimate_frf",
     "frf_h1",
@@ -57,6 +58,32 @@ FRFMethod = Literal["periodic", "h1", "table"]
 _METHODS: tuple[str, ...] = ("periodic", "h1", "table")
 _EXCITED_REL = 0.05  # input amplitude (relative to the largest bin) that marks "excited"
 _USABLE_REL = 1e-3  # inside the excited band, bins with less input are left out
+_MERGE_REL = 0.05  # low-coherence frequencies closer than 5 % of f form one range
+
+
+class CoherenceRange(NamedTuple):
+    """A frequency range where the coherence falls below a threshold.
+
+    Attributes
+    ----------
+    start_hz, stop_hz : float
+        First and last frequency below the threshold, Hz.
+    n_low : int
+        Frequencies of the range below the threshold.
+    n_frequencies : int
+        Frequencies of the FRF from ``start_hz`` to ``stop_hz``.
+    lowest : float
+        Lowest coherence of the range.
+    lowest_hz : float
+        Where it is, Hz.
+    """
+
+    start_hz: float
+    stop_hz: float
+    n_low: int
+    n_frequencies: int
+    lowest: float
+    lowest_hz: float
 
 
 class LowCoherenceError(ValueError):
@@ -64,11 +91,11 @@ class LowCoherenceError(ValueError):
 
     Attributes
     ----------
-    ranges : list of (float, float, float, float)
-        Each range as ``(start_hz, stop_hz, lowest coherence, frequency of it in Hz)``.
+    ranges : list of CoherenceRange
+        Every range below the threshold, in order of frequency.
     """
 
-    def __init__(self, message: str, ranges: list[tuple[float, float, float, float]]) -> None:
+    def __init__(self, message: str, ranges: list[CoherenceRange]) -> None:
         super().__init__(message)
         self.ranges = ranges
 
@@ -178,10 +205,12 @@ class FRF:
             excited_hz=(float(f[0]), float(f[-1])),
         )
 
-    def low_coherence_ranges(
-        self, threshold: float = MIN_COHERENCE
-    ) -> list[tuple[float, float, float, float]]:
-        """Ranges of consecutive frequencies where the coherence is below ``threshold``.
+    def low_coherence_ranges(self, threshold: float = MIN_COHERENCE) -> list[CoherenceRange]:
+        """Frequency ranges where the coherence falls below ``threshold``.
+
+        Frequencies below the threshold less than 5 % of their frequency apart
+        (``_MERGE_REL``) form one range: an estimate from a few averages scatters, so a
+        noisy stretch dips below the threshold at most but not all of its frequencies.
 
         Parameters
         ----------
@@ -190,25 +219,28 @@ class FRF:
 
         Returns
         -------
-        list of (float, float, float, float)
-            ``(start_hz, stop_hz, lowest coherence, its frequency in Hz)`` per range, in
-            order; empty when the coherence is unknown (NaN) or never below.
+        list of CoherenceRange
+            In order of frequency; empty when the coherence is unknown (NaN) or never
+            below.
         """
         check_in_range("threshold (coherence)", threshold, 0.0, 1.0)
-        low = self.coherence < threshold  # NaN compares False: unknown is not refused
-        if not low.any():
+        low = np.nonzero(self.coherence < threshold)[0]  # NaN is unknown, never refused
+        if low.size == 0:
             return []
-        edges = np.diff(np.concatenate([[0], low.astype(np.int8), [0]]))
-        starts, stops = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+        f = self.freq_hz
+        breaks = np.nonzero(f[low[1:]] - f[low[:-1]] > _MERGE_REL * f[low[1:]])[0]
         out = []
-        for a, b in zip(starts, stops, strict=True):
-            j = a + int(np.argmin(self.coherence[a:b]))
+        for group in np.split(low, breaks + 1):
+            a, b = int(group[0]), int(group[-1])
+            j = int(group[np.argmin(self.coherence[group])])
             out.append(
-                (
-                    float(self.freq_hz[a]),
-                    float(self.freq_hz[b - 1]),
-                    float(self.coherence[j]),
-                    float(self.freq_hz[j]),
+                CoherenceRange(
+                    start_hz=float(f[a]),
+                    stop_hz=float(f[b]),
+                    n_low=int(group.size),
+                    n_frequencies=b - a + 1,
+                    lowest=float(self.coherence[j]),
+                    lowest_hz=float(f[j]),
                 )
             )
         return out
@@ -219,18 +251,19 @@ class FRF:
         Raises
         ------
         LowCoherenceError
-            Naming the first range (start, stop, lowest value and where) and how many
-            more there are.
+            Naming the first range (start, stop, how many of its frequencies are low,
+            the lowest value and where) and how many more there are.
         """
         ranges = self.low_coherence_ranges(min_coherence)
         if not ranges:
             return
-        a, b, cmin, fmin = ranges[0]
+        r = ranges[0]
         more = f" (and {len(ranges) - 1} more ranges)" if len(ranges) > 1 else ""
         raise LowCoherenceError(
-            f"coherence below {min_coherence:g} from {a:g} to {b:g} Hz (lowest {cmin:.3f} at "
-            f"{fmin:g} Hz){more}: the output there is mostly noise or nonlinear; narrow the "
-            f"band, raise the amplitude or average more periods",
+            f"coherence below {min_coherence:g} from {r.start_hz:g} to {r.stop_hz:g} Hz "
+            f"({r.n_low} of {r.n_frequencies} frequencies, lowest {r.lowest:.3f} at "
+            f"{r.lowest_hz:g} Hz){more}: the output there is mostly noise or not linear in "
+            f"the input; narrow the band, raise the amplitude or average more periods",
             ranges,
         )
 
@@ -342,7 +375,7 @@ def _excited(
         big = amp[1:].max() if amp.size > 1 else 0.0
         on = np.nonzero(amp >= rel * big)[0]
         on = on[on > 0]
-        if big <= 0 or on.size == 0:
+        if big <= 1e-9 * amp.max() or on.size == 0:  # rounding only: a constant input
             raise ValueError("the input record excites no frequency (it is constant)")
         band = np.zeros(f.size, bool)
         band[on[0] : on[-1] + 1] = True
