@@ -60,7 +60,7 @@ def test_zoh_fit_recovers_the_seeds_coefficients_without_noise(chirp: Chirp, y_c
 def test_zoh_fit_with_noise_is_within_two_percent(chirp: Chirp, y_noisy):
     fit = fit_tf(estimate_frf(chirp, y_noisy))
     err = coefficient_errors(fit.model)
-    assert np.max(np.abs(err)) < 0.02  # acceptance; measured 6.6e-5 at most (seed 16)
+    assert np.max(np.abs(err)) < 0.02  # acceptance; measured 1.2e-4 at most (a2, noise seed 16)
     check_derived(fit.model)
     # the noise leaves a weighted residual: 0.3 bit against |Y| of a few bit at 2 kHz
     assert 1e-4 < fit.residual_rms < 0.01
@@ -68,7 +68,8 @@ def test_zoh_fit_with_noise_is_within_two_percent(chirp: Chirp, y_noisy):
 
 def test_h1_estimate_fits_within_two_percent(chirp: Chirp, y_noisy):
     fit = fit_tf(estimate_frf(chirp, y_noisy, method="h1"))
-    assert np.max(np.abs(coefficient_errors(fit.model))) < 0.02  # measured 8.8e-4 at most
+    # acceptance 2 %; measured 9.4e-4 at most (a0: the Hann window smooths over 3 bins)
+    assert np.max(np.abs(coefficient_errors(fit.model))) < 0.02
     check_derived(fit.model)
 
 
