@@ -1,0 +1,623 @@
+"""Frequency response (FRF) from an input and output record: per-period FFT and H1.
+
+Two estimators of ``H(f) = Y(f) / U(f)`` from uniformly sampled records ``u``, ``y``
+(sample time ``dt``):
+
+* `frf_periodic` (periodic excitation such as a repeated chirp, seed 003 part 2 §1): the
+  record is cut into whole periods of ``samples_per_period``; the first ``n_dropped`` are
+  left out (start-up transient). On each kept period ``p`` the FFT gives ``U_p``, ``Y_p``
+  on bins ``1 / period`` apart; ``H = mean_p(Y_p / U_p)`` on the excited bins. The signal
+  is periodic in samples, so there is no leakage and no window. The coherence is
+  ``|sum_p Y_p conj(U_p)|^2 / (sum_p |U_p|^2 sum_p |Y_p|^2)``: 1 when every period gives
+  the same response, lower where noise varies from period to period.
+* `frf_h1` (any record): ``H1 = P_yu / P_uu`` with ``P_yu = E[Y conj(U)]`` from
+  `scipy.signal.csd` and ``P_uu`` from `scipy.signal.welch` (segments of ``nperseg``,
+  a window, ``noverlap``), and the coherence ``|P_yu|^2 / (P_uu P_yy)``.
+
+With a single period (or segment) the coherence says nothing (it is 1 by construction)
+and is stored as NaN; a fit then weights every bin alike.
+
+An estimate keeps only the excited band: the chirp's ``(f0, f1)`` when it is known
+(`estimate_frf`, or ``excited_hz=``), else the range of bins whose input amplitude is at
+least 5 % of the largest (``_EXCITED_REL``); inside it, bins with almost no input
+(below 0.1 % of the largest, ``_USABLE_REL``) are left out rather than divided by.
+`FRF.band` selects a band for a fit and refuses a band outside the excitation or above
+Nyquist, and one where the coherence falls below a threshold (0.8 by default, issue 16)
+over some range, naming the range.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Literal, NamedTuple
+
+import numpy as np
+import scipy.signal
+
+from microfab.core.arrays import readonly
+from microfab.core.signals import check_samples
+from microfab.core.validate import check_in_range, check_int, check_nonnegative, check_positive
+from microfab.identify.chirp import Chirp
+from microfab.identify.plotting import MIN_COHERENCE, bode_axes, draw_coherence, draw_response
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from microfab.io.frf import FRFTable
+
+__all__ = [
+    "FRF",
+    "CoherenceRange",
+    "LowCoherenceError",
+    "estimate_frf",
+    "frf_h1",
+    "frf_periodic",
+]
+
+FRFMethod = Literal["periodic", "h1", "table"]
+_METHODS: tuple[str, ...] = ("periodic", "h1", "table")
+_EXCITED_REL = 0.05  # input amplitude (relative to the largest bin) that marks "excited"
+_USABLE_REL = 1e-3  # inside the excited band, bins with less input are left out
+_MERGE_REL = 0.05  # low-coherence frequencies closer than 5 % of f form one range
+
+
+class CoherenceRange(NamedTuple):
+    """A frequency range where the coherence falls below a threshold.
+
+    Attributes
+    ----------
+    start_hz, stop_hz : float
+        First and last frequency below the threshold, Hz.
+    n_low : int
+        Frequencies of the range below the threshold.
+    n_frequencies : int
+        Frequencies of the FRF from ``start_hz`` to ``stop_hz``.
+    lowest : float
+        Lowest coherence of the range.
+    lowest_hz : float
+        Where it is, Hz.
+    """
+
+    start_hz: float
+    stop_hz: float
+    n_low: int
+    n_frequencies: int
+    lowest: float
+    lowest_hz: float
+
+
+class LowCoherenceError(ValueError):
+    """The coherence falls below the threshold over a frequency range of a band.
+
+    Attributes
+    ----------
+    ranges : list of CoherenceRange
+        Every range below the threshold, in order of frequency.
+    """
+
+    def __init__(self, message: str, ranges: list[CoherenceRange]) -> None:
+        super().__init__(message)
+        self.ranges = ranges
+
+
+@dataclass(frozen=True, eq=False)
+class FRF:
+    """A single-input single-output frequency response on a grid of frequencies.
+
+    Parameters
+    ----------
+    freq_hz : numpy.ndarray
+        Frequencies, Hz, strictly increasing, shape (n,).
+    response : numpy.ndarray
+        Complex response output / input at ``freq_hz``, shape (n,).
+    coherence : numpy.ndarray
+        Coherence in [0, 1] per frequency, shape (n,); all NaN when not known (one
+        period or segment averaged, or an FRF read from a file).
+    method : {"periodic", "h1", "table"}
+        How it was estimated (per-period FFT ratio, H1 via Welch, or given).
+    dt : float or None
+        Sample time of the records, s (None when not known, e.g. read from a file).
+    excited_hz : (float, float)
+        The band the excitation covered, Hz; `band` refuses to leave it.
+    n_averages : int
+        Periods or segments averaged (>= 1).
+    unit : str
+        Unit of the response (e.g. "bit/bit"), for labels.
+    """
+
+    freq_hz: np.ndarray
+    response: np.ndarray
+    coherence: np.ndarray
+    method: FRFMethod
+    dt: float | None
+    excited_hz: tuple[float, float]
+    n_averages: int = 1
+    unit: str = field(default="")
+
+    def __post_init__(self) -> None:
+        f = readonly(self.freq_hz)
+        h = readonly(self.response, complex)
+        c = readonly(self.coherence)
+        if f.ndim != 1 or f.size < 1:
+            raise ValueError(f"freq_hz must be a non-empty 1-D array, got shape {f.shape}")
+        if h.shape != f.shape or c.shape != f.shape:
+            raise ValueError(
+                f"response and coherence must have the shape of freq_hz {f.shape}, got "
+                f"{h.shape} and {c.shape}"
+            )
+        if not np.all(np.isfinite(f)) or f[0] < 0 or np.any(np.diff(f) <= 0):
+            raise ValueError("freq_hz must be finite, >= 0 and strictly increasing")
+        bad = np.nonzero(~np.isfinite(h))[0]
+        if bad.size:
+            raise ValueError(f"response holds NaN/inf at {f[bad[0]]:g} Hz")
+        known = ~np.isnan(c)
+        if np.any((c[known] < 0) | (c[known] > 1 + 1e-9)):
+            raise ValueError("coherence must lie in [0, 1] (or be NaN where unknown)")
+        if self.method not in _METHODS:
+            raise ValueError(f"method must be one of {', '.join(_METHODS)}, got {self.method!r}")
+        if self.dt is not None:
+            object.__setattr__(self, "dt", check_positive("dt", self.dt, "s"))
+        lo, hi = (float(v) for v in self.excited_hz)
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo <= hi):
+            raise ValueError(f"excited_hz must be (low, high) with 0 <= low <= high, got {lo, hi}")
+        object.__setattr__(self, "excited_hz", (lo, hi))
+        check_int("n_averages", self.n_averages, 1)
+        object.__setattr__(self, "freq_hz", f)
+        object.__setattr__(self, "response", h)
+        object.__setattr__(self, "coherence", c)
+
+    @property
+    def nyquist_hz(self) -> float | None:
+        """``1 / (2 dt)``, Hz, or None when ``dt`` is not known."""
+        return None if self.dt is None else 0.5 / self.dt
+
+    @classmethod
+    def from_table(
+        cls, table: FRFTable, axis: str | None = None, *, dt: float | None = None
+    ) -> FRF:
+        """One axis of a measured FRF file (`microfab.io.frf.read_frf`) as an `FRF`.
+
+        Parameters
+        ----------
+        table : microfab.io.frf.FRFTable
+            The file's contents.
+        axis : str, optional
+            The axis to take (default the first).
+        dt : float, optional
+            Sample time of the measurement, s, if known (a ZOH-aware fit needs it).
+
+        Returns
+        -------
+        FRF
+            Method "table", coherence unknown (NaN), excited band the file's range.
+        """
+        name = table.axes[0] if axis is None else axis
+        if name not in table.axes:
+            raise ValueError(f"the FRF has no axis {name!r} (it holds {', '.join(table.axes)})")
+        i = table.axes.index(name)
+        f = np.asarray(table.freq_hz, dtype=float)
+        return cls(
+            freq_hz=f,
+            response=table.response[:, i],
+            coherence=np.full(f.size, np.nan),
+            method="table",
+            dt=dt,
+            excited_hz=(float(f[0]), float(f[-1])),
+        )
+
+    def low_coherence_ranges(self, threshold: float = MIN_COHERENCE) -> list[CoherenceRange]:
+        """Frequency ranges where the coherence falls below ``threshold``.
+
+        Frequencies below the threshold less than 5 % of their frequency apart
+        (``_MERGE_REL``) form one range: an estimate from a few averages scatters, so a
+        noisy stretch dips below the threshold at most but not all of its frequencies.
+
+        Parameters
+        ----------
+        threshold : float
+            Coherence limit in [0, 1] (default 0.8).
+
+        Returns
+        -------
+        list of CoherenceRange
+            In order of frequency; empty when the coherence is unknown (NaN) or never
+            below.
+        """
+        check_in_range("threshold (coherence)", threshold, 0.0, 1.0)
+        low = np.nonzero(self.coherence < threshold)[0]  # NaN is unknown, never refused
+        if low.size == 0:
+            return []
+        f = self.freq_hz
+        breaks = np.nonzero(f[low[1:]] - f[low[:-1]] > _MERGE_REL * f[low[1:]])[0]
+        out = []
+        for group in np.split(low, breaks + 1):
+            a, b = int(group[0]), int(group[-1])
+            j = int(group[np.argmin(self.coherence[group])])
+            out.append(
+                CoherenceRange(
+                    start_hz=float(f[a]),
+                    stop_hz=float(f[b]),
+                    n_low=int(group.size),
+                    n_frequencies=b - a + 1,
+                    lowest=float(self.coherence[j]),
+                    lowest_hz=float(f[j]),
+                )
+            )
+        return out
+
+    def check_coherence(self, min_coherence: float = MIN_COHERENCE) -> None:
+        """Refuse an FRF whose coherence falls below ``min_coherence`` anywhere.
+
+        Raises
+        ------
+        LowCoherenceError
+            Naming the first range (start, stop, how many of its frequencies are low,
+            the lowest value and where) and how many more there are.
+        """
+        ranges = self.low_coherence_ranges(min_coherence)
+        if not ranges:
+            return
+        r = ranges[0]
+        more = f" (and {len(ranges) - 1} more ranges)" if len(ranges) > 1 else ""
+        raise LowCoherenceError(
+            f"coherence below {min_coherence:g} from {r.start_hz:g} to {r.stop_hz:g} Hz "
+            f"({r.n_low} of {r.n_frequencies} frequencies, lowest {r.lowest:.3f} at "
+            f"{r.lowest_hz:g} Hz){more}: the output there is mostly noise or not linear in "
+            f"the input; narrow the band, raise the amplitude or average more periods",
+            ranges,
+        )
+
+    def band(self, low_hz: float, high_hz: float, *, min_coherence: float = MIN_COHERENCE) -> FRF:
+        """The FRF between ``low_hz`` and ``high_hz`` (inclusive), checked.
+
+        Parameters
+        ----------
+        low_hz, high_hz : float
+            Band edges, Hz, ``low_hz < high_hz``.
+        min_coherence : float
+            Coherence every frequency of the band must reach (default 0.8; 0 checks
+            nothing).
+
+        Returns
+        -------
+        FRF
+            The frequencies inside the band, same method, ``dt`` and excitation.
+
+        Raises
+        ------
+        ValueError
+            The band reaches above Nyquist, leaves the excited band (half a bin of
+            slack), or holds no frequency.
+        LowCoherenceError
+            The coherence is below ``min_coherence`` over a range of the band (named).
+        """
+        lo = check_nonnegative("low_hz (band)", low_hz, "Hz")
+        hi = check_positive("high_hz (band)", high_hz, "Hz")
+        if hi <= lo:
+            raise ValueError(f"band must have low_hz < high_hz, got {lo:g} to {hi:g} Hz")
+        nyq = self.nyquist_hz
+        if nyq is not None and hi > nyq:
+            raise ValueError(
+                f"band {lo:g}-{hi:g} Hz reaches above the Nyquist frequency {nyq:g} Hz "
+                f"(dt = {self.dt:g} s): lower its upper edge"
+            )
+        e_lo, e_hi = self.excited_hz
+        slack = 0.5 * float(np.min(np.diff(self.freq_hz))) if self.freq_hz.size > 1 else 0.0
+        if lo < e_lo - slack or hi > e_hi + slack:
+            raise ValueError(
+                f"band {lo:g}-{hi:g} Hz lies outside the excited band {e_lo:g}-{e_hi:g} Hz "
+                f"of the chirp: choose a band inside it"
+            )
+        sel = (self.freq_hz >= lo) & (self.freq_hz <= hi)
+        if not sel.any():
+            raise ValueError(f"band {lo:g}-{hi:g} Hz holds no frequency of the FRF")
+        out = replace(
+            self,
+            freq_hz=self.freq_hz[sel],
+            response=self.response[sel],
+            coherence=self.coherence[sel],
+        )
+        if min_coherence > 0:
+            out.check_coherence(min_coherence)
+        return out
+
+    def plot(self, *, title: str | None = None, label: str = "measured") -> Figure:
+        """Bode plot (magnitude dB, phase deg) and coherence against frequency.
+
+        Parameters
+        ----------
+        title : str, optional
+            Figure title.
+        label : str
+            Legend label of the data.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Three axes (magnitude, phase, coherence), an Agg canvas, no pyplot.
+        """
+        fig, axes = bode_axes(title)
+        draw_response(axes, self.freq_hz, self.response, label=label, style=".")
+        draw_coherence(axes[2], self)
+        axes[0].legend(loc="best")
+        return fig
+
+
+# ------------------------------------------------------------------ estimators
+def _records(u: np.ndarray, y: np.ndarray, unit: str) -> tuple[np.ndarray, np.ndarray]:
+    """``u``, ``y`` as float 1-D arrays of one length, every sample finite."""
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float)
+    check_samples("input record", u, None)
+    check_samples("output record", y, None, unit=unit)
+    if u.shape != y.shape:
+        raise ValueError(
+            f"input and output records must have the same length, got {u.size} and {y.size}"
+        )
+    return u, y
+
+
+def _excited(
+    f: np.ndarray, amp: np.ndarray, excited_hz: tuple[float, float] | None, dt: float, rel: float
+) -> tuple[np.ndarray, tuple[float, float]]:
+    """Mask of the bins to keep and the excited band (given, or found from ``amp``)."""
+    nyq = 0.5 / dt
+    if excited_hz is not None:
+        lo, hi = (float(v) for v in excited_hz)
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
+            raise ValueError(f"excited_hz must be (low, high) with 0 < low < high, got {lo, hi}")
+        if hi > nyq:
+            raise ValueError(
+                f"excited_hz upper edge {hi:g} Hz lies above the Nyquist frequency {nyq:g} Hz"
+            )
+        band = (f >= lo - 1e-9 * hi) & (f <= hi + 1e-9 * hi)
+    else:
+        big = amp[1:].max() if amp.size > 1 else 0.0
+        on = np.nonzero(amp >= rel * big)[0]
+        on = on[on > 0]
+        if big <= 1e-9 * amp.max() or on.size == 0:  # rounding only: a constant input
+            raise ValueError("the input record excites no frequency (it is constant)")
+        band = np.zeros(f.size, bool)
+        band[on[0] : on[-1] + 1] = True
+        lo, hi = float(f[on[0]]), float(f[on[-1]])
+    band[0] = False  # the mean is never a response
+    ref = amp[band].max() if band.any() else 0.0
+    keep = band & (amp > _USABLE_REL * ref)
+    if not keep.any():
+        raise ValueError(
+            f"no frequency between {lo:g} and {hi:g} Hz is excited by the input record "
+            f"(bins {f[1] - f[0]:g} Hz apart)"
+        )
+    return keep, (lo, hi)
+
+
+def frf_periodic(
+    u: np.ndarray,
+    y: np.ndarray,
+    *,
+    dt: float,
+    samples_per_period: int,
+    n_dropped: int = 1,
+    excited_hz: tuple[float, float] | None = None,
+    unit: str = "",
+) -> FRF:
+    """FRF of a periodically excited record: FFT ratio per period, averaged (module doc).
+
+    Parameters
+    ----------
+    u, y : numpy.ndarray
+        Input and output records, shape (n_samples,), sampled every ``dt``. Only whole
+        periods are read; samples after the last whole period are ignored.
+    dt : float
+        Sample time, s.
+    samples_per_period : int
+        Samples in one period of the excitation (>= 2).
+    n_dropped : int
+        Leading periods left out (start-up transient), >= 0.
+    excited_hz : (float, float), optional
+        The band the excitation covers, Hz (the chirp's ``f0``, ``f1``); by default
+        found from the input's spectrum.
+    unit : str
+        Unit of the response, for labels.
+
+    Returns
+    -------
+    FRF
+        Method "periodic" on the excited bins (``1 / (samples_per_period dt)`` Hz
+        apart), ``n_averages`` the kept periods; coherence NaN with one kept period.
+
+    Raises
+    ------
+    ValueError
+        NaN/inf samples (the message names the record and the sample), records of
+        different lengths, a record shorter than ``n_dropped + 1`` periods, an excited
+        band above Nyquist or without excitation.
+    """
+    dt = check_positive("dt", dt, "s")
+    n = check_int("samples_per_period", samples_per_period, 2)
+    n_drop = check_int("n_dropped", n_dropped, 0)
+    u, y = _records(u, y, unit)
+    n_whole = u.size // n
+    if n_whole - n_drop < 1:
+        what = "shorter than one period" if n_whole == 0 else f"{n_whole} whole periods"
+        raise ValueError(
+            f"the record of {u.size} samples ({u.size * dt:g} s) is {what} of {n} samples "
+            f"({n * dt:g} s); with n_dropped = {n_drop} nothing is left: record at least "
+            f"{(n_drop + 1) * n} samples"
+        )
+    rows = slice(n_drop * n, n_whole * n)
+    U = np.fft.rfft(u[rows].reshape(-1, n), axis=1)
+    Y = np.fft.rfft(y[rows].reshape(-1, n), axis=1)
+    f = np.fft.rfftfreq(n, dt)
+    amp = np.abs(U).mean(axis=0)
+    keep, band = _excited(f, amp, excited_hz, dt, _EXCITED_REL)
+    U, Y = U[:, keep], Y[:, keep]
+    h = (Y / U).mean(axis=0)
+    n_avg = U.shape[0]
+    if n_avg > 1:
+        syu = (Y * U.conj()).sum(axis=0)
+        coh = np.abs(syu) ** 2 / ((np.abs(U) ** 2).sum(axis=0) * (np.abs(Y) ** 2).sum(axis=0))
+        coh = np.minimum(coh, 1.0)
+    else:
+        coh = np.full(h.size, np.nan)
+    return FRF(
+        freq_hz=f[keep],
+        response=h,
+        coherence=coh,
+        method="periodic",
+        dt=dt,
+        excited_hz=band,
+        n_averages=n_avg,
+        unit=unit,
+    )
+
+
+def frf_h1(
+    u: np.ndarray,
+    y: np.ndarray,
+    *,
+    dt: float,
+    nperseg: int,
+    noverlap: int | None = None,
+    window: str = "hann",
+    n_dropped_samples: int = 0,
+    excited_hz: tuple[float, float] | None = None,
+    unit: str = "",
+) -> FRF:
+    """H1 estimate ``P_yu / P_uu`` with its coherence (Welch averaging, module doc).
+
+    Parameters
+    ----------
+    u, y : numpy.ndarray
+        Input and output records, shape (n_samples,), sampled every ``dt``.
+    dt : float
+        Sample time, s.
+    nperseg : int
+        Samples per segment (>= 2); for a periodic excitation, one period.
+    noverlap : int, optional
+        Samples shared by consecutive segments (default ``nperseg // 2``).
+    window : str
+        Window of `scipy.signal.get_window` (default "hann"; "boxcar" on whole periods
+        gives the per-period estimate's H1).
+    n_dropped_samples : int
+        Leading samples left out (start-up transient), >= 0.
+    excited_hz : (float, float), optional
+        The band the excitation covers, Hz; by default found from ``P_uu``.
+    unit : str
+        Unit of the response, for labels.
+
+    Returns
+    -------
+    FRF
+        Method "h1" on the excited bins (``1 / (nperseg dt)`` Hz apart); coherence NaN
+        when only one segment fits.
+
+    Raises
+    ------
+    ValueError
+        NaN/inf samples, records of different lengths, a record shorter than one segment
+        after the dropped samples, ``noverlap >= nperseg``, an excited band above Nyquist
+        or without excitation.
+    """
+    dt = check_positive("dt", dt, "s")
+    nseg = check_int("nperseg", nperseg, 2)
+    nov = nseg // 2 if noverlap is None else check_int("noverlap", noverlap, 0)
+    if nov >= nseg:
+        raise ValueError(f"noverlap must be below nperseg = {nseg}, got {nov}")
+    n_drop = check_int("n_dropped_samples", n_dropped_samples, 0)
+    u, y = _records(u, y, unit)
+    u, y = u[n_drop:], y[n_drop:]
+    if u.size < nseg:
+        raise ValueError(
+            f"the record holds {u.size} samples ({u.size * dt:g} s) after the {n_drop} dropped, "
+            f"shorter than one period (segment) of {nseg} samples ({nseg * dt:g} s)"
+        )
+    kw = {"fs": 1.0 / dt, "window": window, "nperseg": nseg, "noverlap": nov}
+    f, puu = scipy.signal.welch(u, **kw)
+    _, pyy = scipy.signal.welch(y, **kw)
+    _, puy = scipy.signal.csd(u, y, **kw)  # E[conj(U) Y] = P_yu
+    keep, band = _excited(f, np.sqrt(puu), excited_hz, dt, _EXCITED_REL)
+    h = puy[keep] / puu[keep]
+    n_avg = 1 + (u.size - nseg) // (nseg - nov)
+    if n_avg > 1:
+        coh = np.minimum(np.abs(puy[keep]) ** 2 / (puu[keep] * pyy[keep]), 1.0)
+    else:
+        coh = np.full(h.size, np.nan)
+    return FRF(
+        freq_hz=f[keep],
+        response=h,
+        coherence=coh,
+        method="h1",
+        dt=dt,
+        excited_hz=band,
+        n_averages=n_avg,
+        unit=unit,
+    )
+
+
+def estimate_frf(
+    chirp: Chirp,
+    y: np.ndarray,
+    *,
+    method: Literal["periodic", "h1"] = "periodic",
+    u: np.ndarray | None = None,
+    window: str = "hann",
+    overlap: float = 0.5,
+    unit: str | None = None,
+) -> FRF:
+    """FRF of a chirp experiment from its recorded output.
+
+    Parameters
+    ----------
+    chirp : Chirp
+        The experiment (its design gives ``dt``, the period, the periods dropped and the
+        excited band ``(f0, f1)``).
+    y : numpy.ndarray
+        Recorded output, shape (n,) with ``n <= chirp.design.n_samples``; a record cut
+        short is read in the whole periods (segments) it holds, with the input cut to
+        its length.
+    method : {"periodic", "h1"}
+        Per-period FFT ratio (default) or H1 with one-period segments.
+    u : numpy.ndarray, optional
+        Recorded input, if it differs from the designed ``chirp.input``.
+    window : str
+        Window of the H1 estimate (default "hann").
+    overlap : float
+        Fraction of a segment shared by consecutive H1 segments, in [0, 1).
+    unit : str, optional
+        Unit of the response (default ``"<unit>/<unit>"`` of the design).
+
+    Returns
+    -------
+    FRF
+        On the bins inside ``(f0, f1)``.
+    """
+    d = chirp.design
+    if u is None:
+        u = chirp.input[: np.asarray(y).shape[0]] if np.ndim(y) == 1 else chirp.input
+    unit = f"{d.unit}/{d.unit}" if unit is None else unit
+    n = d.samples_per_period
+    if method == "periodic":
+        return frf_periodic(
+            u,
+            y,
+            dt=d.dt,
+            samples_per_period=n,
+            n_dropped=d.n_dropped,
+            excited_hz=d.band_hz,
+            unit=unit,
+        )
+    if method == "h1":
+        ov = check_in_range("overlap", overlap, 0.0, 1.0, "(fraction)", high_closed=False)
+        return frf_h1(
+            u,
+            y,
+            dt=d.dt,
+            nperseg=n,
+            noverlap=int(ov * n),
+            window=window,
+            n_dropped_samples=d.n_dropped * n,
+            excited_hz=d.band_hz,
+            unit=unit,
+        )
+    raise ValueError(f"method must be 'periodic' or 'h1', got {method!r}")
