@@ -18,6 +18,7 @@ from microfab.experiments.seed001_nanomanipulator.job import (
     NANOMANIPULATOR_REPRODUCTION,
 )
 from microfab.experiments.seed003_inkjet.job import DROPLET_FIG4_REPRODUCTION, DROPLET_SWEEP
+from microfab.experiments.seed003_slm.reproduce import SLM_SHAPER_REPRODUCTION
 from microfab.experiments.seed004_laser.job import LASER_MICROMACHINING, LASER_REPRODUCTION
 from microfab.io.job import JobFile, JobFileError, parse_job, read_job
 
@@ -44,6 +45,7 @@ REPRODUCTIONS: dict[str, Reproduction] = {
         NANOMANIPULATOR_REPRODUCTION,
         DROPLET_FIG4_REPRODUCTION,
         LASER_REPRODUCTION,
+        SLM_SHAPER_REPRODUCTION,
     )
 }
 
