@@ -254,3 +254,19 @@ def test_kernel_and_python_agree_on_the_dark_field_law():
     for sig in ("output", "command"):
         a, b = getattr(fast, sig), getattr(slow, sig)
         assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(b)), sig
+
+
+def test_dark_field_rule_resolution_floor():
+    kw = dict(rayleigh_range_m=86e-6, speed_m_s=2e-3, lag_s=5e-3, dark_v=0.0, full_scale_v=7.5)
+    near = SlidingModeFocusConfig.for_dark_field(capture_m=500e-6, resolution_v=5e-4, **kw)
+    assert near.h == pytest.approx(near.fall_rate * 5e-3)  # ρτ rules: floor below it
+    far = SlidingModeFocusConfig.for_dark_field(capture_m=1.5e-3, resolution_v=5e-4, **kw)
+    zeta = 1.5e-3 / 86e-6
+    yn = math.exp(-1.0 / (1.0 + zeta**2))
+    assert far.h == pytest.approx(2 * 5e-4 / (yn * -math.log(yn) * 7.5), rel=1e-12)
+    wide = SlidingModeFocusConfig.for_dark_field(
+        capture_m=1.5e-3, resolution_v=5e-4, stop_radius_ratio=1.2, **kw
+    )
+    assert wide.h < far.h  # a wider disc keeps the far end steeper
+    with pytest.raises(ValueError, match="resolution_v"):
+        SlidingModeFocusConfig.for_dark_field(capture_m=1e-3, resolution_v=-1.0, **kw)

@@ -56,7 +56,10 @@ whole range, with constants from a design rule (`SlidingModeFocusConfig.for_dark
 reach ±27 µm (0.25 s and 0.89 s); steady peak to peak 5.9 µm (continuous) against
 9.0 µm (discontinuous). The detector's noise (63 µV) lies far below ``h``, so the relay
 seldom chatters and both laws keep one stall-reversal cycle; the gap is 1.5x, not the 5x
-seen on the stand-in at 5 mm/s.
+seen on the stand-in at 5 mm/s. From 1.5 mm (17 z_R) one converter count is worth
+~14x more ``ln q`` than from 500 µm; the rule's resolution floor then sets ``h`` and the
+search still ends within ±DOF/2, but one ``h`` for both ends leaves a ~40 µm
+peak-to-peak band at focus (a resolution-scaled ``h`` would be the next step).
 
 `SlidingModeFocus` is a `microfab.control.base.CompiledController` with one input: it
 reads ``measurement[0]``, the detector output, and ignores any further entries (the
@@ -74,7 +77,7 @@ import numpy as np
 from numba import njit
 
 from microfab.control.base import CompiledController, ReferenceWindow
-from microfab.core.validate import check_finite, check_positive
+from microfab.core.validate import check_finite, check_nonnegative, check_positive
 
 __all__ = [
     "SlidingModeFocus",
@@ -277,11 +280,13 @@ class SlidingModeFocusConfig:
         lag_s: float,
         dark_v: float,
         full_scale_v: float,
+        resolution_v: float = 0.0,
+        stop_radius_ratio: float = math.sqrt(0.5),
         **kwargs: Any,
     ) -> SlidingModeFocusConfig:
         """The law on a dark-field detector's log spot area, constants by a design rule.
 
-        On ``ln q`` (`dark_field_area`, disc radius ``w0/sqrt 2``) the output falls at
+        On ``ln q`` (`dark_field_area`, any disc radius) the output falls at
         ``2 ζ V / (z_R (1 + ζ²))`` when the stage runs at ``V`` towards focus from
         ``ζ = Δz / z_R``; over ``|Δz| <= capture_m`` (beyond ``z_R``) the slowest fall
         is at the far end. The rule:
@@ -291,7 +296,11 @@ class SlidingModeFocusConfig:
           acceleration);
         * ``h = ρ τ``: a stall is noticed (``σ`` from ``−h`` to 0) no sooner than the
           stage's velocity lag ``τ``, so that the law does not reverse before the stage
-          has answered its last command.
+          has answered its last command;
+        * but ``h`` at least twice the detector's resolution (``resolution_v``: converter
+          count plus noise) seen on ``ln q`` at the far end, where ``y`` is flattest and
+          one volt is worth the most ``ln q``; below that the law reverses on the
+          converter's steps and noise and never leaves the start.
 
         Parameters
         ----------
@@ -305,6 +314,11 @@ class SlidingModeFocusConfig:
             Velocity lag ``τ`` of the z stage, s.
         dark_v, full_scale_v : float
             Dark level and full-scale rise of the detector, V.
+        resolution_v : float
+            Smallest change of ``y`` the law can trust, V (e.g. one converter count plus
+            three noise rms; 0: no floor on ``h``).
+        stop_radius_ratio : float
+            Disc radius over ``w0`` (default ``1/sqrt 2``), for the far-end slope.
         **kwargs
             Other settings (``continuous``, ``dt``, ``initial_direction``).
         """
@@ -317,12 +331,18 @@ class SlidingModeFocusConfig:
             )
         v = check_positive("speed_m_s", speed_m_s, "m/s")
         tau = check_positive("lag_s", lag_s, "s")
+        res = check_nonnegative("resolution_v", resolution_v, "V")
+        full = check_positive("full_scale_v", full_scale_v, "V")
         zeta = cap / zr
         rho = 0.5 * 2.0 * zeta / (1.0 + zeta * zeta) * v / zr
+        # d ln q / dy at the far end, 1/V, with y_n = exp(−2 (a/w0)² / (1 + ζ²))
+        a2 = 2.0 * check_positive("stop_radius_ratio", stop_radius_ratio) ** 2
+        yn = math.exp(-a2 / (1.0 + zeta * zeta))
+        slope = 1.0 / (yn * -math.log(yn) * full)
         return cls(
             speed_m_s=v,
             fall_rate=rho,
-            h=rho * tau,
+            h=max(rho * tau, 2.0 * res * slope),
             dark_field=(dark_v, full_scale_v),
             **kwargs,
         )

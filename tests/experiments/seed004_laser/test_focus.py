@@ -9,9 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from microfab.control.focus import SlidingModeFocus
 from microfab.experiments.seed004_laser import paper
 from microfab.experiments.seed004_laser.focus import FocusJob, focus_law, focus_study, run_focus
 from microfab.plants.lmw_focus import lmw_focus_twin
+from microfab.sim.loop import simulate
 
 PTP_MAX_M = 5e-6  # issue: continuous law's steady peak-to-peak <= 5 µm
 RATIO_MIN = 5.0  # issue: ... and <= 1/5 of the discontinuous law's
@@ -100,3 +102,19 @@ def test_noise_off_runs_are_repeatable_and_the_law_follows_the_twin():
     np.testing.assert_array_equal(a.z, b.z)
     slow = lmw_focus_twin(velocity_lag_s=10e-3)
     assert focus_law(slow).h == pytest.approx(2 * focus_law(lmw_focus_twin()).h)
+
+
+@pytest.mark.parametrize("continuous", [True, False])
+def test_a_far_start_is_caught_despite_the_flat_detector(continuous):
+    """1.5 mm off focus (17 z_R) the detector is within 0.3 % of its full scale: one
+    converter count is worth ~14x more ln q than at the default start, so h takes the
+    resolution floor of the rule; without it the search reverses on the converter's
+    steps and never leaves the start."""
+    plant = lmw_focus_twin(start_position_m=-1.5e-3)
+    cfg = focus_law(plant, continuous=continuous)
+    assert cfg.h > cfg.fall_rate * plant.config.velocity_lag_s  # the floor is what sets h
+    n = round(3.0 / plant.dt)
+    v = np.zeros((n, 2))
+    v[:, 0] = np.random.default_rng(0).standard_normal(n) * plant.config.noise_rms_v
+    z = simulate(plant, SlidingModeFocus(cfg), np.zeros((n, 1)), v).output[:, 1]
+    assert np.all(np.abs(z[-round(1.0 / plant.dt) :]) <= 0.5 * plant.depth_of_focus_m())

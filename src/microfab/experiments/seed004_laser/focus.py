@@ -122,7 +122,8 @@ def focus_law(
     """The focus law for a focus twin: `SlidingModeFocusConfig.for_dark_field` on its optics.
 
     The capture range is the start's defocus (at least ``z_R``); the speed the stage's
-    limit unless given; the first move is up (+z).
+    limit unless given; the detector's resolution one converter count plus three noise
+    rms; the first move is up (+z).
     """
     c = plant.config
     return SlidingModeFocusConfig.for_dark_field(
@@ -132,6 +133,8 @@ def focus_law(
         lag_s=c.velocity_lag_s,
         dark_v=c.offset_v,
         full_scale_v=c.full_scale_v,
+        resolution_v=c.adc_count_v + 3.0 * c.noise_rms_v,
+        stop_radius_ratio=c.stop_radius_ratio,
         continuous=continuous,
         dt=plant.dt,
         initial_direction=1,
