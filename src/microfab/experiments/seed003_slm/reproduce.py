@@ -143,7 +143,10 @@ def reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult
             "The seed's shaper poles are at 2π·4000 rad/s (its coefficients), not the "
             "printed 3000 rad/s; its ZOH filter on the 10 µs axis settles in "
             f"{set_zoh * 1e6:.0f} µs, not the continuous design's {set1 * 1e6:.0f} µs: "
-            "ZPETC (an inverse of the sampled axis) keeps the gain. The layer uses ZPETC.",
+            "ZPETC (an inverse of the sampled axis) keeps the gain. The layer uses ZPETC. "
+            f"Its sampled figures count its {zpetc.preview}-sample look-ahead as delay "
+            f"({zpetc.preview * twin.dt * 1e6:g} µs), which a controller that sends the "
+            "command early would not pay.",
             "Lattice layer: simple cubic, strut 250 µm, 5 % volume fraction, an 8 mm disc "
             "outline (no bunny mesh is shipped); hatch 100 µm; mark 0.6 m/s, jump 5 m/s.",
         ),

@@ -146,8 +146,7 @@ def run_focus(job: FocusJob | None = None) -> FocusRun:
     job = job or FocusJob()
     plant = lmw_focus_twin(surface_rate_m_s=job.surface_rate_m_s)
     c = plant.config
-    speed = job.speed_m_s
-    ctrl = SlidingModeFocus(focus_law(plant, continuous=job.continuous, speed_m_s=speed))
+    ctrl = SlidingModeFocus(focus_law(plant, continuous=job.continuous, speed_m_s=job.speed_m_s))
     n = round(job.duration_s / plant.dt)
     rng = np.random.default_rng(job.seed)
     noise = np.zeros((n, 2))
