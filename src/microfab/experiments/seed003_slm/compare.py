@@ -32,10 +32,11 @@ inverse cancels) over 0.7-1.3 times its peak. Each classic shaper is then design
 that frequency and damping (`design_shaper`). `microfab.control.shaper_fit.fit_shaper`
 (Klipper's auto-tune) is not used for the rows: its score trades remaining vibration
 against delay and only asks for ``V`` below 1/20 at the measured peak, so on the mirror
-twin's FRF it moves MZV, ZVD and the EI family up to 3.1-5.9 kHz, where their worst ``V``
-over 0.8-1.2 f is 21-26 % instead of their designs' 9 % (ZVD) and 5 % (EI family); a
-comparison of shapers *for a mode* designs them for the mode. ``frf_noise=False``
-designs them at the true mode.
+twin's FRF (design dampings 0.01-0.05 scanned over 1.5-6 kHz) it moves MZV, ZVD and the
+EI family up to 3.1-5.9 kHz, where their worst ``V`` over 0.8-1.2 f is 21-26 % instead
+of their designs' 9 % (ZVD) and 5 % (EI family); on the seed twin the pair (``zeta``
+0.5) makes no peak for it to find. A comparison of shapers *for a mode* designs them
+for the mode. ``frf_noise=False`` designs them at the true mode.
 
 **Figures** (one row each; all on 10 µs samples, no noise, positions calibrated by
 ``1 / G(0)`` as in `microfab.process.slm.estimate`):
