@@ -31,7 +31,6 @@ from microfab.report.tables import Table
 
 if TYPE_CHECKING:
     from microfab.control.shaper_io import Shaper
-    from microfab.identify.frf import FRF
     from microfab.identify.model import TFModel
     from microfab.process.slm.estimate import ScanTimeComparison
 
@@ -130,7 +129,8 @@ def chirp_cmd(
     ] = None,
     sweep: Annotated[str, typer.Option(help="Frequency law: linear or log.")] = "linear",
     method: Annotated[
-        str, typer.Option(help="FRF estimate: periodic (FFT ratio per sweep) or h1 (Welch).")
+        str,
+        typer.Option(help="FRF estimate: periodic (FFT ratio per sweep) or h1 (P_yu / P_uu)."),
     ] = "periodic",
     min_coherence: Annotated[
         float, typer.Option(help="Coherence the band must reach (0 checks nothing).")
@@ -197,9 +197,10 @@ def chirp_cmd(
                 unit=unit,
             )  # fmt: skip
         else:
+            # whole sweeps, no window, no overlap: a periodic record has no leakage
             frf = frf_h1(
-                u, y, dt=dt, nperseg=n, noverlap=n // 2, n_dropped_samples=drop * n,
-                excited_hz=design.band_hz, unit=unit,
+                u, y, dt=dt, nperseg=n, noverlap=0, window="boxcar",
+                n_dropped_samples=drop * n, excited_hz=design.band_hz, unit=unit,
             )  # fmt: skip
         fit = fit_tf(
             frf, n_poles=poles, n_zeros=zeros, dt=dt, band_hz=(lo, hi),
@@ -430,8 +431,14 @@ def design_cmd(
     if kind not in kinds:
         fail(f"--kind must be one of {', '.join(kinds)}, got {kind!r}")
     check_option("--dt", dt, "s")
-    classic_given = [n for n, v in (("--freq-hz", freq_hz), ("--damping", damping),
-                     ("--frf", frf), ("--psd", psd), ("--freq-range", freq_range)) if v is not None]  # fmt: skip
+    classic = (
+        ("--freq-hz", freq_hz),
+        ("--damping", damping),
+        ("--frf", frf),
+        ("--psd", psd),
+        ("--freq-range", freq_range),
+    )
+    classic_given = [n for n, v in classic if v is not None]
     if kind == "inverse":
         if classic_given:
             fail(f"{classic_given[0]} applies to the classic kinds, not to --kind inverse")
@@ -570,7 +577,7 @@ def scan_time_cmd(
     from microfab.control.shaper_io import read_shaper, shaper_lti, shaper_to_dict
     from microfab.plants.galvo_slm import galvo_slm_twin
     from microfab.process.slm.estimate import SettleTolerance, estimate_scan_time, series
-    from microfab.process.slm.source import scan_program
+    from microfab.process.slm.source import parse_lattice_source, scan_program
     from microfab.process.slm.timing import (
         TICK_S,
         RTCSettings,
@@ -617,6 +624,16 @@ def scan_time_cmd(
             prefilter = shaper_lti(the_shaper, TICK_S)
         except (OSError, ValueError) as exc:
             fail(str(exc) if str(shaper) in str(exc) else f"{shaper}: {exc}")
+    twin = galvo_slm_twin(mirror_mode=mirror_mode)
+    field_m = twin.config.field_bit * twin.config.bit_size_m
+    if source.strip().lower().startswith("lattice:"):  # refused before it is built
+        try:
+            spec = parse_lattice_source(source)[1]
+        except ValueError as exc:
+            fail(str(exc))
+        if spec.outline_radius_m > field_m:
+            fail(f"{source}: the outline radius {spec.outline_radius_m * 1e3:.4g} mm reaches "
+                 f"outside the scanner's field of ±{field_m * 1e3:.4g} mm")  # fmt: skip
     try:
         path = scan_program(
             source, hatch_spacing_m=hatch_um * 1e-6, hatch_angle_deg=hatch_angle_deg,
@@ -626,8 +643,6 @@ def scan_time_cmd(
         fail(str(exc))
     if len(path) == 0:
         fail(f"{source}: nothing to scan (narrower than the hatch spacing, contours off)")
-    twin = galvo_slm_twin(mirror_mode=mirror_mode)
-    field_m = twin.config.field_bit * twin.config.bit_size_m
     reach = float(np.max(np.abs(path.points)))
     if reach > field_m:
         fail(f"{source}: the program reaches {reach * 1e3:.4g} mm from the field's centre, "
