@@ -56,7 +56,8 @@ _CHIRP_NAMES = {
     "n_dropped": "--drop",
     "amplitude": "--amplitude",
 }
-_INVERSE_NAMES = {"pole_hz": "--poles-hz", "order =": "--order =", "dt =": "--dt ="}
+_INVERSE_NAMES = {"pole_hz": "--poles-hz", "order": "--order", "dt =": "--dt ="}
+_MAX_DELAY_US = 1e6  # a delay of more than 1 s is a typo (and overflows the tick counts)
 _AMPLITUDE_TOL = 0.1  # --amplitude: the recorded input's half range within 10 % of it
 
 
@@ -156,10 +157,16 @@ def chirp_cmd(
     check_option("--min-coherence", min_coherence, "", low=0.0, high=1.0, low_closed=True)
     if method not in ("periodic", "h1"):
         fail(f"--method must be periodic or h1, got {method!r}")
+    check_option("--period", period, "s")
     tr = _read_trace(trace)
     u, y = _columns(tr, trace, axis)
     dt = float(tr.dt)
-    n_whole = u.size // max(round(period / dt), 1) if period > 0 else 0
+    if period / dt > u.size:
+        fail(
+            f"{trace}: the record of {u.size} samples ({u.size * dt:g} s) is shorter than one "
+            f"sweep of --period {period:g} s"
+        )
+    n_whole = u.size // max(round(period / dt), 1)
     if periods is not None and n_whole < periods:
         fail(
             f"{trace}: the record holds {n_whole} whole sweeps of {period:g} s, --periods "
@@ -480,6 +487,11 @@ def _design_classic(
         if freq_range is not None:
             fail("--freq-range applies to an auto-fit (--frf or --psd), not to --freq-hz")
         check_option("--freq-hz", freq_hz, "Hz")
+        if freq_hz >= nyquist:
+            fail(
+                f"--freq-hz {freq_hz:g} Hz lies at or above the Nyquist frequency {nyquist:g} "
+                f"Hz of --dt {dt:g} s: the shaper's impulses would fall within one sample"
+            )
         try:
             shaper = design_shaper(kind, freq_hz, 0.1 if damping is None else damping)  # type: ignore[arg-type]
         except ValueError as exc:
@@ -599,6 +611,7 @@ def scan_time_cmd(
         "shaped": ("--shaped-jump-delay-us", shaped_jump_delay_us),
     }
     for option, value in delays.values():
+        check_option(option, value, "µs", high=_MAX_DELAY_US, low_closed=True)
         try:
             ticks(option, value * 1e-6)
         except ValueError as exc:
