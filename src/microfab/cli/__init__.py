@@ -4,7 +4,8 @@
 (`rc.py`), ``nanomanipulator analyze`` (`nanomanipulator.py`), ``laser analyze``
 (`laser.py`), ``calibrate``
 (`calibrate.py`), ``path show`` and ``trajectory`` (`geometry.py`), ``droplet``
-(`droplet.py`); `_kit.py` holds the console, errors, progress bars and tables.
+(`droplet.py`), ``identify chirp``, ``shaper design`` and ``slm scan-time`` (`slm.py`);
+`_kit.py` holds the console, errors, progress bars and tables.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from microfab.cli.laser import laser_app
 from microfab.cli.nanomanipulator import nanomanipulator_app
 from microfab.cli.rc import rc_app
 from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
+from microfab.cli.slm import identify_app, shaper_app, slm_app
 
 __all__ = ["app", "main"]
 
@@ -35,7 +37,9 @@ ours), ilc (learning on real hardware through files), rc (seed 001 repetitive co
 hardware through files), nanomanipulator (seed 001 metrics of a measured trace), laser
 (seed 004 axis and contour errors of a measured trace), calibrate
 (refit a twin), path (inspect a drawing), trajectory (a limit-safe reference along a
-drawing), droplet (drop-on-demand inkjet: simulate, sweep, render, analyse frames).
+drawing), droplet (drop-on-demand inkjet: simulate, sweep, render, analyse frames),
+identify (fit a model to a recorded chirp), shaper (design an input shaper), slm (scan
+time of an SLM layer on the galvo twin).
 """
 
 #: Piped or redirected output gets plain help, never wrapped (rich help in a terminal).
@@ -80,7 +84,18 @@ def _root(
 app.command("run")(run_cmd)
 app.command("kinds")(kinds_cmd)
 app.command("reproduce")(reproduce_cmd)
-for _sub in (ilc_app, rc_app, nanomanipulator_app, laser_app, calibrate_app, path_app, droplet_app):
+for _sub in (
+    ilc_app,
+    rc_app,
+    nanomanipulator_app,
+    laser_app,
+    calibrate_app,
+    path_app,
+    droplet_app,
+    identify_app,
+    shaper_app,
+    slm_app,
+):
     _sub.rich_markup_mode = _MARKUP
 app.add_typer(ilc_app, name="ilc", context_settings=_SETTINGS)
 app.add_typer(rc_app, name="rc", context_settings=_SETTINGS)
@@ -89,6 +104,9 @@ app.add_typer(laser_app, name="laser", context_settings=_SETTINGS)
 app.add_typer(calibrate_app, name="calibrate", context_settings=_SETTINGS)
 app.add_typer(path_app, name="path", context_settings=_SETTINGS)
 app.add_typer(droplet_app, name="droplet", context_settings=_SETTINGS)
+app.add_typer(identify_app, name="identify", context_settings=_SETTINGS)
+app.add_typer(shaper_app, name="shaper", context_settings=_SETTINGS)
+app.add_typer(slm_app, name="slm", context_settings=_SETTINGS)
 app.command("trajectory")(trajectory_cmd)
 
 
