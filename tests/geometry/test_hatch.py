@@ -172,3 +172,16 @@ def test_text_outline_holes_respected():
 def test_scanvectors_shape_check():
     with pytest.raises(ValueError, match="jumps"):
         ScanVectors(np.zeros((3, 2, 2)), np.zeros((1, 2, 2)))
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 9.0, 67.0])
+def test_lines_that_miss_the_part_between_two_islands_add_no_marks(angle_deg):
+    # the lines between the two squares miss the material (an empty intersection each);
+    # every mark lies in a square and the marked length is that of the two squares
+    layer = Layer((square(MM), square(MM, 5 * MM, 5 * MM)))
+    sv = hatch(layer, spacing=H, angle=np.deg2rad(angle_deg), offset=H / 2)
+    poly = layer_polygon(layer)
+    mids = shapely.points(sv.marks.mean(axis=1))
+    assert np.all(shapely.covers(poly, mids))
+    assert np.all(sv.mark_lengths <= np.sqrt(2) * MM * (1 + 1e-9))
+    assert sv.total_mark_length == pytest.approx(2 * MM**2 / H, rel=0.03)

@@ -145,11 +145,14 @@ def layer_polygon(layer: Layer, tol: float | None = None) -> shapely.Geometry:
 def _line_parts(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Straight pieces (k, 2, 2) of intersection results, and the index of their line."""
     parts, owner = shapely.get_parts(geoms, return_index=True)
+    # a line that misses the material gives LINESTRING EMPTY: no coordinates, no piece
+    full = ~shapely.is_empty(parts)
+    parts, owner = parts[full], owner[full]
     keep = shapely.get_type_id(parts) == shapely.GeometryType.LINESTRING
     if np.any(shapely.get_type_id(parts) == shapely.GeometryType.GEOMETRYCOLLECTION):
         sub, sub_owner = shapely.get_parts(parts[~keep], return_index=True)
         owner2 = owner[~keep][sub_owner]
-        k2 = shapely.get_type_id(sub) == shapely.GeometryType.LINESTRING
+        k2 = (shapely.get_type_id(sub) == shapely.GeometryType.LINESTRING) & ~shapely.is_empty(sub)
         parts = np.concatenate([parts[keep], sub[k2]])
         owner = np.concatenate([owner[keep], owner2[k2]])
     else:
