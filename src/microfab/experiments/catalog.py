@@ -18,7 +18,7 @@ from microfab.experiments.seed001_nanomanipulator.job import (
     NANOMANIPULATOR_REPRODUCTION,
 )
 from microfab.experiments.seed003_inkjet.job import DROPLET_FIG4_REPRODUCTION, DROPLET_SWEEP
-from microfab.experiments.seed003_slm.reproduce import SLM_SHAPER_REPRODUCTION
+from microfab.experiments.seed003_slm.job import SLM_SHAPER_REPRODUCTION, SLM_SHAPING
 from microfab.experiments.seed004_laser.job import LASER_MICROMACHINING, LASER_REPRODUCTION
 from microfab.io.job import JobFile, JobFileError, parse_job, read_job
 
@@ -35,7 +35,8 @@ __all__ = [
 
 #: Every job kind, by name.
 JOB_KINDS: dict[str, JobKind] = {
-    k.name: k for k in (MSL_ILC, NANOMANIPULATOR_MSL, DROPLET_SWEEP, LASER_MICROMACHINING)
+    k.name: k
+    for k in (MSL_ILC, NANOMANIPULATOR_MSL, DROPLET_SWEEP, LASER_MICROMACHINING, SLM_SHAPING)
 }
 #: Every reproduction, by name.
 REPRODUCTIONS: dict[str, Reproduction] = {

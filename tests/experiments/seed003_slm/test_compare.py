@@ -137,7 +137,13 @@ def test_inverse_command_peak_is_the_issues_23_7():
     assert cmp.row(ROW_INVERSE).command_peak == pytest.approx(23.7, rel=0.02)
 
 
-def test_refusal_names_axis_time_value_and_limit(seed_twin):
+@pytest.fixture(scope="module")
+def near_edge():
+    return compare_shapers("seed", CompareSettings(start_bit=30000.0, frf_noise=False))
+
+
+def test_refusal_names_axis_time_value_and_limit(near_edge):
+    seed_twin = near_edge
     for name in (ROW_UNSHAPED, *SHAPER_NAMES[:4]):
         assert seed_twin.row(name).refused is None, name
     r = seed_twin.row(ROW_INVERSE)
@@ -154,10 +160,9 @@ def test_refusal_names_axis_time_value_and_limit(seed_twin):
     )
 
 
-def test_from_the_field_centre_the_inverse_is_emitted():
-    s = CompareSettings(start_bit=0.0, shapers=(), frf_noise=False)
-    cmp = compare_shapers("seed", s)
-    assert cmp.row(ROW_INVERSE).refused is None  # 21.9 x 1000 bit stays inside ±32768
+def test_from_the_field_centre_the_inverse_is_emitted(seed_twin):
+    assert seed_twin.settings.start_bit == 0.0
+    assert seed_twin.row(ROW_INVERSE).refused is None  # 21.9 x 1000 bit stays inside ±32768
 
 
 def test_summary_is_json_and_table_has_units(seed_twin, mirror_twin):

@@ -61,8 +61,9 @@ for the mode. ``frf_noise=False`` designs them at the true mode.
   sampled series (``G``'s 453.9 µs plus the ZOH's half tick plus the shaper's delay).
 
 **Jump and refusal.** The step is ``jump_bit`` (default 1000 bit = 1.5 mm, about one
-lattice cell, the seed's typical jump) from ``start_bit`` (default 30000 bit, near the
-+32768 bit field edge, assumed so that the refusal shows). Each shaped step is checked
+lattice cell, the seed's typical jump) from ``start_bit`` (default 0, mid-field, where a part
+is usually centred; assumed). Near the field edge (e.g. ``start_bit = 30000``) the
+inverse-shaped step leaves the field. Each shaped step is checked
 against the twin's field (``±field_bit``) by `check_shaped_command`; a command that
 leaves it (the inverse: about 22x the jump) is refused and the row records the
 `ShapedCommandError` message (axis, time from the record's start, value, bound). The
@@ -137,8 +138,8 @@ class CompareSettings:
         Step used for settling, command peak and the field check, bit (default 1000 bit
         = 1.5 mm at 1.5 µm/bit: about one lattice cell, 1.64 mm, the seed's jump; assumed).
     start_bit : float
-        Position before the step, bit (default 30000: near the +32768 bit field edge,
-        assumed, so that the inverse-shaped step leaves the field and is refused).
+        Position before the step, bit (default 0: mid-field, assumed; from 30000 bit,
+        near the +32768 bit edge, the inverse-shaped step leaves the field and is refused).
     band : float
         Settling band, fraction of the jump (default 0.02: issue 16's 2 %).
     v_tol : float
@@ -154,7 +155,7 @@ class CompareSettings:
     """
 
     jump_bit: float = 1000.0  # assumed: ~ one lattice cell (1.64 mm) at 1.5 µm/bit
-    start_bit: float = 30000.0  # assumed: near the +32768 bit field edge
+    start_bit: float = 0.0  # assumed: mid-field, where a part is usually centred
     band: float = 0.02  # issue 16: 2 % settling band
     v_tol: float = DEFAULT_V_TOL
     inverse: Discretization = "zpetc"
