@@ -4,8 +4,9 @@
 (`rc.py`), ``nanomanipulator analyze`` (`nanomanipulator.py`), ``laser analyze``
 (`laser.py`), ``calibrate``
 (`calibrate.py`), ``path show`` and ``trajectory`` (`geometry.py`), ``droplet``
-(`droplet.py`), ``identify chirp``, ``shaper design`` and ``slm scan-time`` (`slm.py`);
-`_kit.py` holds the console, errors, progress bars and tables.
+(`droplet.py`), ``identify chirp`` (`identify.py`), ``shaper design`` (`shaper.py`),
+``slm scan-time`` (`slm.py`); `_kit.py` holds the console, errors, progress bars, tables
+and the readers several groups share (``LOW:HIGH`` ranges, measured traces).
 """
 
 from __future__ import annotations
@@ -19,12 +20,14 @@ from microfab.cli._kit import OneLineErrors
 from microfab.cli.calibrate import calibrate_app
 from microfab.cli.droplet import droplet_app
 from microfab.cli.geometry import path_app, trajectory_cmd
+from microfab.cli.identify import identify_app
 from microfab.cli.ilc import ilc_app
 from microfab.cli.laser import laser_app
 from microfab.cli.nanomanipulator import nanomanipulator_app
 from microfab.cli.rc import rc_app
 from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
-from microfab.cli.slm import identify_app, shaper_app, slm_app
+from microfab.cli.shaper import shaper_app
+from microfab.cli.slm import slm_app
 
 __all__ = ["app", "main"]
 

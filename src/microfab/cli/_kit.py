@@ -1,4 +1,8 @@
-"""Console helpers shared by the ``microfab`` sub-commands."""
+"""Console helpers shared by the ``microfab`` sub-commands.
+
+The console, one-line errors and option checks, progress bars, tables, and the option and
+file readers more than one command group uses (``LOW:HIGH`` ranges, measured traces).
+"""
 
 from __future__ import annotations
 
@@ -24,7 +28,11 @@ from typer.core import TyperGroup
 
 if TYPE_CHECKING:
     from collections.abc import Callable
+    from pathlib import Path
 
+    import numpy as np
+
+    from microfab.core.signals import Trace
     from microfab.report.tables import Table
 
 __all__ = [
@@ -32,9 +40,13 @@ __all__ = [
     "console",
     "err_console",
     "fail",
+    "input_output",
     "one_line",
+    "parse_range",
     "print_table",
     "progress",
+    "read_trace_file",
+    "renamed",
     "reporter",
 ]
 
@@ -184,3 +196,84 @@ def print_table(table: Table) -> None:
     for row in table.rows:
         tab.add_row(*(escape(c) for c in row))
     console.print(tab)
+
+
+def renamed(msg: str, names: dict[str, str]) -> str:
+    """A library message with its parameter names replaced by the command line's.
+
+    Parameters
+    ----------
+    msg : str
+        The library's message, e.g. ``"f1_hz must lie below ..."``.
+    names : dict of str to str
+        Library name -> option, e.g. ``{"f1_hz": "--f1"}``; replaced in this order.
+    """
+    for lib, cli in names.items():
+        msg = msg.replace(lib, cli)
+    return msg
+
+
+def parse_range(option: str, text: str, unit: str = "Hz") -> tuple[float, float]:
+    """``"LOW:HIGH"`` as two finite numbers with ``0 <= LOW < HIGH`` (exits 2 otherwise).
+
+    Parameters
+    ----------
+    option : str
+        The option as typed (``"--band"``), named in the refusal.
+    text : str
+        The option's value.
+    unit : str
+        Unit of both numbers, named in the refusal.
+
+    Returns
+    -------
+    (float, float)
+        ``(low, high)`` in ``unit``.
+    """
+    lo, sep, hi = text.partition(":")
+    try:
+        a, b = float(lo), float(hi)
+    except ValueError:
+        a = b = math.nan
+    if not sep or not (math.isfinite(a) and math.isfinite(b) and 0 <= a < b):
+        fail(f"{option} must look like LOW:HIGH in {unit} with 0 <= LOW < HIGH, got {text!r}")
+    return a, b
+
+
+def read_trace_file(path: Path) -> Trace:
+    """A measured trace (`microfab.io.trace.read_trace`); a bad file exits 2 naming it."""
+    from microfab.io.trace import read_trace
+
+    try:
+        return read_trace(path)
+    except (OSError, ValueError) as exc:
+        msg = str(exc)
+        fail(msg if str(path) in msg else f"{path}: {msg}")
+
+
+def input_output(trace: Trace, path: Path, axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """The ``input_<axis>`` and ``output_<axis>`` columns of a trace (exits 2 if missing).
+
+    Parameters
+    ----------
+    trace : Trace
+        As read from ``path``.
+    path : Path
+        The trace's file, named in the refusal.
+    axis : str
+        ``<a>`` of the column names.
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        Input and output, shape ``(n_samples,)``, in the trace's unit.
+    """
+    names = (f"input_{axis}", f"output_{axis}")
+    for name in names:
+        if name not in trace.axes:
+            fail(
+                f"{path}: no column {name!r} (columns: time, {', '.join(trace.axes)}); the "
+                "file needs time, input_<a> and output_<a>, --axis picks <a>"
+            )
+    i, o = (trace.axes.index(n) for n in names)
+    return trace.values[:, i], trace.values[:, o]

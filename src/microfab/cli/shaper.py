@@ -1,0 +1,312 @@
+"""``microfab shaper design``: an input shaper written as JSON.
+
+Seed 003 part 2 (Buls et al.) §2: the seed's model-inverse shaper from a model JSON
+(``identify chirp --json``, `cli/identify.py`), or a classic impulse shaper (ZV ... 3-hump
+EI) for a given mode or auto-fitted to a measured FRF, trace or PSD
+(`microfab.control.shaper_fit`); writes a shaper JSON (`microfab.control.shaper_io`) that
+``slm scan-time --shaper`` (`cli/slm.py`) reads.
+
+Every refusal is one ``error:`` line, exit code 2, and nothing is written.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import numpy as np
+import typer
+
+from microfab.cli._kit import (
+    check_option,
+    console,
+    fail,
+    input_output,
+    parse_range,
+    print_table,
+    read_trace_file,
+    renamed,
+)
+from microfab.report.tables import Table
+
+if TYPE_CHECKING:
+    from microfab.control.shaper_io import Shaper
+    from microfab.identify.model import TFModel
+
+__all__ = ["shaper_app"]
+
+shaper_app = typer.Typer(
+    no_args_is_help=True,
+    help="Input shapers: the seed 003 model inverse and classic impulse shapers.",
+)
+
+#: How a library message names a value and how the command line does.
+_INVERSE_NAMES = {"pole_hz": "--poles-hz", "order": "--order", "dt =": "--dt ="}
+
+
+def _read_model(path: Path) -> TFModel:
+    from microfab.identify.model import TFModel
+
+    try:
+        return TFModel.from_dict(json.loads(path.read_text(encoding="utf-8")))
+    except FileNotFoundError:
+        fail(f"model file not found: {path}")
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        fail(f"{path}: not a model JSON file ({exc})")
+    except ValueError as exc:
+        fail(f"{path}: {exc}")
+
+
+def _frf_of_file(path: Path, axis: str | None, dt: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(freq_hz, response, dt)`` of an FRF file (``freq_hz`` column) or of a trace.
+
+    A trace (time, input_<a>, output_<a>) gives H1 on segments of the largest power of two
+    up to a quarter of the record, Hann window, half overlap, on the excited band.
+    """
+    from microfab.identify.frf import FRF, frf_h1
+    from microfab.io.frf import read_frf
+    from microfab.io.trace import read_columns
+
+    try:
+        cols = read_columns(path)
+    except (OSError, ValueError) as exc:
+        fail(f"{path}: {exc}" if str(path) not in str(exc) else str(exc))
+    if "freq_hz" in cols:
+        try:
+            frf = FRF.from_table(read_frf(path), axis)
+        except (OSError, ValueError) as exc:
+            fail(f"{path}: {exc}" if str(path) not in str(exc) else str(exc))
+        return frf.freq_hz, frf.response, dt
+    tr = read_trace_file(path)
+    u, y = input_output(tr, path, axis or "x")
+    nseg = 2 ** int(math.log2(max(u.size // 4, 2)))
+    try:
+        frf = frf_h1(u, y, dt=float(tr.dt), nperseg=nseg)
+    except ValueError as exc:
+        fail(f"{path}: {exc}")
+    return frf.freq_hz, frf.response, float(tr.dt)
+
+
+def _read_psd(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    from microfab.io.trace import read_columns
+
+    try:
+        cols = read_columns(path)
+    except (OSError, ValueError) as exc:
+        fail(f"{path}: {exc}" if str(path) not in str(exc) else str(exc))
+    for name in ("freq_hz", "psd"):
+        if name not in cols:
+            fail(f"{path}: no column {name!r} (columns: {', '.join(cols)}); a PSD file holds "
+                 "freq_hz [Hz] and psd [unit²/Hz]")  # fmt: skip
+    return cols["freq_hz"], cols["psd"]
+
+
+def _design_inverse(
+    model_path: Path | None, poles_hz: float, order: int, dt: float, discretization: str
+) -> Any:
+    from microfab.control.shaping import InverseShaperConfig, design_inverse_shaper
+
+    if model_path is None:
+        fail("--kind inverse needs MODEL, a model JSON (microfab identify chirp --json)")
+    model = _read_model(model_path)
+    try:
+        cfg = InverseShaperConfig(
+            pole_hz=poles_hz,
+            order=order,
+            dt=dt,
+            discretization=discretization,  # type: ignore[arg-type]
+        )
+        return design_inverse_shaper((model.num, model.den), cfg)
+    except ValueError as exc:
+        fail(f"{model_path}: {renamed(str(exc), _INVERSE_NAMES)}")
+
+
+def _inverse_table(s: Any, model: TFModel) -> Table:
+    gain, at = s.gain_peak()
+    gain_d, at_d = s.gain_peak(discrete=True)
+    rows = [
+        ("continuous numerator", ", ".join(f"{c:.4g}" for c in s.num)),
+        ("continuous denominator", ", ".join(f"{c:.4g}" for c in s.den)),
+        (f"discrete numerator (z⁻¹, dt {s.dt:g} s)", ", ".join(f"{c:.6g}" for c in s.num_d)),
+        ("discrete denominator (z⁻¹)", ", ".join(f"{c:.6g}" for c in s.den_d)),
+        ("preview [samples]", str(s.preview)),
+        ("added delay (ramp lag) [µs], continuous / discrete",
+         f"{s.lag() * 1e6:.1f} / {s.lag(discrete=True) * 1e6:.1f}"),
+        ("gain peak, continuous", f"{gain:.4g} at {at:.5g} Hz"),
+        ("gain peak, discrete", f"{gain_d:.4g} at {at_d:.5g} Hz"),
+        ("command peak of a unit step, continuous / discrete",
+         f"{s.step_peak():.4g} / {s.step_peak(discrete=True):.4g}"),
+    ]  # fmt: skip
+    for k in model.complex_modes:
+        v = float(s.vibration(k.frequency_hz, k.damping, discrete=True)[0])
+        rows.append((f"V at the mode {k.frequency_hz:.5g} Hz, ζ {k.damping:.3g}", f"{v:.4g}"))
+    return Table(
+        title=f"Inverse shaper: poles {s.config.order} × {s.config.pole_hz:g} Hz, "
+        f"{s.config.discretization}",
+        columns=("quantity", "value"),
+        rows=rows,
+    )
+
+
+def _impulse_table(s: Any, dt: float, fit: Any = None) -> Table:
+    rows = [
+        (f"impulse {i}: amplitude, time [µs]", f"{a:.6g}, {t * 1e6:.3f}")
+        for i, (a, t) in enumerate(zip(s.amplitudes, s.times, strict=True))
+    ]
+    v = float(s.vibration(s.freq_hz)[0])
+    v_d = float(s.sampled_vibration(dt, s.freq_hz)[0])
+    rows += [
+        ("design mode", f"{s.freq_hz:.5g} Hz, ζ {s.damping:.4g}"),
+        ("added delay (centroid) [µs]", f"{s.delay * 1e6:.2f}"),
+        ("duration [µs]", f"{s.duration * 1e6:.2f}"),
+        ("command peak of a unit step", f"{s.command_peak:.4g}"),
+        ("V at the mode, exact / sampled at dt", f"{v:.4g} / {v_d:.4g} (dt {dt:g} s)"),
+        ("design", "solved numerically" if s.numeric else "closed form"),
+    ]
+    if fit is not None:
+        rows.append(("remaining vibration of the fit", f"{100 * fit.best.vibrations:.3g} %"))
+    return Table(title=f"{s.name} shaper", columns=("quantity", "value"), rows=rows)
+
+
+@shaper_app.command("design")
+def design_cmd(
+    out: Annotated[Path, typer.Option(help="Write the shaper (JSON) here.")],
+    model: Annotated[
+        Path | None,
+        typer.Argument(
+            help="Model JSON (identify chirp --json): inverted by --kind inverse; the "
+            "baseline of an --frf auto-fit otherwise."
+        ),
+    ] = None,
+    kind: Annotated[
+        str, typer.Option(help="inverse, zv, zvd, mzv, ei, 2hump_ei or 3hump_ei.")
+    ] = "inverse",
+    poles_hz: Annotated[float, typer.Option(help="Inverse: added real poles [Hz].")] = 4000.0,
+    order: Annotated[int, typer.Option(help="Inverse: number of added poles.")] = 4,
+    dt: Annotated[float, typer.Option(help="Sample time of the command [s].")] = 1e-5,
+    discretization: Annotated[
+        str, typer.Option(help="Inverse: zoh (the seed's) or zpetc (sampled-axis inverse).")
+    ] = "zoh",
+    freq_hz: Annotated[
+        float | None, typer.Option(help="Classic: the mode's natural frequency [Hz].")
+    ] = None,
+    damping: Annotated[
+        float | None,
+        typer.Option(help="Classic: the mode's damping ratio (default 0.1, Klipper's)."),
+    ] = None,
+    frf: Annotated[
+        Path | None,
+        typer.Option(help="Classic: auto-fit to an FRF file (freq_hz, re_<a>/im_<a>) or trace."),
+    ] = None,
+    psd: Annotated[
+        Path | None, typer.Option(help="Classic: auto-fit to a PSD file (freq_hz, psd).")
+    ] = None,
+    axis: Annotated[
+        str | None, typer.Option(help="Axis of the --frf file (default its first, or x).")
+    ] = None,
+    freq_range: Annotated[
+        str | None,
+        typer.Option(help="Auto-fit: design frequencies scanned, LOW:HIGH [Hz] (default all)."),
+    ] = None,
+) -> None:
+    """Design an input shaper and write it as JSON (slm scan-time --shaper reads it).
+
+    --kind inverse: the seed 003 §2 model inverse S = [G/G(0)]⁻¹ pⁿ/(s+p)ⁿ of MODEL,
+    discretised at --dt. A classic kind: for the mode --freq-hz, --damping, or the
+    type's best design fitted to the vibration in --frf (weights |H|², divided by
+    |MODEL|² when MODEL is given: what the model does not explain) or --psd (columns
+    freq_hz [Hz] and psd), as Klipper's calibrate_shaper, scored by added delay.
+    """
+    from microfab.control.shaper_io import shaper_to_dict
+    from microfab.control.shapers import SHAPER_NAMES
+    from microfab.io.atomic import atomic_write_json
+
+    kinds = ("inverse", *SHAPER_NAMES)
+    if kind not in kinds:
+        fail(f"--kind must be one of {', '.join(kinds)}, got {kind!r}")
+    check_option("--dt", dt, "s")
+    classic = (
+        ("--freq-hz", freq_hz),
+        ("--damping", damping),
+        ("--frf", frf),
+        ("--psd", psd),
+        ("--freq-range", freq_range),
+    )
+    classic_given = [n for n, v in classic if v is not None]
+    if kind == "inverse":
+        if classic_given:
+            fail(f"{classic_given[0]} applies to the classic kinds, not to --kind inverse")
+        shaper = _design_inverse(model, poles_hz, order, dt, discretization)
+        table = _inverse_table(shaper, _read_model(model))  # type: ignore[arg-type]
+    else:
+        shaper, table = _design_classic(kind, model, dt, freq_hz, damping, frf, psd, axis,
+                                        freq_range)  # fmt: skip
+    print_table(table)
+    atomic_write_json(out, shaper_to_dict(shaper))
+    console.print(f"wrote {out}", highlight=False)
+
+
+def _design_classic(
+    kind: str,
+    model: Path | None,
+    dt: float,
+    freq_hz: float | None,
+    damping: float | None,
+    frf: Path | None,
+    psd: Path | None,
+    axis: str | None,
+    freq_range: str | None,
+) -> tuple[Shaper, Table]:
+    from microfab.control.shaper_fit import ShaperFitConfig, fit_shaper
+    from microfab.control.shapers import design_shaper
+
+    sources = [n for n, v in (("--freq-hz", freq_hz), ("--frf", frf), ("--psd", psd)) if v]
+    if len(sources) != 1:
+        what = "none" if not sources else " and ".join(sources)
+        fail(f"--kind {kind} needs one of --freq-hz, --frf or --psd, got {what}")
+    if model is not None and frf is None:
+        fail("MODEL serves a classic kind only as the baseline of --frf: leave it out")
+    if damping is not None:
+        check_option("--damping", damping, "", low=0.0, high=0.99, low_closed=True)
+    nyquist = 0.5 / dt
+    fit = None
+    if freq_hz is not None:
+        if freq_range is not None:
+            fail("--freq-range applies to an auto-fit (--frf or --psd), not to --freq-hz")
+        check_option("--freq-hz", freq_hz, "Hz")
+        if freq_hz >= nyquist:
+            fail(
+                f"--freq-hz {freq_hz:g} Hz lies at or above the Nyquist frequency {nyquist:g} "
+                f"Hz of --dt {dt:g} s: the shaper's impulses would fall within one sample"
+            )
+        try:
+            shaper = design_shaper(kind, freq_hz, 0.1 if damping is None else damping)  # type: ignore[arg-type]
+        except ValueError as exc:
+            fail(str(exc))
+    else:
+        if frf is not None:
+            f, resp, f_dt = _frf_of_file(frf, axis, dt)
+            baseline = None
+            if model is not None:
+                m = _read_model(model)
+                baseline = np.abs(m.frequency_response(f, sampling="zoh", dt=f_dt))
+            data: tuple[Any, ...] = (f, resp, "frf", baseline)
+        else:
+            f, resp = _read_psd(psd)  # type: ignore[arg-type]
+            data = (f, resp, "psd", None)
+        rng = None if freq_range is None else parse_range("--freq-range", freq_range)
+        zs = {} if damping is None else {"design_dampings": (damping,), "test_dampings": (damping,)}
+        try:
+            cfg = ShaperFitConfig(names=(kind,), freq_range_hz=rng, **zs)  # type: ignore[arg-type]
+            fit = fit_shaper(data[0], data[1], kind=data[2], baseline=data[3], config=cfg)
+        except ValueError as exc:
+            fail(f"{frf or psd}: {exc}")
+        shaper = fit.best.shaper
+    if shaper.freq_hz >= nyquist:
+        fail(
+            f"the {kind} shaper's mode {shaper.freq_hz:g} Hz lies at or above the Nyquist "
+            f"frequency {nyquist:g} Hz of --dt {dt:g} s: its impulses fall within one sample"
+        )
+    return shaper, _impulse_table(shaper, dt, fit)
