@@ -419,6 +419,63 @@ class XYStageParams:
         E = scipy.linalg.expm(M * h)
         return E[:n, :n].copy(), E[:n, n : n + 2].copy(), E[:n, n + 2 :].copy()
 
+    def closed_loop(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(A, B, C)`` of the discrete closed loop with the nonlinear parts off (ZOH).
+
+        The built-in controller (guard passing, PID, feedforward) around the exact ZOH of
+        `mechanics` over one sample. States: the 8 mechanical ones, ``[I, D, e_prev]`` per
+        axis, ``[g, w]`` per axis (18); inputs the set-points, outputs the carriage
+        positions. `microfab.plants.xy_stage.XYStagePlant.linear_model` drops the head's
+        states when the resonance is off (they then copy the carriage's).
+        """
+        c = self
+        dt = self.dt
+        n = N_MECH + 10  # full layout: mechanics, controller (6), guard g, w (4)
+        i_ctrl, i_guard = N_MECH, N_MECH + 6
+        phi, gu, _gd = self.discrete_mechanics(dt)
+        ad, bd = self.derivative_filter()
+        A = np.zeros((n, n))
+        B = np.zeros((n, 2))
+        fA = np.zeros((2, n))  # commanded force = fA @ state + fB @ r
+        fB = np.zeros((2, 2))
+        for a, g in enumerate(self.gains()):
+            o, q = i_ctrl + 3 * a, i_guard + 2 * a
+            # e = r - y ; w = (r - g_prev) / dt ; aff = (w - w_prev) / dt
+            eA = np.zeros(n)
+            eA[MECH_POS[a]] = -1.0
+            eB = np.zeros(2)
+            eB[a] = 1.0
+            wA = np.zeros(n)
+            wA[q] = -1.0 / dt
+            wB = eB / dt
+            affA = wA / dt
+            affA[q + 1] -= 1.0 / dt
+            affB = wB / dt
+            ki_e = g.ki * dt
+            iA = np.zeros(n)
+            iA[o] = 1.0
+            iA += ki_e * eA
+            iB = ki_e * eB
+            dA = np.zeros(n)
+            dA[o + 1] = ad
+            dA += g.kd * bd * eA
+            dA[o + 2] -= g.kd * bd
+            dB = g.kd * bd * eB
+            mff, cff = c.feedforward_mass_kg[a], c.feedforward_viscous_n_s_per_m[a]
+            fA[a] = g.kp * eA + iA + dA + mff * affA + cff * wA
+            fB[a] = g.kp * eB + iB + dB + mff * affB + cff * wB
+            A[o], B[o] = iA, iB
+            A[o + 1], B[o + 1] = dA, dB
+            A[o + 2], B[o + 2] = eA, eB
+            B[q, a] = 1.0
+            A[q + 1], B[q + 1] = wA, wB
+        A[:N_MECH] = gu @ fA
+        A[:N_MECH, :N_MECH] += phi
+        B[:N_MECH] = gu @ fB
+        C = np.zeros((2, n))
+        C[0, MECH_POS[0]] = C[1, MECH_POS[1]] = 1.0
+        return A, B, C
+
     def any_disturbance(self) -> bool:
         """Whether a force is held over sub-steps (friction, cogging or cable on)."""
         return self.friction or self.cogging or self.cable
