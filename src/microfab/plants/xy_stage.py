@@ -41,10 +41,12 @@ Inside, per sample (state machine, exact order of `kernel_update`):
    the linear mechanics are exact over each (matrix exponential, ZOH):
    LuGre friction (``friction``): ``F = σ0 z + σ1 ż + σ2 v``,
    ``ż = v − σ0 |v| z / g(v)``, ``g = F_c + (F_s − F_c) exp(−(v / v_s)²)`` (Stribeck,
-   pre-sliding); over a sub-step the bristle state is advanced exactly for the sub-step's
-   mean speed, ``z ← z_ss + (z − z_ss) exp(−σ0 |Δx| / g)``, so the stiff bristles need no
-   small steps; cogging at the motor pitch (``cogging``), ``A sin(2π x / p + φ)``; on y
-   the cable carrier (``cable``), ``k (y − y_rest) + A_l sin(2π y / p_l + φ_l)``.
+   pre-sliding); over a sub-step the bristle state is advanced exactly for its
+   displacement ``Δx`` at the Stribeck level ``g`` of its start,
+   ``z ← z_ss + (z − z_ss) exp(−σ0 |Δx| / g)``, ``z_ss = sign(Δx) g / σ0``, so the stiff
+   bristles need no small steps; cogging at the motor pitch (``cogging``),
+   ``A sin(2π x / p + φ)``; on y the cable carrier (``cable``),
+   ``k (y − y_rest) + A_l sin(2π y / p_l + φ_l)``.
 
 Encoder quantisation (10 nm, assumed; ``quantisation``) applies to the controller's
 feedback and to the output. The 2 µm output noise (eq. 3) is not added here: `noise`
