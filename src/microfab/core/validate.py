@@ -23,8 +23,11 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Callable
+from typing import Any
 
 __all__ = [
+    "check_axis_pair",
     "check_finite",
     "check_in_range",
     "check_int",
@@ -259,3 +262,36 @@ def check_int(name: str, value: int, minimum: int, unit: str = "") -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, {_got(value, unit)}")
     return int(value)
+
+
+def check_axis_pair(
+    name: str, value: Any, unit: str, check: Callable[[str, Any, str], float]
+) -> tuple[float, float]:
+    """A per-axis pair ``(x, y)``, each value passed through ``check``.
+
+    Parameters
+    ----------
+    name : str
+        Parameter name for the messages (``name[x]``, ``name[y]``).
+    value : tuple, list or numpy.ndarray
+        Two values, x then y.
+    unit : str
+        Unit for the messages.
+    check : callable
+        ``check(name, value, unit) -> float``, e.g. `check_positive`.
+
+    Raises
+    ------
+    ValueError
+        ``value`` is not a pair, or ``check`` refuses one of its values.
+
+    Examples
+    --------
+    >>> check_axis_pair("mass_kg", (1.5, 0.5), "kg", check_positive)
+    (1.5, 0.5)
+    """
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise ValueError(
+            f"{name} needs one value per axis (x, y), got {value!r} {unit}; give a pair"
+        )
+    return (check(f"{name}[x]", value[0], unit), check(f"{name}[y]", value[1], unit))

@@ -16,9 +16,10 @@ import numpy as np
 from numba import njit
 
 from microfab.core.compiled import Compiled, lti_dims, pack_lti
+from microfab.core.validate import check_int
 from microfab.plants.lti import DiscreteLTI
 
-__all__ = ["CompiledPlant", "LTIPlant", "Plant", "lti_output", "lti_update"]
+__all__ = ["CompiledPlant", "LTIPlant", "Plant", "lti_output", "lti_update", "white_noise"]
 
 
 @runtime_checkable
@@ -143,3 +144,25 @@ class LTIPlant(CompiledPlant):
         new = state.copy()
         new[:nx] = self.sys.A @ state[:nx] + self.sys.B @ np.asarray(command, dtype=float)
         return new
+
+
+def white_noise(n_samples: int, seed: int, rms: float, n_outputs: int = 2) -> np.ndarray:
+    """Seeded white Gaussian measurement noise, shape (n_samples, n_outputs).
+
+    The twins draw their output noise here, outside the kernels, so that a run is
+    reproduced from its seed whatever simulator plays it.
+
+    Parameters
+    ----------
+    n_samples : int
+        Number of samples (>= 0).
+    seed : int
+        Seed of ``numpy.random.default_rng`` (>= 0); the same seed gives the same noise.
+    rms : float
+        Standard deviation, in the output's unit.
+    n_outputs : int
+        Columns (default 2, an XY machine).
+    """
+    n = check_int("n_samples", n_samples, 0, "samples")
+    rng = np.random.default_rng(check_int("seed", seed, 0))
+    return rng.standard_normal((n, n_outputs)) * rms

@@ -45,8 +45,8 @@ import numpy as np
 
 import control
 from microfab.core.limits import AxisLimits
-from microfab.core.validate import check_in_range, check_int, check_nonnegative, check_positive
-from microfab.plants.base import LTIPlant
+from microfab.core.validate import check_in_range, check_nonnegative, check_positive
+from microfab.plants.base import LTIPlant, white_noise
 from microfab.plants.lti import block_diag, discretize
 from microfab.plants.sourced_toml import read_sourced
 
@@ -312,9 +312,7 @@ class GalvoSLMPlant(LTIPlant):
         seed : int
             Seed of ``numpy.random.default_rng`` (>= 0); the same seed gives the same noise.
         """
-        n = check_int("n_samples", n_samples, 0, "samples")
-        rng = np.random.default_rng(check_int("seed", seed, 0))
-        return rng.standard_normal((n, 2)) * self.config.noise_rms_bit
+        return white_noise(n_samples, seed, self.config.noise_rms_bit)
 
     def to_bit(self, meters: float | np.ndarray) -> np.ndarray:
         """Work-plane positions or lengths in m as bit (``m / bit_size_m``)."""

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from microfab.core.validate import (
+    check_axis_pair,
     check_finite,
     check_in_range,
     check_int,
@@ -59,15 +60,6 @@ _PER_AXIS: dict[str, tuple[str, Any]] = {
     "cable_rest_m": ("m", check_finite),
     "noise_rms_m": ("m", check_nonnegative),
 }
-
-
-def _pair(name: str, value: Any, unit: str, check: Any) -> tuple[float, float]:
-    """A per-axis pair ``(x, y)``, each value passed through ``check``."""
-    if not isinstance(value, (tuple, list, np.ndarray)) or len(value) != 2:
-        raise ValueError(
-            f"{name} needs one value per axis (x, y), got {value!r} {unit}; give a pair"
-        )
-    return (check(f"{name}[x]", value[0], unit), check(f"{name}[y]", value[1], unit))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -199,7 +191,7 @@ class LMWStageParams:
                     f"switch {name} must be true or false, got {getattr(self, name)!r}"
                 )
         for name, (unit, check) in _PER_AXIS.items():
-            object.__setattr__(self, name, _pair(name, getattr(self, name), unit, check))
+            object.__setattr__(self, name, check_axis_pair(name, getattr(self, name), unit, check))
         for i, ax in enumerate(AXES):
             fc, fs_ = self.coulomb_n[i], self.static_n[i]
             if fs_ < fc:

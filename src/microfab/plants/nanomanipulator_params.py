@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from microfab.core.validate import (
+    check_axis_pair,
     check_finite,
     check_in_range,
     check_int,
@@ -92,13 +93,6 @@ def _beta_grid_min(
                 if not b >= best:  # NaN is the smallest
                     best, bx1, bx2, bv = b, x1, x2, v
     return best, bx1, bx2, bv
-
-
-def _pair(name: str, value: Any, unit: str, check: Any) -> tuple[float, float]:
-    """A per-axis pair ``(x, y)``, each value passed through ``check``."""
-    if not isinstance(value, (tuple, list, np.ndarray)) or len(value) != 2:
-        raise ValueError(f"{name} needs one value per axis (x, y), got {value!r} {unit}")
-    return (check(f"{name}[x]", value[0], unit), check(f"{name}[y]", value[1], unit))
 
 
 _GAINS = ("alpha_square_gain", "alpha_cross_gain", "beta_velocity_gain", "beta_cross_gain")
@@ -181,7 +175,7 @@ class NanomanipulatorParams:
         fs = check_positive("sample_rate_hz", self.sample_rate_hz, "Hz")
         check_int("rk4_substeps", self.rk4_substeps, 1)
         for name, (unit, check) in _PER_AXIS.items():
-            object.__setattr__(self, name, _pair(name, getattr(self, name), unit, check))
+            object.__setattr__(self, name, check_axis_pair(name, getattr(self, name), unit, check))
         for name in _GAINS:
             check_finite(name, getattr(self, name))
         check_positive("length_scale_mm", self.length_scale_mm, "mm")

@@ -73,9 +73,8 @@ import numpy as np
 from numba import njit
 
 from microfab.core.limits import MachineLimits
-from microfab.core.validate import check_int
 from microfab.plants import xy_stage_params as _p
-from microfab.plants.base import CompiledPlant
+from microfab.plants.base import CompiledPlant, white_noise
 from microfab.plants.lti import DiscreteLTI
 from microfab.plants.xy_stage_params import (
     AXES,
@@ -435,9 +434,7 @@ class XYStagePlant(CompiledPlant):
         seed : int
             Seed of ``numpy.random.default_rng`` (>= 0); the same seed gives the same noise.
         """
-        n = check_int("n_samples", n_samples, 0, "samples")
-        rng = np.random.default_rng(check_int("seed", seed, 0))
-        return rng.standard_normal((n, 2)) * self.config.noise_rms_m
+        return white_noise(n_samples, seed, self.config.noise_rms_m)
 
     def machine_limits(self) -> MachineLimits:
         """Table I as `microfab.core.limits.MachineLimits` (what the guard enforces)."""

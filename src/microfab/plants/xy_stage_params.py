@@ -27,6 +27,7 @@ import scipy.linalg
 
 from microfab.core.limits import MachineLimits
 from microfab.core.validate import (
+    check_axis_pair,
     check_finite,
     check_in_range,
     check_int,
@@ -124,15 +125,6 @@ _PER_AXIS: dict[str, tuple[str, Any]] = {
     "feedforward_mass_kg": ("kg", check_nonnegative),
     "feedforward_viscous_n_s_per_m": ("N s/m", check_nonnegative),
 }
-
-
-def _pair(name: str, value: Any, unit: str, check: Any) -> tuple[float, float]:
-    """A per-axis pair ``(x, y)``, each value passed through ``check``."""
-    if not isinstance(value, (tuple, list, np.ndarray)) or len(value) != 2:
-        raise ValueError(
-            f"{name} needs one value per axis (x, y), got {value!r} {unit}; give a pair"
-        )
-    return (check(f"{name}[x]", value[0], unit), check(f"{name}[y]", value[1], unit))
 
 
 @dataclass(frozen=True)
@@ -265,7 +257,7 @@ class XYStageParams:
         fs = check_positive("sample_rate_hz", self.sample_rate_hz, "Hz")
         nyq = fs / 2
         check_int("substeps", self.substeps, 1)
-        ws = _pair("workspace_m", self.workspace_m, "m", check_finite)
+        ws = check_axis_pair("workspace_m", self.workspace_m, "m", check_finite)
         if not ws[0] < ws[1]:
             raise ValueError(
                 f"workspace_m = {ws} m must be (min, max) with min < max; swap or widen it"
@@ -297,7 +289,7 @@ class XYStageParams:
                     f"switch {name} must be true or false, got {getattr(self, name)!r}"
                 )
         for name, (unit, check) in _PER_AXIS.items():
-            object.__setattr__(self, name, _pair(name, getattr(self, name), unit, check))
+            object.__setattr__(self, name, check_axis_pair(name, getattr(self, name), unit, check))
         for i, ax in enumerate(AXES):
             if self.static_n[i] < self.coulomb_n[i]:
                 raise ValueError(
