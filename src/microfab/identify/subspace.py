@@ -120,6 +120,9 @@ class SubspaceConfig:
         null directions sit near 1e-15, genuine ones well above).
     scale : bool
         Divide each channel by its RMS before the decomposition.
+    workers : int
+        Threads building the R factor (>= 1; default 2, the project machine's cores). The
+        answer changes with it only in rounding, and not with the machine's core count.
     """
 
     order: int = 4  # seed 002 §III-A: z in R^4
@@ -130,6 +133,7 @@ class SubspaceConfig:
     chunk_samples: int = 8192
     rcond: float = 1e-10
     scale: bool = True
+    workers: int = 2
 
     def __post_init__(self) -> None:
         check_int("order", self.order, 1)
@@ -155,6 +159,9 @@ class SubspaceConfig:
         rc = check_positive("rcond", self.rcond)
         if rc >= 1.0:
             raise ValueError(f"rcond must be below 1 (relative cut-off), got {self.rcond}")
+        check_int("workers", self.workers, 1, "threads")
+        if not isinstance(self.scale, bool):
+            raise ValueError(f"scale must be True or False, got {self.scale!r}")
 
     def rows_for(self, max_order: int) -> int:
         """Block rows used for models up to ``max_order``."""
@@ -239,10 +246,14 @@ class SubspaceModel:
         shapes = {"a": (n, n), "b": (n, None), "c": (None, n), "d": (None, None)}
         for name, (r, c) in shapes.items():
             arr = getattr(self, name)
-            if arr.ndim != 2 or (r is not None and arr.shape[0] != r) or (
-                c is not None and arr.shape[1] != c
+            if (
+                arr.ndim != 2
+                or (r is not None and arr.shape[0] != r)
+                or (c is not None and arr.shape[1] != c)
             ):
-                raise ValueError(f"{name} has shape {arr.shape}, inconsistent with A {self.a.shape}")
+                raise ValueError(
+                    f"{name} has shape {arr.shape}, inconsistent with a of shape {self.a.shape}"
+                )
         if self.d.shape != (self.c.shape[0], self.b.shape[1]):
             raise ValueError(
                 f"d has shape {self.d.shape}, expected (p, m) = "
@@ -259,12 +270,12 @@ class SubspaceModel:
 
     @property
     def n_inputs(self) -> int:
-        """m."""
+        """Number of inputs m."""
         return int(self.b.shape[1])
 
     @property
     def n_outputs(self) -> int:
-        """p."""
+        """Number of outputs p."""
         return int(self.c.shape[0])
 
     @property
@@ -312,9 +323,7 @@ class SubspaceModel:
                 raise ValueError("the matrix logarithm is not real")
             lg = lg.real
         lg = lg / self.dt
-        return ContinuousModel(
-            a=readonly(lg[:n, :n]), b=readonly(lg[:n, n:]), c=self.c, d=self.d
-        )
+        return ContinuousModel(a=readonly(lg[:n, :n]), b=readonly(lg[:n, n:]), c=self.c, d=self.d)
 
     def simulate(self, u: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         """Output (N, p) for inputs ``u`` (N, m) from ``x0`` (default zero: at rest)."""
@@ -328,8 +337,9 @@ class SubspaceModel:
             raise ValueError(f"x0 must have shape ({self.order},), got {x.shape}")
         return simulate_ss(self.a, self.b, self.c, self.d, u2, x)
 
-    def prediction_error(self, u: np.ndarray, y: np.ndarray,
-                         x0: np.ndarray | None = None) -> np.ndarray:
+    def prediction_error(
+        self, u: np.ndarray, y: np.ndarray, x0: np.ndarray | None = None
+    ) -> np.ndarray:
         """Simulation error ``y - simulate(u, x0)``, shape (N, p)."""
         y2 = np.asarray(y, dtype=np.float64)
         if y2.ndim == 1:
@@ -339,8 +349,7 @@ class SubspaceModel:
             raise ValueError(f"y must have shape {sim.shape}, got {np.shape(y)}")
         return y2 - sim
 
-    def error_stats(self, runs: Any, x0: np.ndarray | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
+    def error_stats(self, runs: Any, x0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Mean and standard deviation per output of the simulation error over ``runs``.
 
         Parameters
@@ -376,8 +385,14 @@ class SubspaceModel:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> SubspaceModel:
-        """Inverse of `to_dict`; refuses another format or version, or a rate that
-        disagrees with ``dt``, or unknown or missing keys."""
+        """Inverse of `to_dict`.
+
+        Raises
+        ------
+        ValueError
+            Another format or version, a rate that disagrees with ``dt``, unknown or
+            missing keys, inconsistent shapes, a non-finite value.
+        """
         if not isinstance(data, dict):
             raise ValueError(f"a subspace model must be a mapping, got {type(data).__name__}")
         if data.get("format") != FORMAT:
@@ -397,16 +412,18 @@ class SubspaceModel:
         arrays = {k: np.asarray(data[k], dtype=np.float64) for k in _ARRAYS}
         if arrays["x0"].size == 0:
             arrays["x0"] = arrays["x0"].reshape(0, arrays["a"].shape[0])
-        model = cls(dt=dt, block_rows=int(data["block_rows"]),
-                    weighting=str(data["weighting"]), **arrays)
+        model = cls(
+            dt=dt, block_rows=int(data["block_rows"]), weighting=str(data["weighting"]), **arrays
+        )
         if model.order != data["order"]:
             raise ValueError(f"order {data['order']!r} disagrees with A of size {model.order}")
         return model
 
 
 _ARRAYS = ("a", "b", "c", "d", "x0", "singular_values", "fit_mean", "fit_std")
-_KEYS = frozenset({"format", "version", "dt", "rate_hz", "order", "block_rows", "weighting",
-                   *_ARRAYS})
+_KEYS = frozenset(
+    {"format", "version", "dt", "rate_hz", "order", "block_rows", "weighting", *_ARRAYS}
+)
 
 
 def _check_log(z: np.ndarray) -> None:
@@ -490,32 +507,54 @@ def _check_excitation(f: HankelFactor) -> None:
 
 
 def _model(
-    proj: _Projection, f: HankelFactor, runs: list[IORun], dt: float, cfg: SubspaceConfig,
+    proj: _Projection,
+    f: HankelFactor,
+    runs: list[IORun],
+    dt: float,
+    cfg: SubspaceConfig,
     order: int,
 ) -> SubspaceModel:
     p = f.n_outputs
     a, c_s = _a_c(proj, order, p)
     bdx = fit_bdx0(
-        a, c_s, runs, f.u_scale, f.y_scale, feedthrough=cfg.feedthrough,
-        estimate_x0=cfg.initial_state == "estimate", chunk_samples=cfg.chunk_samples,
+        a,
+        c_s,
+        runs,
+        f.u_scale,
+        f.y_scale,
+        feedthrough=cfg.feedthrough,
+        estimate_x0=cfg.initial_state == "estimate",
+        chunk_samples=cfg.chunk_samples,
     )
     b = bdx.b / f.u_scale  # B_s diag(1/su)
     c = c_s * f.y_scale[:, None]  # diag(sy) C_s
     d = f.y_scale[:, None] * bdx.d / f.u_scale
     mean, std = error_moments(a, b, c, d, runs, bdx.x0)
     return SubspaceModel(
-        a=a, b=b, c=c, d=d, dt=dt, x0=bdx.x0, singular_values=proj.s,
-        block_rows=f.block_rows, weighting=cfg.weighting, fit_mean=mean, fit_std=std,
+        a=a,
+        b=b,
+        c=c,
+        d=d,
+        dt=dt,
+        x0=bdx.x0,
+        singular_values=proj.s,
+        block_rows=f.block_rows,
+        weighting=cfg.weighting,
+        fit_mean=mean,
+        fit_std=std,
     )
 
 
-def _factor(runs: Any, dt: float, cfg: SubspaceConfig, max_order: int
-            ) -> tuple[list[IORun], HankelFactor]:
+def _factor(
+    runs: Any, dt: float, cfg: SubspaceConfig, max_order: int
+) -> tuple[list[IORun], HankelFactor]:
     check_positive("dt", dt, "s")
     i = cfg.rows_for(max_order)
     checked = check_runs(runs, 2 * i + 1)
     _check_order(max_order, i, checked[0].y.shape[1])
-    f = hankel_factor(checked, i, chunk_samples=cfg.chunk_samples, scale=cfg.scale)
+    f = hankel_factor(
+        checked, i, chunk_samples=cfg.chunk_samples, scale=cfg.scale, workers=cfg.workers
+    )
     if f.n_columns < f.r.shape[0]:
         raise ValueError(
             f"{f.n_columns} Hankel columns over all runs are fewer than the "
@@ -525,8 +564,7 @@ def _factor(runs: Any, dt: float, cfg: SubspaceConfig, max_order: int
     return checked, f
 
 
-def identify_subspace(runs: Any, dt: float, config: SubspaceConfig | None = None
-                      ) -> SubspaceModel:
+def identify_subspace(runs: Any, dt: float, config: SubspaceConfig | None = None) -> SubspaceModel:
     """Identify a discrete state-space model from one or several records.
 
     Parameters
@@ -598,8 +636,9 @@ class OrderScan:
         ]
 
 
-def order_scan(runs: Any, dt: float, orders: Iterable[int] = range(2, 9),
-               config: SubspaceConfig | None = None) -> OrderScan:
+def order_scan(
+    runs: Any, dt: float, orders: Iterable[int] = range(2, 9), config: SubspaceConfig | None = None
+) -> OrderScan:
     """Identify every order in ``orders`` from one R factor and one SVD.
 
     Parameters

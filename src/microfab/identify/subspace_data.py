@@ -30,6 +30,7 @@ factor; nothing grows with the number of samples.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -111,9 +112,7 @@ def check_runs(runs: Any, min_samples: int) -> list[IORun]:
     if isinstance(runs, IORun):
         items: Sequence[Any] = [runs]
     elif (
-        isinstance(runs, tuple)
-        and len(runs) == 2
-        and all(isinstance(a, np.ndarray) for a in runs)
+        isinstance(runs, tuple) and len(runs) == 2 and all(isinstance(a, np.ndarray) for a in runs)
     ):
         items = [runs]
     else:
@@ -144,8 +143,7 @@ def check_runs(runs: Any, min_samples: int) -> list[IORun]:
             bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
             if bad.size:
                 raise ValueError(
-                    f"run {r}: {name} is not finite at sample {int(bad[0])} "
-                    f"({a[bad[0]].tolist()})"
+                    f"run {r}: {name} is not finite at sample {int(bad[0])} ({a[bad[0]].tolist()})"
                 )
         out.append(IORun(u, y))
     return out
@@ -195,7 +193,7 @@ class RAccumulator:
         return r * sign[:, None]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fill_hankel(
     u: np.ndarray, y: np.ndarray, k0: int, su: np.ndarray, sy: np.ndarray, i: int, out: np.ndarray
 ) -> None:
@@ -270,12 +268,19 @@ def channel_rms(runs: Sequence[IORun]) -> tuple[np.ndarray, np.ndarray]:
     return np.sqrt(su / n), np.sqrt(sy / n)
 
 
+def _split(items: list[Any], n: int) -> list[list[Any]]:
+    """``items`` in ``n`` contiguous groups of near-equal length (the last ones shorter)."""
+    size = -(-len(items) // n)
+    return [items[g * size : (g + 1) * size] for g in range(n) if items[g * size : (g + 1) * size]]
+
+
 def hankel_factor(
     runs: Sequence[IORun],
     block_rows: int,
     *,
     chunk_samples: int,
     scale: bool = True,
+    workers: int = 2,
 ) -> HankelFactor:
     """R factor of the block-Hankel data matrix of all runs, by chunks of rows.
 
@@ -290,6 +295,10 @@ def hankel_factor(
         floats).
     scale : bool
         Divide each channel by its RMS over all runs first (else by 1).
+    workers : int
+        Threads, each folding a contiguous share of the chunks into its own R (LAPACK and
+        the fill kernel release the GIL); their Rs are then folded in order. The result
+        depends on this number (in its rounding) but not on the machine's core count.
 
     Returns
     -------
@@ -315,17 +324,33 @@ def hankel_factor(
                 "identify anything through it"
             )
     ncol = 2 * i * (m + p)
-    acc = RAccumulator(ncol)
-    buf = np.empty((chunk_samples, ncol), order="F")
-    total = 0
-    for run in runs:
-        j = run.n_samples - 2 * i + 1
-        for k0 in range(0, j, chunk_samples):
-            rows = min(chunk_samples, j - k0)
+    # (run, first Hankel row, rows) of every chunk, split into `workers` contiguous groups
+    chunks = [
+        (q, k0, min(chunk_samples, run.n_samples - 2 * i + 1 - k0))
+        for q, run in enumerate(runs)
+        for k0 in range(0, run.n_samples - 2 * i + 1, chunk_samples)
+    ]
+    total = sum(rows for _, _, rows in chunks)
+    groups = _split(chunks, max(1, min(workers, len(chunks))))
+
+    def work(group: list[tuple[int, int, int]]) -> RAccumulator:
+        acc = RAccumulator(ncol)
+        buf = np.empty((chunk_samples, ncol), order="F")
+        for q, k0, rows in group:
             out = buf if rows == chunk_samples else np.empty((rows, ncol), order="F")
-            _fill_hankel(run.u, run.y, k0, su, sy, i, out)
+            _fill_hankel(runs[q].u, runs[q].y, k0, su, sy, i, out)
             acc.add(out)
-        total += j
+        return acc
+
+    with one_blas_thread():
+        if len(groups) == 1:
+            accs = [work(groups[0])]
+        else:
+            with ThreadPoolExecutor(max_workers=len(groups)) as pool:
+                accs = list(pool.map(work, groups))
+        acc = accs[0]
+        for other in accs[1:]:
+            acc.add_r(other.r)
     return HankelFactor(
         r=readonly(acc.r / np.sqrt(total)),
         block_rows=i,
@@ -344,12 +369,16 @@ def _regressors(
     u: np.ndarray,
     y: np.ndarray,
     k0: int,
+    su: np.ndarray,
+    sy: np.ndarray,
     state: np.ndarray,
     with_x0: bool,
     with_d: bool,
     out: np.ndarray,
 ) -> None:
     """Least-squares rows of samples k0 .. k0 + out.shape[0] / p - 1 into ``out``.
+
+    ``u``, ``y`` are divided by ``su``, ``sy`` on the fly (no scaled copy of a run).
 
     ``state`` (n, n (m + 1)) holds ``[A^k, Xi^1_k, ..., Xi^m_k]`` on entry and is advanced
     past the chunk; ``Xi^c_{k+1} = A Xi^c_k + I u_c(k)``. Row ``(k - k0) p + j`` of ``out``
@@ -386,8 +415,8 @@ def _regressors(
                     out[row, nx + ch * n + q] = s
             if with_d:
                 for ch in range(m):
-                    out[row, nx + n * m + j * m + ch] = u[k, ch]
-            out[row, ncol - 1] = y[k, j]
+                    out[row, nx + n * m + j * m + ch] = u[k, ch] / su[ch]
+            out[row, ncol - 1] = y[k, j] / sy[j]
         # advance: state <- A state + [0 | I u_1 | ... | I u_m]
         for q in range(w):
             for r in range(n):
@@ -399,8 +428,9 @@ def _regressors(
                 state[r, q] = tmp[r]
         for ch in range(m):
             base = n * (ch + 1)
+            uk = u[k, ch] / su[ch]
             for r in range(n):
-                state[r, base + r] += u[k, ch]
+                state[r, base + r] += uk
 
 
 @dataclass(frozen=True, eq=False)
@@ -451,14 +481,11 @@ def fit_bdx0(
         )
     nth = n * m + (p * m if feedthrough else 0)
     nx = n if estimate_x0 else 0
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    c = np.ascontiguousarray(c, dtype=np.float64)
+    a, c, su, sy = _f64(a, c, u_scale, y_scale)
     joint = RAccumulator(nth + 1)
     x0_parts: list[np.ndarray] = []
     rows_per_chunk = max(1, chunk_samples // p)
     for run in runs:
-        us = run.u / u_scale
-        ys = run.y / y_scale
         acc = RAccumulator(nx + nth + 1) if estimate_x0 else joint
         state = np.zeros((n, n * (m + 1)))
         state[:, :n] = np.eye(n)
@@ -466,7 +493,7 @@ def fit_bdx0(
         for k0 in range(0, run.n_samples, rows_per_chunk):
             rows = min(rows_per_chunk, run.n_samples - k0)
             out = buf if rows == rows_per_chunk else np.empty((rows * p, buf.shape[1]), order="F")
-            _regressors(a, c, us, ys, k0, state, estimate_x0, feedthrough, out)
+            _regressors(a, c, run.u, run.y, k0, su, sy, state, estimate_x0, feedthrough, out)
             acc.add(out)
         if estimate_x0:
             r = acc.r
@@ -476,7 +503,8 @@ def fit_bdx0(
     diag = np.abs(np.diag(r[:nth, :nth]))
     if nth and (diag.min() <= 1e-12 * diag.max()):
         raise ValueError(
-            "the data do not determine B" + (" and D" if feedthrough else "")
+            "the data do not determine B"
+            + (" and D" if feedthrough else "")
             + ": the least-squares problem is singular (input not exciting enough)"
         )
     theta = scipy.linalg.solve_triangular(r[:nth, :nth], r[:nth, nth])
@@ -484,13 +512,20 @@ def fit_bdx0(
     d = theta[n * m :].reshape(p, m) if feedthrough else np.zeros((p, m))
     x0 = np.zeros((len(runs), n))
     for q, rx in enumerate(x0_parts):
-        x0[q] = scipy.linalg.solve_triangular(rx[:, :nx], rx[:, nx + nth] - rx[:, nx : nx + nth] @ theta)
+        x0[q] = scipy.linalg.solve_triangular(
+            rx[:, :nx], rx[:, nx + nth] - rx[:, nx : nx + nth] @ theta
+        )
     return BDX0(b=b, d=d, x0=x0)
 
 
 @njit(cache=True)
 def _simulate(
-    a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, u: np.ndarray, x: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    c: np.ndarray,
+    d: np.ndarray,
+    u: np.ndarray,
+    x: np.ndarray,
     out: np.ndarray,
 ) -> None:
     """``out[k] = C x_k + D u_k``, ``x_{k+1} = A x_k + B u_k`` from ``x`` (advanced in place)."""
@@ -519,8 +554,14 @@ def _simulate(
 
 @njit(cache=True)
 def _error_sums(
-    a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, u: np.ndarray, y: np.ndarray,
-    x: np.ndarray, sums: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    c: np.ndarray,
+    d: np.ndarray,
+    u: np.ndarray,
+    y: np.ndarray,
+    x: np.ndarray,
+    sums: np.ndarray,
 ) -> None:
     """Add ``sum e`` and ``sum e^2`` per output (``e = y - y_model``) to ``sums`` (2, p)."""
     n = a.shape[0]
