@@ -24,7 +24,8 @@ from microfab.identify.subspace import (
     identify_subspace,
     order_scan,
 )
-from microfab.identify.subspace_data import check_runs, hankel_factor, simulate_ss
+from microfab.identify.subspace_data import check_runs, hankel_factor
+from microfab.identify.subspace_fit import simulate_ss
 
 DT = 1e-4  # 10 kHz, seed 002 Table I's loop rate
 POLES = np.array([0.9 + 0.2j, 0.9 - 0.2j, 0.7, 0.5])
