@@ -4,9 +4,10 @@ The passes over the records that follow the decomposition of `identify/subspace.
 each a chunk (or a sample) at a time, so that nothing grows with the number of samples:
 
 * `fit_bdx0`: B, D (optional) and each run's x0 by linear least squares for given A, C.
-  The regressors ``C A^k`` (x0) and ``C Xi_k`` (B; ``Xi^c`` the state response to input
-  ``c`` with ``B = I``: ``Xi^c_{k+1} = A Xi^c_k + I u_c(k)``) are simulated by a numba
-  kernel a chunk at a time and folded into an incremental QR (`RAccumulator`). Each run's
+  The regressors of output j, ``(A^T)^k c_j`` (x0) and ``eta^{jc}_k`` with
+  ``eta^{jc}_{k+1} = A^T eta^{jc}_k + c_j u_c(k)`` (column c of B), are simulated by a numba
+  kernel a chunk at a time (``p n (m + 1)`` states, ``p n^2 (m + 1)`` multiply-adds a
+  sample) and folded into an incremental QR (`RAccumulator`). Each run's
   x0 is eliminated by its own R before the runs are joined, so runs never share a state.
 * `simulate_ss`: the discrete model's output (numba), `error_moments`: mean and standard
   deviation per output of ``y - y_model`` without storing ``y_model``.
@@ -28,7 +29,7 @@ __all__ = ["BDX0", "error_moments", "fit_bdx0", "simulate_ss"]
 
 @njit(cache=True)
 def _regressors(
-    a: np.ndarray,
+    at: np.ndarray,
     c: np.ndarray,
     u: np.ndarray,
     y: np.ndarray,
@@ -42,59 +43,53 @@ def _regressors(
 ) -> None:
     """Least-squares rows of samples k0 .. k0 + out.shape[0] / p - 1 into ``out``.
 
-    ``u``, ``y`` are divided by ``su``, ``sy`` on the fly (no scaled copy of a run).
-
-    ``state`` (n, n (m + 1)) holds ``[A^k, Xi^1_k, ..., Xi^m_k]`` on entry and is advanced
-    past the chunk; ``Xi^c_{k+1} = A Xi^c_k + I u_c(k)``. Row ``(k - k0) p + j`` of ``out``
-    (Fortran-ordered) is ``[(C A^k)_j (if with_x0), (C Xi^c_k)_{j r} for c, r,
-    u_k in D's row j (if with_d), y_{k, j}]``.
+    In the transposed form: for output j, ``zeta^j_k = (A^T)^k c_j`` multiplies x0 and
+    ``eta^{jc}_{k+1} = A^T eta^{jc}_k + c_j u_c(k)`` multiplies column c of B (``y_{k,j}
+    = zeta^j_k . x0 + sum_c eta^{jc}_k . B[:, c] + D[j] u_k``). ``state`` (p, n (m + 1))
+    holds ``[zeta^j, eta^{j1}, ..., eta^{jm}]`` per row j on entry (``[c_j, 0, ..., 0]``
+    at a run's start) and is advanced past the chunk; ``at`` is ``A^T``. Row
+    ``(k - k0) p + j`` of ``out`` (Fortran-ordered) is ``[zeta^j_k (if with_x0),
+    eta^{j1}_k, ..., eta^{jm}_k, u_k / su in D's row j (if with_d), y_{k,j} / sy_j]``.
+    ``u``, ``y`` are divided by ``su``, ``sy`` on the fly.
     """
-    n = a.shape[0]
-    p = c.shape[0]
+    n = at.shape[0]
+    p = state.shape[0]
     m = u.shape[1]
-    w = state.shape[1]
     rows = out.shape[0] // p
-    tmp = np.empty(w)
+    tmp = np.empty(n)
     nx = n if with_x0 else 0
     ncol = out.shape[1]
     for kk in range(rows):
         k = k0 + kk
         for j in range(p):
             row = kk * p + j
-            for q in range(ncol):
-                out[row, q] = 0.0
-            cj = c[j]
+            sj = state[j]
             if with_x0:
                 for q in range(n):
-                    s = 0.0
-                    for r in range(n):
-                        s += cj[r] * state[r, q]
-                    out[row, q] = s
-            for ch in range(m):
-                base = n * (ch + 1)
-                for q in range(n):
-                    s = 0.0
-                    for r in range(n):
-                        s += cj[r] * state[r, base + q]
-                    out[row, nx + ch * n + q] = s
+                    out[row, q] = sj[q]
+            for q in range(n * m):
+                out[row, nx + q] = sj[n + q]
             if with_d:
+                for q in range(p * m):
+                    out[row, nx + n * m + q] = 0.0
                 for ch in range(m):
                     out[row, nx + n * m + j * m + ch] = u[k, ch] / su[ch]
             out[row, ncol - 1] = y[k, j] / sy[j]
-        # advance: state <- A state + [0 | I u_1 | ... | I u_m]
-        for q in range(w):
-            for r in range(n):
-                s = 0.0
-                for t in range(n):
-                    s += a[r, t] * state[t, q]
-                tmp[r] = s
-            for r in range(n):
-                state[r, q] = tmp[r]
-        for ch in range(m):
-            base = n * (ch + 1)
-            uk = u[k, ch] / su[ch]
-            for r in range(n):
-                state[r, base + r] += uk
+            # advance every block of row j by A^T; eta^{jc} also takes c_j u_c(k)
+            for blk in range(m + 1):
+                v = sj[blk * n : (blk + 1) * n]
+                for r in range(n):
+                    acc = 0.0
+                    for t in range(n):
+                        acc += at[r, t] * v[t]
+                    tmp[r] = acc
+                if blk == 0:
+                    for r in range(n):
+                        v[r] = tmp[r]
+                else:
+                    uk = u[k, blk - 1] / su[blk - 1]
+                    for r in range(n):
+                        v[r] = tmp[r] + c[j, r] * uk
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,19 +140,19 @@ def fit_bdx0(
         )
     nth = n * m + (p * m if feedthrough else 0)
     nx = n if estimate_x0 else 0
-    a, c, su, sy = _f64(a, c, u_scale, y_scale)
+    at, c, su, sy = _f64(a.T, c, u_scale, y_scale)
     joint = RAccumulator(nth + 1)
     x0_parts: list[np.ndarray] = []
     rows_per_chunk = max(1, chunk_samples // p)
     for run in runs:
         acc = RAccumulator(nx + nth + 1) if estimate_x0 else joint
-        state = np.zeros((n, n * (m + 1)))
-        state[:, :n] = np.eye(n)
+        state = np.zeros((p, n * (m + 1)))
+        state[:, :n] = c
         buf = np.empty((rows_per_chunk * p, nx + nth + 1), order="F")
         for k0 in range(0, run.n_samples, rows_per_chunk):
             rows = min(rows_per_chunk, run.n_samples - k0)
             out = buf if rows == rows_per_chunk else np.empty((rows * p, buf.shape[1]), order="F")
-            _regressors(a, c, run.u, run.y, k0, su, sy, state, estimate_x0, feedthrough, out)
+            _regressors(at, c, run.u, run.y, k0, su, sy, state, estimate_x0, feedthrough, out)
             acc.add(out)
         if estimate_x0:
             r = acc.r
