@@ -242,11 +242,14 @@ class HankelFactor:
     u_scale: np.ndarray
     y_scale: np.ndarray
 
-    def input_rank_ratio(self) -> float:
-        """Smallest over largest singular value of the inputs' part ``[U_f; U_p]`` of R."""
+    def input_rank(self, rtol: float) -> int:
+        """Numerical rank of the inputs' block-Hankel matrix ``[U_f; U_p]`` (of ``2 i m``).
+
+        Singular values of its part of R above ``rtol`` times the largest are counted.
+        """
         k = 2 * self.block_rows * self.n_inputs
         s = np.linalg.svd(self.r[:k, :k], compute_uv=False)
-        return float(s[-1] / s[0]) if s[0] > 0.0 else 0.0
+        return int(np.count_nonzero(s > rtol * s[0])) if s[0] > 0.0 else 0
 
 
 def channel_rms(runs: Sequence[IORun]) -> tuple[np.ndarray, np.ndarray]:
