@@ -192,13 +192,13 @@ def _projection(f: HankelFactor, weighting: str, rcond: float) -> _Projection:
     l21 = lo[uf:wp_end, :uf]
     l22 = lo[uf:wp_end, uf:wp_end]
     l32 = lo[wp_end:, uf:wp_end]
-    u2, s2, vt2 = _pinv_parts(l22, rcond)
-    l32_l22p = (l32 @ vt2.T) / s2 @ u2.T  # L32 L22^+
+    u2, s2, vt2 = _pinv_parts(l22, rcond)  # L22^+ = V_r S_r^-1 U_r^T
+    l32v = l32 @ vt2.T
     w1_pinv = None
     if weighting == "n4sid":
-        mat = l32_l22p @ np.hstack([l21, l22])
+        mat = (l32v / s2) @ (u2.T @ np.hstack([l21, l22]))
     else:
-        mat = l32_l22p @ l22  # W2 = Pi_{U_f}^perp
+        mat = l32v @ vt2  # L32 L22^+ L22 (W2 = Pi_{U_f}^perp), without S^-1 S
         if weighting == "cva":
             u3, s3, _ = _pinv_parts(lo[wp_end:, uf:], rcond)  # [L32 L33] = Y_f Pi^perp
             mat = (u3 / s3) @ (u3.T @ mat)  # W1 = (Y_f Pi Y_f^T)^{-1/2}
