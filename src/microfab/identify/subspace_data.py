@@ -14,13 +14,17 @@ one chunk of rows:
 * `RAccumulator`: that incremental QR, also used for the least squares of B, D and x0.
 * `check_runs`: one or several records (`IORun`) as float64 arrays, checked.
 
-BLAS/LAPACK run on one thread (`microfab.core.threads.one_blas_thread`): a thread team
-gains nothing on a 2-core machine for these tall-skinny factorisations (on a busy one it
-made a QR 15x slower), and the result then does not depend on the core count.
+BLAS/LAPACK run on one thread each (`microfab.core.threads.one_blas_thread`): an OpenBLAS
+thread team on these tall-skinny factorisations made them 15x slower on the busy 2-core
+machine. Instead ``workers`` threads (default 2) each fold a contiguous share of the chunks
+into their own R (``dtpqrt`` and the numba fill release the GIL) and the Rs are folded in
+order: the answer depends on ``workers`` in its rounding, not on the core count.
 
-Memory: the records themselves, plus one chunk of Hankel rows (``chunk_samples x
-2 i (m + p)`` floats: 21 MB at 16 384 samples, 20 block rows, 2 in / 2 out) and the R
-factor; nothing grows with the number of samples.
+Cost: about ``2 N (2 i (m + p))^2`` flops, 6.5 s for 6e6 samples, 10 block rows, 2 in /
+2 out on one core of the project machine (22 s at 20 block rows). Memory: the records
+themselves, plus per worker one chunk of Hankel rows (``chunk_samples x 2 i (m + p)``
+floats: 5 MB at the default 8192 samples, 10 block rows, 2 in / 2 out) and its R; nothing
+grows with the number of samples.
 """
 
 from __future__ import annotations
