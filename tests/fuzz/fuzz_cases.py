@@ -811,9 +811,11 @@ _RENAMES = (
 
 
 @st.composite
-def trial_columns(draw: st.DrawFn, second: bool) -> tuple[dict[str, Any], str]:
-    """Trial columns with 0 to 3 defects."""
-    cols: dict[str, Any] = dict(base_trial(second))
+def trial_columns(
+    draw: st.DrawFn, second: bool, base: dict[str, Any] | None = None
+) -> tuple[dict[str, Any], str]:
+    """Trial columns (or the columns ``base``) with 0 to 3 defects."""
+    cols: dict[str, Any] = dict(base_trial(second) if base is None else base)
     notes = []
     for _ in range(draw(st.integers(0, 3))):
         op = draw(
@@ -1091,3 +1093,8 @@ KINDS: dict[str, tuple[Callable[[], st.SearchStrategy[Case]], float]] = {
     "droplet": (droplet_case, 0.07),
     "frames": (frames_case, 0.05),
 }
+
+# the seed 003 part 2 commands' kinds live in their own module (this one is long enough)
+from fuzz_slm import SLM_KINDS  # noqa: E402
+
+KINDS.update(SLM_KINDS)
