@@ -70,6 +70,7 @@ from microfab.trajectory.base import Trajectory
 
 __all__ = [
     "DEFAULT_V_TOL",
+    "MAX_TAPS",
     "SHAPERS",
     "SHAPER_NAMES",
     "ImpulseShaper",
@@ -86,6 +87,10 @@ DEFAULT_V_TOL = 0.05
 
 _CONTINUATION_STEP = 0.05  # largest damping step of the numerical continuation
 _SOLVE_TOL = 1e-10  # largest constraint residual accepted from the numerical solve
+#: Most FIR taps `ImpulseShaper.taps` builds (assumed 2**24: 168 s at the seed's 10 µs, far
+#: longer than any shaper of a mode that sampling can see; a shorter dt or a mode near
+#: 0 Hz would otherwise allocate without bound).
+MAX_TAPS = 2**24
 
 
 def _df(damping: float) -> float:
@@ -384,6 +389,11 @@ class ImpulseShaper:
         """
         check_positive("dt", dt, "s")
         q = self.times / dt
+        if not q[-1] < MAX_TAPS:
+            raise ValueError(
+                f"the {self.name} shaper lasts {self.duration:g} s, {q[-1]:.4g} samples of dt = "
+                f"{dt:g} s: more than {MAX_TAPS} taps; use a longer dt or a faster mode"
+            )
         A = self.amplitudes / self.amplitudes.sum()
         if method == "round":
             k = np.rint(q).astype(int)
