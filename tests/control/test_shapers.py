@@ -199,5 +199,7 @@ def test_taps_refuse_a_shaper_of_more_than_max_taps_samples():
         slow.taps(1e-5)
     with pytest.raises(ValueError, match="more than"):
         design_shaper("zv", 3000.0, 0.1).taps(8e-294)
+    with pytest.raises(ValueError, match=r"= 4\.94066e-324 Hz is too slow: a period of"):
+        design_shaper("2hump_ei", 5e-324, 0.1)
     # a shaper of 1000 samples, well below the bound, is built
     assert design_shaper("zv", 1.0, 0.0).taps(0.5e-3).size == 1001

@@ -267,7 +267,7 @@ def _design_classic(
     freq_range: str | None,
 ) -> tuple[Shaper, Table]:
     from microfab.control.shaper_fit import ShaperFitConfig, fit_shaper
-    from microfab.control.shapers import design_shaper
+    from microfab.control.shapers import MAX_TAPS, design_shaper
 
     sources = [n for n, v in (("--freq-hz", freq_hz), ("--frf", frf), ("--psd", psd)) if v]
     if len(sources) != 1:
@@ -283,6 +283,11 @@ def _design_classic(
         if freq_range is not None:
             fail("--freq-range applies to an auto-fit (--frf or --psd), not to --freq-hz")
         check_option("--freq-hz", freq_hz, "Hz")
+        if freq_hz * dt * MAX_TAPS < 1.0:
+            fail(
+                f"--freq-hz {freq_hz:g} Hz is too slow for --dt {dt:g} s: one period of the mode "
+                f"is more than {MAX_TAPS} samples, the most a shaper may last"
+            )
         if freq_hz >= nyquist:
             fail(
                 f"--freq-hz {freq_hz:g} Hz lies at or above the Nyquist frequency {nyquist:g} "

@@ -91,6 +91,9 @@ _SOLVE_TOL = 1e-10  # largest constraint residual accepted from the numerical so
 #: longer than any shaper of a mode that sampling can see; a shorter dt or a mode near
 #: 0 Hz would otherwise allocate without bound).
 MAX_TAPS = 2**24
+#: Longest period of a mode `design_shaper` accepts, s (assumed 1e200 s: far beyond any
+#: mode, and the impulse times, a few periods, stay finite in float64).
+_MAX_PERIOD_S = 1e200
 
 
 def _df(damping: float) -> float:
@@ -603,6 +606,11 @@ def design_shaper(
         raise ValueError(f"unknown shaper {name!r}; known: {', '.join(SHAPER_NAMES)}")
     form = SHAPERS[name]
     check_positive("freq_hz", freq_hz, "Hz")
+    if not 1.0 / freq_hz < _MAX_PERIOD_S:
+        raise ValueError(
+            f"freq_hz = {freq_hz:g} Hz is too slow: a period of more than {_MAX_PERIOD_S:g} s "
+            "overflows the impulse times"
+        )
     check_in_range("damping", damping, 0.0, 1.0, high_closed=False)
     check_in_range("v_tol", v_tol, 0.0, 0.25, "(fraction)", low_closed=False)
     check_positive("closed_form_tol", closed_form_tol)
