@@ -68,6 +68,12 @@ def test_scan_time_with_and_without_a_shaper(model_file: Path, tmp_path: Path, s
         (["SOURCE=lattice:size=1"], "unknown lattice key 'size'; known: z, radius"),
         (["SOURCE=spiral"], "1 of its 1 contours are open: #0"),
         (["SOURCE=lattice:radius=0.1"], "outside the scanner's field"),
+        # fuzz: each of these ran out of memory or for minutes instead of refusing
+        (["--sky-writing", "1", "--sky-prev", "1000000000"], "--sky-prev must be at most 1000"),
+        (["--sky-writing", "2", "--sky-post", "1001"], "--sky-post must be at most 1000 ticks"),
+        (["--hatch-um", "1e-3"], "--hatch-um must be at least one bit of the scanner, 1.5 µm"),
+        (["SOURCE=lattice:radius=1e-3,hatch=1e-12"], "finer than one bit of the scanner"),
+        (["SOURCE=lattice:radius=1e-3,strut=1e-9"], "strut nodes in the outline, more than"),
         (["SHAPER=model"], "not a shaper file of format 1"),
         (["SHAPER=dt"], "designed for dt = 2e-05 s"),
     ],

@@ -340,10 +340,11 @@ _LATTICE_VALUES = {
     "radius": (("1e-3", "2e-3", "3e-3", "5e-4", "1e-5"),
                ("0", "-1e-3", "nan", "inf", "0.1", "1e308", "0.05", "", "1e-300")),
     "strut": (("250e-6", "200e-6", "400e-6", "1e-3", "0.01"),
-              ("0", "-1", "nan", "inf", "1e308", "1e-300", "1e-9")),
+              ("0", "-1", "nan", "inf", "1e308", "1e-300", "1e-9", "1e-6")),
     "fraction": (("0.05", "0.1", "0.2", "0.02"),
                  ("0", "1", "1.5", "-0.1", "nan", "0.9", "0.99", "1e-9")),
-    "hatch": (("1e-4", "5e-5", "2e-4", "1e-3"), ("0", "-1e-4", "nan", "inf", "1e308", "1e-12")),
+    "hatch": (("1e-4", "5e-5", "2e-4", "1e-3"),
+              ("0", "-1e-4", "nan", "inf", "1e308", "1e-12", "1e-6")),
     "sides": (("8", "16", "32", "12"), ("0", "4", "6", "7.5", "-8", "nan", "1e9", "1e308", "x")),
 }  # fmt: skip
 _CHEAP_RADIUS = 3e-3
@@ -461,10 +462,13 @@ def slm_case(draw: st.DrawFn) -> Case:
         "--laser-on-delay-us": delay,
         "--laser-off-delay-us": delay,
         "--sky-writing": st.sampled_from(("0", "1", "2", "3", "4", "-1")),
-        "--sky-prev": st.sampled_from(("0", "5", "50", "-1", "100000", "1000000000", "x")),
-        "--sky-post": st.sampled_from(("0", "5", "50", "-1", "100000", "1000000000")),
+        "--sky-prev": st.sampled_from(("0", "5", "50", "1000", "-1", "1001", "1000000000", "x")),
+        "--sky-post": st.sampled_from(("0", "5", "50", "1000", "-1", "100000", "1000000000")),
         "--tolerance-pct": num_text(st.floats(0.5, 10.0)),
-        "--hatch-um": st.one_of(num_text(st.floats(50.0, 300.0)).filter(_cheap_hatch)),
+        "--hatch-um": st.one_of(
+            num_text(st.floats(50.0, 300.0)).filter(_cheap_hatch),
+            st.sampled_from(("1e-3", "1.4", "1e-300")),
+        ),
         "--hatch-angle-deg": num_text(st.floats(-180.0, 180.0)),
     }
     flags = ("--variable-polygon", "--no-contours", "--naive-jump-delay", "--mirror-mode")
@@ -502,7 +506,7 @@ def _cheap_hatch(text: str) -> bool:
         x = float(text)
     except ValueError:
         return True
-    return not (0.0 < x < 20.0)
+    return not (1.5 <= x < 20.0)  # below one bit (1.5 µm) is refused
 
 
 # --------------------------------------------------------------------------- table
