@@ -56,6 +56,7 @@ def test_shaper_design_inverse(model_file: Path, tmp_path: Path):
         (["MODEL=none"], "--kind inverse needs MODEL"),
         (["MODEL=missing"], "model file not found"),
         (["MODEL=shaper"], "unknown key 'kind' in the model"),
+        (["MODEL=deep"], "not a model JSON file (nested too deeply)"),  # fuzz: RecursionError
     ],
 )
 def test_shaper_design_inverse_refusals(
@@ -75,6 +76,8 @@ def test_shaper_design_inverse_refusals(
             path.write_text(json.dumps(rhp.to_dict()))
         elif which == "shaper":
             path.write_text(json.dumps({"format": 1, "kind": "impulse"}))
+        elif which == "deep":
+            path.write_text("[" * 100_000)
         model = [] if which == "none" else [str(path)]
     out = tmp_path / "s.json"
     res = runner.invoke(app, ["shaper", "design", *model, *extra, "--out", str(out)])

@@ -75,6 +75,7 @@ def test_scan_time_with_and_without_a_shaper(model_file: Path, tmp_path: Path, s
         (["SOURCE=lattice:radius=1e-3,hatch=1e-12"], "finer than one bit of the scanner"),
         (["SOURCE=lattice:radius=1e-3,strut=1e-9"], "strut nodes in the outline, more than"),
         (["SHAPER=model"], "not a shaper file of format 1"),
+        (["SHAPER=deep"], "not a shaper file: its JSON is nested too deeply"),  # fuzz
         (["SHAPER=dt"], "designed for dt = 2e-05 s"),
     ],
 )
@@ -87,6 +88,9 @@ def test_scan_time_refusals(
             source = a.split("=", 1)[1]
         elif a == "SHAPER=model":
             argv += ["--shaper", str(model_file)]
+        elif a == "SHAPER=deep":
+            (tmp_path / "deep.json").write_text('{"a":' * 100_000)
+            argv += ["--shaper", str(tmp_path / "deep.json")]
         elif a == "SHAPER=dt":
             sh = tmp_path / "dt.json"
             r = runner.invoke(app, ["shaper", "design", str(model_file), "--dt", "2e-5",

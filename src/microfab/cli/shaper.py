@@ -58,6 +58,8 @@ def _read_model(path: Path) -> TFModel:
         fail(f"model file not found: {path}")
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         fail(f"{path}: not a model JSON file ({exc})")
+    except RecursionError:
+        fail(f"{path}: not a model JSON file (nested too deeply)")
     except ValueError as exc:
         fail(f"{path}: {exc}")
 
