@@ -73,7 +73,9 @@ def test_scan_time_with_and_without_a_shaper(model_file: Path, tmp_path: Path, s
         (["--sky-writing", "2", "--sky-post", "1001"], "--sky-post must be at most 1000 ticks"),
         (["--hatch-um", "1e-3"], "--hatch-um must be at least one bit of the scanner, 1.5 µm"),
         (["SOURCE=lattice:radius=1e-3,hatch=1e-12"], "finer than one bit of the scanner"),
-        (["SOURCE=lattice:radius=1e-3,strut=1e-9"], "strut nodes in the outline, more than"),
+        (["SOURCE=lattice:radius=1e-3,strut=1e-9"], "strut=1e-09 m is finer than one bit"),
+        (["SOURCE=lattice:radius=3e-3,strut=1e-5"], "strut nodes in the outline, more than 5000"),
+        (["SOURCE=lattice:strut=1e308"], "strut_m = 1e+308 m is too large"),  # OverflowError
         (["SHAPER=model"], "not a shaper file of format 1"),
         (["SHAPER=deep"], "not a shaper file: its JSON is nested too deeply"),  # fuzz
         (["SHAPER=dt"], "designed for dt = 2e-05 s"),

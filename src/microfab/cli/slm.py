@@ -34,9 +34,10 @@ _MAX_DELAY_US = 1e6  # a delay of more than 1 s is a typo (and overflows the tic
 #: Longest sky-writing run-in or run-out, ticks (assumed 1000 = 10 ms: ten times the
 #: twin's settling after a jump, ~0.9 ms; longer serves nothing and is simulated tick by tick).
 _MAX_SKY_TICKS = 1000
-#: Most strut nodes of a lattice layer within its outline (assumed 1e5: 200 times the
-#: default part's ~470; more is a mistaken strut or fraction and builds for minutes).
-_MAX_LATTICE_NODES = 1e5
+#: Most strut nodes of a lattice layer within its outline (assumed 5000: ten times the
+#: default part's ~470, more than the seed's strut and fraction fit in the field; more is a
+#: mistaken strut or fraction, and 20 000 took minutes).
+_MAX_LATTICE_NODES = 5000.0
 _D = RTCDelays()  # the library's defaults are the options' defaults
 
 
@@ -168,6 +169,9 @@ def scan_time_cmd(
         if spec.outline_radius_m > field_m:
             fail(f"{source}: the outline radius {spec.outline_radius_m * 1e3:.4g} mm reaches "
                  f"outside the scanner's field of ±{field_m * 1e3:.4g} mm")  # fmt: skip
+        if spec.strut_m < bit_m:
+            fail(f"{source}: strut={spec.strut_m:g} m is finer than one bit of the "
+                 f"scanner, {bit_m:g} m")  # fmt: skip
         if spec.hatch_spacing_m < bit_m:
             fail(f"{source}: hatch={spec.hatch_spacing_m:g} m is finer than one bit of the "
                  f"scanner, {bit_m:g} m")  # fmt: skip
