@@ -24,6 +24,9 @@ frames    camera frames (PNG, TIFF: cut, junk, sizes that        ``droplet analy
           differ, noise) and their ``frames.json``
 ========  =====================================================  ==========================
 
+The seed 003 part 2 kinds (``identify-chirp``, ``shaper-design``, ``slm-scan-time``) are
+in `fuzz_slm`, registered in `KINDS` at the end of this module.
+
 Accepted cases are kept cheap: droplet durations that pass are a few µs, trajectory grids
 small.
 """

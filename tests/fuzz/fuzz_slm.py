@@ -35,7 +35,6 @@ from typing import Any
 import numpy as np
 from fuzz_cases import (
     SENTINEL,
-    _csv,
     _serialise,
     junk_bytes,
     mutated,
@@ -325,7 +324,7 @@ def shaper_case(draw: st.DrawFn) -> Case:
             notes.append(f"trace {note}")
         if src == "psd":
             cols, note = draw(trial_columns(second=False, base=_psd_cols()))
-            data = _csv({k: np.ravel(np.real(np.asarray(v))) for k, v in cols.items()})
+            data = _serialise(cols, ".csv", 0)
             files.append(("psd.csv", data))
             argv += ["--psd", "psd.csv"]
             notes.append(f"psd {note}")

@@ -32,9 +32,9 @@ SUBSET = {
     "droplet": 60,
     "frames": 50,
     # seed 003 part 2 (fuzz_slm): a run accepted costs 0.1 to 1 s, so a few each
-    "identify-chirp": 8,
-    "shaper-design": 8,
-    "slm-scan-time": 8,
+    "identify-chirp": 15,
+    "shaper-design": 15,
+    "slm-scan-time": 15,
 }
 
 
