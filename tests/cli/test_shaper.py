@@ -44,6 +44,10 @@ def test_shaper_design_inverse(model_file: Path, tmp_path: Path):
         (["--poles-hz", "800"], "--poles-hz = 800.0 Hz (5026.55 rad/s) is not faster than"),
         (["--dt", "1e-3"], "above the Nyquist frequency 500 Hz"),
         (["--dt", "0"], "--dt must be more than 0 s"),
+        # fuzz: a dt of 1e-300 s crashed the table, 1 µs made the settling search run
+        # out of memory (the rounded ZOH filter never settles to 1e-9)
+        (["--dt", "1e-300"], "--dt must be at least 1e-07 s"),
+        (["--dt", "1e-6"], "does not settle within 1e-09 of its static gain"),
         (["--order", "2"], "--order = 2 is below the model's relative degree 3"),
         (["--discretization", "tustin"], "discretization must be 'zoh'"),
         (["--kind", "zz"], "--kind must be one of inverse, zv, mzv, zvd, ei"),
@@ -52,6 +56,7 @@ def test_shaper_design_inverse(model_file: Path, tmp_path: Path):
         (["MODEL=none"], "--kind inverse needs MODEL"),
         (["MODEL=missing"], "model file not found"),
         (["MODEL=shaper"], "unknown key 'kind' in the model"),
+        (["MODEL=deep"], "not a model JSON file (nested too deeply)"),  # fuzz: RecursionError
     ],
 )
 def test_shaper_design_inverse_refusals(
@@ -71,6 +76,8 @@ def test_shaper_design_inverse_refusals(
             path.write_text(json.dumps(rhp.to_dict()))
         elif which == "shaper":
             path.write_text(json.dumps({"format": 1, "kind": "impulse"}))
+        elif which == "deep":
+            path.write_text("[" * 100_000)
         model = [] if which == "none" else [str(path)]
     out = tmp_path / "s.json"
     res = runner.invoke(app, ["shaper", "design", *model, *extra, "--out", str(out)])
@@ -140,6 +147,11 @@ def test_shaper_design_classic_for_a_given_mode(tmp_path: Path):
         (["--freq-hz", "60000"], "at or above the Nyquist frequency 50000 Hz of --dt"),
         (["--freq-hz", "3000", "--damping", "1.5"], "--damping must be at least 0"),
         (["--freq-hz", "-3"], "--freq-hz must be more than 0 Hz"),
+        # fuzz: taps of a shaper lasting years, or at dt 8e-294 s (negative dimensions)
+        (["--freq-hz", "1e-9"], "is too slow for --dt 1e-05 s: one period of the mode"),
+        (["--freq-hz", "3000", "--dt", "8e-294"], "--dt must be at least 1e-07 s"),
+        # fuzz: a mode of 5e-324 Hz overflowed the impulse times with warnings on stderr
+        (["--freq-hz", "5e-324"], "is too slow for --dt 1e-05 s: one period of the mode"),
         (["--freq-hz", "3000", "MODEL"], "MODEL serves a classic kind only as the baseline"),
         (["--psd", "PSD_BAD"], "no column 'psd'"),
         (["--frf", "FRF", "--freq-range", "9:3"], "--freq-range must look like LOW:HIGH"),

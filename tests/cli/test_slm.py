@@ -68,7 +68,16 @@ def test_scan_time_with_and_without_a_shaper(model_file: Path, tmp_path: Path, s
         (["SOURCE=lattice:size=1"], "unknown lattice key 'size'; known: z, radius"),
         (["SOURCE=spiral"], "1 of its 1 contours are open: #0"),
         (["SOURCE=lattice:radius=0.1"], "outside the scanner's field"),
+        # fuzz: each of these ran out of memory or for minutes instead of refusing
+        (["--sky-writing", "1", "--sky-prev", "1000000000"], "--sky-prev must be at most 1000"),
+        (["--sky-writing", "2", "--sky-post", "1001"], "--sky-post must be at most 1000 ticks"),
+        (["--hatch-um", "1e-3"], "--hatch-um must be at least one bit of the scanner, 1.5 µm"),
+        (["SOURCE=lattice:radius=1e-3,hatch=1e-12"], "finer than one bit of the scanner"),
+        (["SOURCE=lattice:radius=1e-3,strut=1e-9"], "strut=1e-09 m is finer than one bit"),
+        (["SOURCE=lattice:radius=3e-3,strut=1e-5"], "strut nodes in the outline, more than 5000"),
+        (["SOURCE=lattice:strut=1e308"], "strut_m = 1e+308 m is too large"),  # OverflowError
         (["SHAPER=model"], "not a shaper file of format 1"),
+        (["SHAPER=deep"], "not a shaper file: its JSON is nested too deeply"),  # fuzz
         (["SHAPER=dt"], "designed for dt = 2e-05 s"),
     ],
 )
@@ -81,6 +90,9 @@ def test_scan_time_refusals(
             source = a.split("=", 1)[1]
         elif a == "SHAPER=model":
             argv += ["--shaper", str(model_file)]
+        elif a == "SHAPER=deep":
+            (tmp_path / "deep.json").write_text('{"a":' * 100_000)
+            argv += ["--shaper", str(tmp_path / "deep.json")]
         elif a == "SHAPER=dt":
             sh = tmp_path / "dt.json"
             r = runner.invoke(app, ["shaper", "design", str(model_file), "--dt", "2e-5",

@@ -10,6 +10,7 @@ import scipy.optimize
 
 from microfab.control.base import Feedforward
 from microfab.control.shapers import (
+    MAX_TAPS,
     SHAPER_NAMES,
     SHAPERS,
     ImpulseShaper,
@@ -189,3 +190,16 @@ def test_registry_and_refusals():
         name="x", freq_hz=F, damping=0.0, amplitudes=[1, 1, -0.5], times=[0, 1e-4, 2e-4]
     )
     assert own.command_peak == pytest.approx(2.0 / 1.5)
+
+
+def test_taps_refuse_a_shaper_of_more_than_max_taps_samples():
+    # fuzz: a mode of 1e-9 Hz asked for 5e13 taps; dt = 8e-294 s overflowed to a negative size
+    slow = design_shaper("zv", 1e-9, 0.1)
+    with pytest.raises(ValueError, match=f"more than {MAX_TAPS} taps; use a longer dt"):
+        slow.taps(1e-5)
+    with pytest.raises(ValueError, match="more than"):
+        design_shaper("zv", 3000.0, 0.1).taps(8e-294)
+    with pytest.raises(ValueError, match=r"= 4\.94066e-324 Hz is too slow: a period of"):
+        design_shaper("2hump_ei", 5e-324, 0.1)
+    # a shaper of 1000 samples, well below the bound, is built
+    assert design_shaper("zv", 1.0, 0.0).taps(0.5e-3).size == 1001

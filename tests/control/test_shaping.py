@@ -243,3 +243,12 @@ def test_config_refusals():
         InverseShaperConfig(discretization="tustin")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="order"):
         InverseShaperConfig(order=0)
+
+
+def test_tail_samples_refuses_a_filter_that_never_settles():
+    # fuzz: at dt = 1 µs the rounded ZOH filter settles 1e-8 off its static gain, and the
+    # search for the settled tail doubled its length until memory ran out
+    fine = design_inverse_shaper(G, InverseShaperConfig(dt=1e-6))
+    with pytest.raises(ValueError, match=r"does not settle within 1e-09 .* use a longer dt"):
+        fine.tail_samples()
+    assert 0 < design_inverse_shaper(G, InverseShaperConfig(dt=DT)).tail_samples() < 1000

@@ -24,6 +24,9 @@ frames    camera frames (PNG, TIFF: cut, junk, sizes that        ``droplet analy
           differ, noise) and their ``frames.json``
 ========  =====================================================  ==========================
 
+The seed 003 part 2 kinds (``identify-chirp``, ``shaper-design``, ``slm-scan-time``) are
+in `fuzz_slm`, registered in `KINDS` at the end of this module.
+
 Accepted cases are kept cheap: droplet durations that pass are a few µs, trajectory grids
 small.
 """
@@ -811,9 +814,11 @@ _RENAMES = (
 
 
 @st.composite
-def trial_columns(draw: st.DrawFn, second: bool) -> tuple[dict[str, Any], str]:
-    """Trial columns with 0 to 3 defects."""
-    cols: dict[str, Any] = dict(base_trial(second))
+def trial_columns(
+    draw: st.DrawFn, second: bool, base: dict[str, Any] | None = None
+) -> tuple[dict[str, Any], str]:
+    """Trial columns (or the columns ``base``) with 0 to 3 defects."""
+    cols: dict[str, Any] = dict(base_trial(second) if base is None else base)
     notes = []
     for _ in range(draw(st.integers(0, 3))):
         op = draw(
@@ -1091,3 +1096,8 @@ KINDS: dict[str, tuple[Callable[[], st.SearchStrategy[Case]], float]] = {
     "droplet": (droplet_case, 0.07),
     "frames": (frames_case, 0.05),
 }
+
+# the seed 003 part 2 commands' kinds live in their own module (this one is long enough)
+from fuzz_slm import SLM_KINDS  # noqa: E402
+
+KINDS.update(SLM_KINDS)

@@ -31,6 +31,10 @@ SUBSET = {
     "trial": 270,
     "droplet": 60,
     "frames": 50,
+    # seed 003 part 2 (fuzz_slm): a run accepted costs 0.1 to 1 s, so a few each
+    "identify-chirp": 15,
+    "shaper-design": 15,
+    "slm-scan-time": 15,
 }
 
 
@@ -49,7 +53,8 @@ def _fuzz_test(kind: str) -> Callable[[], None]:
             f"{out.outcome}: {case.describe()}\n{out.detail}\nchanged: {out.changed}"
         )
 
-    test.__name__ = test.__qualname__ = f"test_{kind}_inputs_are_accepted_or_refused_cleanly"
+    name = kind.replace("-", "_")
+    test.__name__ = test.__qualname__ = f"test_{name}_inputs_are_accepted_or_refused_cleanly"
     return test
 
 
@@ -62,6 +67,9 @@ test_job = _fuzz_test("job")
 test_trial = _fuzz_test("trial")
 test_droplet = _fuzz_test("droplet")
 test_frames = _fuzz_test("frames")
+test_identify_chirp = _fuzz_test("identify-chirp")
+test_shaper_design = _fuzz_test("shaper-design")
+test_slm_scan_time = _fuzz_test("slm-scan-time")
 
 
 def test_the_subset_covers_every_kind_with_about_1000_cases() -> None:

@@ -44,6 +44,9 @@ shaper_app = typer.Typer(
 
 #: How a library message names a value and how the command line does.
 _INVERSE_NAMES = {"pole_hz": "--poles-hz", "order": "--order", "dt =": "--dt ="}
+#: Shortest --dt, s (assumed 0.1 µs: a hundred times the RTC's 100 kHz rate; below it a
+#: shaper's coefficients lose their precision and its taps run into the millions).
+_MIN_DT_S = 1e-7
 
 
 def _read_model(path: Path) -> TFModel:
@@ -55,6 +58,8 @@ def _read_model(path: Path) -> TFModel:
         fail(f"model file not found: {path}")
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         fail(f"{path}: not a model JSON file ({exc})")
+    except RecursionError:
+        fail(f"{path}: not a model JSON file (nested too deeply)")
     except ValueError as exc:
         fail(f"{path}: {exc}")
 
@@ -118,7 +123,9 @@ def _design_inverse(
             dt=dt,
             discretization=discretization,  # type: ignore[arg-type]
         )
-        return design_inverse_shaper((model.num, model.den), cfg)
+        shaper = design_inverse_shaper((model.num, model.den), cfg)
+        shaper.tail_samples()  # refuses a filter whose rounded coefficients never settle
+        return shaper
     except ValueError as exc:
         fail(f"{model_path}: {renamed(str(exc), _INVERSE_NAMES)}")
 
@@ -227,6 +234,8 @@ def design_cmd(
     if kind not in kinds:
         fail(f"--kind must be one of {', '.join(kinds)}, got {kind!r}")
     check_option("--dt", dt, "s")
+    if dt < _MIN_DT_S:
+        fail(f"--dt must be at least {_MIN_DT_S:g} s, got {dt:g} s (a sample rate above 10 MHz)")
     classic = (
         ("--freq-hz", freq_hz),
         ("--damping", damping),
@@ -260,7 +269,7 @@ def _design_classic(
     freq_range: str | None,
 ) -> tuple[Shaper, Table]:
     from microfab.control.shaper_fit import ShaperFitConfig, fit_shaper
-    from microfab.control.shapers import design_shaper
+    from microfab.control.shapers import MAX_TAPS, design_shaper
 
     sources = [n for n, v in (("--freq-hz", freq_hz), ("--frf", frf), ("--psd", psd)) if v]
     if len(sources) != 1:
@@ -276,6 +285,11 @@ def _design_classic(
         if freq_range is not None:
             fail("--freq-range applies to an auto-fit (--frf or --psd), not to --freq-hz")
         check_option("--freq-hz", freq_hz, "Hz")
+        if freq_hz * dt * MAX_TAPS < 1.0:
+            fail(
+                f"--freq-hz {freq_hz:g} Hz is too slow for --dt {dt:g} s: one period of the mode "
+                f"is more than {MAX_TAPS} samples, the most a shaper may last"
+            )
         if freq_hz >= nyquist:
             fail(
                 f"--freq-hz {freq_hz:g} Hz lies at or above the Nyquist frequency {nyquist:g} "
@@ -309,4 +323,8 @@ def _design_classic(
             f"the {kind} shaper's mode {shaper.freq_hz:g} Hz lies at or above the Nyquist "
             f"frequency {nyquist:g} Hz of --dt {dt:g} s: its impulses fall within one sample"
         )
+    try:
+        shaper.taps(dt)  # refuses a shaper of more taps than `MAX_TAPS`
+    except ValueError as exc:
+        fail(renamed(str(exc), {"dt =": "--dt ="}))
     return shaper, _impulse_table(shaper, dt, fit)

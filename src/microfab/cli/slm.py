@@ -10,6 +10,7 @@ Every refusal is one ``error:`` line, exit code 2, and nothing is written.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -30,6 +31,13 @@ slm_app = typer.Typer(
 )
 
 _MAX_DELAY_US = 1e6  # a delay of more than 1 s is a typo (and overflows the tick counts)
+#: Longest sky-writing run-in or run-out, ticks (assumed 1000 = 10 ms: ten times the
+#: twin's settling after a jump, ~0.9 ms; longer serves nothing and is simulated tick by tick).
+_MAX_SKY_TICKS = 1000
+#: Most strut nodes of a lattice layer within its outline (assumed 5000: ten times the
+#: default part's ~470, more than the seed's strut and fraction fit in the field; more is a
+#: mistaken strut or fraction, and 20 000 took minutes).
+_MAX_LATTICE_NODES = 5000.0
 _D = RTCDelays()  # the library's defaults are the options' defaults
 
 
@@ -122,6 +130,10 @@ def scan_time_cmd(
             ticks(option, value * 1e-6)
         except ValueError as exc:
             fail(str(exc))
+    for option, n_ticks in (("--sky-prev", sky_prev), ("--sky-post", sky_post)):
+        if n_ticks > _MAX_SKY_TICKS:
+            fail(f"{option} must be at most {_MAX_SKY_TICKS} ticks ({_MAX_SKY_TICKS * 10} µs), "
+                 f"got {n_ticks}")  # fmt: skip
     try:
         sky = SkyWriting(mode=sky_writing, n_prev=sky_prev, n_post=sky_post)
     except ValueError as exc:
@@ -144,7 +156,11 @@ def scan_time_cmd(
         except (OSError, ValueError) as exc:
             fail(str(exc) if str(shaper) in str(exc) else f"{shaper}: {exc}")
     twin = galvo_slm_twin(mirror_mode=mirror_mode)
-    field_m = twin.config.field_bit * twin.config.bit_size_m
+    bit_m = twin.config.bit_size_m
+    field_m = twin.config.field_bit * bit_m
+    if hatch_um * 1e-6 < bit_m:
+        fail(f"--hatch-um must be at least one bit of the scanner, {bit_m * 1e6:g} µm, got "
+             f"{hatch_um:g} µm")  # fmt: skip
     if source.strip().lower().startswith("lattice:"):  # refused before it is built
         try:
             spec = parse_lattice_source(source)[1]
@@ -153,6 +169,17 @@ def scan_time_cmd(
         if spec.outline_radius_m > field_m:
             fail(f"{source}: the outline radius {spec.outline_radius_m * 1e3:.4g} mm reaches "
                  f"outside the scanner's field of ±{field_m * 1e3:.4g} mm")  # fmt: skip
+        if spec.strut_m < bit_m:
+            fail(f"{source}: strut={spec.strut_m:g} m is finer than one bit of the "
+                 f"scanner, {bit_m:g} m")  # fmt: skip
+        if spec.hatch_spacing_m < bit_m:
+            fail(f"{source}: hatch={spec.hatch_spacing_m:g} m is finer than one bit of the "
+                 f"scanner, {bit_m:g} m")  # fmt: skip
+        nodes = math.pi * (spec.outline_radius_m / spec.cell_m) ** 2
+        if nodes > _MAX_LATTICE_NODES:
+            fail(f"{source}: the cell of {spec.cell_m * 1e6:.4g} µm (strut, fraction) puts "
+                 f"about {nodes:.3g} strut nodes in the outline, more than "
+                 f"{_MAX_LATTICE_NODES:g}: a larger strut or a smaller fraction?")  # fmt: skip
     try:
         path = scan_program(
             source, hatch_spacing_m=hatch_um * 1e-6, hatch_angle_deg=hatch_angle_deg,

@@ -244,7 +244,8 @@ def read_shaper(path: str | os.PathLike[str]) -> Shaper:
     FileNotFoundError
         No such file.
     ValueError
-        Not JSON, or not a valid shaper (see `shaper_from_dict`).
+        Not JSON (or JSON nested too deeply to read), or not a valid shaper (see
+        `shaper_from_dict`).
     """
     p = Path(path)
     try:
@@ -253,6 +254,8 @@ def read_shaper(path: str | os.PathLike[str]) -> Shaper:
         raise FileNotFoundError(f"shaper file not found: {p}") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{p}: not a JSON file ({exc})") from None
+    except RecursionError:
+        raise ValueError(f"{p}: not a shaper file: its JSON is nested too deeply") from None
     try:
         return shaper_from_dict(data)
     except ValueError as exc:

@@ -67,6 +67,7 @@ from microfab.trajectory.base import Trajectory
 
 __all__ = [
     "DEFAULT_V_TOL",
+    "MAX_TAPS",
     "SHAPERS",
     "SHAPER_NAMES",
     "ImpulseShaper",
@@ -80,6 +81,14 @@ ShaperName: TypeAlias = Literal["zv", "zvd", "mzv", "ei", "2hump_ei", "3hump_ei"
 
 #: Vibration tolerance of the EI family: Klipper's 1 / SHAPER_VIBRATION_REDUCTION (= 1/20).
 DEFAULT_V_TOL = 0.05
+
+#: Most FIR taps `ImpulseShaper.taps` builds (assumed 2**24: 168 s at the seed's 10 µs, far
+#: longer than any shaper of a mode that sampling can see; a shorter dt or a mode near
+#: 0 Hz would otherwise allocate without bound).
+MAX_TAPS = 2**24
+#: Longest period of a mode `design_shaper` accepts, s (assumed 1e200 s: far beyond any
+#: mode, and the impulse times, a few periods, stay finite in float64).
+_MAX_PERIOD_S = 1e200
 
 
 def _df(damping: float) -> float:
@@ -378,6 +387,11 @@ class ImpulseShaper:
         """
         check_positive("dt", dt, "s")
         q = self.times / dt
+        if not q[-1] < MAX_TAPS:
+            raise ValueError(
+                f"the {self.name} shaper lasts {self.duration:g} s, {q[-1]:.4g} samples of dt = "
+                f"{dt:g} s: more than {MAX_TAPS} taps; use a longer dt or a faster mode"
+            )
         A = self.amplitudes / self.amplitudes.sum()
         if method == "round":
             k = np.rint(q).astype(int)
@@ -486,6 +500,11 @@ def design_shaper(
         raise ValueError(f"unknown shaper {name!r}; known: {', '.join(SHAPER_NAMES)}")
     form = SHAPERS[name]
     check_positive("freq_hz", freq_hz, "Hz")
+    if not 1.0 / freq_hz < _MAX_PERIOD_S:
+        raise ValueError(
+            f"freq_hz = {freq_hz:g} Hz is too slow: a period of more than {_MAX_PERIOD_S:g} s "
+            "overflows the impulse times"
+        )
     check_in_range("damping", damping, 0.0, 1.0, high_closed=False)
     check_in_range("v_tol", v_tol, 0.0, 0.25, "(fraction)", low_closed=False)
     check_positive("closed_form_tol", closed_form_tol)

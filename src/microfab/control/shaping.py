@@ -113,6 +113,10 @@ __all__ = [
 Discretization: TypeAlias = Literal["zoh", "zpetc"]
 
 _TAIL_TOL = 1e-9  # a shaped command held at its end has settled to this fraction of a step
+#: Most samples `InverseShaper.tail_samples` looks through (assumed 2**22: 42 s at the seed's
+#: 10 µs, far beyond any settling of a stable shaper; a filter whose rounded coefficients
+#: never settle within 1e-9 would otherwise be simulated without end).
+_TAIL_MAX = 2**22
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -371,16 +375,31 @@ class InverseShaper:
         return filter_vibration((self.num, self.den), freq_hz, damping)
 
     def tail_samples(self) -> int:
-        """Samples after which a shaped step stays within 1e-9 of its final value."""
+        """Samples after which a shaped step stays within 1e-9 of its final value.
+
+        Raises
+        ------
+        ValueError
+            The discrete filter does not settle within 1e-9 of its static gain in
+            ``2**22`` samples (or its gain is not finite): its coefficients have lost
+            their precision at this ``dt`` (poles crowded at z = 1).
+        """
         n = 64
-        while True:
+        gain = self.discrete_static_gain
+        while math.isfinite(gain) and n <= _TAIL_MAX:
             y = scipy.signal.lfilter(self.num_d, self.den_d, np.ones(n))
-            out = np.flatnonzero(np.abs(y - self.discrete_static_gain) > _TAIL_TOL)
+            out = np.flatnonzero(~(np.abs(y - gain) <= _TAIL_TOL))
             if out.size == 0:
                 return 0
             if out[-1] < n // 2:
                 return int(out[-1]) + 1
             n *= 2
+        radius = float(np.max(np.abs(np.roots(self.den_d)), initial=0.0))
+        raise ValueError(
+            f"the discrete shaper at dt = {self.dt:g} s does not settle within {_TAIL_TOL:g} "
+            f"of its static gain {gain:.10g} in {_TAIL_MAX} samples (poles up to |z| = "
+            f"{radius:.6g}): its coefficients lose their precision at this dt; use a longer dt"
+        )
 
     def shape(
         self,

@@ -108,3 +108,14 @@ def test_contours_close_on_themselves():
 def test_bad_specs_are_refused(kwargs, match):
     with pytest.raises(ValueError, match=match):
         LatticeSpec(**kwargs)
+
+
+def test_the_cell_scales_with_the_strut_and_a_huge_strut_is_refused():
+    # fuzz: a 1e308 m strut raised OverflowError (r**3) instead of a ValueError
+    a = cubic_cell(PHI, STRUT)
+    assert cubic_cell(PHI, 1e-300) / 1e-300 == pytest.approx(a / STRUT, rel=1e-12)
+    assert cubic_volume_fraction(1e300, 1e299) == pytest.approx(
+        cubic_volume_fraction(10 * STRUT, STRUT), rel=1e-12
+    )
+    with pytest.raises(ValueError, match="strut_m = 1e\\+308 m is too large"):
+        cubic_cell(PHI, 1e308)

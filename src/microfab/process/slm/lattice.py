@@ -73,8 +73,8 @@ def cubic_volume_fraction(cell_m: float, strut_m: float = STRUT_DIAMETER_M) -> f
     a = check_positive("cell_m", cell_m, "m")
     if a < d:
         raise ValueError(f"cell_m must be at least the strut diameter {d} m, got {a} m")
-    r = 0.5 * d
-    return (3.0 * math.pi * r * r * a - 3.0 * _BICYLINDER * r**3 + _TRICYLINDER * r**3) / a**3
+    x = 0.5 * d / a  # r / a: the fraction has no scale (r**3 overflowed for a 1e308 m strut)
+    return 3.0 * math.pi * x * x + (_TRICYLINDER - 3.0 * _BICYLINDER) * x**3
 
 
 def cubic_cell(
@@ -95,12 +95,17 @@ def cubic_cell(
     phi = check_in_range(
         "volume_fraction", volume_fraction, 0.0, top, low_closed=False, high_closed=False
     )
-    hi = d * max(2.0, math.sqrt(3.0 * math.pi / 4.0 / phi) * 1.5)
-    return float(
-        scipy.optimize.brentq(
-            lambda a: cubic_volume_fraction(a, d) - phi, d, hi, xtol=1e-15, rtol=1e-14
-        )
+    # solved for a / d (scale-free), then scaled: a huge strut cannot overflow the bracket
+    hi = max(2.0, math.sqrt(3.0 * math.pi / 4.0 / phi) * 1.5)
+    ratio = scipy.optimize.brentq(
+        lambda c: cubic_volume_fraction(c, 1.0) - phi, 1.0, hi, xtol=1e-13, rtol=1e-14
     )
+    a = float(ratio * d)
+    if not math.isfinite(a):
+        raise ValueError(
+            f"strut_m = {d:g} m is too large: the cell of {ratio:.6g} struts overflows"
+        )
+    return a
 
 
 @dataclass(frozen=True, kw_only=True)
