@@ -352,3 +352,22 @@ def test_nothing_is_written_when_a_run_fails(tmp_path) -> None:
     tampered.write_text("\n".join(text) + "\n")
     with pytest.raises(ValueError, match="SHA-256"):
         read_runs(tmp_path / "x")
+
+
+def test_the_twins_set_point_guard_passes_every_kind_untouched() -> None:
+    # the twin's guard enforces Table I on its own (backward differences, seed 002 §II-B);
+    # a run at Table I's full 40 m/s² must reach the loop unchanged
+    from microfab.plants.xy_stage import xy_stage_twin
+
+    twin = xy_stage_twin()
+    cat = dict(shape_catalogue(3))
+    runs = [
+        *random_runs(2.0, a_max=40.0, seed=2, design=SHORT),
+        *shape_runs([1.5], a_max=40.0, shapes=[("hexagon_r30mm", cat["hexagon_r30mm"])]),
+        *prbs_runs(0.5, amplitudes=(1e-4,), a_max=40.0),
+        chirp_runs(0.5, fade_s=0.1, a_max=40.0)[0],
+    ]
+    for r in runs:
+        guarded, counts = twin.guard(r.command)
+        assert counts.limited == 0, r.name
+        np.testing.assert_array_equal(guarded, r.command)
