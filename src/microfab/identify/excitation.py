@@ -31,7 +31,7 @@ re-exports them and every public name a user needs.
 `ann_dataset` mixes random runs (≈60 %) and shapes for the neural networks (§III-C 2);
 `split_runs` splits whole runs 80/20 (§III-C 2). The seed counts ≈34 "data points per
 parameter"; we count training windows (one per 10 kHz sample after the first 500 ms of a
-run): 34 × 117 322 weights ≈ 4.0×10⁶ training windows need about 505 s of runs
+run): 34 × 117 322 weights ≈ 4.0×10⁶ training windows need about 525 s of runs
 (`ANN_TOTAL_S`). Its ANN generations 2-3 (optimised inputs) are not designed here.
 
 `write_runs` writes the command files a user plays on a real machine (``time``,
@@ -96,9 +96,10 @@ __all__ = [
 ]
 
 #: Total run length for the ANN data, s: seed 002 §III-C 2, ≈34 per weight × 117 322
-#: weights (Fig. 5) = 3.99e6 training windows = 80 % of the windows; plus 500 ms of
-#: history per run (≈12 runs of ≈40 s), at 10 kHz.
-ANN_TOTAL_S = 505.0
+#: weights (Fig. 5) = 3.99e6 training windows = 80 % of the 10 kHz samples, less 500 ms
+#: of history per training run (≈40 of them: ≈12 random, the rest shorter shapes):
+#: (3.99e6 + 40 × 5000) / 0.8 / 10 kHz ≈ 524 s.
+ANN_TOTAL_S = 525.0
 #: The index file `write_runs` writes next to the run files.
 INDEX_FILE = "runs.json"
 _FORMAT = 1
@@ -249,8 +250,9 @@ def split_runs(
     """Split whole runs into training and validation (seed 002 §III-C 2: 80 %/20 %).
 
     Per kind, the runs are visited in a seeded random order and each moves to validation
-    when that brings the kind's validation samples closer to ``validation`` of its
-    samples; no run is cut, and each kind's share is off by at most half its longest run.
+    while the kind's validation samples stay within ``validation`` of its samples; then
+    the shortest run left moves too if that brings the share closer. No run is cut, and
+    each kind's share is off by at most half its shortest run left over.
     Each set keeps the input order.
 
     Returns
@@ -270,11 +272,18 @@ def split_runs(
             continue
         goal = frac * sum(runs[i].n_samples for i in idx)
         got = 0
+        rest = []
         for j in rng.permutation(len(idx)):
             n = runs[idx[j]].n_samples
-            if abs(got + n - goal) < abs(got - goal):  # brings the share closer
+            if got + n <= goal:  # first fit
                 chosen.add(idx[j])
                 got += n
+            else:
+                rest.append(idx[j])
+        if rest:  # then the shortest left over, if it brings the share closer
+            i = min(rest, key=lambda i: runs[i].n_samples)
+            if abs(got + runs[i].n_samples - goal) < goal - got:
+                chosen.add(i)
     train = [r for i, r in enumerate(runs) if i not in chosen]
     valid = [r for i, r in enumerate(runs) if i in chosen]
     return train, valid
