@@ -7,7 +7,7 @@ import pytest
 
 from microfab.core.limits import MachineLimits, check_trajectory
 from microfab.geometry.airfoil import airfoil_path
-from microfab.geometry.shapes import circle, rectangle
+from microfab.geometry.shapes import circle, rectangle, regular_polygon
 from microfab.geometry.text import text_layer
 from microfab.trajectory.cruise import cruise
 
@@ -77,3 +77,17 @@ def test_refuses_bad_arguments() -> None:
         cruise(circle(0.01), LIMITS, speed=0.0, sample_rate_hz=FS)
     with pytest.raises(ValueError, match="sample_rate_hz"):
         cruise(circle(0.01), LIMITS, speed=0.1, sample_rate_hz=-1.0)
+
+
+@pytest.mark.parametrize("turn", [0.1 * k for k in (7, 14, 25)])
+def test_a_corner_within_rounding_of_a_grid_node_keeps_the_time_finite(turn: float) -> None:
+    # these turns put a corner of the hexagon ~1 ulp from a uniform grid node; both
+    # nodes had zero speed and the interval between them took ~1e283 s
+    path = regular_polygon(6, 0.03).rotated(turn)
+    path = path.translated(-path.start)
+    limits = MachineLimits(workspace=LIMITS.workspace, velocity=(1.5, 1.5), acceleration=(5.0, 5.0))
+    traj = cruise(path, limits, speed=0.5, sample_rate_hz=FS)
+    check_trajectory(traj, limits)
+    # six sides from rest to rest at 2.5 m/s² tangential: each at most 2 sqrt(L / a)
+    assert traj.duration < 6 * 2 * np.sqrt(0.03 / 2.5) + 0.01
+    assert traj.meta["corner_stops"] == 5

@@ -1,14 +1,21 @@
 """System identification: chirp experiments, frequency responses, transfer function fits.
 
-``chirp`` (`ChirpDesign`, `Chirp`: a periodic chirp experiment, seed 003 part 2 §1),
+Seed 003 part 2 (the SLM galvo): ``chirp`` (`ChirpDesign`, `Chirp`: a periodic chirp
+experiment, §1),
 ``frf`` (`FRF`; `frf_periodic`, the per-period FFT ratio, and `frf_h1`, H1 with coherence
 via Welch; `estimate_frf` from a `Chirp` and its recorded output), ``model`` (`TFModel`:
 a continuous transfer function with its poles, gain, modes, bandwidth, JSON form and
 python-control form) and ``fit`` (`fit_tf`: Sanathanan-Koerner start, then non-linear
 least squares on the coherence-weighted complex FRF, sampling-aware; `FitResult`).
 
+Seed 002 (the black-box XY stage): ``excitation`` (random, shape, PRBS and chirp runs
+within Table I, the ANN data set and its split), ``subspace`` (chunked MOESP/N4SID/CVA,
+`identify_subspace`, `SubspaceModel`), ``ann`` (per-axis networks of eq. 7; imports torch,
+so it is not imported here).
+
 Layer: above ``trajectory`` and below ``control`` (a shaper designed from a fitted model
-imports this package; this package imports only ``plants``, ``io`` and ``core``).
+imports this package; this package imports ``trajectory``, ``geometry``, ``plants``,
+``io`` and ``core``).
 """
 
 from microfab.identify.chirp import Chirp, ChirpDesign

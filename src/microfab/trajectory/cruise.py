@@ -138,8 +138,19 @@ def cruise(
     if grid_points is None:
         grid_points = int(np.clip(math.ceil(length * sample_rate_hz / speed), 2000, 20_000))
     s = np.linspace(0.0, length, grid_points)
-    stops = path.corners(corner_tol)
+    stops = np.sort(path.corners(corner_tol))
     stops = stops[(stops > 0) & (stops < length)]
+    if stops.size:
+        # a uniform node within rounding of a stop would get zero speed too, and the
+        # interval between the two an absurd time: drop nodes closer than spacing/4
+        j = np.searchsorted(stops, s)
+        gap = np.minimum(
+            np.abs(s - stops[np.maximum(j - 1, 0)]),
+            np.abs(stops[np.minimum(j, stops.size - 1)] - s),
+        )
+        keep = gap > 0.25 * length / (grid_points - 1)
+        keep[[0, -1]] = True
+        s = s[keep]
     s = np.unique(np.concatenate([s, stops]))
     if path.closed:
         s[-1] = np.nextafter(length, 0.0)  # stay on the last segment
