@@ -1,0 +1,252 @@
+"""Seed 002 part 1 on the XY stage twin: excite, record, fit the linear model, evaluate.
+
+The twin (`microfab.plants.xy_stage`) stands in for the ETEL stage: a command record at
+10 kHz (`microfab.identify.excitation.ExcitationRun`) is played from rest at its first
+sample through the compiled loop (`microfab.sim.loop.simulate` with
+`microfab.control.setpoint.SetPoint`: the black box's input is the set-point ρ), then held
+for ``hold_s`` so that the stage settles; the measured position gets the twin's 2 µm
+noise (seed 002 eq. 3) drawn from a seed per run. What comes back is a `StageRecord` per
+run, the same shape as a measured run read from a file.
+
+The linear model (eq. 6) is fitted by `microfab.identify.stage_data`-style steps kept
+here in one function, `fit_linear`:
+
+* **Decimation.** At 10 kHz the slowest modes (≈20 ms, §III-B) sit at ``z ≈ 0.995`` and a
+  four-state subspace fit is ill-conditioned on this data (its ``A`` came out unstable).
+  Input and output are both decimated by ``decimate`` (default 10, to 1 kHz) with the
+  same zero-phase FIR anti-alias filter (`scipy.signal.decimate`, ``ftype="fir"``); the
+  same linear filter on both sides keeps the input-output relation of an LTI model.
+* **Feedthrough.** Eq. (6b) writes ``γ = C z + D ρ``. On the twin, whose built-in loop
+  tracks within microns, ``D = 0`` (MATLAB ``n4sid``'s default) gave σ ≈ 210 µm per axis
+  at order 4, while ``D`` free gives σ near the nonlinear floor; so ``D`` is estimated.
+
+Prediction errors are the model's simulated output minus the measured one, on the
+decimated records, from the identified initial state of each run (`SubspaceModel`); μ and
+σ are their mean and standard deviation per axis (Table II).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.signal
+
+from microfab.control.setpoint import SetPoint
+from microfab.identify.excitation import ExcitationRun, random_runs
+from microfab.identify.subspace import SubspaceConfig, SubspaceModel, identify_subspace
+from microfab.plants.xy_stage import XYStagePlant, xy_stage_twin
+from microfab.sim.loop import LoopState, simulate
+
+__all__ = [
+    "LinearFit",
+    "LinearSettings",
+    "StageRecord",
+    "TwinSettings",
+    "decimate_records",
+    "fit_linear",
+    "play_runs",
+]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TwinSettings:
+    """The twin a study runs on.
+
+    Parameters
+    ----------
+    seed : int
+        Noise seed (run ``k`` uses ``seed + k``).
+    noise : bool
+        The 2 µm output noise of eq. (3).
+    hold_s : float
+        Hold after each command, s (assumed 0.2 s: ten slow time constants of 20 ms).
+    changes : tuple of (str, value)
+        `XYStageParams` fields to replace (e.g. the calibrated magnitudes).
+    """
+
+    seed: int = 0
+    noise: bool = True
+    hold_s: float = 0.2  # assumed, see above
+    changes: tuple[tuple[str, Any], ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.hold_s >= 0:
+            raise ValueError(f"hold_s must be >= 0 s, got {self.hold_s!r}")
+
+    def twin(self) -> XYStagePlant:
+        """The twin of these settings."""
+        return xy_stage_twin(**dict(self.changes))
+
+
+@dataclass(frozen=True, eq=False)
+class StageRecord:
+    """One run on the stage: command and measured position at 10 kHz, m.
+
+    Attributes
+    ----------
+    name : str
+        The run's name.
+    dt : float
+        Sample time, s.
+    command, measured : numpy.ndarray
+        Shape (n, 2): set-points and measured positions (x, y), m.
+    limited : int
+        Samples the twin's set-point guard changed (0 for a command within Table I).
+    """
+
+    name: str
+    dt: float
+    command: np.ndarray
+    measured: np.ndarray
+    limited: int = 0
+
+
+def play_runs(
+    runs: Sequence[ExcitationRun], settings: TwinSettings | None = None
+) -> list[StageRecord]:
+    """Play each run on the twin from rest at its first sample, then hold (module doc)."""
+    s = TwinSettings() if settings is None else settings
+    twin = s.twin()
+    out = []
+    for k, run in enumerate(runs):
+        u = np.asarray(run.command, dtype=float)
+        n_hold = int(round(s.hold_s / run.dt))
+        u = np.vstack([u, np.repeat(u[-1:], n_hold, axis=0)])
+        state = LoopState(
+            plant=twin.state_at((float(u[0, 0]), float(u[0, 1]))),
+            controller=np.zeros(0),
+            observer=np.zeros(0),
+            command=u[0].copy(),
+        )
+        v = twin.noise(u.shape[0], s.seed + k) if s.noise else None
+        res = simulate(twin, SetPoint(2), u, v, state=state, axes=("x", "y"))
+        counts = twin.guard_counts(res.final_state.plant)
+        out.append(
+            StageRecord(
+                name=run.name,
+                dt=run.dt,
+                command=u,
+                measured=np.asarray(res.measured),
+                limited=int(counts.limited),
+            )
+        )
+    return out
+
+
+def decimate_records(
+    records: Sequence[StageRecord], factor: int
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(u, y)`` of each record, both decimated by ``factor`` with one FIR filter."""
+    if factor == 1:
+        return [(r.command, r.measured) for r in records]
+    out = []
+    for r in records:
+        u, y = (
+            scipy.signal.decimate(a, factor, ftype="fir", axis=0, zero_phase=True)
+            for a in (r.command, r.measured)
+        )
+        out.append((u, y))
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinearSettings:
+    """The linear model's data and fit (seed 002 §III-A, §III-C.1).
+
+    Parameters
+    ----------
+    total_s : float
+        Random-run data, s (seed §III-C.1: 6×10⁶ samples, 600 s at 10 kHz).
+    a_max : float
+        Largest acceleration of the runs, m/s² (seed §III-D: up to 5).
+    order : int
+        States (seed §III-A: 4).
+    decimate : int
+        Decimation before the fit (module doc; 10: to 1 kHz).
+    feedthrough : bool
+        Estimate ``D`` (module doc).
+    block_rows : int, optional
+        Hankel block rows (default `SubspaceConfig`'s).
+    seed : int
+        Seed of the random runs.
+    """
+
+    total_s: float = 600.0  # seed 002 §III-C.1
+    a_max: float = 5.0  # seed 002 §III-D
+    order: int = 4  # seed 002 §III-A
+    decimate: int = 10  # assumed, module doc
+    feedthrough: bool = True  # module doc
+    block_rows: int | None = None
+    seed: int = 0
+    twin: TwinSettings = field(default_factory=TwinSettings)
+
+    def __post_init__(self) -> None:
+        if not self.total_s > 0:
+            raise ValueError(f"total_s must be positive, got {self.total_s!r} s")
+        if not isinstance(self.decimate, int) or self.decimate < 1:
+            raise ValueError(f"decimate must be an integer >= 1, got {self.decimate!r}")
+
+    def config(self) -> SubspaceConfig:
+        """The subspace fit's settings."""
+        return SubspaceConfig(
+            order=self.order, block_rows=self.block_rows, feedthrough=self.feedthrough
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class LinearFit:
+    """The linear model and its errors on its own training data.
+
+    Attributes
+    ----------
+    model : SubspaceModel
+        At the decimated rate.
+    mu_m, sigma_m : numpy.ndarray
+        Mean and standard deviation of the prediction error per axis (x, y), m.
+    n_samples : int
+        Samples of training data at 10 kHz.
+    decimate : int
+        Decimation factor used.
+    """
+
+    model: SubspaceModel
+    mu_m: np.ndarray
+    sigma_m: np.ndarray
+    n_samples: int
+    decimate: int
+
+
+def fit_linear(
+    records: Sequence[StageRecord], settings: LinearSettings | None = None
+) -> LinearFit:
+    """Fit eq. (6) to the records and measure it on them (module doc).
+
+    Raises
+    ------
+    ValueError
+        From the subspace fit: too little excitation, an order above the block rows, an
+        unstable ``A``.
+    """
+    s = LinearSettings() if settings is None else settings
+    data = decimate_records(records, s.decimate)
+    dt = records[0].dt * s.decimate
+    model = identify_subspace(data, dt, s.config())
+    mu, sigma = model.error_stats(data)
+    return LinearFit(
+        model=model,
+        mu_m=np.asarray(mu),
+        sigma_m=np.asarray(sigma),
+        n_samples=int(sum(r.command.shape[0] for r in records)),
+        decimate=s.decimate,
+    )
+
+
+def linear_study(settings: LinearSettings | None = None) -> tuple[list[StageRecord], LinearFit]:
+    """Random runs (§III-C.1), played on the twin, and the linear model fitted to them."""
+    s = LinearSettings() if settings is None else settings
+    runs = random_runs(s.total_s, a_max=s.a_max, seed=s.seed)
+    records = play_runs(runs, s.twin)
+    return records, fit_linear(records, s)
