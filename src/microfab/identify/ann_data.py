@@ -459,6 +459,7 @@ class WindowSet:
         self.starts = np.concatenate(starts)
         self._ar = np.arange(h, dtype=np.int64)
         self._accel_max = accel_max
+        self._columns = [np.ascontiguousarray(self.series[:, a]) for a in range(len(AXES))]
 
     def __len__(self) -> int:
         return int(self.starts.shape[0])
@@ -466,7 +467,7 @@ class WindowSet:
     def batch(self, index: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
         """Encoded, unscaled inputs (b, n_inputs) and targets (b,) of windows ``index``."""
         rows = self.starts[index][:, None] + self._ar
-        raw = [self.series[rows, a] for a in range(len(AXES))]
+        raw = [col[rows] for col in self._columns]
         inputs, base = _encode_axes(raw, axis, self.spec)
         return inputs, self.targets[index, axis] - base
 
