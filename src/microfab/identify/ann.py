@@ -621,7 +621,6 @@ def _train_axis(
     else:
         scaling = train.fit_scaling(ax)
 
-    val_x, val_t = _all_scaled(val, ax, scaling)
     n = len(train)
     bs = config.batch_size
     loss_fn = nn.MSELoss()
@@ -642,7 +641,7 @@ def _train_axis(
             total += float(loss.detach()) * idx.size
         sched.step()
         net.eval()
-        val_loss = float(np.mean((_forward(net, val_x, device) - val_t) ** 2))
+        val_loss = _val_loss(net, val, ax, scaling, device)
         train_loss = total / n
         if st["best_val"] is None or val_loss < st["best_val"]:
             st["best_val"], st["best_epoch"], st["bad"] = val_loss, st["epoch"], 0
@@ -688,15 +687,17 @@ def _tensors(arrays: dict[str, np.ndarray], prefix: str, device: torch.device) -
     }
 
 
-def _all_scaled(ws: WindowSet, ax: int, scaling: Scaling) -> tuple[np.ndarray, np.ndarray]:
+def _val_loss(
+    net: nn.Module, ws: WindowSet, ax: int, scaling: Scaling, device: torch.device
+) -> float:
+    """Scaled MSE over all windows of ``ws``, gathered chunk by chunk (memory bounded)."""
     idx = np.arange(len(ws))
-    xs = np.empty((len(ws), ws.spec.n_inputs), dtype=np.float32)
-    ts = np.empty(len(ws))
+    total = 0.0
     for i in range(0, len(ws), _EVAL_CHUNK):
         x, t = ws.batch(idx[i : i + _EVAL_CHUNK], ax)
-        xs[i : i + _EVAL_CHUNK] = scaling.scale_inputs(x)
-        ts[i : i + _EVAL_CHUNK] = scaling.scale_target(t)
-    return xs, ts
+        z = _forward(net, scaling.scale_inputs(x), device)
+        total += float(((z - scaling.scale_target(t)) ** 2).sum())
+    return total / len(ws)
 
 
 def _write_checkpoint(
