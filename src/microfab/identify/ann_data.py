@@ -1,0 +1,503 @@
+"""Training windows and scaling for the per-axis neural networks of seed 002 (eq. 7).
+
+Seed 002 §III-B models each axis of the black-box stage by a causal feed-forward network
+at 400 Hz,
+
+``φ_i = f_nlm(r_{i-h}, ..., r_{i-1})``  (eq. 7),
+
+``r`` the 400 Hz input trajectory (the command, one axis) and ``φ_i`` the measured
+position at 400 Hz sample ``i`` ("the predicted position at the subsequent time step":
+the output at the instant *after* the last input of the window; ``r_i`` itself is not an
+input). ``h = 200``: the last 500 ms at 400 Hz (§III-B).
+
+What is built here, and the choices made (the seed leaves them open):
+
+* **Subsampling.** A run is recorded at ``run_rate_hz`` (10 kHz, seed 002 Table I); the
+  400 Hz series are every ``factor``-th sample (25) from a start ``offset`` in
+  ``[0, factor)``, taken as they are, with no anti-alias filter: ``r`` is a set-point
+  (smooth commands, a ≤ 5 m/s² in the seed's data, nothing near 200 Hz) and ``φ_i`` is the
+  encoder's reading at that instant, noise included, as the seed's encoders record it.
+  Every offset is an equally valid 400 Hz view of a run; training uses all of them by
+  default (25 windows per 400 Hz sample), and `microfab.identify.ann.AnnModel.predict`
+  can predict every 10 kHz sample by interleaving the offsets.
+* **Start of a run.** The runs start at rest (issue 17: "each from rest"), so the input
+  before a run's first sample is its first command sample (the rest position): with
+  ``pad=True`` (default) the history is padded with it and every 400 Hz sample of the
+  run is a target, the first ones seeing mostly rest. With ``pad=False`` a run's windows
+  start only once ``h`` samples of history exist.
+* **Encoding** (a fixed, invertible linear map of the window; eq. 7 holds unchanged).
+  ``"extrapolated"`` (default): inputs ``[r_{i-h} - r_{i-1}, ..., r_{i-2} - r_{i-1},
+  r_{i-1}]`` and target ``φ_i - (2 r_{i-1} - r_{i-2})``, the error of the straight line
+  through the last two commands. The network then learns a correction of ~a dt² plus the
+  tracking error (tens of µm) rather than the absolute position (up to 0.19 m), so the
+  seed's few-µm accuracy is ~10 % of the target's spread instead of ~1e-5, which a
+  float32 network can reach; the absolute ``r_{i-1}`` stays an input for the
+  position-dependent forces (cogging, cable carrier). ``"relative"``: the same inputs,
+  target ``φ_i - r_{i-1}`` (~v dt, up to mm). ``"absolute"``: the window and ``φ_i`` as
+  they are. On the twin (8 runs of 6 s, x, 20 epochs) the extrapolated target gave a
+  validation σ of 4.3 µm where the relative one gave 9.5 µm.
+* **Inputs.** ``"own"`` (default, seed 002 §III-B: "the most recent 500 ms of the input
+  trajectory for the corresponding axis"): ``h`` inputs; ``"both"``: both axes' windows
+  (x first), ``2 h`` inputs, for the coupling study the seed promises in §III-B.
+* **Scaling.** After encoding, every input column and the target get an offset (mean) and
+  a scale (standard deviation) fitted on the training windows (`Scaling`), stored with
+  the model; a column that does not vary keeps scale 1.
+
+Windows are never built by a Python loop per window: `windows` returns a strided view
+(`numpy.lib.stride_tricks.sliding_window_view`) and `WindowSet.batch` gathers a batch by
+one fancy index from the concatenated 400 Hz series (memory stays that of the series,
+not ``h`` times it).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from microfab.core.validate import check_int, check_positive
+
+__all__ = [
+    "AXES",
+    "ENCODINGS",
+    "HISTORY",
+    "INPUTS",
+    "MODEL_RATE_HZ",
+    "RUN_RATE_HZ",
+    "Scaling",
+    "WindowSet",
+    "WindowSpec",
+    "check_run",
+    "data_digest",
+    "windows",
+]
+
+AXES = ("x", "y")  # column order of every command and measured array
+MODEL_RATE_HZ = 400.0  # seed 002 §III-B: "subsampled at 400Hz"
+RUN_RATE_HZ = 10_000.0  # seed 002 Table I: low-level control loop frequency 10 kHz
+HISTORY = 200  # seed 002 §III-B: 500 ms at 400 Hz, "leading to 200 inputs"
+ENCODINGS = ("extrapolated", "relative", "absolute")
+INPUTS = ("own", "both")
+
+Run = tuple[np.ndarray, np.ndarray]
+
+
+@dataclass(frozen=True, kw_only=True)
+class WindowSpec:
+    """How a run becomes windows (see the module docstring).
+
+    Parameters
+    ----------
+    run_rate_hz : float
+        Sample rate of the recorded runs, Hz (10 kHz, seed 002 Table I); a whole
+        multiple of ``rate_hz``.
+    rate_hz : float
+        Model rate, Hz (400 Hz, seed 002 §III-B).
+    h : int
+        History length in model samples (200 = 500 ms at 400 Hz, seed 002 §III-B).
+    inputs : {"own", "both"}
+        The axis's own command window (seed), or both axes' windows (coupling study).
+    encoding : {"relative", "extrapolated", "absolute"}
+        Window relative to its last sample; target relative to the straight line
+        through its last two samples (default) or to the last sample; or both raw.
+    pad : bool
+        Pad the history before a run's first sample with that sample (the rest position).
+    """
+
+    run_rate_hz: float = RUN_RATE_HZ
+    rate_hz: float = MODEL_RATE_HZ
+    h: int = HISTORY
+    inputs: str = "own"
+    encoding: str = "extrapolated"
+    pad: bool = True
+
+    def __post_init__(self) -> None:
+        check_positive("run_rate_hz", self.run_rate_hz, "Hz")
+        check_positive("rate_hz", self.rate_hz, "Hz")
+        ratio = self.run_rate_hz / self.rate_hz
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            raise ValueError(
+                f"run_rate_hz must be a whole multiple of rate_hz ({self.rate_hz:g} Hz), got "
+                f"{self.run_rate_hz:g} Hz; resample the run to e.g. "
+                f"{round(max(ratio, 1.0)) * self.rate_hz:g} Hz"
+            )
+        h = check_int("h (history length)", self.h, 2, "samples")
+        if self.inputs not in INPUTS:
+            raise ValueError(f"inputs must be one of {INPUTS}, got {self.inputs!r}")
+        if self.encoding not in ENCODINGS:
+            raise ValueError(f"encoding must be one of {ENCODINGS}, got {self.encoding!r}")
+        if not isinstance(self.pad, bool):
+            raise ValueError(f"pad must be True or False, got {self.pad!r}")
+        object.__setattr__(self, "h", h)
+        object.__setattr__(self, "run_rate_hz", float(self.run_rate_hz))
+        object.__setattr__(self, "rate_hz", float(self.rate_hz))
+
+    @property
+    def factor(self) -> int:
+        """Run samples per model sample (25 for 10 kHz -> 400 Hz)."""
+        return round(self.run_rate_hz / self.rate_hz)
+
+    @property
+    def n_inputs(self) -> int:
+        """Network inputs: ``h`` (own axis) or ``2 h`` (both axes)."""
+        return self.h * (2 if self.inputs == "both" else 1)
+
+    @property
+    def min_run_samples(self) -> int:
+        """Shortest run accepted, run samples (``h`` model samples: 500 ms)."""
+        return self.h * self.factor
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON form (all fields)."""
+        return {
+            "run_rate_hz": self.run_rate_hz,
+            "rate_hz": self.rate_hz,
+            "h": self.h,
+            "inputs": self.inputs,
+            "encoding": self.encoding,
+            "pad": self.pad,
+        }
+
+
+def check_run(
+    command: np.ndarray, measured: np.ndarray | None, spec: WindowSpec, name: str = "run"
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Check one run and return it as float64 arrays.
+
+    Parameters
+    ----------
+    command : numpy.ndarray
+        Commanded position ``ρ`` per axis, shape (n, 2) (x, y), m, at ``spec.run_rate_hz``.
+    measured : numpy.ndarray or None
+        Measured position ``γ``, shape (n, 2), m; None when only predicting.
+    spec : WindowSpec
+        The window specification (rate, history).
+    name : str
+        The run's name for messages.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray or None)
+        ``command`` and ``measured`` as C-contiguous float64.
+
+    Raises
+    ------
+    ValueError
+        Wrong shape, lengths that differ, a non-finite sample (named), or a run shorter
+        than ``h`` model samples (500 ms).
+    """
+    out: list[np.ndarray | None] = []
+    for what, a in (("command", command), ("measured output", measured)):
+        if a is None:
+            out.append(None)
+            continue
+        arr = np.ascontiguousarray(a, dtype=np.float64)
+        if arr.ndim != 2 or arr.shape[1] != len(AXES):
+            raise ValueError(
+                f"{name}: the {what} must have shape (n_samples, 2) (columns x, y), got {arr.shape}"
+            )
+        bad = np.argwhere(~np.isfinite(arr))
+        if bad.size:
+            k, a_i = bad[0]
+            raise ValueError(
+                f"{name}: the {what} has a non-finite value {arr[k, a_i]} at sample {k} "
+                f"of axis {AXES[a_i]}"
+            )
+        out.append(arr)
+    cmd, meas = out
+    assert cmd is not None
+    if meas is not None and meas.shape != cmd.shape:
+        raise ValueError(
+            f"{name}: command and measured output differ in length: "
+            f"{cmd.shape[0]} and {meas.shape[0]} samples"
+        )
+    if cmd.shape[0] < spec.min_run_samples:
+        raise ValueError(
+            f"{name}: a run must last at least the history h = {spec.h} samples at "
+            f"{spec.rate_hz:g} Hz ({spec.h / spec.rate_hz * 1e3:g} ms, {spec.min_run_samples} "
+            f"samples at {spec.run_rate_hz:g} Hz), got {cmd.shape[0]} samples"
+        )
+    return cmd, meas
+
+
+def data_digest(runs: Sequence[Run]) -> str:
+    """SHA-256 of the runs (shapes and float64 bytes, in order), hex."""
+    h = hashlib.sha256()
+    for command, measured in runs:
+        for a in (command, measured):
+            arr = np.ascontiguousarray(a, dtype=np.float64)
+            h.update(repr(arr.shape).encode())
+            h.update(arr.tobytes())
+    return h.hexdigest()
+
+
+def _encode(win: np.ndarray, spec: WindowSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Encode raw windows (b, h) of one axis; returns (encoded (b, h), base (b,))."""
+    last = win[:, -1].copy()
+    if spec.encoding == "absolute":
+        return np.array(win, dtype=np.float64), np.zeros_like(last)
+    enc = win - last[:, None]
+    enc[:, -1] = last
+    if spec.encoding == "extrapolated":
+        return enc, 2.0 * last - win[:, -2]
+    return enc, last
+
+
+def _encode_axes(
+    raw: list[np.ndarray], axis: int, spec: WindowSpec
+) -> tuple[np.ndarray, np.ndarray]:
+    """Encoded network inputs for ``axis`` from raw windows of both axes; base of ``axis``."""
+    enc = [_encode(w, spec) for w in raw]
+    base = enc[axis][1]
+    if spec.inputs == "own":
+        return enc[axis][0], base
+    return np.concatenate([enc[0][0], enc[1][0]], axis=1), base
+
+
+def windows(
+    command: np.ndarray,
+    measured: np.ndarray | None,
+    spec: WindowSpec,
+    *,
+    axis: int,
+    offset: int = 0,
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """Encoded windows of one run at one start offset (vectorised, strided view).
+
+    Parameters
+    ----------
+    command, measured : numpy.ndarray
+        One run, shape (n, 2), m, at ``spec.run_rate_hz`` (``measured`` may be None).
+    spec : WindowSpec
+        The window specification.
+    axis : int
+        Output axis, 0 (x) or 1 (y).
+    offset : int
+        Start offset of the subsampling, in run samples, ``0 <= offset < spec.factor``.
+
+    Returns
+    -------
+    inputs : numpy.ndarray
+        Shape (n_windows, spec.n_inputs), encoded, unscaled. Row ``j`` holds the
+        commands at model samples ``i-h .. i-1`` of target sample ``i`` (``i = j`` with
+        ``pad``, ``i = j + h`` without).
+    target : numpy.ndarray or None
+        Shape (n_windows,), the encoded measured position at sample ``i``.
+    base : numpy.ndarray
+        Shape (n_windows,): add to a decoded target to get the position (``r_{i-1}`` for
+        the relative encoding, ``2 r_{i-1} - r_{i-2}`` for the extrapolated one, 0 for the
+        absolute one).
+    """
+    cmd, meas = check_run(command, measured, spec)
+    factor = spec.factor
+    offset = check_int("offset", offset, 0, "samples")
+    if not 0 <= offset < factor:
+        raise ValueError(f"offset must lie in [0, {factor}) run samples, got {offset}")
+    if axis not in (0, 1):
+        raise ValueError(f"axis must be 0 (x) or 1 (y), got {axis!r}")
+    r = cmd[offset::factor]
+    m = r.shape[0]
+    h = spec.h
+    if spec.pad:
+        r = np.concatenate([np.repeat(cmd[:1], h, axis=0), r])
+        first = 0
+    else:
+        first = h
+    n_win = m - first
+    raw = [sliding_window_view(r[:, a], h)[:n_win] for a in range(len(AXES))]
+    inputs, base = _encode_axes(raw, axis, spec)
+    target = None
+    if meas is not None:
+        y = meas[offset::factor, axis][first:]
+        target = y - base
+    return inputs, target, base
+
+
+@dataclass(frozen=True)
+class Scaling:
+    """Offset and scale of every network input column and of the target.
+
+    ``scaled = (value - offset) / scale``. Fitted on the training windows (`fit`).
+
+    Parameters
+    ----------
+    in_offset, in_scale : numpy.ndarray
+        Shape (n_inputs,), m.
+    out_offset, out_scale : float
+        Of the encoded target, m.
+    """
+
+    in_offset: np.ndarray
+    in_scale: np.ndarray
+    out_offset: float
+    out_scale: float
+
+    def __post_init__(self) -> None:
+        off = np.asarray(self.in_offset, dtype=np.float64)
+        sc = np.asarray(self.in_scale, dtype=np.float64)
+        if off.ndim != 1 or off.shape != sc.shape:
+            raise ValueError(
+                f"in_offset and in_scale must be 1-D of one length, got {off.shape}, {sc.shape}"
+            )
+        if not (np.all(np.isfinite(off)) and np.all(np.isfinite(sc)) and np.all(sc > 0)):
+            raise ValueError("in_offset must be finite and in_scale finite and positive")
+        check_positive("out_scale", self.out_scale, "m")
+        object.__setattr__(self, "in_offset", off)
+        object.__setattr__(self, "in_scale", sc)
+        object.__setattr__(self, "out_offset", float(self.out_offset))
+        object.__setattr__(self, "out_scale", float(self.out_scale))
+
+    @property
+    def n_inputs(self) -> int:
+        """Number of input columns."""
+        return int(self.in_offset.shape[0])
+
+    @classmethod
+    def fit(cls, inputs: np.ndarray, target: np.ndarray) -> Scaling:
+        """Mean and standard deviation per column (a constant column keeps scale 1)."""
+        return cls._from_moments(
+            inputs.shape[0], inputs.mean(axis=0), inputs.var(axis=0), target.mean(), target.var()
+        )
+
+    @classmethod
+    def _from_moments(
+        cls, n: int, mean: np.ndarray, var: np.ndarray, t_mean: float, t_var: float
+    ) -> Scaling:
+        if n < 2:
+            raise ValueError(f"scaling needs at least 2 training windows, got {n}")
+
+        def scale(v: np.ndarray, m: np.ndarray) -> np.ndarray:
+            s = np.sqrt(np.maximum(v, 0.0))
+            tiny = 1e-12 * np.maximum(np.abs(m), 1.0)
+            return np.where(s > tiny, s, 1.0)
+
+        return cls(mean, scale(var, mean), float(t_mean), float(scale(np.array(t_var), t_mean)))
+
+    def scale_inputs(self, inputs: np.ndarray) -> np.ndarray:
+        """Scaled inputs as float32, shape as given."""
+        return ((inputs - self.in_offset) / self.in_scale).astype(np.float32)
+
+    def scale_target(self, target: np.ndarray) -> np.ndarray:
+        """Scaled encoded target as float32."""
+        return ((np.asarray(target) - self.out_offset) / self.out_scale).astype(np.float32)
+
+    def unscale_target(self, scaled: np.ndarray) -> np.ndarray:
+        """Encoded target (m, float64) from the network's scaled output."""
+        return np.asarray(scaled, dtype=np.float64) * self.out_scale + self.out_offset
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON form."""
+        return {
+            "in_offset": self.in_offset.tolist(),
+            "in_scale": self.in_scale.tolist(),
+            "out_offset": self.out_offset,
+            "out_scale": self.out_scale,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Scaling:
+        """Inverse of `as_dict`."""
+        return cls(
+            np.array(d["in_offset"], dtype=np.float64),
+            np.array(d["in_scale"], dtype=np.float64),
+            float(d["out_offset"]),
+            float(d["out_scale"]),
+        )
+
+
+class WindowSet:
+    """All windows of many runs and offsets, gathered by index, never materialised.
+
+    The 400 Hz command series of every (run, offset) are stored one after the other
+    (each preceded by ``h`` rest samples when ``spec.pad``); a window is its start index
+    in that array, so a batch is one fancy index ``series[start[:, None] + arange(h)]``.
+
+    Parameters
+    ----------
+    runs : sequence of (command, measured)
+        Each (n, 2), m, at ``spec.run_rate_hz`` (see `check_run`).
+    spec : WindowSpec
+        The window specification.
+    offsets : sequence of int, optional
+        Subsampling offsets to use (default all, ``0 .. factor-1``).
+    """
+
+    def __init__(
+        self, runs: Sequence[Run], spec: WindowSpec, offsets: Sequence[int] | None = None
+    ) -> None:
+        if len(runs) == 0:
+            raise ValueError("at least one run is needed")
+        factor, h = spec.factor, spec.h
+        offs = tuple(range(factor)) if offsets is None else tuple(offsets)
+        for o in offs:
+            if not 0 <= check_int("offset", o, 0, "samples") < factor:
+                raise ValueError(f"offsets must lie in [0, {factor}) run samples, got {o}")
+        series: list[np.ndarray] = []
+        targets: list[np.ndarray] = []
+        starts: list[np.ndarray] = []
+        pos = 0
+        accel_max = np.zeros(len(AXES))
+        for k, (command, measured) in enumerate(runs):
+            cmd, meas = check_run(command, measured, spec, name=f"run {k}")
+            assert meas is not None
+            for o in offs:
+                r = cmd[o::factor]
+                y = meas[o::factor]
+                if r.shape[0] > 2:
+                    acc = np.abs(np.diff(r, n=2, axis=0)).max(axis=0) * spec.rate_hz**2
+                    accel_max = np.maximum(accel_max, acc)
+                if spec.pad:
+                    r = np.concatenate([np.repeat(cmd[:1], h, axis=0), r])
+                    first = 0
+                else:
+                    first = h
+                n_win = y.shape[0] - first
+                series.append(r)
+                targets.append(y[first:])
+                starts.append(pos + np.arange(n_win, dtype=np.int64))
+                pos += r.shape[0]
+        self.spec = spec
+        self.offsets = offs
+        self.series = np.concatenate(series)
+        self.targets = np.concatenate(targets)
+        self.starts = np.concatenate(starts)
+        self._ar = np.arange(h, dtype=np.int64)
+        self._accel_max = accel_max
+        self._columns = [np.ascontiguousarray(self.series[:, a]) for a in range(len(AXES))]
+
+    def __len__(self) -> int:
+        return int(self.starts.shape[0])
+
+    def batch(self, index: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+        """Encoded, unscaled inputs (b, n_inputs) and targets (b,) of windows ``index``."""
+        rows = self.starts[index][:, None] + self._ar
+        raw = [col[rows] for col in self._columns]
+        inputs, base = _encode_axes(raw, axis, self.spec)
+        return inputs, self.targets[index, axis] - base
+
+    def fit_scaling(self, axis: int, chunk: int = 65_536) -> Scaling:
+        """`Scaling` of all windows for ``axis``: two exact passes in chunks of ``chunk``."""
+        n = len(self)
+        idx = np.arange(n)
+        s = np.zeros(self.spec.n_inputs)
+        st = 0.0
+        for i in range(0, n, chunk):
+            x, t = self.batch(idx[i : i + chunk], axis)
+            s += x.sum(axis=0)
+            st += float(t.sum())
+        mean, t_mean = s / n, st / n
+        v = np.zeros_like(s)
+        vt = 0.0
+        for i in range(0, n, chunk):
+            x, t = self.batch(idx[i : i + chunk], axis)
+            v += ((x - mean) ** 2).sum(axis=0)
+            vt += float(((t - t_mean) ** 2).sum())
+        return Scaling._from_moments(n, mean, v / n, t_mean, vt / n)
+
+    def command_accel_max(self) -> list[float]:
+        """Largest |second difference| / dt² of the 400 Hz commands per axis, m/s²."""
+        return [float(v) for v in self._accel_max]
