@@ -113,7 +113,7 @@ def play_runs(
     out = []
     for k, run in enumerate(runs):
         u = np.asarray(run.command, dtype=float)
-        n_hold = int(round(s.hold_s / run.dt))
+        n_hold = round(s.hold_s / run.dt)
         u = np.vstack([u, np.repeat(u[-1:], n_hold, axis=0)])
         state = LoopState(
             plant=twin.state_at((float(u[0, 0]), float(u[0, 1]))),
