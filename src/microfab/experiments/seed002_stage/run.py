@@ -29,24 +29,32 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.signal
 
 from microfab.control.setpoint import SetPoint
-from microfab.identify.excitation import ExcitationRun, random_runs
+from microfab.identify.excitation import ExcitationRun, ann_dataset, random_runs, split_runs
 from microfab.identify.subspace import SubspaceConfig, SubspaceModel, identify_subspace
 from microfab.plants.xy_stage import XYStagePlant, xy_stage_twin
 from microfab.sim.loop import LoopState, simulate
 
+if TYPE_CHECKING:
+    from microfab.identify.ann import AnnModel, ErrorStats
+
 __all__ = [
+    "AnnSettings",
+    "AnnStudy",
     "LinearFit",
     "LinearSettings",
     "StageRecord",
     "TwinSettings",
+    "ann_study",
     "decimate_records",
     "fit_linear",
+    "linear_study",
     "play_runs",
 ]
 
@@ -219,9 +227,7 @@ class LinearFit:
     decimate: int
 
 
-def fit_linear(
-    records: Sequence[StageRecord], settings: LinearSettings | None = None
-) -> LinearFit:
+def fit_linear(records: Sequence[StageRecord], settings: LinearSettings | None = None) -> LinearFit:
     """Fit eq. (6) to the records and measure it on them (module doc).
 
     Raises
@@ -250,3 +256,93 @@ def linear_study(settings: LinearSettings | None = None) -> tuple[list[StageReco
     runs = random_runs(s.total_s, a_max=s.a_max, seed=s.seed)
     records = play_runs(runs, s.twin)
     return records, fit_linear(records, s)
+
+
+# ---------------------------------------------------------------------------- ANN
+@dataclass(frozen=True, kw_only=True)
+class AnnSettings:
+    """The per-axis networks' data and training (seed 002 §III-B, §III-C.2).
+
+    Parameters
+    ----------
+    total_s : float
+        Data, s (default `microfab.identify.excitation.ANN_TOTAL_S`: about 34 training
+        windows per weight, seed §III-C).
+    random_share : float
+        Share of random runs; the rest are shapes at constant speeds (seed: about 60 %).
+    validation : float
+        Share of whole runs kept for validation (seed: 20 %).
+    max_epochs : int
+        Most epochs per axis (early stopping on the validation loss decides first).
+    threads : int
+        CPU threads of the training.
+    seed : int
+        Seed of the runs, the split and the training.
+    """
+
+    total_s: float | None = None
+    random_share: float = 0.6  # seed 002 §III-C: "about 60 %"
+    validation: float = 0.2  # seed 002 §III-C: 80 % / 20 %
+    max_epochs: int = 200
+    threads: int = 1
+    seed: int = 0
+    twin: TwinSettings = field(default_factory=TwinSettings)
+
+
+@dataclass(frozen=True, eq=False)
+class AnnStudy:
+    """Trained networks and their error on the validation runs.
+
+    Attributes
+    ----------
+    model : AnnModel
+        One network per axis.
+    validation : dict of str to ErrorStats
+        μ, σ per axis on the validation runs (Table II, ANN, column 1).
+    train_names, validation_names : tuple of str
+        Which runs went where.
+    """
+
+    model: AnnModel
+    validation: dict[str, ErrorStats]
+    train_names: tuple[str, ...]
+    validation_names: tuple[str, ...]
+
+
+def ann_study(
+    settings: AnnSettings | None = None,
+    *,
+    checkpoint_dir: str | Path | None = None,
+    progress: Any = None,
+) -> AnnStudy:
+    """Data (§III-C.2), played on the twin, split by runs, one network per axis trained.
+
+    ``checkpoint_dir`` makes the training resumable (`microfab.identify.ann.train_ann`);
+    ``progress(record)`` is called after each epoch with an
+    `microfab.identify.ann.EpochRecord`.
+    """
+    from microfab.identify.ann import AnnConfig, train_ann
+    from microfab.identify.excitation import ANN_TOTAL_S
+
+    s = AnnSettings() if settings is None else settings
+    total = ANN_TOTAL_S if s.total_s is None else s.total_s
+    runs = ann_dataset(total, random_share=s.random_share, seed=s.seed)
+    train, val = split_runs(runs, s.validation, seed=s.seed)
+    rec_train = play_runs(train, s.twin)
+    rec_val = play_runs(val, TwinSettings(**{**_fields(s.twin), "seed": s.twin.seed + 10_000}))
+    pairs = [(r.command, r.measured) for r in rec_train]
+    vpairs = [(r.command, r.measured) for r in rec_val]
+    config = AnnConfig(max_epochs=s.max_epochs, seed=s.seed, threads=s.threads)
+    model = train_ann(pairs, vpairs, config, checkpoint_dir=checkpoint_dir, progress=progress)
+    return AnnStudy(
+        model=model,
+        validation=model.metrics(vpairs),
+        train_names=tuple(r.name for r in rec_train),
+        validation_names=tuple(r.name for r in rec_val),
+    )
+
+
+def _fields(obj: Any) -> dict[str, Any]:
+    import dataclasses
+
+    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
