@@ -18,10 +18,8 @@ from microfab.identify.ann import (  # noqa: E402
     HIDDEN,
     AnnConfig,
     AnnModel,
-    CheckpointMismatchError,
     build_network,
     n_weights,
-    train_ann,
 )
 from microfab.identify.ann_data import (  # noqa: E402
     Scaling,
@@ -30,6 +28,7 @@ from microfab.identify.ann_data import (  # noqa: E402
     check_run,
     windows,
 )
+from microfab.identify.ann_train import CheckpointMismatchError, train_ann  # noqa: E402
 
 FS = 10_000.0
 TAU_S = 0.01  # time constant of the synthetic linear "stage" (assumed, short so h=20 covers it)
