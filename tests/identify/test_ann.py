@@ -218,6 +218,23 @@ def test_training_reduces_validation_error(trained):
     assert all(b < a for a, b in itertools.pairwise(lrs))  # decaying learning rate
 
 
+def test_training_threads_default_one_unless_asked():
+    assert AnnConfig().threads == 1
+    before = torch.get_num_threads()
+    cfg = dict(vars(small_config(max_epochs=1, axes=("x",))))
+    del cfg["threads"]
+    try:
+        torch.set_num_threads(2)
+        train_ann(TRAIN[:1], VAL, AnnConfig(**cfg))
+        assert torch.get_num_threads() == 1
+        train_ann(TRAIN[:1], VAL, AnnConfig(**{**cfg, "threads": 2}))
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+    with pytest.raises(ValueError, match="threads"):
+        AnnConfig(threads=0)
+
+
 def test_resume_is_bit_identical(tmp_path):
     whole = train_ann(TRAIN, VAL, small_config(max_epochs=4))
     d = tmp_path / "ck"

@@ -106,8 +106,13 @@ class AnnConfig:
         Seeds the initial weights and each epoch's shuffle.
     device : str
         "auto" (CUDA if present, else CPU), "cpu" or "cuda". Not fingerprinted.
-    threads : int, optional
-        CPU threads (default: the cores this process may use). Not fingerprinted.
+    threads : int or None
+        CPU threads of PyTorch for training (``torch.set_num_threads``, process wide).
+        Default 1: on a shared 2-core machine 2 threads trained about 3x slower per step
+        than 1 (measured by the author; a rerun of ``benchmarks/bench_ann.py``'s step
+        timing there gave 2.4x slower by the median while other work ran, and 2x faster
+        once it had stopped), so more threads are for a machine of one's own. ``None``:
+        the cores this process may use. Not fingerprinted.
     """
 
     window: WindowSpec = field(default_factory=WindowSpec)
@@ -121,7 +126,7 @@ class AnnConfig:
     checkpoint_every: int = 1
     seed: int = 0
     device: str = "auto"
-    threads: int | None = None
+    threads: int | None = 1  # assumed: see the docstring (shared machines)
 
     def __post_init__(self) -> None:
         if not isinstance(self.window, WindowSpec):
