@@ -26,8 +26,9 @@ import numpy as np
 import torch
 
 from microfab.control.setpoint import SetPoint
-from microfab.identify.ann import AnnConfig, build_network, n_weights, train_ann
+from microfab.identify.ann import AnnConfig, build_network, n_weights
 from microfab.identify.ann_data import WindowSet, WindowSpec
+from microfab.identify.ann_train import train_ann
 from microfab.plants.xy_stage import xy_stage_twin
 from microfab.sim.loop import simulate
 

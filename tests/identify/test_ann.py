@@ -18,10 +18,8 @@ from microfab.identify.ann import (  # noqa: E402
     HIDDEN,
     AnnConfig,
     AnnModel,
-    CheckpointMismatchError,
     build_network,
     n_weights,
-    train_ann,
 )
 from microfab.identify.ann_data import (  # noqa: E402
     Scaling,
@@ -30,6 +28,7 @@ from microfab.identify.ann_data import (  # noqa: E402
     check_run,
     windows,
 )
+from microfab.identify.ann_train import CheckpointMismatchError, train_ann  # noqa: E402
 
 FS = 10_000.0
 TAU_S = 0.01  # time constant of the synthetic linear "stage" (assumed, short so h=20 covers it)
@@ -217,6 +216,23 @@ def test_training_reduces_validation_error(trained):
     assert model.info["axes"]["x"]["epochs"] == 12
     lrs = [r.learning_rate for r in records if r.axis == "x"]
     assert all(b < a for a, b in itertools.pairwise(lrs))  # decaying learning rate
+
+
+def test_training_threads_default_one_unless_asked():
+    assert AnnConfig().threads == 1
+    before = torch.get_num_threads()
+    cfg = dict(vars(small_config(max_epochs=1, axes=("x",))))
+    del cfg["threads"]
+    try:
+        torch.set_num_threads(2)
+        train_ann(TRAIN[:1], VAL, AnnConfig(**cfg))
+        assert torch.get_num_threads() == 1
+        train_ann(TRAIN[:1], VAL, AnnConfig(**{**cfg, "threads": 2}))
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+    with pytest.raises(ValueError, match="threads"):
+        AnnConfig(threads=0)
 
 
 def test_resume_is_bit_identical(tmp_path):

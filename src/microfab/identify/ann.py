@@ -1,28 +1,23 @@
-"""Per-axis feed-forward neural networks of seed 002 (§III-B, eq. 7, Fig. 5).
+"""Per-axis feed-forward neural networks of seed 002 (§III-B, eq. 7, Fig. 5): the model.
 
 One network per axis predicts the measured position at a 400 Hz sample from the last
 500 ms of that axis's command, ``φ_i = f_nlm(r_{i-h}, ..., r_{i-1})`` (eq. 7, h = 200).
 Windows, encoding and scaling are `microfab.identify.ann_data` (read its docstring for
-what ``φ_i`` is and how a run's start is handled).
+what ``φ_i`` is and how a run's start is handled); training is
+`microfab.identify.ann_train` (`train_ann`, checkpoints), which imports this module and
+not the other way round.
 
 * Network (`build_network`, seed 002 Fig. 5): fully connected, hidden layers
   ``{200, 200, 100, 100, 50, 25, 12, 6}``, LeakyReLU of slope 0.01 after each, biases,
   one linear output: 117 322 weights for 200 inputs (`n_weights`).
-* Training (`train_ann`, seed 002 §III-C): mean square error of the scaled target, Adam
-  with an exponentially decaying learning rate, batches of 16 384 windows, CUDA when
-  present else the CPU (``torch.set_num_threads`` from the cores this process may use),
-  seeded; early stopping on the validation loss (the best epoch's weights are kept).
-  Checkpoints (weights, Adam, scheduler, RNG, epoch, best, scaling) are written
-  atomically every ``checkpoint_every`` epochs; a rerun with the same configuration and
-  data resumes, and on the CPU the result is bit for bit that of an uninterrupted run. A
-  checkpoint of another configuration, data set or format version is refused, naming
-  the difference (``restart=True`` starts afresh).
+* `AnnConfig`: the networks and their training (kept here because a saved model carries
+  it and `AnnModel.load` rebuilds it).
 * `AnnModel`: `AnnModel.predict` (400 Hz at one start offset, or every 10 kHz sample by
-  interleaving all offsets), `AnnModel.metrics` (μ, σ per axis as seed 002 Table II),
-  `AnnModel.save` / `AnnModel.load` (``weights.npz`` + ``model.json``, no pickles;
-  another format version, rate or history refused).
+  interleaving all offsets), `AnnModel.metrics` (μ, σ per axis as seed 002 Table II,
+  `ErrorStats`), `AnnModel.save` / `AnnModel.load` (``weights.npz`` + ``model.json``, no
+  pickles; another format version, rate or history refused).
 
-PyTorch is imported here only (extra ``ann``).
+PyTorch is imported here and in `microfab.identify.ann_train` only (extra ``ann``).
 """
 
 from __future__ import annotations
@@ -30,8 +25,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -41,16 +35,7 @@ import torch
 from torch import nn
 
 from microfab.core.validate import check_int, check_positive
-from microfab.identify.ann_data import (
-    AXES,
-    Run,
-    Scaling,
-    WindowSet,
-    WindowSpec,
-    check_run,
-    data_digest,
-    windows,
-)
+from microfab.identify.ann_data import AXES, Run, Scaling, WindowSpec, check_run, windows
 from microfab.io.atomic import atomic_save_npz, atomic_write_json
 
 __all__ = [
@@ -59,12 +44,9 @@ __all__ = [
     "NEGATIVE_SLOPE",
     "AnnConfig",
     "AnnModel",
-    "CheckpointMismatchError",
-    "EpochRecord",
     "ErrorStats",
     "build_network",
     "n_weights",
-    "train_ann",
 ]
 
 FORMAT_VERSION = 1  # of model.json / weights.npz and of the checkpoints
@@ -124,8 +106,13 @@ class AnnConfig:
         Seeds the initial weights and each epoch's shuffle.
     device : str
         "auto" (CUDA if present, else CPU), "cpu" or "cuda". Not fingerprinted.
-    threads : int, optional
-        CPU threads (default: the cores this process may use). Not fingerprinted.
+    threads : int or None
+        CPU threads of PyTorch for training (``torch.set_num_threads``, process wide).
+        Default 1: on a shared 2-core machine 2 threads trained about 3x slower per step
+        than 1 (measured by the author; a rerun of ``benchmarks/bench_ann.py``'s step
+        timing there gave 2.4x slower by the median while other work ran, and 2x faster
+        once it had stopped), so more threads are for a machine of one's own. ``None``:
+        the cores this process may use. Not fingerprinted.
     """
 
     window: WindowSpec = field(default_factory=WindowSpec)
@@ -139,7 +126,7 @@ class AnnConfig:
     checkpoint_every: int = 1
     seed: int = 0
     device: str = "auto"
-    threads: int | None = None
+    threads: int | None = 1  # assumed: see the docstring (shared machines)
 
     def __post_init__(self) -> None:
         if not isinstance(self.window, WindowSpec):
@@ -183,22 +170,6 @@ class AnnConfig:
         return out
 
 
-class CheckpointMismatchError(ValueError):
-    """A checkpoint was written for another configuration, data set or format version."""
-
-
-@dataclass(frozen=True)
-class EpochRecord:
-    """One finished epoch, handed to ``progress``: losses are scaled MSE."""
-
-    axis: str
-    epoch: int
-    train_loss: float
-    val_loss: float
-    learning_rate: float
-    seconds: float
-
-
 @dataclass(frozen=True)
 class ErrorStats:
     """Prediction error ``predicted - measured`` of one axis (seed 002 Table II).
@@ -220,23 +191,6 @@ class ErrorStats:
     def as_um(self) -> tuple[float, float]:
         """``(μ, σ)`` in µm."""
         return self.mu * 1e6, self.sigma * 1e6
-
-
-def _device(config: AnnConfig) -> torch.device:
-    if config.device == "cuda" or (config.device == "auto" and torch.cuda.is_available()):
-        return torch.device("cuda")
-    return torch.device("cpu")
-
-
-def _set_threads(config: AnnConfig) -> None:
-    if config.threads is not None:
-        n = config.threads
-    else:
-        try:
-            n = len(os.sched_getaffinity(0))
-        except AttributeError:  # not on Linux
-            n = os.cpu_count() or 1
-    torch.set_num_threads(max(1, n))
 
 
 def _forward(net: nn.Module, x: np.ndarray, device: torch.device) -> np.ndarray:
@@ -465,262 +419,3 @@ class AnnModel:
                 nets[a] = net
         scal = {a: Scaling.from_dict(meta["scaling"][a]) for a in config.axes}
         return cls(config, nets, scal, meta.get("info", {}))
-
-
-# --- training ----------------------------------------------------------------------------
-
-
-def _ckpt_path(directory: Path, axis: str) -> Path:
-    return directory / f"ann_{axis}.ckpt.npz"
-
-
-def _state_arrays(prefix: str, state: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
-    return {f"{prefix}.{k}": v.detach().cpu().numpy().copy() for k, v in state.items()}
-
-
-def _save_checkpoint(path: Path, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-    blob = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-    atomic_save_npz(path, meta=blob, **arrays)
-
-
-def _load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k].copy() for k in z.files}
-    meta = json.loads(arrays.pop("meta").tobytes().decode())
-    return meta, arrays
-
-
-def _differences(there: dict[str, Any], here: dict[str, Any], prefix: str = "") -> list[str]:
-    out = []
-    for k in sorted(set(there) | set(here)):
-        a, b = there.get(k), here.get(k)
-        if isinstance(a, dict) and isinstance(b, dict):
-            out += _differences(a, b, f"{prefix}{k}.")
-        elif a != b:
-            out.append(f"{prefix}{k} {a!r} there, {b!r} here")
-    return out
-
-
-def _check_checkpoint(path: Path, meta: dict[str, Any], expect: dict[str, Any]) -> None:
-    diffs = _differences({k: meta.get(k) for k in expect}, {k: expect[k] for k in expect})
-    if diffs:
-        shown = "; ".join(d if len(d) < 200 else d[:200] + "..." for d in diffs)
-        raise CheckpointMismatchError(
-            f"{path}: checkpoint of another training: {shown}; pass restart=True or use "
-            f"another checkpoint directory"
-        )
-
-
-def train_ann(
-    train_runs: Sequence[Run],
-    val_runs: Sequence[Run],
-    config: AnnConfig | None = None,
-    *,
-    checkpoint_dir: str | os.PathLike[str] | None = None,
-    progress: Callable[[EpochRecord], None] | None = None,
-    restart: bool = False,
-) -> AnnModel:
-    """Train one network per axis on ``train_runs``, stop early on ``val_runs``.
-
-    Parameters
-    ----------
-    train_runs, val_runs : sequence of (command, measured)
-        Whole runs (the seed's 80/20 split is by run), each (n, 2), m, at
-        ``config.window.run_rate_hz``, from rest.
-    config : AnnConfig, optional
-        Defaults to ``AnnConfig()`` (the seed's network and batch size).
-    checkpoint_dir : path, optional
-        Where ``ann_<axis>.ckpt.npz`` is kept; an existing one is resumed (or refused if
-        it belongs to another configuration, data set or version).
-    progress : callable, optional
-        Called with an `EpochRecord` after each epoch.
-    restart : bool
-        Ignore (overwrite) existing checkpoints.
-
-    Returns
-    -------
-    AnnModel
-        The best validation epoch's weights per axis.
-    """
-    config = AnnConfig() if config is None else config
-    spec = config.window
-    device = _device(config)
-    _set_threads(config)
-    train = WindowSet(train_runs, spec, config.offsets)
-    val = WindowSet(val_runs, spec, config.offsets)
-    expect = {
-        "format_version": FORMAT_VERSION,
-        "config": config.fingerprint(),
-        "train_digest": data_digest(train_runs),
-        "val_digest": data_digest(val_runs),
-    }
-    ckdir = None if checkpoint_dir is None else Path(checkpoint_dir)
-    nets: dict[str, nn.Module] = {}
-    scalings: dict[str, Scaling] = {}
-    info: dict[str, Any] = {
-        "train_digest": expect["train_digest"],
-        "val_digest": expect["val_digest"],
-        "train_windows": len(train),
-        "val_windows": len(val),
-        "command_accel_max_m_s2": dict(zip(AXES, train.command_accel_max(), strict=True)),
-        "axes": {},
-    }
-    for a in config.axes:
-        net, scaling, summary = _train_axis(
-            a, train, val, config, device, expect, ckdir, progress, restart
-        )
-        nets[a], scalings[a] = net, scaling
-        info["axes"][a] = summary
-    return AnnModel(config, nets, scalings, info)
-
-
-def _train_axis(
-    axis: str,
-    train: WindowSet,
-    val: WindowSet,
-    config: AnnConfig,
-    device: torch.device,
-    expect: dict[str, Any],
-    ckdir: Path | None,
-    progress: Callable[[EpochRecord], None] | None,
-    restart: bool,
-) -> tuple[nn.Module, Scaling, dict[str, Any]]:
-    ax = AXES.index(axis)
-    spec = config.window
-    net = build_network(spec.n_inputs, seed=config.seed + 1000 * ax).to(device)
-    opt = torch.optim.Adam(net.parameters(), lr=config.learning_rate)
-    sched = torch.optim.lr_scheduler.ExponentialLR(opt, gamma=config.lr_decay)
-    path = None if ckdir is None else _ckpt_path(ckdir, axis)
-    st: dict[str, Any] = {
-        "epoch": 0,
-        "best_val": None,
-        "best_epoch": -1,
-        "bad": 0,
-        "stopped": False,
-        "history": [],
-    }
-    best_state: dict[str, torch.Tensor] | None = None
-    if path is not None and path.exists() and not restart:
-        meta, arrays = _load_checkpoint(path)
-        _check_checkpoint(path, meta, expect)
-        scaling = Scaling.from_dict(meta["scaling"])
-        net.load_state_dict(_tensors(arrays, "w", device))
-        best_state = _tensors(arrays, "best", device)
-        opt_state = {"state": {}, "param_groups": meta["adam_groups"]}
-        for i in range(len(list(net.parameters()))):
-            keys = [k for k in arrays if k.startswith(f"adam.{i}.")]
-            if keys:
-                opt_state["state"][i] = {
-                    k.split(".", 2)[2]: torch.from_numpy(arrays[k]).to(device) for k in keys
-                }
-                opt_state["state"][i]["step"] = opt_state["state"][i]["step"].cpu()
-        opt.load_state_dict(opt_state)
-        sched.load_state_dict(meta["scheduler"])
-        torch.set_rng_state(torch.from_numpy(arrays["torch_rng"]))
-        st = meta["state"]
-    else:
-        scaling = train.fit_scaling(ax)
-
-    n = len(train)
-    bs = config.batch_size
-    loss_fn = nn.MSELoss()
-    while not st["stopped"] and st["epoch"] < config.max_epochs:
-        t0 = time.perf_counter()
-        net.train()
-        perm = np.random.default_rng([config.seed, ax, st["epoch"]]).permutation(n)
-        total = 0.0
-        for i in range(0, n, bs):
-            idx = perm[i : i + bs]
-            x, t = train.batch(idx, ax)
-            xb = torch.from_numpy(scaling.scale_inputs(x)).to(device)
-            tb = torch.from_numpy(scaling.scale_target(t)).to(device)
-            opt.zero_grad(set_to_none=True)
-            loss = loss_fn(net(xb)[:, 0], tb)
-            loss.backward()
-            opt.step()
-            total += float(loss.detach()) * idx.size
-        sched.step()
-        net.eval()
-        val_loss = _val_loss(net, val, ax, scaling, device)
-        train_loss = total / n
-        if st["best_val"] is None or val_loss < st["best_val"]:
-            st["best_val"], st["best_epoch"], st["bad"] = val_loss, st["epoch"], 0
-            best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
-        else:
-            st["bad"] += 1
-        st["epoch"] += 1
-        st["history"].append([train_loss, val_loss])
-        if st["bad"] >= config.patience:
-            st["stopped"] = True
-        done = st["stopped"] or st["epoch"] >= config.max_epochs
-        if path is not None and (done or st["epoch"] % config.checkpoint_every == 0):
-            assert best_state is not None
-            _write_checkpoint(path, expect, st, scaling, net, best_state, opt, sched)
-        if progress is not None:
-            progress(
-                EpochRecord(
-                    axis,
-                    st["epoch"],
-                    train_loss,
-                    val_loss,
-                    float(sched.get_last_lr()[0]),
-                    time.perf_counter() - t0,
-                )
-            )
-    if best_state is not None:
-        net.load_state_dict(best_state)
-    net = net.cpu().eval()
-    summary = {
-        "epochs": st["epoch"],
-        "best_epoch": st["best_epoch"],
-        "best_val_loss": st["best_val"],
-        "stopped_early": st["stopped"],
-        "history": st["history"],
-    }
-    return net, scaling, summary
-
-
-def _tensors(arrays: dict[str, np.ndarray], prefix: str, device: torch.device) -> dict[str, Any]:
-    p = prefix + "."
-    return {
-        k[len(p) :]: torch.from_numpy(v).to(device) for k, v in arrays.items() if k.startswith(p)
-    }
-
-
-def _val_loss(
-    net: nn.Module, ws: WindowSet, ax: int, scaling: Scaling, device: torch.device
-) -> float:
-    """Scaled MSE over all windows of ``ws``, gathered chunk by chunk (memory bounded)."""
-    idx = np.arange(len(ws))
-    total = 0.0
-    for i in range(0, len(ws), _EVAL_CHUNK):
-        x, t = ws.batch(idx[i : i + _EVAL_CHUNK], ax)
-        z = _forward(net, scaling.scale_inputs(x), device)
-        total += float(((z - scaling.scale_target(t)) ** 2).sum())
-    return total / len(ws)
-
-
-def _write_checkpoint(
-    path: Path,
-    expect: dict[str, Any],
-    st: dict[str, Any],
-    scaling: Scaling,
-    net: nn.Module,
-    best_state: dict[str, torch.Tensor],
-    opt: torch.optim.Optimizer,
-    sched: torch.optim.lr_scheduler.LRScheduler,
-) -> None:
-    osd = opt.state_dict()
-    arrays = _state_arrays("w", net.state_dict())
-    arrays.update(_state_arrays("best", best_state))
-    for i, s in osd["state"].items():
-        arrays.update(_state_arrays(f"adam.{i}", s))
-    arrays["torch_rng"] = torch.get_rng_state().numpy().copy()
-    meta = dict(expect)
-    meta.update(
-        state=st,
-        scaling=scaling.as_dict(),
-        adam_groups=osd["param_groups"],
-        scheduler=sched.state_dict(),
-    )
-    _save_checkpoint(path, meta, arrays)
