@@ -319,9 +319,10 @@ def ann_study(
 
     ``checkpoint_dir`` makes the training resumable (`microfab.identify.ann.train_ann`);
     ``progress(record)`` is called after each epoch with an
-    `microfab.identify.ann.EpochRecord`.
+    `microfab.identify.ann_train.EpochRecord`.
     """
-    from microfab.identify.ann import AnnConfig, train_ann
+    from microfab.identify.ann import AnnConfig
+    from microfab.identify.ann_train import train_ann
     from microfab.identify.excitation import ANN_TOTAL_S
 
     s = AnnSettings() if settings is None else settings
