@@ -76,3 +76,14 @@ def test_settings_refusals():
         LinearSettings(total_s=0.0)
     with pytest.raises(ValueError, match="hold_s"):
         TwinSettings(hold_s=-1.0)
+
+
+def test_ann_study_splits_by_whole_runs_and_reports_validation_errors():
+    from microfab.experiments.seed002_stage.run import AnnSettings, ann_study
+
+    st = ann_study(AnnSettings(total_s=12.0, max_epochs=1))
+    assert st.train_names and st.validation_names
+    assert not set(st.train_names) & set(st.validation_names)
+    for axis in ("x", "y"):
+        e = st.validation[axis]
+        assert e.n > 0 and np.isfinite(e.sigma) and e.sigma < 1e-3  # one epoch: rough
