@@ -30,6 +30,7 @@ _FORMATS = ("csv", "h5", "mat")
 #: 10 kHz); shapes 210 s (40 % of the ANN set's 525 s, §III-C 2); PRBS and chirp 120 s
 #: (assumed: 60 s per amplitude or axis, enough to show they are inadequate).
 _DEFAULT_S = {"random": 600.0, "shapes": 210.0, "prbs": 120.0, "chirp": 120.0}
+_FADE_S = 1.0  # chirp fade in / out, s (chirp_runs' default), at most a quarter of a sweep
 _MAX_S = 3600.0  # assumed: one hour of 10 kHz commands (3.6e7 samples, ~0.6 GB of CSV)
 
 
@@ -47,7 +48,8 @@ def excite_cmd(
         float | None,
         typer.Option(
             help="Total length of all runs [s] (default: random 600, shapes 210, prbs and "
-            "chirp 120; prbs splits it over its two amplitudes, chirp over x then y)."
+            "chirp 120; prbs splits it over its two amplitudes, chirp over x then y, each "
+            "faded in and out over min(1 s, a quarter of it))."
         ),
     ] = None,
     amax: Annotated[
@@ -85,7 +87,8 @@ def excite_cmd(
             amps = (1e-4, 1e-3)  # prbs_runs' default amplitudes, m
             runs = ex.prbs_runs(total / len(amps), amplitudes=amps, a_max=amax, seed=seed)
         else:
-            runs = ex.chirp_runs(total / 2, a_max=amax)
+            per_axis = total / 2  # x, then y
+            runs = ex.chirp_runs(per_axis, a_max=amax, fade_s=min(_FADE_S, per_axis / 4))
         index = ex.write_runs(runs, out, fmt=fmt)
     except ValueError as exc:  # LimitViolation included
         fail(f"{kind} runs: {exc}")
