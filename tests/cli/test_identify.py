@@ -1,4 +1,4 @@
-"""``microfab identify chirp`` (seed 003 part 2 §1)."""
+"""``microfab identify chirp`` (seed 003 part 2 §1), ``identify linear`` and ``validate`` (002)."""
 
 from __future__ import annotations
 

@@ -231,13 +231,13 @@ def _read_runs(paths: list[Path]) -> tuple[list[Any], float]:
     return records, dt
 
 
-def _error_table(title: str, errors: Any, seed: bool) -> Table:
+def _error_table(title: str, errors: Any, seed: bool, label: str = "Linear") -> Table:
     """Seed 002 Table II's layout: model, axis, μ, σ in µm (and the seed's training column)."""
     from microfab.experiments.seed002_stage.paper import TABLE_II
 
     rows = []
     for a, axis in enumerate(("x", "y")):
-        row = ["Linear", axis, f"{errors.mean[a] * 1e6:.1f}", f"{errors.std[a] * 1e6:.1f}"]
+        row = [label, axis, f"{errors.mean[a] * 1e6:.1f}", f"{errors.std[a] * 1e6:.1f}"]
         if seed:
             ref = TABLE_II["linear"][axis]["training"]
             row += [f"{ref.mu_m * 1e6:.1f}", f"{ref.sigma_m * 1e6:.1f}"]
@@ -369,7 +369,8 @@ def validate_cmd(
         errors = stage.errors(records)
     except (ValueError, np.linalg.LinAlgError) as exc:
         fail(f"validation of {model}: {exc}")
-    print_table(_error_table(f"Prediction error of {model.name}", errors, seed=False))
+    label = {"linear": "Linear", "ann": "Non-linear"}.get(stage.kind, stage.kind)
+    print_table(_error_table(f"Prediction error of {model.name}", errors, False, label))
     if json_path is not None:
         from microfab.io.atomic import atomic_write_json
 

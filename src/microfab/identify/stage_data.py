@@ -457,7 +457,9 @@ def _linear_from_dict(data: dict[str, Any]) -> StageLinearModel:
     return out
 
 
-#: Readers of the model file by its ``"kind"`` (the ANN kind adds its own).
+#: Readers of the model file by its ``"kind"`` (the ANN kind adds its own). What a reader
+#: returns must offer what ``identify validate`` uses: ``kind``, ``input_rate_hz`` (the
+#: rate of the runs it reads) and ``errors(records) -> RunErrors``, as `StageLinearModel`.
 MODEL_KINDS: dict[str, Callable[[dict[str, Any]], Any]] = {"linear": _linear_from_dict}
 
 
