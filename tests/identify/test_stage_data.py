@@ -139,6 +139,10 @@ def _trace(n: int = 6000, dt: float = DT, **cols) -> Trace:
         (_trace(dt=1 / 200), "not a whole multiple of 400 Hz"),
         (_trace(n=4999), "shorter than 500 ms"),
         (_trace(input_y=np.r_[np.zeros(5999), 0.2]), "input_y = 0.2 m at t = 0.5999 s"),
+        (
+            _trace(output_x=np.r_[np.zeros(10), 1e300, np.zeros(5989)]),
+            "at t = 0.001 s is beyond 1 m",
+        ),
     ],
 )
 def test_stage_record_refuses(trace: Trace, says: str):

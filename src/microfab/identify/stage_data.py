@@ -6,8 +6,9 @@ measured data, as a library:
 * `stage_record`: one run read from a trace (``time``, ``input_x``, ``input_y``,
   ``output_x``, ``output_y``, m), checked: a rate that is a multiple of 400 Hz (the ANN's
   rate, seed 002 §III-B, so the same files serve both models), at least 500 ms (the ANN's
-  input history, §III-B), every input inside Table I's workspace. The trace itself has
-  already refused NaN and a non-uniform or non-increasing time (`Trace.from_columns`).
+  input history, §III-B), every input inside Table I's workspace, every output within 1 m.
+  The trace itself has already refused NaN and a non-uniform or non-increasing time
+  (`Trace.from_columns`).
 * `decimate`: the anti-alias filter and down-sampling applied identically to inputs and
   outputs before the fit.
 * `fit_linear`: seed 002 eq. (6) by `identify_subspace` on the decimated runs, default
@@ -95,6 +96,9 @@ MIN_MODEL_RATE_HZ = BASE_RATE_HZ
 FORMAT = "microfab.identify.StageModel"
 VERSION = 1
 _WORKSPACE = MachineLimits.seed002_stage().workspace  # seed 002 Table I: [-0.19, 0.19]^2 m
+#: Largest |output| accepted, m (assumed: the stage travels ±0.19 m; a metre or more is a
+#: unit or column error, and 1e300 would overflow the fit).
+_OUTPUT_BOUND_M = 1.0
 _RATE_RTOL = 1e-6  # rate / 400 Hz within this of a whole number
 
 
@@ -198,6 +202,14 @@ def stage_record(trace: Trace, name: str = "run") -> StageRecord:
                 f"{name}: input_{AXES[a]} = {col[k]:.6g} m at t = {trace.t0 + k * trace.dt:.6g} s "
                 f"lies outside the workspace [{lo:g}, {hi:g}] m (seed 002 Table I)"
             )
+    far = np.flatnonzero(np.abs(rec.y).max(axis=1) > _OUTPUT_BOUND_M)
+    if far.size:
+        k = int(far[0])
+        raise ValueError(
+            f"{name}: output ({rec.y[k, 0]:.6g}, {rec.y[k, 1]:.6g}) m at t = "
+            f"{trace.t0 + k * trace.dt:.6g} s is beyond {_OUTPUT_BOUND_M:g} m: not a position "
+            "of the stage in m (another unit or column?)"
+        )
     return rec
 
 
