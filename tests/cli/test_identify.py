@@ -1,4 +1,4 @@
-"""``microfab identify chirp`` (seed 003 part 2 §1)."""
+"""``microfab identify chirp`` (seed 003 part 2 §1), ``identify linear`` and ``validate`` (002)."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from microfab.identify.chirp import ChirpDesign
 from microfab.identify.model import TFModel
 from microfab.io.trace import write_columns
 from microfab.plants.galvo_slm import galvo_slm_twin
+from microfab.sim.loop import LoopState
 
 runner = CliRunner()
 
@@ -140,3 +141,162 @@ def test_identify_chirp_refusals_write_nothing(
     res = runner.invoke(app, [*argv, "--plot", str(tmp_path / "f.png")])
     one_error_line(res, says)
     assert not out.exists() and not (tmp_path / "f.png").exists()
+
+
+# --- seed 002: identify linear / identify validate on the XY stage twin ----------------------
+
+STAGE_DT = 1e-4  # seed 002 Table I: 10 kHz
+
+
+def _write_run(path: Path, u: np.ndarray, y: np.ndarray, dt: float = STAGE_DT, time=None, **kw):
+    """A measured stage run: time, input_x, input_y, output_x, output_y (m)."""
+    cols = {
+        "time": np.arange(len(u)) * dt if time is None else time,
+        "input_x": u[:, 0], "input_y": u[:, 1], "output_x": y[:, 0], "output_y": y[:, 1],
+    }  # fmt: skip
+    cols.update(kw)
+    write_columns(path, {k: v for k, v in cols.items() if v is not None}, unit="m")
+    return path
+
+
+@pytest.fixture(scope="module")
+def stage_runs(tmp_path_factory) -> list[Path]:
+    """``stage excite`` 20 s of random runs, played on the twin from rest, as trace files."""
+    from microfab.control.base import as_loop
+    from microfab.control.setpoint import SetPoint
+    from microfab.identify.excitation import read_runs
+    from microfab.plants.xy_stage import xy_stage_twin
+    from microfab.sim.loop import simulate
+
+    d = tmp_path_factory.mktemp("stage")
+    res = runner.invoke(app, ["stage", "excite", "--duration", "20", "--seed", "5", "--out",
+                              str(d / "commands")])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    twin = xy_stage_twin()
+    files = []
+    for i, r in enumerate(read_runs(d / "commands")):
+        rest = LoopState.at_rest(twin, as_loop(SetPoint(2)))  # then at the run's start
+        rest.plant = twin.state_at((float(r.command[0, 0]), float(r.command[0, 1])))
+        sim = simulate(twin, SetPoint(2), r.command, twin.noise(r.n_samples, seed=i), rest)
+        assert twin.guard_counts(sim.final_state.plant).limited == 0
+        files.append(_write_run(d / f"{r.name}.h5", r.command, sim.measured))
+    return files
+
+
+def test_identify_linear_then_validate_agree_with_the_library(stage_runs, tmp_path):
+    from microfab.identify.stage_data import fit_linear, run_errors, stage_record
+    from microfab.io.trace import read_trace
+
+    model = tmp_path / "stage.json"
+    args = [str(p) for p in stage_runs]
+    res = runner.invoke(app, ["identify", "linear", *args, "--out", str(model)])
+    assert res.exit_code == 0, res.output
+    assert "10000 Hz decimated by 10 to 1000 Hz" in res.output
+    assert "time constants [ms]" in res.output and "48.0" in res.output  # seed's column
+    out = tmp_path / "v.json"
+    res = runner.invoke(app, ["identify", "validate", str(model), *args, "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    got = json.loads(out.read_text())
+    assert got["compared_at_hz"] == pytest.approx(1000.0) and got["kind"] == "linear"
+    assert len(got["runs"]) == len(stage_runs)
+    # the library on the same files
+    recs = [stage_record(read_trace(p), str(p)) for p in stage_runs]
+    lib = run_errors(fit_linear(recs, STAGE_DT), recs, 10)
+    np.testing.assert_allclose(got["sigma_um"], lib.std * 1e6, rtol=1e-9)
+    np.testing.assert_allclose(got["mu_um"], lib.mean * 1e6, rtol=1e-6, atol=1e-9)
+    assert all(2.0 < s < 30.0 for s in got["sigma_um"])  # the 2 µm noise, the nonlinearities
+    for a, s in enumerate(got["sigma_um"]):
+        assert f"Linear\t{'xy'[a]}\t{got['mu_um'][a]:.1f}\t{s:.1f}" in res.output
+    # D = 0 (MATLAB n4sid's default) misses by far more
+    res = runner.invoke(app, ["identify", "linear", *args, "--no-feedthrough", "--out", str(model)])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["identify", "validate", str(model), *args, "--json", str(out)])
+    assert all(s > 10 * g for s, g in zip(json.loads(out.read_text())["sigma_um"],
+                                          lib.std * 1e6, strict=True))  # fmt: skip
+
+
+def _smooth(n: int = 6000, seed: int = 0) -> np.ndarray:
+    """A smooth random set-point pair inside the workspace, m, shape (n, 2)."""
+    rng = np.random.default_rng(seed)
+    return 0.01 * np.cumsum(np.cumsum(rng.standard_normal((n, 2)), axis=0), axis=0) / n**1.5
+
+
+@pytest.fixture(scope="module")
+def stage_model(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("model")
+    u = _smooth(20_000)
+    run = _write_run(d / "r.csv", u, u + 1e-6 * np.random.default_rng(1).standard_normal(u.shape))
+    res = runner.invoke(app, ["identify", "linear", str(run), "--out", str(d / "m.json")])
+    assert res.exit_code == 0, res.output
+    return d / "m.json"
+
+
+def _bad_runs(d: Path) -> dict[str, tuple[list[str], str]]:
+    """name -> (extra arguments after the run file, what the error says); files written."""
+    u = _smooth()
+    t = np.arange(6000) * STAGE_DT
+    nan = u.copy()
+    nan[100, 1] = np.nan
+    uneven, back = t.copy(), t.copy()
+    uneven[3000:] += 0.3 * STAGE_DT
+    back[10], back[11] = back[11], back[10]
+    out_ws = u.copy()
+    out_ws[2000, 0] = 0.25
+    cases = {
+        "nan": (_write_run(d / "nan.csv", nan, u), "input_y"),
+        "uneven": (_write_run(d / "uneven.csv", u, u, time=uneven), "uniform"),
+        "backwards": (_write_run(d / "back.csv", u, u, time=back), "increasing"),
+        "missing": (_write_run(d / "miss.csv", u, u, output_y=None), "'output_y'"),
+        "rate": (_write_run(d / "rate.csv", u, u, dt=1 / 9000), "not a whole multiple of 400"),
+        "short": (_write_run(d / "short.csv", u[:4000], u[:4000]), "shorter than 500 ms"),
+        "workspace": (_write_run(d / "ws.csv", out_ws, u), "outside the workspace"),
+        "constant": (_write_run(d / "const.csv", np.full((6000, 2), 0.01), u), "not exciting"),
+    }
+    return {k: (str(p), says) for k, (p, says) in cases.items()}
+
+
+def test_identify_linear_refuses_bad_runs_and_writes_nothing(tmp_path, one_error_line):
+    out = tmp_path / "m.json"
+    good = str(_write_run(tmp_path / "good.csv", _smooth(), _smooth()))
+    for name, (path, says) in _bad_runs(tmp_path).items():
+        both = [path] if name == "constant" else [good, path]  # alone: nothing excites
+        res = runner.invoke(app, ["identify", "linear", *both, "--out", str(out)])
+        one_error_line(res, says)
+        assert not out.exists(), name
+    for args, says in [
+        (["--order", "0"], "--order"),
+        (["--order", "5", "--block-rows", "4"], "--order 5 is above --block-rows 4"),
+        (["--decimate", "0"], "--decimate"),
+        (["--decimate", "26"], "below 400 Hz"),
+        (["--weighting", "pca"], "--weighting must be"),
+    ]:
+        res = runner.invoke(app, ["identify", "linear", good, *args, "--out", str(out)])
+        one_error_line(res, says)
+        assert not out.exists(), args
+
+
+def test_identify_validate_refusals_write_nothing(stage_model, tmp_path, one_error_line):
+    out = tmp_path / "v.json"
+    good = str(_write_run(tmp_path / "good.csv", _smooth(), _smooth()))
+    for name, (path, says) in _bad_runs(tmp_path).items():
+        if name == "constant":  # a constant input is fine to validate on
+            continue
+        res = runner.invoke(
+            app, ["identify", "validate", str(stage_model), path, "--json", str(out)]
+        )
+        one_error_line(res, says)
+        assert not out.exists(), name
+    fast = str(_write_run(tmp_path / "fast.csv", _smooth(12_000), _smooth(12_000), dt=5e-5))
+    res = runner.invoke(app, ["identify", "validate", str(stage_model), fast, "--json", str(out)])
+    one_error_line(res, "fitted to 10000 Hz runs")
+    data = json.loads(stage_model.read_text())
+    for change, says in [({"version": 2}, "version 2 is not supported"),
+                         ({"kind": "ann"}, "kind 'ann' is not known"),
+                         ({"input_rate_hz": 20000.0}, "not input_dt")]:  # fmt: skip
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps({**data, **change}))
+        res = runner.invoke(app, ["identify", "validate", str(bad), good, "--json", str(out)])
+        one_error_line(res, says)
+    res = runner.invoke(app, ["identify", "validate", str(tmp_path), good, "--json", str(out)])
+    one_error_line(res, "is a directory")
+    assert not out.exists()

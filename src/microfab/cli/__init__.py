@@ -2,11 +2,11 @@
 
 ``run``, ``kinds``, ``reproduce`` (`run.py`), ``ilc step`` (`ilc.py`), ``rc step``
 (`rc.py`), ``nanomanipulator analyze`` (`nanomanipulator.py`), ``laser analyze``
-(`laser.py`), ``calibrate``
-(`calibrate.py`), ``path show`` and ``trajectory`` (`geometry.py`), ``droplet``
-(`droplet.py`), ``identify chirp`` (`identify.py`), ``shaper design`` (`shaper.py`),
-``slm scan-time`` (`slm.py`); `_kit.py` holds the console, errors, progress bars, tables
-and the readers several groups share (``LOW:HIGH`` ranges, measured traces).
+(`laser.py`), ``calibrate`` (`calibrate.py`), ``path show`` and ``trajectory``
+(`geometry.py`), ``droplet`` (`droplet.py`), ``identify chirp``, ``identify linear`` and
+``identify validate`` (`identify.py`), ``shaper design`` (`shaper.py`), ``slm scan-time``
+(`slm.py`), ``stage excite`` (`stage.py`); `_kit.py` holds the console, errors, progress
+bars, tables and the readers several groups share (``LOW:HIGH`` ranges, measured traces).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from microfab.cli.rc import rc_app
 from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
 from microfab.cli.shaper import shaper_app
 from microfab.cli.slm import slm_app
+from microfab.cli.stage import stage_app
 
 __all__ = ["app", "main"]
 
@@ -41,8 +42,9 @@ hardware through files), nanomanipulator (seed 001 metrics of a measured trace),
 (seed 004 axis and contour errors of a measured trace), calibrate
 (refit a twin), path (inspect a drawing), trajectory (a limit-safe reference along a
 drawing), droplet (drop-on-demand inkjet: simulate, sweep, render, analyse frames),
-identify (fit a model to a recorded chirp), shaper (design an input shaper), slm (scan
-time of an SLM layer on the galvo twin).
+identify (fit a model to a recorded chirp or to measured XY stage runs, validate it),
+shaper (design an input shaper), slm (scan time of an SLM layer on the galvo twin), stage
+(command files for the black-box XY stage).
 """
 
 #: Piped or redirected output gets plain help, never wrapped (rich help in a terminal).
@@ -98,6 +100,7 @@ for _sub in (
     identify_app,
     shaper_app,
     slm_app,
+    stage_app,
 ):
     _sub.rich_markup_mode = _MARKUP
 app.add_typer(ilc_app, name="ilc", context_settings=_SETTINGS)
@@ -110,6 +113,7 @@ app.add_typer(droplet_app, name="droplet", context_settings=_SETTINGS)
 app.add_typer(identify_app, name="identify", context_settings=_SETTINGS)
 app.add_typer(shaper_app, name="shaper", context_settings=_SETTINGS)
 app.add_typer(slm_app, name="slm", context_settings=_SETTINGS)
+app.add_typer(stage_app, name="stage", context_settings=_SETTINGS)
 app.command("trajectory")(trajectory_cmd)
 
 

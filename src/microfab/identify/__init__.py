@@ -10,9 +10,11 @@ least squares on the coherence-weighted complex FRF, sampling-aware; `FitResult`
 
 Seed 002 (the black-box XY stage): ``excitation`` (random, shape, PRBS and chirp runs
 within Table I, the ANN data set and its split), ``subspace`` (chunked MOESP/N4SID/CVA,
-`identify_subspace`, `SubspaceModel`), ``ann_data`` (eq. 7 windows and scaling), ``ann``
-(per-axis networks of eq. 7 and `AnnModel`) and ``ann_train`` (`train_ann`, checkpoints);
-the last two import torch, so they are not imported here).
+`identify_subspace`, `SubspaceModel`), ``stage_data`` (measured runs checked, the
+anti-alias decimation, `fit_linear`, errors from rest, the model file), ``ann_data``
+(eq. 7 windows and scaling), ``ann`` (per-axis networks of eq. 7 and `AnnModel`) and
+``ann_train`` (`train_ann`, checkpoints); the last two import torch, so they are not
+imported here).
 
 Layer: above ``trajectory`` and below ``control`` (a shaper designed from a fitted model
 imports this package; this package imports ``trajectory``, ``geometry``, ``plants``,

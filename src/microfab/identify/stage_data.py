@@ -1,0 +1,531 @@
+"""Measured runs of the black-box XY stage and the linear model fitted to them (seed 002).
+
+What ``microfab identify linear`` and ``identify validate`` (`cli/identify.py`) do on
+measured data, as a library:
+
+* `stage_record`: one run read from a trace (``time``, ``input_x``, ``input_y``,
+  ``output_x``, ``output_y``, m), checked: a rate that is a multiple of 400 Hz (the ANN's
+  rate, seed 002 §III-B, so the same files serve both models), at least 500 ms (the ANN's
+  input history, §III-B), every input inside Table I's workspace, every output within 1 m.
+  The trace itself has already refused NaN and a non-uniform or non-increasing time
+  (`Trace.from_columns`).
+* `decimate`: the anti-alias filter and down-sampling applied identically to inputs and
+  outputs before the fit.
+* `fit_linear`: seed 002 eq. (6) by `identify_subspace` on the decimated runs, default
+  order 4, decimation 10 (10 kHz -> 1 kHz) and feed-through on.
+* `run_errors`: the simulation error ``y - y_model`` of a model from rest, per axis
+  (Table II's μ, σ).
+* `StageLinearModel`, `write_stage_model`, `read_stage_model`: the model file (JSON),
+  which carries the rate of the runs it was fitted to and its decimation, and whose
+  reader dispatches on ``"kind"`` (`MODEL_KINDS`) so that the ANN kind can be added.
+
+Why decimate by 10, and why feed-through (both measured on the twin, 20-600 s of random
+runs): at 10 kHz the slowest poles sit within 5e-3 of z = 1 and the order-4 fit is
+ill-conditioned (A came out unstable on 600 s); at 1 kHz the same data give the twin's
+poles. With D = 0 (MATLAB ``n4sid``'s default, ``'Feedthrough'`` false) the order-4 fit
+misses by σ ≈ 210-330 µm on data where the output follows the input within 9/17 µm;
+with D, as eq. (6b) writes it, σ ≈ 8/15-17 µm. A 4-state model cannot hold both the
+near-unit static path (the built-in loop's feedforward makes y ≈ ρ) and the slow modes
+without it.
+
+Anti-alias filter (`decimate`): the FIR of ``scipy.signal.decimate(x, q, ftype="fir",
+zero_phase=True)``, order ``20 q`` (``firwin(20 q + 1, 1 / q)``, Hamming window, cut-off
+at the new Nyquist frequency), applied zero-phase by ``scipy.signal.resample_poly``; the
+ends are held (edge padding) instead of scipy's zeros, since a run starts and ends at
+rest, possibly away from the origin. Sample ``k`` of the result is at input sample
+``k q``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import scipy.signal
+
+from microfab.core.arrays import readonly
+from microfab.core.limits import MachineLimits
+from microfab.core.signals import Trace
+from microfab.core.validate import check_int, check_positive
+from microfab.identify.subspace import SubspaceConfig, identify_subspace
+from microfab.identify.subspace_data import IORun
+from microfab.identify.subspace_model import SubspaceModel
+from microfab.io.atomic import atomic_write_json
+
+__all__ = [
+    "AXES",
+    "BASE_RATE_HZ",
+    "COLUMNS",
+    "DEFAULT_DECIMATE",
+    "FORMAT",
+    "MIN_RUN_S",
+    "MODEL_KINDS",
+    "VERSION",
+    "RunErrors",
+    "StageLinearModel",
+    "StageRecord",
+    "check_decimate",
+    "decimate",
+    "fit_linear",
+    "read_stage_model",
+    "rest_state",
+    "run_errors",
+    "stage_model_from_dict",
+    "stage_record",
+    "write_stage_model",
+]
+
+AXES = ("x", "y")
+#: Columns of a measured run besides ``time`` (as ``microfab ilc step`` names them).
+COLUMNS = ("input_x", "input_y", "output_x", "output_y")
+#: The ANN's sample rate, Hz (seed 002 §III-B: "a sample frequency of 400 Hz"); a run's rate
+#: must be a whole multiple of it.
+BASE_RATE_HZ = 400.0
+#: Shortest run, s (seed 002 §III-B: the ANN reads "the most recent 500 ms").
+MIN_RUN_S = 0.5
+#: Default decimation before the linear fit: 10 kHz -> 1 kHz (module docstring; measured).
+DEFAULT_DECIMATE = 10
+#: Slowest rate a linear model is fitted at, Hz (assumed: the ANN's 400 Hz; the twin's
+#: built-in loop pair at 25 Hz and its 150 Hz y resonance stay below its Nyquist).
+MIN_MODEL_RATE_HZ = BASE_RATE_HZ
+FORMAT = "microfab.identify.StageModel"
+VERSION = 1
+_WORKSPACE = MachineLimits.seed002_stage().workspace  # seed 002 Table I: [-0.19, 0.19]^2 m
+#: Largest |output| accepted, m (assumed: the stage travels ±0.19 m; a metre or more is a
+#: unit or column error, and 1e300 would overflow the fit).
+_OUTPUT_BOUND_M = 1.0
+_RATE_RTOL = 1e-6  # rate / 400 Hz within this of a whole number
+
+
+@dataclass(frozen=True, eq=False)
+class StageRecord:
+    """One measured run: set-points and encoder positions of both axes, from rest.
+
+    Attributes
+    ----------
+    name : str
+        Where it came from (a file name), for messages.
+    u : numpy.ndarray
+        Set-points ``input_x``, ``input_y``, m, shape (n, 2), read-only.
+    y : numpy.ndarray
+        Positions ``output_x``, ``output_y``, m, shape (n, 2), read-only.
+    """
+
+    name: str
+    u: np.ndarray
+    y: np.ndarray
+
+    def __post_init__(self) -> None:
+        for attr in ("u", "y"):
+            a = np.asarray(getattr(self, attr), dtype=np.float64)
+            if a.ndim != 2 or a.shape[1] != 2:
+                raise ValueError(f"{self.name}: {attr} must have shape (n, 2), got {a.shape}")
+            bad = np.argwhere(~np.isfinite(a))
+            if bad.size:
+                k, c = (int(v) for v in bad[0])
+                col = ("input_" if attr == "u" else "output_") + AXES[c]
+                raise ValueError(f"{self.name}: {col} is {a[k, c]} at sample {k}")
+            object.__setattr__(self, attr, readonly(a))
+        if self.u.shape != self.y.shape:
+            raise ValueError(
+                f"{self.name}: inputs {self.u.shape} and outputs {self.y.shape} differ in length"
+            )
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples."""
+        return int(self.u.shape[0])
+
+
+def check_rate(dt: float, where: str = "the run") -> float:
+    """The rate ``1 / dt`` (Hz), refused unless a whole multiple of `BASE_RATE_HZ`."""
+    check_positive("dt", dt, "s")
+    rate = 1.0 / dt
+    k = rate / BASE_RATE_HZ
+    if not math.isfinite(k) or k < 0.5 or abs(k - round(k)) > _RATE_RTOL * k:
+        raise ValueError(
+            f"{where} is sampled at {rate:.6g} Hz, not a whole multiple of "
+            f"{BASE_RATE_HZ:g} Hz (seed 002: the ANN runs at 400 Hz; the stage's loop at "
+            "10 kHz); record at 10 kHz"
+        )
+    return rate
+
+
+def stage_record(trace: Trace, name: str = "run") -> StageRecord:
+    """A measured run from a trace, checked (module docstring).
+
+    Parameters
+    ----------
+    trace : Trace
+        With axes `COLUMNS` (others ignored), unit ``"m"`` or none.
+    name : str
+        Named in the messages (the file).
+
+    Returns
+    -------
+    StageRecord
+
+    Raises
+    ------
+    ValueError
+        A missing column, another unit, a rate that is no multiple of 400 Hz, a run
+        shorter than 500 ms, an input outside the workspace.
+    """
+    missing = [c for c in COLUMNS if c not in trace.axes]
+    if missing:
+        raise ValueError(
+            f"{name}: no column {missing[0]!r} (columns: time, {', '.join(trace.axes)}); a "
+            f"stage run needs time, {', '.join(COLUMNS)} (m)"
+        )
+    if trace.unit not in ("", "m"):
+        raise ValueError(f"{name}: unit {trace.unit!r}; the stage's runs are in m")
+    check_rate(trace.dt, name)
+    duration = trace.n_samples * trace.dt
+    if duration < MIN_RUN_S * (1.0 - 1e-9):
+        raise ValueError(
+            f"{name}: {trace.n_samples} samples ({duration:.4g} s) are shorter than "
+            f"{MIN_RUN_S * 1e3:g} ms (seed 002 §III-B: the ANN reads 500 ms of history)"
+        )
+    idx = [trace.axes.index(c) for c in COLUMNS]
+    rec = StageRecord(name=name, u=trace.values[:, idx[:2]], y=trace.values[:, idx[2:]])
+    for a, (lo, hi) in enumerate(_WORKSPACE):
+        col = rec.u[:, a]
+        out = np.flatnonzero((col < lo) | (col > hi))
+        if out.size:
+            k = int(out[0])
+            raise ValueError(
+                f"{name}: input_{AXES[a]} = {col[k]:.6g} m at t = {trace.t0 + k * trace.dt:.6g} s "
+                f"lies outside the workspace [{lo:g}, {hi:g}] m (seed 002 Table I)"
+            )
+    far = np.flatnonzero(np.abs(rec.y).max(axis=1) > _OUTPUT_BOUND_M)
+    if far.size:
+        k = int(far[0])
+        raise ValueError(
+            f"{name}: output ({rec.y[k, 0]:.6g}, {rec.y[k, 1]:.6g}) m at t = "
+            f"{trace.t0 + k * trace.dt:.6g} s is beyond {_OUTPUT_BOUND_M:g} m: not a position "
+            "of the stage in m (another unit or column?)"
+        )
+    return rec
+
+
+def check_decimate(q: int, rate_hz: float) -> int:
+    """``q`` if a whole number >= 1 leaving at least `MIN_MODEL_RATE_HZ`; else ValueError."""
+    check_int("decimate", q, 1)
+    if rate_hz / q < MIN_MODEL_RATE_HZ * (1.0 - 1e-9):
+        raise ValueError(
+            f"decimate {q} takes {rate_hz:.6g} Hz to {rate_hz / q:.6g} Hz, below "
+            f"{MIN_MODEL_RATE_HZ:g} Hz; use decimate <= {int(rate_hz // MIN_MODEL_RATE_HZ)}"
+        )
+    return int(q)
+
+
+def decimate(x: np.ndarray, q: int) -> np.ndarray:
+    """Anti-alias filter and keep every ``q``-th sample, zero phase, ends held.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Samples, shape (n,) or (n, channels).
+    q : int
+        Factor (>= 1; 1 returns a copy).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(ceil(n / q), ...)``; sample ``k`` at input sample ``k q``. The filter is
+        the FIR of ``scipy.signal.decimate(ftype="fir", zero_phase=True)`` (module
+        docstring), with edge padding.
+    """
+    check_int("q", q, 1)
+    a = np.asarray(x, dtype=np.float64)
+    if q == 1:
+        return a.copy()
+    taps = scipy.signal.firwin(20 * q + 1, 1.0 / q, window="hamming")
+    return scipy.signal.resample_poly(a, 1, q, axis=0, window=taps, padtype="edge")
+
+
+def _decimated(records: Sequence[StageRecord], q: int) -> list[IORun]:
+    return [IORun(decimate(r.u, q), decimate(r.y, q)) for r in records]
+
+
+def _as_records(records: Any) -> list[StageRecord]:
+    if isinstance(records, StageRecord | tuple):
+        records = [records]
+    out = []
+    for i, r in enumerate(records):
+        if isinstance(r, StageRecord):
+            out.append(r)
+        else:
+            u, y = r
+            out.append(StageRecord(name=f"run {i}", u=u, y=y))
+    if not out:
+        raise ValueError("no runs given: at least one measured run is needed")
+    return out
+
+
+def fit_linear(
+    records: Any,
+    dt: float,
+    *,
+    order: int = 4,
+    decimate: int = DEFAULT_DECIMATE,
+    feedthrough: bool = True,
+    block_rows: int | None = None,
+    weighting: str = "moesp",
+    workers: int = 2,
+) -> SubspaceModel:
+    """Seed 002 eq. (6) fitted to measured runs, after the anti-alias decimation.
+
+    Parameters
+    ----------
+    records : StageRecord, (u, y) pair, or a sequence of them
+        Runs from rest, u and y shapes (n, 2), m, all at ``dt``.
+    dt : float
+        Sample time of the runs, s (its rate a multiple of 400 Hz).
+    order : int
+        States (seed 002 §III-A: 4).
+    decimate : int
+        Factor applied identically to inputs and outputs first (default 10: 10 kHz to
+        1 kHz; module docstring).
+    feedthrough : bool
+        Estimate D (default True: eq. (6b) writes it; MATLAB ``n4sid`` defaults to D = 0).
+    block_rows, weighting, workers
+        As `SubspaceConfig` (block rows default ``2 order + 2``, MOESP).
+
+    Returns
+    -------
+    SubspaceModel
+        Discrete, at ``dt * decimate``.
+
+    Raises
+    ------
+    ValueError
+        A bad rate or factor, an order below 1 or above the block rows, a non-exciting
+        input, an unstable identified A.
+    """
+    recs = _as_records(records)
+    rate = check_rate(dt)
+    q = check_decimate(decimate, rate)
+    cfg = SubspaceConfig(
+        order=order,
+        block_rows=block_rows,
+        weighting=weighting,  # type: ignore[arg-type]
+        feedthrough=feedthrough,
+        workers=workers,
+    )
+    return identify_subspace(_decimated(recs, q), dt * q, cfg)
+
+
+def rest_state(model: SubspaceModel, u0: np.ndarray) -> np.ndarray:
+    """The model's steady state under a constant input ``u0`` (a run from rest), shape (n,).
+
+    ``x = (I - A)^{-1} B u0``; A is stable (the fit refuses an unstable one).
+    """
+    eye = np.eye(model.order)
+    return np.linalg.solve(eye - model.a, model.b @ np.asarray(u0, dtype=np.float64))
+
+
+@dataclass(frozen=True, eq=False)
+class RunErrors:
+    """Simulation error ``y - y_model`` per axis over runs (seed 002 Table II μ, σ).
+
+    Attributes
+    ----------
+    mean, std : numpy.ndarray
+        Shape (2,), m, over all runs' samples (population std about the mean).
+    per_run : tuple of (str, numpy.ndarray, numpy.ndarray)
+        ``(name, mean, std)`` of each run.
+    n_samples : int
+        Samples compared (at the model's rate).
+    rate_hz : float
+        Rate the comparison was made at (the model's own).
+    """
+
+    mean: np.ndarray
+    std: np.ndarray
+    per_run: tuple[tuple[str, np.ndarray, np.ndarray], ...]
+    n_samples: int
+    rate_hz: float
+
+
+def run_errors(model: SubspaceModel, records: Any, decimate: int) -> RunErrors:
+    """Simulation error of a linear model on runs from rest, at the model's own rate.
+
+    Each run is decimated by ``decimate`` (as in `fit_linear`) and simulated from the
+    model's steady state under its first input (`rest_state`).
+
+    Parameters
+    ----------
+    model : SubspaceModel
+        At ``dt * decimate`` of the runs.
+    records : StageRecord, (u, y) pair, or a sequence of them
+        Runs from rest, m.
+    decimate : int
+        Factor the model was fitted after.
+
+    Returns
+    -------
+    RunErrors
+    """
+    recs = _as_records(records)
+    check_int("decimate", decimate, 1)
+    sums = np.zeros((2, 2))
+    n = 0
+    per_run = []
+    for rec, run in zip(recs, _decimated(recs, decimate), strict=True):
+        e = model.prediction_error(run.u, run.y, rest_state(model, run.u[0]))
+        sums += (e.sum(axis=0), (e * e).sum(axis=0))
+        n += e.shape[0]
+        per_run.append((rec.name, e.mean(axis=0), e.std(axis=0)))
+    mean = sums[0] / n
+    std = np.sqrt(np.maximum(sums[1] / n - mean**2, 0.0))
+    return RunErrors(
+        mean=mean, std=std, per_run=tuple(per_run), n_samples=n, rate_hz=1.0 / model.dt
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class StageLinearModel:
+    """A linear model of the stage with what it was fitted to (the model file's content).
+
+    Attributes
+    ----------
+    model : SubspaceModel
+        Discrete, at ``input_dt * decimate``.
+    input_dt : float
+        Sample time of the runs it was fitted to, s.
+    decimate : int
+        Factor applied before the fit (runs are decimated the same way to validate).
+    """
+
+    model: SubspaceModel
+    input_dt: float
+    decimate: int
+    kind: ClassVar[str] = "linear"
+
+    def __post_init__(self) -> None:
+        check_positive("input_dt", self.input_dt, "s")
+        check_int("decimate", self.decimate, 1)
+        if abs(self.model.dt / (self.input_dt * self.decimate) - 1.0) > 1e-9:
+            raise ValueError(
+                f"the model's dt {self.model.dt:g} s is not input_dt {self.input_dt:g} s x "
+                f"decimate {self.decimate}"
+            )
+
+    @property
+    def input_rate_hz(self) -> float:
+        """Rate of the runs the model reads, Hz."""
+        return 1.0 / self.input_dt
+
+    def errors(self, records: Any) -> RunErrors:
+        """`run_errors` at the model's rate."""
+        return run_errors(self.model, records, self.decimate)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form: format, version, kind, rates, decimation, the `SubspaceModel`."""
+        return {
+            "format": FORMAT,
+            "version": VERSION,
+            "kind": self.kind,
+            "axes": list(AXES),
+            "unit": "m",
+            "input_rate_hz": self.input_rate_hz,
+            "decimate": self.decimate,
+            "model_rate_hz": 1.0 / self.model.dt,
+            "anti_alias": "scipy.signal.decimate FIR (order 20 q, Hamming), zero phase, ends held",
+            "model": self.model.to_dict(),
+        }
+
+
+_LINEAR_KEYS = frozenset(
+    {"format", "version", "kind", "axes", "unit", "input_rate_hz", "decimate",
+     "model_rate_hz", "anti_alias", "model"}
+)  # fmt: skip
+
+
+def _linear_from_dict(data: dict[str, Any]) -> StageLinearModel:
+    if set(data) != _LINEAR_KEYS:
+        extra, missing = sorted(set(data) - _LINEAR_KEYS), sorted(_LINEAR_KEYS - set(data))
+        raise ValueError(f"linear stage model keys: unknown {extra}, missing {missing}")
+    rate = check_positive("input_rate_hz", data["input_rate_hz"], "Hz")
+    model = SubspaceModel.from_dict(data["model"])
+    if model.n_inputs != 2 or model.n_outputs != 2:
+        raise ValueError(
+            f"a stage model maps 2 inputs to 2 outputs, this one {model.n_inputs} to "
+            f"{model.n_outputs}"
+        )
+    if data["axes"] != list(AXES) or data["unit"] != "m":
+        raise ValueError(f"axes {data['axes']!r} in {data['unit']!r}: expected {list(AXES)} in 'm'")
+    out = StageLinearModel(model=model, input_dt=1.0 / rate, decimate=data["decimate"])
+    if abs(float(data["model_rate_hz"]) * model.dt - 1.0) > 1e-9:
+        raise ValueError(
+            f"model_rate_hz {data['model_rate_hz']} disagrees with the model's dt {model.dt} s"
+        )
+    return out
+
+
+#: Readers of the model file by its ``"kind"`` (the ANN kind adds its own). What a reader
+#: returns must offer what ``identify validate`` uses: ``kind``, ``input_rate_hz`` (the
+#: rate of the runs it reads) and ``errors(records) -> RunErrors``, as `StageLinearModel`.
+MODEL_KINDS: dict[str, Callable[[dict[str, Any]], Any]] = {"linear": _linear_from_dict}
+
+
+def stage_model_from_dict(data: Any) -> Any:
+    """A stage model from its JSON form, by its ``"kind"`` (`MODEL_KINDS`).
+
+    Raises
+    ------
+    ValueError
+        Not a mapping, another format or version, an unknown kind, or the kind's own
+        refusals (keys, shapes, rates).
+    """
+    if not isinstance(data, dict):
+        raise ValueError(f"a stage model must be a JSON object, got {type(data).__name__}")
+    if data.get("format") != FORMAT:
+        raise ValueError(f"not a stage model: format {data.get('format')!r}, expected {FORMAT!r}")
+    if data.get("version") != VERSION:
+        raise ValueError(
+            f"stage model version {data.get('version')!r} is not supported (this microfab "
+            f"reads version {VERSION}); fit it again"
+        )
+    kind = data.get("kind")
+    if kind not in MODEL_KINDS:
+        raise ValueError(
+            f"stage model kind {kind!r} is not known (known: {', '.join(sorted(MODEL_KINDS))})"
+        )
+    return MODEL_KINDS[str(kind)](data)
+
+
+def write_stage_model(path: str | Path, model: StageLinearModel) -> None:
+    """Write the model file (JSON, atomic)."""
+    atomic_write_json(path, model.to_dict())
+
+
+def read_stage_model(path: str | Path) -> Any:
+    """Read a stage model file (JSON) and dispatch on its kind.
+
+    Raises
+    ------
+    ValueError
+        Unreadable, not JSON, or refused by `stage_model_from_dict`; the message names
+        the file.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(
+            f"{p} is a directory: the network models of `identify ann` are not read yet; "
+            "give a linear model's JSON file"
+        )
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise ValueError(f"{p}: cannot read a stage model: {exc}") from None
+    try:
+        return stage_model_from_dict(data)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise ValueError(f"{p}: {exc}") from None
