@@ -10,11 +10,11 @@ from microfab.experiments.seed002_stage import paper
 from microfab.experiments.seed002_stage.run import (
     LinearSettings,
     TwinSettings,
-    decimate_records,
     fit_linear,
     play_runs,
 )
 from microfab.identify.excitation import random_runs
+from microfab.identify.stage_data import decimate
 from microfab.identify.subspace import SubspaceConfig, identify_subspace
 from microfab.plants.xy_stage import xy_stage_twin
 from microfab.plants.xy_stage_params import NONLINEAR
@@ -22,31 +22,32 @@ from microfab.sim.loop import simulate
 
 
 @pytest.fixture(scope="module")
-def records():
+def played():
     return play_runs(random_runs(30.0, seed=3), TwinSettings(seed=3))
 
 
-def test_runs_start_at_rest_pass_the_guard_and_settle(records):
-    for r in records:
-        assert r.limited == 0  # the commands are within Table I
-        assert np.allclose(r.measured[0], r.command[0], atol=10e-6)  # at rest at the start
-        tail = r.measured[-200:] - r.command[-1]
+def test_runs_start_at_rest_pass_the_guard_and_settle(played):
+    assert played.dt == pytest.approx(1e-4)
+    assert played.limited == (0,) * len(played.records)  # the commands are within Table I
+    for r in played.records:
+        assert np.allclose(r.y[0], r.u[0], atol=10e-6)  # at rest at the start
+        tail = r.y[-200:] - r.u[-1]
         assert np.all(np.abs(tail.mean(axis=0)) < 3e-6)  # settled within the 2 µm noise
 
 
-def test_linear_model_on_its_training_data(records):
-    fit = fit_linear(records, LinearSettings(seed=3))
+def test_linear_model_on_its_training_data(played):
+    fit = fit_linear(played, LinearSettings(seed=3))
     assert fit.model.order == paper.LINEAR_ORDER
     assert fit.model.dt == pytest.approx(1e-3)  # decimated by 10
     # the prediction error is no larger than the stage's own tracking error (y - u), and
     # its mean is small against sigma (Table II's acceptance: |mu| <= max(2 µm, sigma / 3))
-    track = np.vstack([r.measured - r.command for r in records]).std(axis=0)
+    track = np.vstack([r.y - r.u for r in played.records]).std(axis=0)
     assert np.all(fit.sigma_m < 1.2 * track)
     assert np.all(np.abs(fit.mu_m) <= np.maximum(2e-6, fit.sigma_m / 3))
 
 
-def test_without_feedthrough_the_order_4_fit_is_far_worse(records):
-    data = decimate_records(records, 10)
+def test_without_feedthrough_the_order_4_fit_is_far_worse(played):
+    data = [(decimate(r.u, 10), decimate(r.y, 10)) for r in played.records]
     free = identify_subspace(data, 1e-3, SubspaceConfig(order=4, feedthrough=True))
     zero = identify_subspace(data, 1e-3, SubspaceConfig(order=4, feedthrough=False))
     assert np.all(zero.error_stats(data)[1] > 3 * free.error_stats(data)[1])

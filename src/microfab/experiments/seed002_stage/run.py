@@ -8,8 +8,8 @@ for ``hold_s`` so that the stage settles; the measured position gets the twin's 
 noise (seed 002 eq. 3) drawn from a seed per run. What comes back is a `StageRecord` per
 run, the same shape as a measured run read from a file.
 
-The linear model (eq. 6) is fitted by `microfab.identify.stage_data`-style steps kept
-here in one function, `fit_linear`:
+The linear model (eq. 6) is fitted by `microfab.identify.stage_data.fit_linear`, the same
+function ``microfab identify linear`` runs on measured files:
 
 * **Decimation.** At 10 kHz the slowest modes (≈20 ms, §III-B) sit at ``z ≈ 0.995`` and a
   four-state subspace fit is ill-conditioned on this data (its ``A`` came out unstable).
@@ -20,24 +20,27 @@ here in one function, `fit_linear`:
   tracks within microns, ``D = 0`` (MATLAB ``n4sid``'s default) gave σ ≈ 210 µm per axis
   at order 4, while ``D`` free gives σ near the nonlinear floor; so ``D`` is estimated.
 
-Prediction errors are the model's simulated output minus the measured one, on the
-decimated records, from the identified initial state of each run (`SubspaceModel`); μ and
-σ are their mean and standard deviation per axis (Table II).
+Prediction errors are the measured output minus the model's, on the decimated records,
+each run simulated from the model's rest state under its first input
+(`stage_data.run_errors`); μ and σ are their mean and standard deviation per axis
+(Table II).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.signal
 
 from microfab.control.setpoint import SetPoint
+from microfab.identify import stage_data
 from microfab.identify.excitation import ExcitationRun, ann_dataset, random_runs, split_runs
-from microfab.identify.subspace import SubspaceConfig, SubspaceModel, identify_subspace
+from microfab.identify.stage_data import StageRecord
+from microfab.identify.subspace import SubspaceModel
 from microfab.plants.xy_stage import XYStagePlant, xy_stage_twin
 from microfab.sim.loop import LoopState, simulate
 
@@ -49,10 +52,9 @@ __all__ = [
     "AnnStudy",
     "LinearFit",
     "LinearSettings",
-    "StageRecord",
+    "Played",
     "TwinSettings",
     "ann_study",
-    "decimate_records",
     "fit_linear",
     "linear_study",
     "play_runs",
@@ -90,35 +92,30 @@ class TwinSettings:
 
 
 @dataclass(frozen=True, eq=False)
-class StageRecord:
-    """One run on the stage: command and measured position at 10 kHz, m.
+class Played:
+    """Runs played on the twin.
 
     Attributes
     ----------
-    name : str
-        The run's name.
+    records : list of StageRecord
+        Command ``u`` and measured position ``y`` of each run, (n, 2), m, with the hold.
+    limited : tuple of int
+        Samples the twin's set-point guard changed in each run (0 within Table I).
     dt : float
         Sample time, s.
-    command, measured : numpy.ndarray
-        Shape (n, 2): set-points and measured positions (x, y), m.
-    limited : int
-        Samples the twin's set-point guard changed (0 for a command within Table I).
     """
 
-    name: str
+    records: list[StageRecord]
+    limited: tuple[int, ...]
     dt: float
-    command: np.ndarray
-    measured: np.ndarray
-    limited: int = 0
 
 
-def play_runs(
-    runs: Sequence[ExcitationRun], settings: TwinSettings | None = None
-) -> list[StageRecord]:
+def play_runs(runs: Sequence[ExcitationRun], settings: TwinSettings | None = None) -> Played:
     """Play each run on the twin from rest at its first sample, then hold (module doc)."""
     s = TwinSettings() if settings is None else settings
     twin = s.twin()
     out = []
+    limited = []
     for k, run in enumerate(runs):
         u = np.asarray(run.command, dtype=float)
         n_hold = round(s.hold_s / run.dt)
@@ -131,33 +128,9 @@ def play_runs(
         )
         v = twin.noise(u.shape[0], s.seed + k) if s.noise else None
         res = simulate(twin, SetPoint(2), u, v, state=state, axes=("x", "y"))
-        counts = twin.guard_counts(res.final_state.plant)
-        out.append(
-            StageRecord(
-                name=run.name,
-                dt=run.dt,
-                command=u,
-                measured=np.asarray(res.measured),
-                limited=int(counts.limited),
-            )
-        )
-    return out
-
-
-def decimate_records(
-    records: Sequence[StageRecord], factor: int
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``(u, y)`` of each record, both decimated by ``factor`` with one FIR filter."""
-    if factor == 1:
-        return [(r.command, r.measured) for r in records]
-    out = []
-    for r in records:
-        u, y = (
-            scipy.signal.decimate(a, factor, ftype="fir", axis=0, zero_phase=True)
-            for a in (r.command, r.measured)
-        )
-        out.append((u, y))
-    return out
+        limited.append(int(twin.guard_counts(res.final_state.plant).limited))
+        out.append(StageRecord(name=run.name, u=u, y=np.asarray(res.measured)))
+    return Played(records=out, limited=tuple(limited), dt=float(runs[0].dt) if runs else 1e-4)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -197,12 +170,6 @@ class LinearSettings:
         if not isinstance(self.decimate, int) or self.decimate < 1:
             raise ValueError(f"decimate must be an integer >= 1, got {self.decimate!r}")
 
-    def config(self) -> SubspaceConfig:
-        """The subspace fit's settings."""
-        return SubspaceConfig(
-            order=self.order, block_rows=self.block_rows, feedthrough=self.feedthrough
-        )
-
 
 @dataclass(frozen=True, eq=False)
 class LinearFit:
@@ -227,8 +194,8 @@ class LinearFit:
     decimate: int
 
 
-def fit_linear(records: Sequence[StageRecord], settings: LinearSettings | None = None) -> LinearFit:
-    """Fit eq. (6) to the records and measure it on them (module doc).
+def fit_linear(played: Played, settings: LinearSettings | None = None) -> LinearFit:
+    """Fit eq. (6) to the played runs and measure it on them (module doc).
 
     Raises
     ------
@@ -237,25 +204,30 @@ def fit_linear(records: Sequence[StageRecord], settings: LinearSettings | None =
         unstable ``A``.
     """
     s = LinearSettings() if settings is None else settings
-    data = decimate_records(records, s.decimate)
-    dt = records[0].dt * s.decimate
-    model = identify_subspace(data, dt, s.config())
-    mu, sigma = model.error_stats(data)
+    model = stage_data.fit_linear(
+        played.records,
+        played.dt,
+        order=s.order,
+        decimate=s.decimate,
+        feedthrough=s.feedthrough,
+        block_rows=s.block_rows,
+    )
+    err = stage_data.run_errors(model, played.records, s.decimate)
     return LinearFit(
         model=model,
-        mu_m=np.asarray(mu),
-        sigma_m=np.asarray(sigma),
-        n_samples=int(sum(r.command.shape[0] for r in records)),
+        mu_m=err.mean,
+        sigma_m=err.std,
+        n_samples=int(sum(r.n_samples for r in played.records)),
         decimate=s.decimate,
     )
 
 
-def linear_study(settings: LinearSettings | None = None) -> tuple[list[StageRecord], LinearFit]:
+def linear_study(settings: LinearSettings | None = None) -> tuple[Played, LinearFit]:
     """Random runs (§III-C.1), played on the twin, and the linear model fitted to them."""
     s = LinearSettings() if settings is None else settings
     runs = random_runs(s.total_s, a_max=s.a_max, seed=s.seed)
-    records = play_runs(runs, s.twin)
-    return records, fit_linear(records, s)
+    played = play_runs(runs, s.twin)
+    return played, fit_linear(played, s)
 
 
 # ---------------------------------------------------------------------------- ANN
@@ -329,10 +301,10 @@ def ann_study(
     total = ANN_TOTAL_S if s.total_s is None else s.total_s
     runs = ann_dataset(total, random_share=s.random_share, seed=s.seed)
     train, val = split_runs(runs, s.validation, seed=s.seed)
-    rec_train = play_runs(train, s.twin)
-    rec_val = play_runs(val, TwinSettings(**{**_fields(s.twin), "seed": s.twin.seed + 10_000}))
-    pairs = [(r.command, r.measured) for r in rec_train]
-    vpairs = [(r.command, r.measured) for r in rec_val]
+    rec_train = play_runs(train, s.twin).records
+    rec_val = play_runs(val, dataclasses.replace(s.twin, seed=s.twin.seed + 10_000)).records
+    pairs = [(r.u, r.y) for r in rec_train]
+    vpairs = [(r.u, r.y) for r in rec_val]
     config = AnnConfig(max_epochs=s.max_epochs, seed=s.seed, threads=s.threads)
     model = train_ann(pairs, vpairs, config, checkpoint_dir=checkpoint_dir, progress=progress)
     return AnnStudy(
@@ -341,9 +313,3 @@ def ann_study(
         train_names=tuple(r.name for r in rec_train),
         validation_names=tuple(r.name for r in rec_val),
     )
-
-
-def _fields(obj: Any) -> dict[str, Any]:
-    import dataclasses
-
-    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
