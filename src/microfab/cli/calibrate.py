@@ -1,4 +1,4 @@
-"""``microfab calibrate galvo|nanomanipulator|laser``: refit a twin to its seed's numbers."""
+"""``microfab calibrate galvo|nanomanipulator|laser|xy-stage``: refit twins to seed numbers."""
 
 from __future__ import annotations
 
@@ -108,3 +108,71 @@ def calibrate_laser_cmd(
     if write is not None:
         write_scale(fit, write)
         console.print(f"wrote {write}")
+
+
+@calibrate_app.command("xy-stage")
+def calibrate_xy_stage_cmd(
+    write: Annotated[
+        Path | None,
+        typer.Option(help="Write an XY stage twin data file with the fitted magnitudes here."),
+    ] = None,
+    json_out: Annotated[
+        Path | None, typer.Option("--json", help="Write the fit (and checks) as JSON here.")
+    ] = None,
+    duration: Annotated[float, typer.Option(help="Random-run data of the fit, s.")] = 600.0,
+    search: Annotated[float, typer.Option(help="Shorter data to search on first, s.")] = 120.0,
+    seed: Annotated[int, typer.Option(help="Seed of the runs and the noise.")] = 0,
+    check: Annotated[
+        bool, typer.Option(help="Then measure the checks (order scan 2..8, time constant).")
+    ] = False,
+) -> None:
+    """Fit the XY stage twin's friction + cogging per axis to seed 002 Table II column 1."""
+    from microfab.cli._kit import fail
+    from microfab.experiments.seed002_stage.calibration import (
+        CalibrationSettings,
+        fit_scales,
+        force_budget,
+        linear_checks,
+        scaled_changes,
+        write_calibration_json,
+        write_twin_file,
+    )
+    from microfab.plants.xy_stage_params import load_params
+
+    try:
+        settings = CalibrationSettings(total_s=duration, search_s=search, seed=seed)
+        fit = fit_scales(
+            settings,
+            progress=lambda k, s, g: console.print(
+                f"run {k}: scales {s[0]:.4g} / {s[1]:.4g} -> sigma {g[0] * 1e6:.1f} / "
+                f"{g[1] * 1e6:.1f} µm"
+            ),
+        )
+    except ValueError as exc:
+        fail(str(exc))
+    capped = [ax for ax, c in zip("xy", fit.capped, strict=True) if c]
+    console.print(
+        f"scales x {fit.scales[0]:.4g}, y {fit.scales[1]:.4g}: linear sigma "
+        f"{fit.sigma_m[0] * 1e6:.1f} / {fit.sigma_m[1] * 1e6:.1f} µm on {fit.total_s:g} s "
+        "(seed 48.0 / 156.3)" + (f"; capped: {', '.join(capped)}" if capped else "")
+    )
+    changes = scaled_changes(fit.scales)
+    for b in force_budget(load_params().with_(**dict(changes))):
+        console.print(b.line())
+    checks = None
+    if check:
+        checks = linear_checks(fit.total_s, seed=seed, changes=changes)
+        d = checks.to_dict()
+        console.print(
+            f"checks: sigma(y-u) {d['tracking_sigma_um'][0]:.1f} / "
+            f"{d['tracking_sigma_um'][1]:.1f} µm; slowest time constant "
+            f"{d['slowest_time_constant_ms']:.1f} ms (seed reading 20 ms)"
+        )
+        for n, row in d["order_scan_sigma_um"].items():
+            console.print(f"order {n}: sigma {row[0]:.1f} / {row[1]:.1f} µm")
+    if write is not None:
+        write_twin_file(fit, write)
+        console.print(f"wrote {write}")
+    if json_out is not None:
+        write_calibration_json(fit, json_out, checks=checks)
+        console.print(f"wrote {json_out}")
