@@ -141,3 +141,29 @@ def test_cli_calibrate_xy_stage(tmp_path):
     assert scales_of(load_params(out)) == pytest.approx(d["scales"], rel=1e-4)
     bad = CliRunner().invoke(app, ["calibrate", "xy-stage", "--duration", "-1"])
     assert bad.exit_code == 2 and "total_s" in bad.output
+
+
+@pytest.fixture(scope="module")
+def short_checks():
+    return linear_checks(60.0, seed=0, orders=())
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="y cannot reach Table II's 156.3 µm with plausible friction: at the 6x cap (the "
+    "carriage still settles) the linear model's sigma is 87.8 µm on 600 s (-44 %); the "
+    "target needs about 10.9x, where y hunts 150 µm at rest (microfab calibrate xy-stage)",
+)
+def test_linear_sigma_of_y_matches_table_ii(short_checks):
+    assert abs(short_checks.sigma_m[1] / TARGET_SIGMA_M[1] - 1) <= 0.15
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="on the calibrated twin the slowest identified time constant is 44.5 ms (600 s), "
+    "outside the seed's 500 ms / 25 = 20 ms ± 50 %: the large friction slows the settling",
+)
+def test_slowest_time_constant_near_20_ms(short_checks):
+    from microfab.experiments.seed002_stage.paper import SLOW_TIME_CONSTANT_S
+
+    assert abs(short_checks.slowest_time_constant_s / SLOW_TIME_CONSTANT_S - 1) <= 0.5

@@ -81,11 +81,11 @@ from microfab.experiments.seed002_stage import paper
 from microfab.experiments.seed002_stage.run import (
     LinearSettings,
     TwinSettings,
-    decimate_records,
     fit_linear,
     play_runs,
 )
 from microfab.identify.excitation import random_runs
+from microfab.identify.stage_data import decimate
 from microfab.identify.subspace import SubspaceConfig, order_scan
 from microfab.io.atomic import atomic_write_json, atomic_write_text
 from microfab.plants.xy_stage_params import AXES, XYStageParams, load_params
@@ -522,16 +522,16 @@ def linear_checks(
         Orders of the order scan (seed §III-A: 2..8; empty: no scan).
     """
     lin = LinearSettings(total_s=total_s, seed=seed)
-    records = play_runs(
+    played = play_runs(
         random_runs(total_s, a_max=lin.a_max, seed=seed), TwinSettings(seed=seed, changes=changes)
     )
-    fit = fit_linear(records, lin)
-    err = np.concatenate([r.measured - r.command for r in records])
+    fit = fit_linear(played, lin)
+    err = np.concatenate([r.y - r.u for r in played.records])
     ords = tuple(orders)
     if ords:
-        data = decimate_records(records, lin.decimate)
+        data = [(decimate(r.u, lin.decimate), decimate(r.y, lin.decimate)) for r in played.records]
         cfg = SubspaceConfig(feedthrough=lin.feedthrough)
-        scan = order_scan(data, records[0].dt * lin.decimate, ords, cfg)
+        scan = order_scan(data, played.dt * lin.decimate, ords, cfg)
         order_sigma = np.asarray(scan.fit_std, dtype=float)
     else:
         order_sigma = np.zeros((0, 2))

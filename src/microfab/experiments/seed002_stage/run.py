@@ -72,14 +72,15 @@ class TwinSettings:
     noise : bool
         The 2 µm output noise of eq. (3).
     hold_s : float
-        Hold after each command, s (assumed 0.2 s: ten slow time constants of 20 ms).
+        Hold after each command, s (assumed 0.5 s: the calibrated twin's x axis, whose
+        friction integrator takes longer than 0.2 s, is then within 0.2 µm).
     changes : tuple of (str, value)
         `XYStageParams` fields to replace (e.g. the calibrated magnitudes).
     """
 
     seed: int = 0
     noise: bool = True
-    hold_s: float = 0.2  # assumed, see above
+    hold_s: float = 0.5  # assumed, see above
     changes: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
