@@ -24,7 +24,9 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 __all__ = [
     "check_axis_pair",
@@ -33,6 +35,7 @@ __all__ = [
     "check_int",
     "check_nonnegative",
     "check_positive",
+    "replace_known",
 ]
 
 
@@ -295,3 +298,31 @@ def check_axis_pair(
             f"{name} needs one value per axis (x, y), got {value!r} {unit}; give a pair"
         )
     return (check(f"{name}[x]", value[0], unit), check(f"{name}[y]", value[1], unit))
+
+
+def replace_known(obj: T, what: str, **changes: Any) -> T:
+    """A copy of the dataclass ``obj`` with ``changes``, validated by its ``__post_init__``.
+
+    Parameters
+    ----------
+    obj : dataclass instance
+        The parameters to copy.
+    what : str
+        What they are, for the message (``"unknown <what> parameter(s) ..."``).
+    **changes
+        Field values to replace.
+
+    Raises
+    ------
+    ValueError
+        A name that is not a field (naming the known ones), or a value the class refuses.
+    """
+    import dataclasses
+
+    known = {f.name for f in dataclasses.fields(obj)}  # type: ignore[arg-type]
+    unknown = sorted(set(changes) - known)
+    if unknown:
+        raise ValueError(
+            f"unknown {what} parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}"
+        )
+    return dataclasses.replace(obj, **changes)  # type: ignore[type-var]

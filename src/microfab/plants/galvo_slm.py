@@ -38,14 +38,14 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 import control
 from microfab.core.limits import AxisLimits
-from microfab.core.validate import check_in_range, check_nonnegative, check_positive
+from microfab.core.validate import check_in_range, check_nonnegative, check_positive, replace_known
 from microfab.plants.base import LTIPlant, white_noise
 from microfab.plants.lti import block_diag, discretize
 from microfab.plants.sourced_toml import read_sourced
@@ -175,14 +175,7 @@ class GalvoSLMParams:
 
     def with_(self, **changes: Any) -> GalvoSLMParams:
         """A validated copy with ``changes``; unknown names are refused (ValueError)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown galvo parameter(s) {', '.join(unknown)}; known: "
-                f"{', '.join(sorted(known))}"
-            )
-        return replace(self, **changes)
+        return replace_known(self, "galvo", **changes)
 
 
 _SECTIONS = {

@@ -42,14 +42,20 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numba import njit
 
 import control
-from microfab.core.validate import check_finite, check_int, check_nonnegative, check_positive
+from microfab.core.validate import (
+    check_finite,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    replace_known,
+)
 from microfab.plants.base import CompiledPlant
 from microfab.plants.lti import DiscreteLTI, discretize
 from microfab.plants.sourced_toml import read_sourced
@@ -300,14 +306,7 @@ class LMWFocusParams:
 
     def with_(self, **changes: Any) -> LMWFocusParams:
         """A validated copy with ``changes``; unknown names are refused (ValueError)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown focus parameter(s) {', '.join(unknown)}; known: "
-                f"{', '.join(sorted(known))}"
-            )
-        return replace(self, **changes)
+        return replace_known(self, "focus", **changes)
 
 
 _SECTIONS = {

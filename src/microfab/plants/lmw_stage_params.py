@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -24,6 +24,7 @@ from microfab.core.validate import (
     check_int,
     check_nonnegative,
     check_positive,
+    replace_known,
 )
 from microfab.plants.sourced_toml import read_sourced
 
@@ -272,14 +273,7 @@ class LMWStageParams:
 
     def with_(self, **changes: Any) -> LMWStageParams:
         """A validated copy with ``changes``; unknown names are refused (ValueError)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown stage parameter(s) {', '.join(unknown)}; known: "
-                f"{', '.join(sorted(known))}"
-            )
-        return replace(self, **changes)
+        return replace_known(self, "stage", **changes)
 
     def linear(self) -> LMWStageParams:
         """A copy with every nonlinear part off: the model of `LMWStage.linear_model`."""

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -36,6 +36,7 @@ from microfab.core.validate import (
     check_int,
     check_nonnegative,
     check_positive,
+    replace_known,
 )
 from microfab.plants.sourced_toml import read_sourced
 
@@ -258,13 +259,7 @@ class NanomanipulatorParams:
 
     def with_(self, **changes: Any) -> NanomanipulatorParams:
         """A validated copy with ``changes``; unknown names are refused (ValueError)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown twin parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}"
-            )
-        return replace(self, **changes)
+        return replace_known(self, "twin", **changes)
 
     def linear(self) -> NanomanipulatorParams:
         """A copy with the §4.1 terms and the Fig. 5 physics off (eq. (9) only)."""

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -33,6 +33,7 @@ from microfab.core.validate import (
     check_int,
     check_nonnegative,
     check_positive,
+    replace_known,
 )
 from microfab.plants.sourced_toml import read_sourced
 
@@ -535,14 +536,7 @@ class XYStageParams:
 
     def with_(self, **changes: Any) -> XYStageParams:
         """A validated copy with ``changes``; unknown names are refused (ValueError)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown XY stage parameter(s) {', '.join(unknown)}; known: "
-                f"{', '.join(sorted(known))}"
-            )
-        return replace(self, **changes)
+        return replace_known(self, "XY stage", **changes)
 
     def linear(self) -> XYStageParams:
         """A copy with every `NONLINEAR` part off (resonance and coupling as they are)."""
