@@ -38,6 +38,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_laser.py
 	$(BIN)/python benchmarks/bench_contour_error.py
 	$(BIN)/python benchmarks/bench_slm.py
+	$(BIN)/python benchmarks/bench_identify.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
