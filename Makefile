@@ -39,6 +39,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_contour_error.py
 	$(BIN)/python benchmarks/bench_slm.py
 	$(BIN)/python benchmarks/bench_identify.py
+	$(BIN)/python benchmarks/bench_ann.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
