@@ -1,5 +1,7 @@
 """Timing and peak-memory helpers shared by the benchmark scripts.
 
+* `timed`: the wall time of one call, with its result (optionally after a garbage
+  collection outside the timing).
 * `best`: the shortest wall time of a few calls (the machine may be shared: the minimum is
   the least disturbed figure), with the last call's result.
 * `traced_peak`: the largest amount of memory Python and NumPy held at once during one
@@ -17,6 +19,7 @@ Import as ``from _timing import best`` from a script in this folder (run as
 
 from __future__ import annotations
 
+import gc
 import multiprocessing as mp
 import resource
 import sys
@@ -29,15 +32,33 @@ from typing import Any
 MB = 1e6  # bytes; memory is printed in MB and GB of 1e6 and 1e9 bytes
 
 
-def best(fn: Callable[[], Any], repeats: int = 3) -> tuple[float, Any]:
-    """Shortest wall time of ``repeats`` calls of ``fn``, s, and the last call's result."""
-    times = []
+def timed(fn: Callable[[], Any], *, collect: bool = False) -> tuple[float, Any]:
+    """Wall time of one call of ``fn``, s, and its result.
+
+    With ``collect``, garbage left by earlier calls (reference cycles that only the cyclic
+    collector frees, such as an ezdxf document) is collected first, outside the timing, so
+    that this call does not pay for another's.
+    """
+    if collect:
+        gc.collect()
+    t0 = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - t0, out
+
+
+def best(fn: Callable[[], Any], repeats: int = 3, *, collect: bool = False) -> tuple[float, Any]:
+    """Shortest wall time of ``repeats`` calls of ``fn``, s, and the last call's result.
+
+    An earlier call's result is let go before the next call starts, so no call runs with
+    the memory of another's result held. ``collect`` as in `timed`, before each call.
+    """
+    t_best = float("inf")
     out = None
     for _ in range(max(1, repeats)):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+        out = None
+        t, out = timed(fn, collect=collect)
+        t_best = min(t_best, t)
+    return t_best, out
 
 
 def traced_peak(fn: Callable[[], Any]) -> tuple[Any, int]:

@@ -24,10 +24,9 @@ Run: ``python benchmarks/bench_contour_error.py [n] [n_ref]``.
 from __future__ import annotations
 
 import sys
-import time
-from collections.abc import Callable
 
 import numpy as np
+from _timing import best, timed
 
 from microfab.geometry.path import Path
 from microfab.geometry.project import Projection, project_points, project_points_scalar
@@ -59,18 +58,6 @@ def tracked(path: Path, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return path.point(s) + rng.uniform(-JITTER, JITTER, (n, 2)), s
 
 
-def best_of(f: Callable[[], Projection], repeats: int = 3) -> tuple[float, Projection]:
-    """Least wall time of ``repeats`` calls, and the last result."""
-    best = float("inf")
-    out = None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = f()
-        best = min(best, time.perf_counter() - t0)
-    assert out is not None
-    return best, out
-
-
 def same(a: Projection, b: Projection) -> bool:
     """Whether two projections are identical, array by array."""
     names = ("s", "foot", "tangent", "normal", "distance", "segment")
@@ -80,20 +67,17 @@ def same(a: Projection, b: Projection) -> bool:
 def run(name: str, path: Path, n: int, n_ref: int) -> None:
     n_ref = min(n_ref, max(30, 3000 // len(path.segments)))  # the baseline is O(segments)
     p, _ = tracked(path, n)
-    t0 = time.perf_counter()
-    project_points(path, p)
-    t_first = time.perf_counter() - t0
-    t_vec, proj = best_of(lambda: project_points(path, p))
+    t_first, _ = timed(lambda: project_points(path, p))
+    t_vec, proj = best(lambda: project_points(path, p))
     hint = np.roll(proj.s, 1)  # the previous sample's foot
-    t_hint, with_hint = best_of(lambda: project_points(path, p, hint=hint))
+    t_hint, with_hint = best(lambda: project_points(path, p, hint=hint))
     sub = np.linspace(0, n - 1, n_ref).astype(int)
-    t0 = time.perf_counter()
-    ref = project_points_scalar(path, p[sub])
-    t_ref = (time.perf_counter() - t0) / n_ref
+    t_ref, ref = timed(lambda: project_points_scalar(path, p[sub]))
+    t_ref /= n_ref
     d_err = float(np.max(np.abs(proj.distance[sub] - ref.distance)))
     ds = np.abs(proj.s[sub] - ref.s)
     ds = np.minimum(ds, path.length - ds)  # a closed contour: s and s + length are one point
-    best = min(t_vec, t_hint)
+    fastest = min(t_vec, t_hint)
     print(f"{name}: {len(path.segments)} segments, {n} points, jitter ±{JITTER / UM:g} µm")
     print(
         f"  project_points  first {t_first * 1e3:8.1f} ms   best of 3 {t_vec * 1e3:8.1f} ms"
@@ -107,7 +91,7 @@ def run(name: str, path: Path, n: int, n_ref: int) -> None:
         f"  scalar baseline on {n_ref} points: {t_ref * 1e3:.3f} ms/point, "
         f"scaled to {n} points: {t_ref * n:.1f} s"
     )
-    print(f"  speed ratio (scaled baseline / best vectorised): {t_ref * n / best:,.0f}")
+    print(f"  speed ratio (scaled baseline / best vectorised): {t_ref * n / fastest:,.0f}")
     print(
         f"  max |distance - baseline| = {d_err:.3g} m   max |s - baseline| = {ds.max():.3g} m"
         f"   contour error rms {np.sqrt(np.mean(proj.distance**2)) / UM:.3f} µm"

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 
 import numpy as np
+from _timing import timed
 
 from microfab.experiments.seed003_inkjet.sweep import droplet_sweep, sweep_points
 from microfab.process.inkjet.droplet import simulate_droplet
@@ -26,9 +26,7 @@ def _thread() -> object:
 
 
 def _time(label: str, fn) -> float:
-    t0 = time.perf_counter()
-    out = fn()
-    wall = time.perf_counter() - t0
+    wall, out = timed(fn)
     run = getattr(out, "run", out)
     nodes = sum(b.z.size for b in run.bodies)
     print(
@@ -74,9 +72,10 @@ def main() -> None:
     if "--full" in sys.argv:
         sweep_walls = {}
         for workers in (1, 2):
-            t0 = time.perf_counter()
-            rows = droplet_sweep(sweep_points(voltages_v=()), workers=workers).rows
-            sweep_walls[workers] = time.perf_counter() - t0
+            sweep_walls[workers], sweep = timed(
+                lambda w=workers: droplet_sweep(sweep_points(voltages_v=()), workers=w)
+            )
+            rows = sweep.rows
             print(
                 f"Fig. 4 sweep, {len(rows)} concentrations at 50 V, workers={workers} "
                 f"(local Dask cluster when > 1): {sweep_walls[workers]:.1f} s"

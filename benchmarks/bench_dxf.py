@@ -12,14 +12,13 @@ Run: ``python benchmarks/bench_dxf.py [n_entities]``.
 
 from __future__ import annotations
 
-import gc
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import ezdxf
 import numpy as np
+from _timing import timed
 
 from microfab.geometry.dxf import read_dxf
 
@@ -91,25 +90,10 @@ def build(path: Path, n_entities: int = 100_000, seed: int = 0) -> dict[str, int
     }
 
 
-def timed(f) -> tuple[float, object]:
-    """Wall time of one call and its result.
-
-    Garbage left by earlier calls (an ezdxf document is a graph of reference cycles that
-    only the cyclic collector frees) is collected first, outside the timing, so that no
-    call pays for another's.
-    """
-    gc.collect()
-    t0 = time.perf_counter()
-    out = f()
-    return time.perf_counter() - t0, out
-
-
 def main(n_entities: int = 100_000) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.dxf"
-        t0 = time.perf_counter()
-        counts = build(path, n_entities)
-        t_build = time.perf_counter() - t0
+        t_build, counts = timed(lambda: build(path, n_entities))
         size_mb = path.stat().st_size / 1e6
         print(f"drawing: {counts}, {size_mb:.1f} MB, written in {t_build:.1f} s")
         # alternate the two (best of 3 each), so that a busy spell of the machine hits both
@@ -117,8 +101,8 @@ def main(n_entities: int = 100_000) -> None:
         layer = None
         for _rep in range(3):
             layer = None  # nothing of an earlier call stays alive
-            t_parse = min(t_parse, timed(lambda: ezdxf.readfile(path))[0])
-            t, layer = timed(lambda: read_dxf(path))
+            t_parse = min(t_parse, timed(lambda: ezdxf.readfile(path), collect=True)[0])
+            t, layer = timed(lambda: read_dxf(path), collect=True)
             t_read = min(t_read, t)
     n = counts["entities"]
     n_closed = sum(1 for c in layer if c.closed)

@@ -21,11 +21,10 @@ Run: ``make bench`` or ``python benchmarks/bench_laser.py``.
 from __future__ import annotations
 
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from _timing import best, timed
 
 from microfab.experiments.seed004_laser.reference import ContourMotion, contour_reference
 from microfab.experiments.seed004_laser.run import (
@@ -42,16 +41,6 @@ SPEED_M_S = 10e-3  # the seed's Fig. 7 speed
 RT_GOAL = 50.0
 PY_GOAL = 100.0
 PROJ_GOAL = 50.0
-
-
-def best_of(fn: Callable[[], object], repeats: int = 3) -> float:
-    """Shortest wall time of ``repeats`` calls, s."""
-    out = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return min(out)
 
 
 def write_part(folder: Path) -> Path:
@@ -91,7 +80,7 @@ def main() -> None:
         command=np.zeros(2),
     )
     simulate(stage, ctrl, pos[:50], noise[:50], s0, derivatives=(der[0][:50], der[1][:50]))
-    t_c = best_of(lambda: simulate(stage, ctrl, pos, noise, s0, derivatives=der))
+    t_c, _ = best(lambda: simulate(stage, ctrl, pos, noise, s0, derivatives=der))
     sim_s = n * float(traj.dt)
     print(
         f"seed 004 loop: stage twin + preview/DOB + contour compensator, DXF part "
@@ -106,19 +95,18 @@ def main() -> None:
     part = (pos[sl], noise[sl])
     dpart = (der[0][sl], der[1][sl])
     st = head.final_state
-    t_cp = best_of(lambda: simulate(stage, ctrl, *part, st, derivatives=dpart), 5)
-    t_py = best_of(lambda: simulate_python(stage, ctrl, *part, st, derivatives=dpart), 1)
+    t_cp, _ = best(lambda: simulate(stage, ctrl, *part, st, derivatives=dpart), 5)
+    t_py, _ = best(lambda: simulate_python(stage, ctrl, *part, st, derivatives=dpart), 1)
     ratio_py = t_py / t_cp
     print(f"  2000 samples: Python {t_py:.3f} s, compiled {t_cp * 1e3:.2f} ms: {ratio_py:.0f}x")
     res = simulate(stage, ctrl, pos, noise, s0, derivatives=der)
     pts = res.measured
     project_points(path, pts[:100])
-    t_v = best_of(lambda: project_points(path, pts))
+    t_v, _ = best(lambda: project_points(path, pts))
     m = min(400, pts.shape[0])
     idx = np.linspace(0, pts.shape[0] - 1, m).astype(int)
-    t0 = time.perf_counter()
-    slow = project_points_scalar(path, pts[idx])
-    t_s = (time.perf_counter() - t0) * pts.shape[0] / m
+    t_s, slow = timed(lambda: project_points_scalar(path, pts[idx]))
+    t_s *= pts.shape[0] / m
     diff = float(np.max(np.abs(project_points(path, pts[idx]).distance - slow.distance)))
     ratio_p = t_s / t_v
     print(

@@ -24,11 +24,11 @@ Run: ``make bench`` or ``python benchmarks/bench_nanomanipulator.py``.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from _timing import best, timed
 
 from microfab.control.gate import GateConfig, LaserGate, run_gate
 from microfab.control.pid import PID
@@ -106,16 +106,6 @@ def build(periods: int, seed: int = 0) -> Setup:
     )
 
 
-def best_of(fn: Callable[[], object], repeats: int = 3) -> float:
-    """Shortest wall time of ``repeats`` calls, s."""
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
-
-
 def compiled_run(
     s: Setup,
     sl: slice = slice(None),
@@ -159,11 +149,11 @@ def bench_compiled(periods: int = 20, repeats: int = 5) -> tuple[int, float, flo
     else:
         k = (run.opened_at - s.start) // s.gate.period_samples
         print(f"  gate opened at the start of period {k + 1} of {periods}")
-    t_sim = best_of(
+    t_sim, _ = best(
         lambda: simulate(s.plant, s.ctrl, s.pos, s.noise, derivatives=(s.vel, s.acc)), repeats
     )
-    t_gate = best_of(lambda: run_gate(err, s.gate), repeats)
-    t_all = best_of(lambda: compiled_run(s), repeats)
+    t_gate, _ = best(lambda: run_gate(err, s.gate), repeats)
+    t_all, _ = best(lambda: compiled_run(s), repeats)
     return n, t_sim, t_gate, n / t_all
 
 
@@ -183,7 +173,7 @@ def bench_parts(periods: int = 20, repeats: int = 5) -> dict[str, float]:
         ("twin + RBF + RC", s.ctrl),
     ):
         simulate(s.plant, ctrl, s.pos[:200], s.noise[:200], derivatives=(s.vel[:200], s.acc[:200]))
-        t = best_of(
+        t, _ = best(
             lambda c=ctrl: simulate(s.plant, c, s.pos, s.noise, derivatives=(s.vel, s.acc)),
             repeats,
         )
@@ -206,8 +196,8 @@ def bench_python(n_py: int = 3000, repeats: int = 2) -> tuple[float, float, floa
     gate = GateConfig(period_samples=s.gate.period_samples)
     compiled_run(s, sl, st, gate)  # warm-up (numba compilation)
     python_run(s, slice(s0, s0 + 10), st, gate)  # warm-up (the gate kernel's dispatch)
-    t_c = best_of(lambda: compiled_run(s, sl, st, gate), 20)
-    t_py = best_of(lambda: python_run(s, sl, st, gate), repeats)
+    t_c, _ = best(lambda: compiled_run(s, sl, st, gate), 20)
+    t_py, _ = best(lambda: python_run(s, sl, st, gate), repeats)
     return n_py / t_py, n_py / t_c, t_py / t_c
 
 
@@ -228,18 +218,17 @@ def job_real_time_factor() -> tuple[float, float, float]:
 
     cfg = JobConfig(pattern=PatternConfig(n_circles=4, periods=5))
     run_job(JobConfig(pattern=PatternConfig(n_circles=1, periods=1)))  # compile
-    best, run = np.inf, None
-    for _ in range(3):
-        with tempfile.TemporaryDirectory() as tmp:
-            t0 = time.perf_counter()
-            run = run_job(cfg, tmp)
+    with tempfile.TemporaryDirectory() as tmp:
+        folders = iter(range(3))  # a fresh, empty folder for each call
+
+        def job() -> Any:
+            run = run_job(cfg, f"{tmp}/{next(folders)}")
             run.metrics()
-            best = min(best, time.perf_counter() - t0)
-    assert run is not None
-    t0 = time.perf_counter()
-    cure_circles(run)
-    t_cure = time.perf_counter() - t0
-    return run.reference.n_samples * run.dt / best, best, t_cure
+            return run
+
+        t_job, run = best(job, 3)
+    t_cure, _ = timed(lambda: cure_circles(run))
+    return run.reference.n_samples * run.dt / t_job, t_job, t_cure
 
 
 def main() -> None:

@@ -22,9 +22,9 @@ Run: ``make bench`` or ``python benchmarks/bench_sim.py``.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 
 import numpy as np
+from _timing import best
 
 from microfab.control.base import LTIController
 from microfab.control.ilc import FrequencyILC, Trial
@@ -58,18 +58,8 @@ def bench_ilc(rate: int, iterations: int = 30) -> tuple[float, float]:
 def bench_run_msl_ilc(rate: int, iterations: int = 30, repeats: int = 2) -> tuple[float, float]:
     """``run_msl_ilc`` wall time (best of ``repeats``) and the simulated time it records."""
     axes = default_galvo_axes()
-    wall = best_of(lambda: run_msl_ilc(rate, iterations, axes=axes), repeats)
+    wall, _ = best(lambda: run_msl_ilc(rate, iterations, axes=axes), repeats)
     return iterations / rate, wall
-
-
-def best_of(fn: Callable[[], object], repeats: int = 3) -> float:
-    """Shortest wall time of ``repeats`` calls, s."""
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def bench_per_sample(n_fast: int = 1_000_000, n_py: int = 20_000) -> None:
@@ -79,8 +69,8 @@ def bench_per_sample(n_fast: int = 1_000_000, n_py: int = 20_000) -> None:
     ref = np.tile(square_scan(400, (1.0, 1.44), 1e6)[:, :1], (n_fast // 2500, 1))
     noise = rng.normal(0, ax.noise_rms_v, ref.shape)
     simulate(plant, ctrl, ref[:100], noise[:100])  # compile
-    t_numba = best_of(lambda: simulate(plant, ctrl, ref, noise))
-    t_py = best_of(lambda: simulate_python(plant, ctrl, ref[:n_py], noise[:n_py]))
+    t_numba, _ = best(lambda: simulate(plant, ctrl, ref, noise))
+    t_py, _ = best(lambda: simulate_python(plant, ctrl, ref[:n_py], noise[:n_py]))
     loop = LTILoop([ax.discrete_plant()], [discrete_controller(ax)])
     loop.run(ref[:100], noise[:100])
 
@@ -88,7 +78,7 @@ def bench_per_sample(n_fast: int = 1_000_000, n_py: int = 20_000) -> None:
         loop.reset()
         loop.run(ref, noise, with_command=False)
 
-    t_vec = best_of(vec)
+    t_vec, _ = best(vec)
     s_numba, s_py, s_vec = n_fast / t_numba, n_py / t_py, n_fast / t_vec
     print("\nper-sample simulator, one galvo axis (12 states), steps/s")
     print(f"  pure-Python loop          {s_py:12.3g}   (baseline)")
@@ -107,7 +97,7 @@ def bench_paths(rate: int = 400) -> None:
         # the short ones, so that a brief busy spell of the machine does not decide
         repeats = 2 if path == "python" else 20
         n0 = m.samples_simulated
-        wall = best_of(lambda m=m: m.run(ref, with_actuator=True), repeats)
+        wall, _ = best(lambda m=m: m.run(ref, with_actuator=True), repeats)
         per_run = (m.samples_simulated - n0) // repeats
         speed[path] = per_run * len(m.axes) / wall  # axis-samples per s
     print(f"\ngalvo twin, {rate} f/s square, run() with actuator, both axes: axis-samples/s")

@@ -17,35 +17,22 @@ Run: ``make bench`` or ``python benchmarks/bench_slm.py``.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
+from _timing import best, timed
 
 from microfab.plants.galvo_slm import galvo_slm_twin
 from microfab.process.slm.estimate import dynamics_estimate, naive_estimate, simulate_timeline
 from microfab.process.slm.lattice import LatticeSpec, lattice_layer
 
 
-def best(fn: Callable[[], object], repeats: int = 3) -> float:
-    """Best wall time of ``repeats`` calls, s."""
-    out = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return min(out)
-
-
 def main() -> None:
     twin = galvo_slm_twin()
     spec = LatticeSpec(outline_radius_m=47e-3)  # inside the ±49.15 mm field
-    t0 = time.perf_counter()
-    path = lattice_layer(0.5 * spec.cell_m, spec)
-    t_geom = time.perf_counter() - t0
+    t_geom, path = timed(lambda: lattice_layer(0.5 * spec.cell_m, spec))
     est = dynamics_estimate(path, twin)  # warm-up: compile, tables
     simulate_timeline(est.timeline, twin)
-    t_dyn = best(lambda: dynamics_estimate(path, twin))
-    t_naive = best(lambda: naive_estimate(path))
-    t_sim = best(lambda: simulate_timeline(est.timeline, twin), 2)
+    t_dyn, _ = best(lambda: dynamics_estimate(path, twin))
+    t_naive, _ = best(lambda: naive_estimate(path))
+    t_sim, _ = best(lambda: simulate_timeline(est.timeline, twin), 2)
     print(f"SLM lattice layer: {len(path)} vectors, {est.timeline.total_ticks} ticks of 10 µs")
     print(f"  layer geometry built in {t_geom:.2f} s (not part of the estimate)")
     print(f"  dynamics-aware estimate {t_dyn:.3f} s (goal <= 1 s); scan time {est.total_s:.3f} s")

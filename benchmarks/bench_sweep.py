@@ -17,6 +17,8 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from _timing import timed
+
 from microfab.experiments.sweep import grid, run_sweep
 
 WORKERS = 2
@@ -45,9 +47,7 @@ def _loops_for(seconds: float) -> int:
 
 
 def _timed(label: str, fn: Any) -> float:
-    t0 = time.perf_counter()
-    res = fn()
-    wall = time.perf_counter() - t0
+    wall, res = timed(fn)
     ran = [r for r in res.rows if r["index"] not in {p.index for p in res.skipped}]
     share = sum(r["cpu_s"] for r in ran) / max(sum(r["wall_s"] for r in ran), 1e-9)
     mean = sum(r["wall_s"] for r in ran) / max(len(ran), 1)

@@ -17,11 +17,10 @@ Run: ``python benchmarks/bench_topp.py``.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from _timing import best
 
 from microfab.core.limits import MachineLimits
 from microfab.trajectory.optimal import time_optimal
@@ -89,15 +88,6 @@ def make_path() -> Any:
     return rectangle(0.04, 0.03, corner_radius=0.005)
 
 
-def best_of(fn: Callable[[], Any], n: int = 3) -> tuple[float, Any]:
-    best, out = np.inf, None
-    for _ in range(n):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
-
-
 def toppra_duration(path: Any, limits: MachineLimits, grid: np.ndarray) -> float:
     import toppra.algorithm as algo
     import toppra.constraint as constraint
@@ -141,21 +131,21 @@ def main() -> None:
     print(f"path: rounded rectangle 40 x 30 mm, r = 5 mm, length {path.length * 1e3:.2f} mm")
     print(f"N = {N_GRID} grid points, margin {MARGIN}, best of 3 wall times\n")
 
-    wall_a, res_a = best_of(lambda: time_optimal(path, limits, n_grid=N_GRID, margin=MARGIN))
+    wall_a, res_a = best(lambda: time_optimal(path, limits, n_grid=N_GRID, margin=MARGIN))
     print(
         f"(a) ours, v/a only : wall {wall_a * 1e3:8.1f} ms   "
         f"duration {res_a.duration * 1e3:8.3f} ms   ({res_a.iterations} LP, {res_a.rounds} rounds)"
     )
     try:
         grid = np.asarray(res_a.s)
-        wall_b, dur_b = best_of(lambda: toppra_duration(path, limits, grid))
+        wall_b, dur_b = best(lambda: toppra_duration(path, limits, grid))
     except ImportError:
         wall_b, dur_b = float("nan"), float("nan")
         print("(b) TOPP-RA        : toppra not installed")
     else:
         print(f"(b) TOPP-RA, v/a   : wall {wall_b * 1e3:8.1f} ms   duration {dur_b * 1e3:8.3f} ms")
     jl = limits.with_jerk(JERK)
-    wall_c, res_c = best_of(lambda: time_optimal(path, jl, n_grid=N_GRID, margin=MARGIN))
+    wall_c, res_c = best(lambda: time_optimal(path, jl, n_grid=N_GRID, margin=MARGIN))
     print(
         f"(c) ours, + jerk   : wall {wall_c * 1e3:8.1f} ms   "
         f"duration {res_c.duration * 1e3:8.3f} ms   ({res_c.iterations} LP, {res_c.rounds} rounds, "
