@@ -301,5 +301,5 @@ def test_identify_validate_refusals_write_nothing(stage_model, tmp_path, one_err
         res = runner.invoke(app, ["identify", "validate", str(bad), good, "--json", str(out)])
         one_error_line(res, says)
     res = runner.invoke(app, ["identify", "validate", str(tmp_path), good, "--json", str(out)])
-    one_error_line(res, "is a directory")
+    one_error_line(res, "no model.json: not a network model")
     assert not out.exists()

@@ -199,8 +199,8 @@ def test_model_file_round_trip_and_refusals(fitted, twin_records, tmp_path):
         with pytest.raises(ValueError, match=str(bad)) as exc:
             read_stage_model(bad)
         assert says in str(exc.value)
-    with pytest.raises(ValueError, match="is a directory"):
-        read_stage_model(tmp_path)
+    with pytest.raises(ValueError, match=r"no model\.json: not a network model"):
+        read_stage_model(tmp_path)  # a directory is a network model of `identify ann`
     (tmp_path / "broken.json").write_text("{")
     with pytest.raises(ValueError, match="cannot read"):
         read_stage_model(tmp_path / "broken.json")

@@ -4,7 +4,8 @@
 (`rc.py`), ``nanomanipulator analyze`` (`nanomanipulator.py`), ``laser analyze``
 (`laser.py`), ``calibrate`` (`calibrate.py`), ``path show`` and ``trajectory``
 (`geometry.py`), ``droplet`` (`droplet.py`), ``identify chirp``, ``identify linear`` and
-``identify validate`` (`identify.py`), ``shaper design`` (`shaper.py`), ``slm scan-time``
+``identify validate`` (`identify.py`), ``identify ann`` (`identify_ann.py`, registered on
+the ``identify`` group when imported here), ``shaper design`` (`shaper.py`), ``slm scan-time``
 (`slm.py`), ``stage excite`` (`stage.py`); `_kit.py` holds the console, errors, progress
 bars, tables and the readers several groups share (``LOW:HIGH`` ranges, measured traces).
 """
@@ -21,6 +22,7 @@ from microfab.cli.calibrate import calibrate_app
 from microfab.cli.droplet import droplet_app
 from microfab.cli.geometry import path_app, trajectory_cmd
 from microfab.cli.identify import identify_app
+from microfab.cli.identify_ann import ann_cmd as _ann_cmd  # noqa: F401 (registers it)
 from microfab.cli.ilc import ilc_app
 from microfab.cli.laser import laser_app
 from microfab.cli.nanomanipulator import nanomanipulator_app

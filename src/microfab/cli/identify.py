@@ -6,9 +6,10 @@ transfer function to it (`microfab.identify`); it writes the model JSON that ``s
 design`` (`cli/shaper.py`) reads.
 
 Seed 002 (the black-box XY stage) on measured runs: ``identify linear RUN...`` fits eq. (6)
-after an anti-alias decimation and writes the model file; ``identify validate MODEL
-RUN...`` prints its error per axis in the layout of Table II
-(`microfab.identify.stage_data`).
+after an anti-alias decimation and writes the model file; ``identify ann RUN...``
+(`cli/identify_ann.py`, registered on this group) trains the per-axis networks of eq. (7);
+``identify validate MODEL RUN...`` prints either model's error per axis in the layout of
+Table II (`microfab.identify.stage_data`, `microfab.identify.stage_ann`).
 
 Every refusal is one ``error:`` line, exit code 2, and nothing is written.
 """
@@ -38,7 +39,7 @@ __all__ = ["identify_app"]
 identify_app = typer.Typer(
     no_args_is_help=True,
     help="System identification from measured traces (seed 003 part 2: chirp; seed 002: the "
-    "XY stage's linear model).",
+    "XY stage's linear model and per-axis networks).",
 )
 
 #: How a library message names a value and how the command line does.
@@ -231,25 +232,44 @@ def _read_runs(paths: list[Path]) -> tuple[list[Any], float]:
     return records, dt
 
 
-def _error_table(title: str, errors: Any, seed: bool, label: str = "Linear") -> Table:
-    """Seed 002 Table II's layout: model, axis, μ, σ in µm (and the seed's training column)."""
+def _error_table(
+    title: str,
+    errors: Any,
+    seed: str | None = None,
+    label: str = "Linear",
+    compared: str | None = None,
+) -> Table:
+    """Seed 002 Table II's layout: model, axis, μ, σ in µm (and a seed column beside).
+
+    ``seed`` names Table II's row (``"linear"``: its training data; ``"ann"``: its
+    validation data) to print beside; ``compared`` says where the errors were taken
+    (default: a linear model's rate, the runs decimated as for its fit).
+    """
     from microfab.experiments.seed002_stage.paper import TABLE_II
 
     rows = []
-    for a, axis in enumerate(("x", "y")):
+    for a, axis in enumerate(errors.axes):
         row = [label, axis, f"{errors.mean[a] * 1e6:.1f}", f"{errors.std[a] * 1e6:.1f}"]
-        if seed:
-            ref = TABLE_II["linear"][axis]["training"]
+        if seed is not None:
+            ref = TABLE_II[seed][axis]["training"]
             row += [f"{ref.mu_m * 1e6:.1f}", f"{ref.sigma_m * 1e6:.1f}"]
         rows.append(row)
-    cols = ["model", "axis", "μ [µm]", "σ [µm]"] + (["seed μ [µm]", "seed σ [µm]"] if seed else [])
-    note = (
-        f"y - y_model over {errors.n_samples} samples at the model's {errors.rate_hz:g} Hz (the "
-        "runs decimated as for the fit), each run simulated from rest"
-    )
-    if seed:
+    cols = ["model", "axis", "μ [µm]", "σ [µm]"]
+    cols += ["seed μ [µm]", "seed σ [µm]"] if seed is not None else []
+    if compared is None:
+        compared = f"at the model's {errors.rate_hz:g} Hz (the runs decimated as for the fit)"
+    note = f"y - y_model over {errors.n_samples} samples {compared}, each run simulated from rest"
+    if seed == "linear":
         note += "; seed: Table II, linear model on its training data (the ETEL stage)"
+    elif seed == "ann":
+        note += "; seed: Table II, non-linear model (ANN) on its validation data (the ETEL stage)"
     return Table(title=title, columns=cols, rows=rows, note=note)
+
+
+#: Where a network model's errors are taken (`microfab.identify.stage_ann`).
+ANN_COMPARED = (
+    "at every run sample ({rate:g} Hz: the 400 Hz networks at each start offset, interleaved)"
+)
 
 
 def _model_table(m: Any, decimate: int, input_rate: float, n_runs: int) -> Table:
@@ -335,14 +355,19 @@ def linear_cmd(
         msg = renamed(str(exc), {"block_rows": "--block-rows", "decimate": "--decimate"})
         fail(f"linear fit of {len(runs)} run(s): {msg}")
     print_table(_model_table(model, decimate, 1.0 / dt, len(records)))
-    print_table(_error_table("Prediction error on the training runs", errors, seed=True))
+    print_table(_error_table("Prediction error on the training runs", errors, seed="linear"))
     write_stage_model(out, stage)
     console.print(f"wrote {out}", highlight=False)
 
 
 @identify_app.command("validate")
 def validate_cmd(
-    model: Annotated[Path, typer.Argument(help="Model file written by identify linear.")],
+    model: Annotated[
+        Path,
+        typer.Argument(
+            help="Model file written by identify linear, or directory written by identify ann."
+        ),
+    ],
     runs: Annotated[list[Path], typer.Argument(help=_RUN_HELP)],
     json_path: Annotated[
         Path | None, typer.Option("--json", help="Write μ, σ per axis and per run (JSON) here.")
@@ -350,8 +375,11 @@ def validate_cmd(
 ) -> None:
     """Prediction error of a stage model on measured runs, per axis (seed 002 Table II).
 
-    A linear model predicts at its own rate: the runs are decimated as for its fit and
-    compared there, each simulated from rest at its first set-point.
+    MODEL is a linear model's file (``identify linear``) or a network model's directory
+    (``identify ann``). A linear model predicts at its own rate: the runs are decimated as
+    for its fit and compared there, each simulated from rest at its first set-point. The
+    networks predict every run sample (10 kHz for the seed's runs), each 400 Hz start
+    offset in turn; a model of another format version, model rate or history is refused.
     """
     from microfab.identify.stage_data import read_stage_model
 
@@ -370,7 +398,8 @@ def validate_cmd(
     except (ValueError, np.linalg.LinAlgError) as exc:
         fail(f"validation of {model}: {exc}")
     label = {"linear": "Linear", "ann": "Non-linear"}.get(stage.kind, stage.kind)
-    print_table(_error_table(f"Prediction error of {model.name}", errors, False, label))
+    compared = ANN_COMPARED.format(rate=errors.rate_hz) if stage.kind == "ann" else None
+    print_table(_error_table(f"Prediction error of {model.name}", errors, None, label, compared))
     if json_path is not None:
         from microfab.io.atomic import atomic_write_json
 
@@ -380,7 +409,7 @@ def validate_cmd(
             {
                 "model": str(model),
                 "kind": stage.kind,
-                "axes": ["x", "y"],
+                "axes": list(errors.axes),
                 "compared_at_hz": errors.rate_hz,
                 "n_samples": errors.n_samples,
                 "mu_um": um[0],

@@ -17,7 +17,8 @@ measured data, as a library:
   (Table II's μ, σ).
 * `StageLinearModel`, `write_stage_model`, `read_stage_model`: the model file (JSON),
   which carries the rate of the runs it was fitted to and its decimation, and whose
-  reader dispatches on ``"kind"`` (`MODEL_KINDS`) so that the ANN kind can be added.
+  reader dispatches on ``"kind"`` (`MODEL_KINDS`): ``"linear"`` (this file's JSON) or
+  ``"ann"`` (a directory written by ``identify ann``, read by `microfab.identify.stage_ann`).
 
 Why decimate by 10, and why feed-through (both measured on the twin, 20-600 s of random
 runs): at 10 kHz the slowest poles sit within 5e-3 of z = 1 and the order-4 fit is
@@ -337,13 +338,16 @@ class RunErrors:
     Attributes
     ----------
     mean, std : numpy.ndarray
-        Shape (2,), m, over all runs' samples (population std about the mean).
+        Shape (len(axes),), m, over all runs' samples (population std about the mean).
     per_run : tuple of (str, numpy.ndarray, numpy.ndarray)
         ``(name, mean, std)`` of each run.
     n_samples : int
         Samples compared (at the model's rate).
     rate_hz : float
         Rate the comparison was made at (the model's own).
+    axes : tuple of str
+        The axes of ``mean``, ``std`` and each run's pair, in order (a network model may
+        model one axis: `microfab.identify.stage_ann`).
     """
 
     mean: np.ndarray
@@ -351,6 +355,7 @@ class RunErrors:
     per_run: tuple[tuple[str, np.ndarray, np.ndarray], ...]
     n_samples: int
     rate_hz: float
+    axes: tuple[str, ...] = AXES
 
 
 def run_errors(model: SubspaceModel, records: Any, decimate: int) -> RunErrors:
@@ -469,10 +474,25 @@ def _linear_from_dict(data: dict[str, Any]) -> StageLinearModel:
     return out
 
 
-#: Readers of the model file by its ``"kind"`` (the ANN kind adds its own). What a reader
-#: returns must offer what ``identify validate`` uses: ``kind``, ``input_rate_hz`` (the
-#: rate of the runs it reads) and ``errors(records) -> RunErrors``, as `StageLinearModel`.
-MODEL_KINDS: dict[str, Callable[[dict[str, Any]], Any]] = {"linear": _linear_from_dict}
+def _ann_from_dict(data: dict[str, Any]) -> Any:
+    """The network model in directory ``data["path"]`` (`read_stage_model` of a directory)."""
+    try:
+        from microfab.identify.stage_ann import read_ann_stage_model
+    except ImportError as exc:  # PyTorch missing (extra ``ann``)
+        raise ValueError(f"reading a network model needs PyTorch (extra 'ann'): {exc}") from None
+    return read_ann_stage_model(data["path"])
+
+
+#: Readers of a stage model by its ``"kind"``. What a reader returns must offer what
+#: ``identify validate`` uses: ``kind``, ``input_rate_hz`` (the rate of the runs it reads)
+#: and ``errors(records) -> RunErrors``, as `StageLinearModel`. ``"linear"`` reads the
+#: model file's JSON; ``"ann"`` is a directory written by ``identify ann``
+#: (`AnnModel.save`), handed over as ``{"kind": "ann", "path": ...}`` by
+#: `read_stage_model` and read by `microfab.identify.stage_ann` (PyTorch imported then).
+MODEL_KINDS: dict[str, Callable[[dict[str, Any]], Any]] = {
+    "linear": _linear_from_dict,
+    "ann": _ann_from_dict,
+}
 
 
 def stage_model_from_dict(data: Any) -> Any:
@@ -494,6 +514,11 @@ def stage_model_from_dict(data: Any) -> Any:
             f"reads version {VERSION}); fit it again"
         )
     kind = data.get("kind")
+    if kind == "ann":  # MODEL_KINDS: a directory, never a JSON file
+        raise ValueError(
+            "stage model kind 'ann' is not known in a model file: a network model is the "
+            "directory that `identify ann` wrote; give that directory"
+        )
     if kind not in MODEL_KINDS:
         raise ValueError(
             f"stage model kind {kind!r} is not known (known: {', '.join(sorted(MODEL_KINDS))})"
@@ -507,20 +532,18 @@ def write_stage_model(path: str | Path, model: StageLinearModel) -> None:
 
 
 def read_stage_model(path: str | Path) -> Any:
-    """Read a stage model file (JSON) and dispatch on its kind.
+    """Read a stage model and dispatch on its kind: a file (JSON), or a directory (ANN).
 
     Raises
     ------
     ValueError
-        Unreadable, not JSON, or refused by `stage_model_from_dict`; the message names
-        the file.
+        Unreadable, not JSON, or refused by `stage_model_from_dict`; a directory that
+        holds no network model, or one of another version, rate or history
+        (`microfab.identify.stage_ann.read_ann_stage_model`); the message names the file.
     """
     p = Path(path)
-    if p.is_dir():
-        raise ValueError(
-            f"{p} is a directory: the network models of `identify ann` are not read yet; "
-            "give a linear model's JSON file"
-        )
+    if p.is_dir():  # a network model of `identify ann` (MODEL_KINDS)
+        return MODEL_KINDS["ann"]({"kind": "ann", "path": str(p)})
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:

@@ -1,0 +1,161 @@
+"""``microfab identify ann``: the per-axis networks of seed 002 (eq. 7) on measured runs.
+
+The runs are read and checked as ``identify linear`` reads them (`cli/identify.py`), split
+80/20 by whole runs (seeded), and the networks trained by
+`microfab.identify.ann_train.train_ann` with their checkpoints in ``DIR/checkpoints``: an
+interrupted training resumes when the same command is run again, ``--restart`` starts
+over. The model is saved to ``DIR`` (`microfab.identify.stage_ann.save_ann_model`) and
+its validation μ, σ per axis are printed beside seed 002 Table II's ANN column;
+``identify validate DIR RUN...`` reads it.
+
+Every refusal is one ``error:`` line, exit code 2, and nothing is written; an
+interrupted training leaves only its checkpoints.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from microfab.cli._kit import check_option, console, fail, print_table, progress, renamed
+from microfab.cli.identify import _RUN_HELP, ANN_COMPARED, _error_table, _read_runs, identify_app
+from microfab.report.tables import Table
+
+__all__ = ["ann_cmd"]
+
+_AXES = {"x": ("x",), "y": ("y",), "both": ("x", "y")}
+_CHECKPOINTS = "checkpoints"  # DIR/checkpoints: train_ann's ann_<axis>.ckpt.npz
+
+
+@identify_app.command("ann")
+def ann_cmd(
+    runs: Annotated[list[Path], typer.Argument(help=_RUN_HELP + " At least two.")],
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out", help="Model directory (model.json, weights.npz; checkpoints/ while training)."
+        ),
+    ],
+    axis: Annotated[str, typer.Option(help="x, y or both (one network per axis).")] = "both",
+    epochs: Annotated[
+        int, typer.Option(min=1, help="Most epochs per axis (early stopping may end sooner).")
+    ] = 200,
+    device: Annotated[str, typer.Option(help="auto (CUDA if present), cpu or cuda.")] = "auto",
+    restart: Annotated[
+        bool, typer.Option("--restart", help="Discard the checkpoints and train from scratch.")
+    ] = False,
+    threads: Annotated[
+        int, typer.Option(min=1, help="CPU threads of PyTorch (1: best on a shared 2-core box).")
+    ] = 1,
+    validation: Annotated[
+        float, typer.Option(help="Share of the runs kept for validation (seed 002: 0.2).")
+    ] = 0.2,
+    seed: Annotated[
+        int, typer.Option(min=0, help="Seeds the split, the initial weights, the shuffles.")
+    ] = 0,
+) -> None:
+    """Train seed 002's per-axis networks (eq. 7, Fig. 5) on measured runs of the stage.
+
+    Each axis's network reads the last 500 ms of that axis's command at 400 Hz (h = 200)
+    and predicts its measured position. The runs are split 80/20 by whole runs; training
+    (MSE, Adam, batches of 16 384, early stopping on the validation runs) checkpoints
+    every epoch to DIR/checkpoints, so running the same command again resumes it. Prints
+    μ, σ per axis on the validation runs at every run sample, beside seed 002 Table II.
+    """
+    if axis not in _AXES:
+        fail(f"--axis must be x, y or both, got {axis!r}")
+    if device not in ("auto", "cpu", "cuda"):
+        fail(f"--device must be auto, cpu or cuda, got {device!r}")
+    check_option("--validation", validation, "", low=0.0, high=1.0)
+    if validation >= 1.0:
+        fail(f"--validation must be less than 1 (a share of the runs), got {validation:g}")
+    if out.exists() and not out.is_dir():
+        fail(f"--out {out} is a file: the model is a directory (model.json, weights.npz)")
+    try:
+        import torch
+
+        from microfab.identify.ann_train import CheckpointMismatchError, train_ann
+        from microfab.identify.stage_ann import (
+            StageAnnModel,
+            ann_config,
+            runs_of,
+            save_ann_model,
+            split_records,
+        )
+    except ImportError as exc:
+        fail(f"identify ann needs PyTorch (extra 'ann'): {exc}")
+    if device == "cuda" and not torch.cuda.is_available():
+        fail("--device cuda: no CUDA device is available to PyTorch here; use --device cpu")
+    records, dt = _read_runs(runs)
+    try:
+        train, val = split_records(records, validation, seed)
+        config = ann_config(
+            1.0 / dt, _AXES[axis], max_epochs=epochs, seed=seed, device=device, threads=threads
+        )
+    except ValueError as exc:
+        fail(renamed(str(exc), {"validation must": "--validation must"}))
+    ckdir = out / _CHECKPOINTS
+    if restart and ckdir.is_dir():
+        for f in ckdir.glob("ann_*.ckpt.npz"):
+            f.unlink()
+    trained: dict[str, list[int]] = {a: [] for a in config.axes}
+    try:
+        with progress() as prog:
+            tasks: dict[str, Any] = {}  # a bar once an axis trains (none for a refusal)
+
+            def report(rec: Any) -> None:
+                trained[rec.axis].append(rec.epoch)
+                if rec.axis not in tasks:
+                    tasks[rec.axis] = prog.add_task(f"axis {rec.axis}", total=epochs)
+                prog.update(
+                    tasks[rec.axis],
+                    completed=rec.epoch,
+                    description=f"axis {rec.axis}: loss {rec.train_loss:.3g} / val "
+                    f"{rec.val_loss:.3g}",
+                )
+
+            model = train_ann(
+                runs_of(train), runs_of(val), config, checkpoint_dir=ckdir, progress=report,
+                restart=restart,
+            )  # fmt: skip
+    except CheckpointMismatchError as exc:
+        fail(renamed(str(exc), {"pass restart=True": "pass --restart"}))
+    except ValueError as exc:
+        fail(f"training on {len(train)} run(s): {exc}")
+    except KeyboardInterrupt:
+        fail(f"interrupted: the checkpoints in {ckdir} are kept; run the same command to resume")
+    model.info["runs"] = {"training": [r.name for r in train], "validation": [r.name for r in val]}
+    errors = StageAnnModel(model).errors(val)
+    print_table(_training_table(model.info, trained, train, val))
+    title = "Prediction error on the validation runs"
+    compared = ANN_COMPARED.format(rate=errors.rate_hz)
+    print_table(_error_table(title, errors, "ann", "Non-linear", compared))
+    save_ann_model(model, out)
+    console.print(f"wrote {out}", highlight=False)
+
+
+def _training_table(
+    info: dict[str, Any], trained: dict[str, list[int]], train: list[Any], val: list[Any]
+) -> Table:
+    rows = [
+        ("training runs", ", ".join(r.name for r in train)),
+        ("validation runs", ", ".join(r.name for r in val)),
+        ("windows (training, validation)", f"{info['train_windows']}, {info['val_windows']}"),
+    ]
+    for a, s in info["axes"].items():
+        done = trained[a]
+        now = f"{done[0]}-{done[-1]}" if done else "none (finished before)"
+        rows.append(
+            (
+                f"axis {a}: epochs (this run), best, stopped early",
+                f"{s['epochs']} ({now}), {s['best_epoch'] + 1}, {s['stopped_early']}",
+            )
+        )
+    return Table(
+        title="Networks of seed 002 eq. (7), one per axis (Fig. 5)",
+        columns=("quantity", "value"),
+        rows=rows,
+        note="epochs counted from 1; best: the epoch whose weights are kept",
+    )
