@@ -125,7 +125,9 @@ def ann_cmd(
     except ValueError as exc:
         fail(f"training on {len(train)} run(s): {exc}")
     except KeyboardInterrupt:
-        fail(f"interrupted: the checkpoints in {ckdir} are kept; run the same command to resume")
+        fail(
+            f"interrupted: the checkpoints in {ckdir} are kept; run the same command to resume", 130
+        )
     model.info["runs"] = {"training": [r.name for r in train], "validation": [r.name for r in val]}
     errors = StageAnnModel(model).errors(val)
     print_table(_training_table(model.info, trained, train, val))
