@@ -153,27 +153,12 @@ class StageAnnModel:
         if not recs:
             raise ValueError("no runs given: at least one measured run is needed")
         cols = [AXES.index(a) for a in self.axes]
-        k = len(cols)
-        sums = np.zeros((2, k))
-        n = 0
-        per_run = []
-        for rec in recs:
-            pred = self.model.predict(rec.u, at="10khz")
-            e = rec.y[:, cols] - pred
-            e = e[np.all(np.isfinite(e), axis=1)]  # an unpadded model's first h samples
-            sums += (e.sum(axis=0), (e * e).sum(axis=0))
-            n += e.shape[0]
-            per_run.append((rec.name, e.mean(axis=0), e.std(axis=0)))
-        mean = sums[0] / n
-        std = np.sqrt(np.maximum(sums[1] / n - mean**2, 0.0))
-        return RunErrors(
-            mean=mean,
-            std=std,
-            per_run=tuple(per_run),
-            n_samples=n,
-            rate_hz=self.input_rate_hz,
-            axes=self.axes,
-        )
+
+        def error(rec: StageRecord) -> np.ndarray:
+            e = rec.y[:, cols] - self.model.predict(rec.u, at="10khz")
+            return e[np.all(np.isfinite(e), axis=1)]  # an unpadded model's first h samples
+
+        return RunErrors.of(((r.name, error(r)) for r in recs), self.input_rate_hz, self.axes)
 
 
 def read_ann_stage_model(path: str | os.PathLike[str]) -> StageAnnModel:

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -357,6 +357,28 @@ class RunErrors:
     rate_hz: float
     axes: tuple[str, ...] = AXES
 
+    @classmethod
+    def of(
+        cls, errors: Iterable[tuple[str, np.ndarray]], rate_hz: float, axes: tuple[str, ...] = AXES
+    ) -> RunErrors:
+        """Pool ``(name, e)`` of each run, ``e`` shape (n, len(axes)), m, into one result.
+
+        The mean and (population) standard deviation are over every run's samples;
+        each run keeps its own pair.
+        """
+        sums = np.zeros((2, len(axes)))
+        n = 0
+        per_run = []
+        for name, e in errors:
+            sums += (e.sum(axis=0), (e * e).sum(axis=0))
+            n += e.shape[0]
+            per_run.append((name, e.mean(axis=0), e.std(axis=0)))
+        mean = sums[0] / n
+        std = np.sqrt(np.maximum(sums[1] / n - mean**2, 0.0))
+        return cls(
+            mean=mean, std=std, per_run=tuple(per_run), n_samples=n, rate_hz=rate_hz, axes=axes
+        )
+
 
 def run_errors(model: SubspaceModel, records: Any, decimate: int) -> RunErrors:
     """Simulation error of a linear model on runs from rest, at the model's own rate.
@@ -379,19 +401,11 @@ def run_errors(model: SubspaceModel, records: Any, decimate: int) -> RunErrors:
     """
     recs = _as_records(records)
     check_int("decimate", decimate, 1)
-    sums = np.zeros((2, 2))
-    n = 0
-    per_run = []
-    for rec, run in zip(recs, _decimated(recs, decimate), strict=True):
-        e = model.prediction_error(run.u, run.y, rest_state(model, run.u[0]))
-        sums += (e.sum(axis=0), (e * e).sum(axis=0))
-        n += e.shape[0]
-        per_run.append((rec.name, e.mean(axis=0), e.std(axis=0)))
-    mean = sums[0] / n
-    std = np.sqrt(np.maximum(sums[1] / n - mean**2, 0.0))
-    return RunErrors(
-        mean=mean, std=std, per_run=tuple(per_run), n_samples=n, rate_hz=1.0 / model.dt
+    errors = (
+        (rec.name, model.prediction_error(run.u, run.y, rest_state(model, run.u[0])))
+        for rec, run in zip(recs, _decimated(recs, decimate), strict=True)
     )
+    return RunErrors.of(errors, 1.0 / model.dt)
 
 
 @dataclass(frozen=True, eq=False)

@@ -271,7 +271,9 @@ class AnnStudy:
     model : AnnModel
         One network per axis.
     validation : dict of str to ErrorStats
-        μ, σ per axis on the validation runs (Table II, ANN, column 1).
+        μ, σ per axis on the validation runs (Table II, ANN, column 1), of the measured
+        minus the predicted position, the sign of the linear model's errors
+        (`microfab.identify.stage_ann.StageAnnModel.errors`).
     train_names, validation_names : tuple of str
         Which runs went where.
     """
@@ -294,23 +296,35 @@ def ann_study(
     ``progress(record)`` is called after each epoch with an
     `microfab.identify.ann_train.EpochRecord`.
     """
-    from microfab.identify.ann import AnnConfig
+    from microfab.identify.ann import ErrorStats
     from microfab.identify.ann_train import train_ann
     from microfab.identify.excitation import ANN_TOTAL_S
+    from microfab.identify.stage_ann import StageAnnModel, ann_config, runs_of
 
     s = AnnSettings() if settings is None else settings
     total = ANN_TOTAL_S if s.total_s is None else s.total_s
     runs = ann_dataset(total, random_share=s.random_share, seed=s.seed)
     train, val = split_runs(runs, s.validation, seed=s.seed)
-    rec_train = play_runs(train, s.twin).records
+    played = play_runs(train, s.twin)
+    rec_train = played.records
     rec_val = play_runs(val, dataclasses.replace(s.twin, seed=s.twin.seed + 10_000)).records
-    pairs = [(r.u, r.y) for r in rec_train]
-    vpairs = [(r.u, r.y) for r in rec_val]
-    config = AnnConfig(max_epochs=s.max_epochs, seed=s.seed, threads=s.threads)
-    model = train_ann(pairs, vpairs, config, checkpoint_dir=checkpoint_dir, progress=progress)
+    config = ann_config(
+        1.0 / played.dt, stage_data.AXES, max_epochs=s.max_epochs, seed=s.seed, threads=s.threads
+    )
+    model = train_ann(
+        runs_of(rec_train),
+        runs_of(rec_val),
+        config,
+        checkpoint_dir=checkpoint_dir,
+        progress=progress,
+    )
+    err = StageAnnModel(model).errors(rec_val)
     return AnnStudy(
         model=model,
-        validation=model.metrics(vpairs),
+        validation={
+            a: ErrorStats(float(err.mean[j]), float(err.std[j]), err.n_samples)
+            for j, a in enumerate(err.axes)
+        },
         train_names=tuple(r.name for r in rec_train),
         validation_names=tuple(r.name for r in rec_val),
     )
