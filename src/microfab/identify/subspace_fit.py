@@ -177,6 +177,32 @@ def fit_bdx0(
     return BDX0(b=b, d=d, x0=x0)
 
 
+@njit(cache=True, inline="always")
+def _output(c: np.ndarray, d: np.ndarray, x: np.ndarray, u_k: np.ndarray, j: int) -> float:
+    """``(C x + D u_k)[j]``."""
+    s = 0.0
+    for r in range(c.shape[1]):
+        s += c[j, r] * x[r]
+    for q in range(d.shape[1]):
+        s += d[j, q] * u_k[q]
+    return s
+
+
+@njit(cache=True, inline="always")
+def _advance(a: np.ndarray, b: np.ndarray, x: np.ndarray, u_k: np.ndarray, tmp: np.ndarray) -> None:
+    """``x <- A x + B u_k`` in place (``tmp``: scratch of length n)."""
+    n = a.shape[0]
+    for r in range(n):
+        s = 0.0
+        for t in range(n):
+            s += a[r, t] * x[t]
+        for q in range(b.shape[1]):
+            s += b[r, q] * u_k[q]
+        tmp[r] = s
+    for r in range(n):
+        x[r] = tmp[r]
+
+
 @njit(cache=True)
 def _simulate(
     a: np.ndarray,
@@ -188,27 +214,11 @@ def _simulate(
     out: np.ndarray,
 ) -> None:
     """``out[k] = C x_k + D u_k``, ``x_{k+1} = A x_k + B u_k`` from ``x`` (advanced in place)."""
-    n = a.shape[0]
-    m = b.shape[1]
-    p = c.shape[0]
-    tmp = np.empty(n)
+    tmp = np.empty(a.shape[0])
     for k in range(u.shape[0]):
-        for j in range(p):
-            s = 0.0
-            for r in range(n):
-                s += c[j, r] * x[r]
-            for q in range(m):
-                s += d[j, q] * u[k, q]
-            out[k, j] = s
-        for r in range(n):
-            s = 0.0
-            for t in range(n):
-                s += a[r, t] * x[t]
-            for q in range(m):
-                s += b[r, q] * u[k, q]
-            tmp[r] = s
-        for r in range(n):
-            x[r] = tmp[r]
+        for j in range(c.shape[0]):
+            out[k, j] = _output(c, d, x, u[k], j)
+        _advance(a, b, x, u[k], tmp)
 
 
 @njit(cache=True)
@@ -223,29 +233,13 @@ def _error_sums(
     sums: np.ndarray,
 ) -> None:
     """Add ``sum e`` and ``sum e^2`` per output (``e = y - y_model``) to ``sums`` (2, p)."""
-    n = a.shape[0]
-    m = b.shape[1]
-    p = c.shape[0]
-    tmp = np.empty(n)
+    tmp = np.empty(a.shape[0])
     for k in range(u.shape[0]):
-        for j in range(p):
-            s = 0.0
-            for r in range(n):
-                s += c[j, r] * x[r]
-            for q in range(m):
-                s += d[j, q] * u[k, q]
-            e = y[k, j] - s
+        for j in range(c.shape[0]):
+            e = y[k, j] - _output(c, d, x, u[k], j)
             sums[0, j] += e
             sums[1, j] += e * e
-        for r in range(n):
-            s = 0.0
-            for t in range(n):
-                s += a[r, t] * x[t]
-            for q in range(m):
-                s += b[r, q] * u[k, q]
-            tmp[r] = s
-        for r in range(n):
-            x[r] = tmp[r]
+        _advance(a, b, x, u[k], tmp)
 
 
 def _f64(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
