@@ -322,9 +322,8 @@ def jump_response(
         sent = shaped
     ref = np.column_stack([sent, np.zeros(n)])
     clean = simulate(twin, SetPoint(2), ref, np.zeros((n, 2))).measured[:, 0]
-    pos = clean
-    if noise:
-        pos = simulate(twin, SetPoint(2), ref, twin.noise(n, seed)).measured[:, 0]
+    # the set point does not read the measurement: the noisy run is the clean one plus noise
+    pos = clean + twin.noise(n, seed)[:, 0] if noise else clean
     g0 = twin.static_gain
     speed = np.gradient(np.asarray(twin.to_m(clean / g0)), twin.dt)
     return JumpResponse(
