@@ -204,3 +204,12 @@ def test_model_file_round_trip_and_refusals(fitted, twin_records, tmp_path):
     (tmp_path / "broken.json").write_text("{")
     with pytest.raises(ValueError, match="cannot read"):
         read_stage_model(tmp_path / "broken.json")
+
+
+def test_default_decimation_brings_any_rate_to_about_1_khz():
+    from microfab.identify.stage_data import FIT_RATE_HZ, check_decimate, default_decimate
+
+    assert FIT_RATE_HZ == 1000.0
+    for rate, q in ((10_000.0, 10), (2_000.0, 2), (4_000.0, 4), (1_200.0, 1), (400.0, 1)):
+        assert default_decimate(rate) == q
+        assert check_decimate(q, rate) == q  # never below the 400 Hz floor

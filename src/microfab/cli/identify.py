@@ -315,13 +315,14 @@ def linear_cmd(
         ),
     ] = True,
     decimate: Annotated[
-        int,
+        int | None,
         typer.Option(
             min=1,
             help="Decimate inputs and outputs alike first, FIR anti-alias filter (order 20q, "
-            "Hamming, zero phase); 10: 10 kHz -> 1 kHz, where the fit is well conditioned.",
+            "Hamming, zero phase); default: to about 1 kHz, where the fit is well conditioned "
+            "(10 for 10 kHz runs).",
         ),
-    ] = 10,
+    ] = None,
 ) -> None:
     """Fit seed 002 eq. (6), a linear state-space model of the XY stage, to measured runs.
 
@@ -334,6 +335,7 @@ def linear_cmd(
     from microfab.identify.stage_data import (
         StageLinearModel,
         check_decimate,
+        default_decimate,
         fit_linear,
         write_stage_model,
     )
@@ -343,6 +345,8 @@ def linear_cmd(
     if block_rows is not None and order > block_rows:
         fail(f"--order {order} is above --block-rows {block_rows}: use --block-rows >= {order}")
     records, dt = _read_runs(runs)
+    if decimate is None:
+        decimate = default_decimate(1.0 / dt)
     try:
         check_decimate(decimate, 1.0 / dt)
         model = fit_linear(

@@ -12,7 +12,8 @@ measured data, as a library:
 * `decimate`: the anti-alias filter and down-sampling applied identically to inputs and
   outputs before the fit.
 * `fit_linear`: seed 002 eq. (6) by `identify_subspace` on the decimated runs, default
-  order 4, decimation 10 (10 kHz -> 1 kHz) and feed-through on.
+  order 4, decimation to about 1 kHz (`default_decimate`: 10 for 10 kHz runs) and
+  feed-through on.
 * `run_errors`: the simulation error ``y - y_model`` of a model from rest, per axis
   (Table II's μ, σ).
 * `StageLinearModel`, `write_stage_model`, `read_stage_model`: the model file (JSON),
@@ -62,7 +63,7 @@ __all__ = [
     "AXES",
     "BASE_RATE_HZ",
     "COLUMNS",
-    "DEFAULT_DECIMATE",
+    "FIT_RATE_HZ",
     "FORMAT",
     "MIN_RUN_S",
     "MODEL_KINDS",
@@ -72,6 +73,7 @@ __all__ = [
     "StageRecord",
     "check_decimate",
     "decimate",
+    "default_decimate",
     "fit_linear",
     "read_stage_model",
     "rest_state",
@@ -89,8 +91,10 @@ COLUMNS = ("input_x", "input_y", "output_x", "output_y")
 BASE_RATE_HZ = 400.0
 #: Shortest run, s (seed 002 §III-B: the ANN reads "the most recent 500 ms").
 MIN_RUN_S = 0.5
-#: Default decimation before the linear fit: 10 kHz -> 1 kHz (module docstring; measured).
-DEFAULT_DECIMATE = 10
+#: Rate the linear fit runs at by default, Hz: runs are decimated to about this (measured
+#: on the twin: at 10 kHz the 20 ms modes sit at z ~ 0.995 and the 4-state fit is
+#: ill-conditioned; at 1 kHz it is not; module docstring). 10 kHz runs: decimate by 10.
+FIT_RATE_HZ = 1000.0
 #: Slowest rate a linear model is fitted at, Hz (assumed: the ANN's 400 Hz; the twin's
 #: built-in loop pair at 25 Hz and its 150 Hz y resonance stay below its Nyquist).
 MIN_MODEL_RATE_HZ = BASE_RATE_HZ
@@ -214,6 +218,11 @@ def stage_record(trace: Trace, name: str = "run") -> StageRecord:
     return rec
 
 
+def default_decimate(rate_hz: float) -> int:
+    """The decimation that takes runs at ``rate_hz`` to about `FIT_RATE_HZ` (at least 1)."""
+    return max(1, round(rate_hz / FIT_RATE_HZ))
+
+
 def check_decimate(q: int, rate_hz: float) -> int:
     """``q`` if a whole number >= 1 leaving at least `MIN_MODEL_RATE_HZ`; else ValueError."""
     check_int("decimate", q, 1)
@@ -274,7 +283,7 @@ def fit_linear(
     dt: float,
     *,
     order: int = 4,
-    decimate: int = DEFAULT_DECIMATE,
+    decimate: int | None = None,
     feedthrough: bool = True,
     block_rows: int | None = None,
     weighting: str = "moesp",
@@ -290,9 +299,9 @@ def fit_linear(
         Sample time of the runs, s (its rate a multiple of 400 Hz).
     order : int
         States (seed 002 §III-A: 4).
-    decimate : int
-        Factor applied identically to inputs and outputs first (default 10: 10 kHz to
-        1 kHz; module docstring).
+    decimate : int, optional
+        Factor applied identically to inputs and outputs first (default
+        `default_decimate`: to about `FIT_RATE_HZ`, 10 for 10 kHz runs; module docstring).
     feedthrough : bool
         Estimate D (default True: eq. (6b) writes it; MATLAB ``n4sid`` defaults to D = 0).
     block_rows, weighting, workers
@@ -311,7 +320,7 @@ def fit_linear(
     """
     recs = _as_records(records)
     rate = check_rate(dt)
-    q = check_decimate(decimate, rate)
+    q = check_decimate(default_decimate(rate) if decimate is None else decimate, rate)
     cfg = SubspaceConfig(
         order=order,
         block_rows=block_rows,
