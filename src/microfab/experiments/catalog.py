@@ -17,6 +17,7 @@ from microfab.experiments.seed001_nanomanipulator.job import (
     NANOMANIPULATOR_MSL,
     NANOMANIPULATOR_REPRODUCTION,
 )
+from microfab.experiments.seed002_stage.job import STAGE_IDENTIFY, STAGE_MODELS_REPRODUCTION
 from microfab.experiments.seed003_inkjet.job import DROPLET_FIG4_REPRODUCTION, DROPLET_SWEEP
 from microfab.experiments.seed003_slm.job import SLM_SHAPER_REPRODUCTION, SLM_SHAPING
 from microfab.experiments.seed004_laser.job import LASER_MICROMACHINING, LASER_REPRODUCTION
@@ -36,7 +37,14 @@ __all__ = [
 #: Every job kind, by name.
 JOB_KINDS: dict[str, JobKind] = {
     k.name: k
-    for k in (MSL_ILC, NANOMANIPULATOR_MSL, DROPLET_SWEEP, LASER_MICROMACHINING, SLM_SHAPING)
+    for k in (
+        MSL_ILC,
+        NANOMANIPULATOR_MSL,
+        STAGE_IDENTIFY,
+        DROPLET_SWEEP,
+        LASER_MICROMACHINING,
+        SLM_SHAPING,
+    )
 }
 #: Every reproduction, by name.
 REPRODUCTIONS: dict[str, Reproduction] = {
@@ -44,6 +52,7 @@ REPRODUCTIONS: dict[str, Reproduction] = {
     for r in (
         MSL_ILC_REPRODUCTION,
         NANOMANIPULATOR_REPRODUCTION,
+        STAGE_MODELS_REPRODUCTION,
         DROPLET_FIG4_REPRODUCTION,
         LASER_REPRODUCTION,
         SLM_SHAPER_REPRODUCTION,

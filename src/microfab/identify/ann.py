@@ -102,6 +102,15 @@ class AnnConfig:
         Most epochs per axis. Not part of the fingerprint: a rerun may extend it.
     checkpoint_every : int
         Epochs between checkpoints (also written when an axis ends). Not fingerprinted.
+    epoch_windows : int, optional
+        Training windows per epoch, a fresh random draw without replacement from all of
+        them each epoch (default all). The seed's data give about 4×10⁶ windows (25
+        offsets of the same runs, nearly alike); on one CPU thread a pass over all takes
+        about a minute, and the learning rate decays per epoch, so shorter epochs let the
+        decay and early stopping act within a CPU budget.
+    val_windows : int, optional
+        Validation windows for the per-epoch loss (early stopping): a fixed random subset
+        drawn once (default all).
     seed : int
         Seeds the initial weights and each epoch's shuffle.
     device : str
@@ -124,6 +133,8 @@ class AnnConfig:
     patience: int = 10
     max_epochs: int = 200
     checkpoint_every: int = 1
+    epoch_windows: int | None = None
+    val_windows: int | None = None
     seed: int = 0
     device: str = "auto"
     threads: int | None = 1  # assumed: see the docstring (shared machines)
@@ -154,6 +165,9 @@ class AnnConfig:
             raise ValueError(f"device must be 'auto', 'cpu' or 'cuda', got {self.device!r}")
         if self.threads is not None:
             check_int("threads", self.threads, 1)
+        for name in ("epoch_windows", "val_windows"):
+            if getattr(self, name) is not None:
+                check_int(name, getattr(self, name), 1, "windows")
 
     _NOT_FINGERPRINTED = ("max_epochs", "checkpoint_every", "device", "threads")
 

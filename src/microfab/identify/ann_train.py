@@ -233,13 +233,18 @@ def _train_axis(
     else:
         scaling = train.fit_scaling(ax)
 
-    n = len(train)
+    n_all = len(train)
+    n = n_all if config.epoch_windows is None else min(config.epoch_windows, n_all)
+    val_idx = None
+    if config.val_windows is not None and config.val_windows < len(val):
+        rng = np.random.default_rng([config.seed, ax, 7919])
+        val_idx = np.sort(rng.choice(len(val), config.val_windows, replace=False))
     bs = config.batch_size
     loss_fn = nn.MSELoss()
     while not st["stopped"] and st["epoch"] < config.max_epochs:
         t0 = time.perf_counter()
         net.train()
-        perm = np.random.default_rng([config.seed, ax, st["epoch"]]).permutation(n)
+        perm = np.random.default_rng([config.seed, ax, st["epoch"]]).permutation(n_all)[:n]
         total = 0.0
         for i in range(0, n, bs):
             idx = perm[i : i + bs]
@@ -253,7 +258,7 @@ def _train_axis(
             total += float(loss.detach()) * idx.size
         sched.step()
         net.eval()
-        val_loss = _val_loss(net, val, ax, scaling, device)
+        val_loss = _val_loss(net, val, ax, scaling, device, val_idx)
         train_loss = total / n
         if st["best_val"] is None or val_loss < st["best_val"]:
             st["best_val"], st["best_epoch"], st["bad"] = val_loss, st["epoch"], 0
@@ -300,16 +305,21 @@ def _tensors(arrays: dict[str, np.ndarray], prefix: str, device: torch.device) -
 
 
 def _val_loss(
-    net: nn.Module, ws: WindowSet, ax: int, scaling: Scaling, device: torch.device
+    net: nn.Module,
+    ws: WindowSet,
+    ax: int,
+    scaling: Scaling,
+    device: torch.device,
+    idx: np.ndarray | None = None,
 ) -> float:
-    """Scaled MSE over all windows of ``ws``, gathered chunk by chunk (memory bounded)."""
-    idx = np.arange(len(ws))
+    """Scaled MSE over the windows ``idx`` of ``ws`` (default all), chunk by chunk."""
+    idx = np.arange(len(ws)) if idx is None else idx
     total = 0.0
-    for i in range(0, len(ws), _EVAL_CHUNK):
+    for i in range(0, idx.size, _EVAL_CHUNK):
         x, t = ws.batch(idx[i : i + _EVAL_CHUNK], ax)
         z = _forward(net, scaling.scale_inputs(x), device)
         total += float(((z - scaling.scale_target(t)) ** 2).sum())
-    return total / len(ws)
+    return total / idx.size
 
 
 def _write_checkpoint(

@@ -96,12 +96,16 @@ def split_records(
     return train, val
 
 
-def ann_config(run_rate_hz: float, axes: Sequence[str], **kwargs: Any) -> AnnConfig:
+def ann_config(
+    run_rate_hz: float, axes: Sequence[str], *, inputs: str = "own", **kwargs: Any
+) -> AnnConfig:
     """`AnnConfig` for runs at ``run_rate_hz``: 400 Hz, h = 200 (seed 002 §III-B).
 
-    ``kwargs`` go to `AnnConfig` (``max_epochs``, ``seed``, ``device``, ``threads``, ...).
+    ``inputs`` is "own" (the seed's: each network reads its own axis's command) or
+    "both" (the coupling study); ``kwargs`` go to `AnnConfig` (``max_epochs``, ``seed``,
+    ``device``, ``threads``, ...).
     """
-    spec = WindowSpec(run_rate_hz=run_rate_hz, rate_hz=MODEL_RATE_HZ, h=HISTORY)
+    spec = WindowSpec(run_rate_hz=run_rate_hz, rate_hz=MODEL_RATE_HZ, h=HISTORY, inputs=inputs)
     return AnnConfig(window=spec, axes=tuple(axes), **kwargs)
 
 
@@ -136,13 +140,15 @@ class StageAnnModel:
         """Modelled axes."""
         return self.model.axes
 
-    def errors(self, records: Any) -> RunErrors:
+    def errors(self, records: Any, *, keep: bool = False) -> RunErrors:
         """``y - y_model`` per modelled axis at every run sample, each run from rest.
 
         Parameters
         ----------
         records : sequence of StageRecord
             At `input_rate_hz`.
+        keep : bool
+            Keep every error sample (`RunErrors.samples`).
 
         Returns
         -------
@@ -158,7 +164,9 @@ class StageAnnModel:
             e = rec.y[:, cols] - self.model.predict(rec.u, at="10khz")
             return e[np.all(np.isfinite(e), axis=1)]  # an unpadded model's first h samples
 
-        return RunErrors.of(((r.name, error(r)) for r in recs), self.input_rate_hz, self.axes)
+        return RunErrors.of(
+            ((r.name, error(r)) for r in recs), self.input_rate_hz, self.axes, keep=keep
+        )
 
 
 def read_ann_stage_model(path: str | os.PathLike[str]) -> StageAnnModel:

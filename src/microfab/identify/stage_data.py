@@ -40,6 +40,7 @@ rest, possibly away from the origin. Sample ``k`` of the result is at input samp
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Callable, Iterable, Sequence
@@ -357,6 +358,9 @@ class RunErrors:
     axes : tuple of str
         The axes of ``mean``, ``std`` and each run's pair, in order (a network model may
         model one axis: `microfab.identify.stage_ann`).
+    samples : numpy.ndarray or None
+        Every error, shape (n_samples, len(axes)), m, runs one after another, when asked
+        for (``keep``: histograms, pooling); else None.
     """
 
     mean: np.ndarray
@@ -365,31 +369,68 @@ class RunErrors:
     n_samples: int
     rate_hz: float
     axes: tuple[str, ...] = AXES
+    samples: np.ndarray | None = None
 
     @classmethod
     def of(
-        cls, errors: Iterable[tuple[str, np.ndarray]], rate_hz: float, axes: tuple[str, ...] = AXES
+        cls,
+        errors: Iterable[tuple[str, np.ndarray]],
+        rate_hz: float,
+        axes: tuple[str, ...] = AXES,
+        *,
+        keep: bool = False,
     ) -> RunErrors:
         """Pool ``(name, e)`` of each run, ``e`` shape (n, len(axes)), m, into one result.
 
         The mean and (population) standard deviation are over every run's samples;
-        each run keeps its own pair.
+        each run keeps its own pair. ``keep`` keeps every sample (`samples`).
         """
         sums = np.zeros((2, len(axes)))
         n = 0
         per_run = []
+        kept = []
         for name, e in errors:
             sums += (e.sum(axis=0), (e * e).sum(axis=0))
             n += e.shape[0]
             per_run.append((name, e.mean(axis=0), e.std(axis=0)))
+            if keep:
+                kept.append(e)
+        if n == 0:
+            raise ValueError("no error samples: give at least one run with samples")
         mean = sums[0] / n
         std = np.sqrt(np.maximum(sums[1] / n - mean**2, 0.0))
         return cls(
-            mean=mean, std=std, per_run=tuple(per_run), n_samples=n, rate_hz=rate_hz, axes=axes
+            mean=mean,
+            std=std,
+            per_run=tuple(per_run),
+            n_samples=n,
+            rate_hz=rate_hz,
+            axes=axes,
+            samples=readonly(np.concatenate(kept)) if keep else None,
         )
 
+    @classmethod
+    def pooled(cls, parts: Sequence[RunErrors]) -> RunErrors:
+        """Several results kept with ``keep`` pooled into one (same rate and axes)."""
+        if not parts or any(p.samples is None for p in parts):
+            raise ValueError("pooling needs results made with keep=True")
+        rates = {p.rate_hz for p in parts}
+        axes = {p.axes for p in parts}
+        if len(rates) != 1 or len(axes) != 1:
+            raise ValueError(f"cannot pool errors at rates {rates} and axes {axes}")
+        out = cls.of(
+            ((str(k), p.samples) for k, p in enumerate(parts)),  # type: ignore[misc]
+            parts[0].rate_hz,
+            parts[0].axes,
+            keep=True,
+        )
+        per_run = tuple(r for p in parts for r in p.per_run)
+        return dataclasses.replace(out, per_run=per_run)
 
-def run_errors(model: SubspaceModel, records: Any, decimate: int) -> RunErrors:
+
+def run_errors(
+    model: SubspaceModel, records: Any, decimate: int, *, keep: bool = False
+) -> RunErrors:
     """Simulation error of a linear model on runs from rest, at the model's own rate.
 
     Each run is decimated by ``decimate`` (as in `fit_linear`) and simulated from the
@@ -403,6 +444,8 @@ def run_errors(model: SubspaceModel, records: Any, decimate: int) -> RunErrors:
         Runs from rest, m.
     decimate : int
         Factor the model was fitted after.
+    keep : bool
+        Keep every error sample (`RunErrors.samples`).
 
     Returns
     -------
@@ -414,7 +457,7 @@ def run_errors(model: SubspaceModel, records: Any, decimate: int) -> RunErrors:
         (rec.name, model.prediction_error(run.u, run.y, rest_state(model, run.u[0])))
         for rec, run in zip(recs, _decimated(recs, decimate), strict=True)
     )
-    return RunErrors.of(errors, 1.0 / model.dt)
+    return RunErrors.of(errors, 1.0 / model.dt, keep=keep)
 
 
 @dataclass(frozen=True, eq=False)
@@ -450,9 +493,9 @@ class StageLinearModel:
         """Rate of the runs the model reads, Hz."""
         return 1.0 / self.input_dt
 
-    def errors(self, records: Any) -> RunErrors:
+    def errors(self, records: Any, *, keep: bool = False) -> RunErrors:
         """`run_errors` at the model's rate."""
-        return run_errors(self.model, records, self.decimate)
+        return run_errors(self.model, records, self.decimate, keep=keep)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form: format, version, kind, rates, decimation, the `SubspaceModel`."""

@@ -32,13 +32,13 @@ import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from microfab.control.setpoint import SetPoint
 from microfab.identify import stage_data
-from microfab.identify.excitation import ExcitationRun, ann_dataset, random_runs, split_runs
+from microfab.identify.excitation import ann_dataset, random_runs, split_runs
 from microfab.identify.stage_data import StageRecord
 from microfab.identify.subspace import SubspaceModel
 from microfab.plants.xy_stage import XYStagePlant, xy_stage_twin
@@ -50,14 +50,17 @@ if TYPE_CHECKING:
 __all__ = [
     "AnnSettings",
     "AnnStudy",
+    "CommandRun",
     "LinearFit",
     "LinearSettings",
     "Played",
     "TwinSettings",
+    "ann_records",
     "ann_study",
     "fit_linear",
     "linear_study",
     "play_runs",
+    "train_networks",
 ]
 
 
@@ -111,7 +114,18 @@ class Played:
     dt: float
 
 
-def play_runs(runs: Sequence[ExcitationRun], settings: TwinSettings | None = None) -> Played:
+class CommandRun(Protocol):
+    """A command to play: an `ExcitationRun` or a case's command (`cases.CaseCommand`)."""
+
+    @property
+    def name(self) -> str: ...  # noqa: D102
+    @property
+    def dt(self) -> float: ...  # noqa: D102
+    @property
+    def command(self) -> np.ndarray: ...  # noqa: D102
+
+
+def play_runs(runs: Sequence[CommandRun], settings: TwinSettings | None = None) -> Played:
     """Play each run on the twin from rest at its first sample, then hold (module doc)."""
     s = TwinSettings() if settings is None else settings
     twin = s.twin()
@@ -247,6 +261,9 @@ class AnnSettings:
         Share of whole runs kept for validation (seed: 20 %).
     max_epochs : int
         Most epochs per axis (early stopping on the validation loss decides first).
+    epoch_windows, val_windows : int or None
+        Training windows per epoch and validation windows of the stopping loss
+        (`microfab.identify.ann.AnnConfig`; None: all).
     threads : int
         CPU threads of the training.
     seed : int
@@ -257,6 +274,8 @@ class AnnSettings:
     random_share: float = 0.6  # seed 002 §III-C: "about 60 %"
     validation: float = 0.2  # seed 002 §III-C: 80 % / 20 %
     max_epochs: int = 200
+    epoch_windows: int | None = None
+    val_windows: int | None = None
     threads: int = 1
     seed: int = 0
     twin: TwinSettings = field(default_factory=TwinSettings)
@@ -284,47 +303,79 @@ class AnnStudy:
     validation_names: tuple[str, ...]
 
 
-def ann_study(
-    settings: AnnSettings | None = None,
-    *,
-    checkpoint_dir: str | Path | None = None,
-    progress: Any = None,
-) -> AnnStudy:
-    """Data (§III-C.2), played on the twin, split by runs, one network per axis trained.
+def ann_records(settings: AnnSettings | None = None) -> tuple[Played, Played]:
+    """The networks' data (§III-C.2) split by whole runs and played on the twin.
 
-    ``checkpoint_dir`` makes the training resumable (`microfab.identify.ann.train_ann`);
-    ``progress(record)`` is called after each epoch with an
-    `microfab.identify.ann_train.EpochRecord`.
+    Returns ``(train, validation)``; the validation runs get noise seeds 10 000 above the
+    training runs'.
     """
-    from microfab.identify.ann import ErrorStats
-    from microfab.identify.ann_train import train_ann
     from microfab.identify.excitation import ANN_TOTAL_S
-    from microfab.identify.stage_ann import StageAnnModel, ann_config, runs_of
 
     s = AnnSettings() if settings is None else settings
     total = ANN_TOTAL_S if s.total_s is None else s.total_s
     runs = ann_dataset(total, random_share=s.random_share, seed=s.seed)
     train, val = split_runs(runs, s.validation, seed=s.seed)
-    played = play_runs(train, s.twin)
-    rec_train = played.records
-    rec_val = play_runs(val, dataclasses.replace(s.twin, seed=s.twin.seed + 10_000)).records
+    return play_runs(train, s.twin), play_runs(
+        val, dataclasses.replace(s.twin, seed=s.twin.seed + 10_000)
+    )
+
+
+def train_networks(
+    train: Played,
+    val: Played,
+    settings: AnnSettings | None = None,
+    *,
+    inputs: str = "own",
+    checkpoint_dir: str | Path | None = None,
+    progress: Any = None,
+) -> AnnStudy:
+    """One network per axis trained on ``train``, stopped and scored on ``val``.
+
+    ``inputs`` "own" is the seed's (each axis's own command); "both" feeds both axes'
+    commands to each network (the coupling study). ``checkpoint_dir`` makes the training
+    resumable (`microfab.identify.ann_train.train_ann`); ``progress(record)`` is called
+    after each epoch with an `microfab.identify.ann_train.EpochRecord`.
+    """
+    from microfab.identify.ann import ErrorStats
+    from microfab.identify.ann_train import train_ann
+    from microfab.identify.stage_ann import StageAnnModel, ann_config, runs_of
+
+    s = AnnSettings() if settings is None else settings
     config = ann_config(
-        1.0 / played.dt, stage_data.AXES, max_epochs=s.max_epochs, seed=s.seed, threads=s.threads
+        1.0 / train.dt,
+        stage_data.AXES,
+        inputs=inputs,
+        max_epochs=s.max_epochs,
+        epoch_windows=s.epoch_windows,
+        val_windows=s.val_windows,
+        seed=s.seed,
+        threads=s.threads,
     )
     model = train_ann(
-        runs_of(rec_train),
-        runs_of(rec_val),
+        runs_of(train.records),
+        runs_of(val.records),
         config,
         checkpoint_dir=checkpoint_dir,
         progress=progress,
     )
-    err = StageAnnModel(model).errors(rec_val)
+    err = StageAnnModel(model).errors(val.records)
     return AnnStudy(
         model=model,
         validation={
             a: ErrorStats(float(err.mean[j]), float(err.std[j]), err.n_samples)
             for j, a in enumerate(err.axes)
         },
-        train_names=tuple(r.name for r in rec_train),
-        validation_names=tuple(r.name for r in rec_val),
+        train_names=tuple(r.name for r in train.records),
+        validation_names=tuple(r.name for r in val.records),
     )
+
+
+def ann_study(
+    settings: AnnSettings | None = None,
+    *,
+    checkpoint_dir: str | Path | None = None,
+    progress: Any = None,
+) -> AnnStudy:
+    """`ann_records`, then `train_networks` on them (the seed's per-axis networks)."""
+    train, val = ann_records(settings)
+    return train_networks(train, val, settings, checkpoint_dir=checkpoint_dir, progress=progress)

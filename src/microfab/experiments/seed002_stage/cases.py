@@ -1,0 +1,179 @@
+"""The test cases of seed 002 (letters "u", "r", "c", "h" and the e344 airfoil) as commands.
+
+Seed 002 evaluates its models (Table II columns 2-3, Fig. 9) on the letters *after
+optimisation* at ``a_max``; that optimisation (eqs. 8-14) is the companion part. Here the
+command of a case at ``a_max`` is the jerk-free time-optimal reference
+(`microfab.trajectory.optimal.time_optimal`) along the exact contour under Table I's speed
+(1.5 m/s) and ``a_max`` per axis, from rest to rest, sampled at 10 kHz. It is a stand-in
+for the optimised input: it has the same time scale and the same acceleration bound, but
+it follows the contour instead of pre-compensating the stage.
+
+Sizes. The seed gives none. A documented step sets them (`case_sizes`):
+
+* the letter height so that "r" takes ``R_TIME_S`` = 0.807 s at 1 m/s² (seed 002 §V-A and
+  Table III: letter r, a_max = 1, T = 0.807 s);
+* the airfoil chord so that it takes ``AIRFOIL_TIME_S`` = 1.322 s at 1 m/s² (seed 002
+  Table III: airfoil, a_max = 1, T = 1.322 s).
+
+Both by a root find on the time-optimal duration (which grows like the square root of the
+size when acceleration limits it). The other letters' times are then checks, not fits.
+Each case is centred on the workspace's origin.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from microfab.core.limits import MachineLimits
+from microfab.geometry.airfoil import airfoil_path
+from microfab.geometry.path import Path
+from microfab.geometry.text import SEED002_LETTERS, letters_seed002
+from microfab.identify.excitation_run import DT
+from microfab.trajectory.optimal import time_optimal
+
+__all__ = [
+    "AIRFOIL_TIME_S",
+    "CASES",
+    "R_TIME_S",
+    "CaseCommand",
+    "CaseSizes",
+    "case_command",
+    "case_paths",
+    "case_sizes",
+]
+
+R_TIME_S = 0.807  # seed 002 §V-A, Table III: letter "r" at a_max = 1 m/s² takes 0.807 s
+AIRFOIL_TIME_S = 1.322  # seed 002 Table III: airfoil at a_max = 1 m/s² takes 1.322 s
+SIZE_A_MAX = 1.0  # seed 002 Table III: the a_max of both times above, m/s²
+#: The cases: the four letters (seed 002 §II-C) and the airfoil.
+CASES = (*SEED002_LETTERS, "airfoil")
+_N_GRID = 1000  # time_optimal grid nodes (issue 18: N = 1000 for a letter)
+
+
+@dataclass(frozen=True)
+class CaseSizes:
+    """Sizes of the cases (module docstring).
+
+    Attributes
+    ----------
+    letter_height_m : float
+        Font size of the letters, m.
+    airfoil_chord_m : float
+        Chord of the airfoil, m.
+    """
+
+    letter_height_m: float
+    airfoil_chord_m: float
+
+
+def case_paths(sizes: CaseSizes, names: Sequence[str] = CASES) -> dict[str, Path]:
+    """The closed contour of each named case, centred on the origin, m.
+
+    Raises
+    ------
+    ValueError
+        An unknown case name (naming the known ones).
+    """
+    unknown = [n for n in names if n not in CASES]
+    if unknown:
+        raise ValueError(f"unknown case(s) {unknown}; known: {', '.join(CASES)}")
+    letters = letters_seed002(sizes.letter_height_m)
+    out = {}
+    for n in names:
+        if n == "airfoil":
+            # seed 002 Fig. 13: clockwise from the leading edge
+            p = airfoil_path(chord=sizes.airfoil_chord_m, start="leading", direction="cw")
+        else:
+            p = letters[n].contours[0]  # each letter is one closed contour (DejaVu Sans)
+        x0, y0, x1, y1 = p.bbox
+        out[n] = p.translated((-(x0 + x1) / 2, -(y0 + y1) / 2))
+    return out
+
+
+def _limits(a_max: float) -> MachineLimits:
+    if not (math.isfinite(a_max) and a_max > 0):
+        raise ValueError(f"a_max must be a positive acceleration, got {a_max!r} m/s²")
+    table1 = MachineLimits.seed002_stage()
+    return dataclasses.replace(table1, acceleration=(float(a_max), float(a_max)))
+
+
+@dataclass(frozen=True, eq=False)
+class CaseCommand:
+    """A case's command at one ``a_max`` (time-optimal, module docstring).
+
+    Attributes
+    ----------
+    name : str
+        File-safe: ``"<case>_a<a_max>"``.
+    case : str
+        One of `CASES`.
+    a_max : float
+        Acceleration bound per axis, m/s².
+    dt : float
+        Sample time, s (10 kHz).
+    command : numpy.ndarray
+        Shape (n, 2), m, from rest to rest; it passed ``check_trajectory`` (Table I).
+    duration_s : float
+        Its length, s.
+    """
+
+    name: str
+    case: str
+    a_max: float
+    dt: float
+    command: np.ndarray
+    duration_s: float
+
+
+def case_command(case: str, path: Path, a_max: float) -> CaseCommand:
+    """The time-optimal command of ``path`` at ``a_max`` (per axis), 10 kHz.
+
+    Raises
+    ------
+    ValueError
+        A non-positive ``a_max``.
+    microfab.trajectory.optimal.PlanningError
+        No trajectory within the limits.
+    """
+    res = time_optimal(path, _limits(a_max), n_grid=_N_GRID, sample_rate_hz=1.0 / DT)
+    return CaseCommand(
+        name=f"{case}_a{a_max:g}",
+        case=case,
+        a_max=float(a_max),
+        dt=DT,
+        command=np.asarray(res.trajectory.position),
+        duration_s=float(res.duration),
+    )
+
+
+def _fit_size(make: Callable[[float], Path], target_s: float, guess: float) -> float:
+    """Size whose time-optimal duration at `SIZE_A_MAX` is ``target_s`` (to 1e-4 relative)."""
+    from scipy.optimize import brentq
+
+    lim = _limits(SIZE_A_MAX)
+
+    def duration(size: float) -> float:
+        return float(time_optimal(make(size), lim, n_grid=_N_GRID).duration)
+
+    t0 = duration(guess)
+    first = guess * (target_s / t0) ** 2  # T grows like sqrt(size) when acceleration binds
+    lo, hi = first / 1.5, first * 1.5
+    return float(brentq(lambda k: duration(k) - target_s, lo, hi, rtol=1e-4))
+
+
+def case_sizes(r_time_s: float = R_TIME_S, airfoil_time_s: float = AIRFOIL_TIME_S) -> CaseSizes:
+    """The documented sizing step (module docstring): letter height and airfoil chord."""
+    h = _fit_size(lambda k: letters_seed002(k)["r"].contours[0], r_time_s, 0.01)
+    c = _fit_size(lambda k: airfoil_path(chord=k, start="leading", direction="cw"),
+                  airfoil_time_s, 0.1)  # fmt: skip
+    return CaseSizes(letter_height_m=h, airfoil_chord_m=c)
+
+
+def durations(commands: Mapping[str, CaseCommand]) -> dict[str, float]:
+    """Duration of each command, s."""
+    return {k: c.duration_s for k, c in commands.items()}

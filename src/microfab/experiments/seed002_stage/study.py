@@ -1,0 +1,456 @@
+"""The whole of seed 002 part 1 on the twin: data, both models, Table II, Fig. 9, the studies.
+
+`run_study` is what the ``stage-identify`` job and ``microfab reproduce stage-models``
+run. In order:
+
+1. **Linear model** (§III-A, §III-C.1): random runs (600 s), played on the twin, eq. (6)
+   fitted (`run.fit_linear`); its error on its own training data is Table II column 1.
+   The order check (n = 2…8, one R factor, `microfab.identify.subspace.order_scan`)
+   scores each order the same way, from rest.
+2. **Networks** (§III-B, §III-C.2): about 60 % random runs and the rest regular shapes,
+   80/20 split by whole runs, one network per axis (`run.train_networks`); the error on
+   the validation runs is Table II column 1 of the non-linear model.
+3. **Test cases** (`cases`): the letters and the airfoil at each ``a_max`` as time-optimal
+   commands (the stand-in for the optimised inputs of part 2), played on the twin; both
+   models' errors there. Table II columns 2-3 pool the four letters at 1 and 3 m/s²;
+   Fig. 9 is the network's σ against ``a_max`` for the letters and the airfoil.
+4. **Coupling** (promised in §III-B): the same data, each network fed both axes'
+   commands; its validation σ beside the per-axis networks'.
+5. **Classic signals** (§III-C: PRBS and chirp "none of these proved adequate"): networks
+   trained on PRBS and chirp runs of the same total length, scored on the letters.
+
+Every training is resumable through its checkpoint directory. Errors are measured minus
+predicted (the sign of Table II is not stated; ours is that of ``y - y_model``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from microfab.experiments.kinds import Progress, no_progress
+from microfab.experiments.seed002_stage.cases import (
+    AIRFOIL_TIME_S,
+    CASES,
+    R_TIME_S,
+    CaseCommand,
+    CaseSizes,
+    case_command,
+    case_paths,
+    case_sizes,
+)
+from microfab.experiments.seed002_stage.run import (
+    AnnSettings,
+    AnnStudy,
+    LinearFit,
+    LinearSettings,
+    Played,
+    TwinSettings,
+    ann_records,
+    fit_linear,
+    play_runs,
+    train_networks,
+)
+from microfab.geometry.text import SEED002_LETTERS
+from microfab.identify import stage_data
+from microfab.identify.excitation import ANN_TOTAL_S, random_runs, split_runs
+from microfab.identify.excitation_signals import chirp_runs, prbs_runs
+from microfab.identify.stage_data import RunErrors, StageRecord
+
+if TYPE_CHECKING:
+    from microfab.identify.excitation import ExcitationRun
+
+__all__ = [
+    "CaseRun",
+    "CaseSettings",
+    "IdentifyStudy",
+    "OrderRow",
+    "StudySettings",
+    "classic_runs",
+    "run_study",
+]
+
+#: Table II's two a_max columns (lost in the text; Fig. 8 gives 1 and 3 m/s²).
+TABLE_A_MAX = (1.0, 3.0)
+#: Fig. 9's a_max values (the seed's axis is not legible; assumed: across and beyond the
+#: 5 m/s² of the training data, §III-D, up to 8).
+SWEEP_A_MAX = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CaseSettings:
+    """The test cases and their accelerations.
+
+    Parameters
+    ----------
+    table_a_max : tuple of float
+        Table II's columns, m/s² (seed: 1 and 3).
+    sweep_a_max : tuple of float
+        Fig. 9's points, m/s².
+    r_time_s, airfoil_time_s : float
+        The sizing step's targets (`cases`), s.
+    """
+
+    table_a_max: tuple[float, ...] = TABLE_A_MAX
+    sweep_a_max: tuple[float, ...] = SWEEP_A_MAX
+    r_time_s: float = R_TIME_S
+    airfoil_time_s: float = AIRFOIL_TIME_S
+
+    def __post_init__(self) -> None:
+        for name in ("table_a_max", "sweep_a_max"):
+            vals = tuple(float(v) for v in getattr(self, name))
+            if any(not (0 < v <= 40.0) for v in vals):
+                raise ValueError(
+                    f"{name} values must lie in (0, 40] m/s² (Table I), got {list(vals)}"
+                )
+            object.__setattr__(self, name, vals)
+        for name in ("r_time_s", "airfoil_time_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r} s")
+
+    @property
+    def a_max_values(self) -> tuple[float, ...]:
+        """Every a_max played, sorted, once."""
+        return tuple(sorted(set(self.table_a_max) | set(self.sweep_a_max)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class StudySettings:
+    """What `run_study` does.
+
+    Parameters
+    ----------
+    twin : TwinSettings
+        The twin and its noise seed (used by every part).
+    linear : LinearSettings
+        The linear model's data and fit (its own ``twin`` is replaced by ``twin``).
+    orders : tuple of int
+        The order check's orders (seed §III-A: beyond 4 "practically the same"); empty
+        for none.
+    ann : AnnSettings or None
+        The networks (None: linear model only; the studies below need it).
+    cases : CaseSettings
+        Letters and airfoil.
+    coupling : bool
+        Train the both-axes networks (a second training).
+    classic : bool
+        Train networks on PRBS and chirp runs (a third training).
+    """
+
+    twin: TwinSettings = field(default_factory=TwinSettings)
+    linear: LinearSettings = field(default_factory=LinearSettings)
+    orders: tuple[int, ...] = (2, 3, 4, 5, 6, 7, 8)
+    ann: AnnSettings | None = field(default_factory=AnnSettings)
+    cases: CaseSettings = field(default_factory=CaseSettings)
+    coupling: bool = True
+    classic: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "orders", tuple(int(n) for n in self.orders))
+        if any(n < 1 for n in self.orders):
+            raise ValueError(f"orders must be >= 1, got {list(self.orders)}")
+        if self.ann is None and (self.coupling or self.classic):
+            raise ValueError("the coupling and classic studies need the networks (ann)")
+
+
+@dataclass(frozen=True)
+class OrderRow:
+    """One order of the order check: σ from rest on the training data, m."""
+
+    order: int
+    singular_ratio: float
+    sigma_m: tuple[float, float]
+
+
+@dataclass(frozen=True, eq=False)
+class CaseRun:
+    """One case at one a_max, played on the twin, and each model's errors there.
+
+    Attributes
+    ----------
+    case, a_max, duration_s
+        Which, m/s², and the command's length, s.
+    limited : int
+        Samples the set-point guard changed (0 within Table I).
+    record : StageRecord
+        Command and measured position.
+    linear, ann, coupled, classic : RunErrors or None
+        Each model's errors (kept samples); None where not trained.
+    """
+
+    case: str
+    a_max: float
+    duration_s: float
+    limited: int
+    record: StageRecord
+    linear: RunErrors
+    ann: RunErrors | None = None
+    coupled: RunErrors | None = None
+    classic: RunErrors | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifyStudy:
+    """Everything `run_study` measured (see the module docstring).
+
+    Attributes
+    ----------
+    settings : StudySettings
+    linear : LinearFit
+        The model and its error on its training data (Table II column 1).
+    linear_limited : int
+        Guard-limited samples over the linear data (0 within Table I).
+    orders : tuple of OrderRow
+    singular_values : numpy.ndarray
+        Of the order check's projection (empty without it).
+    ann : AnnStudy or None
+    ann_validation : RunErrors or None
+        The networks' errors on the validation runs, samples kept (Fig. 8a).
+    linear_on_validation : RunErrors or None
+        The linear model on the same validation runs.
+    coupled, classic : AnnStudy or None
+        The both-axes and the PRBS/chirp-trained networks.
+    sizes : CaseSizes
+    cases : tuple of CaseRun
+    example_runs : tuple of ExcitationRun
+        A few of the networks' training commands (Fig. 6), or of the linear data.
+    validation_example : StageRecord or None
+        One validation run (measured vs models figure).
+    seconds : dict of str to float
+        Wall time of each part.
+    """
+
+    settings: StudySettings
+    linear: LinearFit
+    linear_limited: int
+    orders: tuple[OrderRow, ...]
+    singular_values: np.ndarray
+    ann: AnnStudy | None
+    ann_validation: RunErrors | None
+    linear_on_validation: RunErrors | None
+    coupled: AnnStudy | None
+    classic: AnnStudy | None
+    sizes: CaseSizes
+    cases: tuple[CaseRun, ...]
+    example_runs: tuple[ExcitationRun, ...]
+    validation_example: StageRecord | None
+    seconds: dict[str, float]
+
+    def case(self, name: str, a_max: float) -> CaseRun:
+        """The run of ``name`` at ``a_max``."""
+        for c in self.cases:
+            if c.case == name and abs(c.a_max - a_max) < 1e-12:
+                return c
+        raise KeyError(f"no run of case {name!r} at a_max {a_max:g} m/s²")
+
+    def letters(self, a_max: float, model: str = "linear") -> RunErrors | None:
+        """One model's errors pooled over the four letters at ``a_max`` (Table II)."""
+        parts = [getattr(self.case(ch, a_max), model) for ch in SEED002_LETTERS]
+        if any(p is None for p in parts):
+            return None
+        return RunErrors.pooled(parts)
+
+    def durations(self, a_max: float) -> dict[str, float]:
+        """Each case's command length at ``a_max``, s."""
+        return {c.case: c.duration_s for c in self.cases if abs(c.a_max - a_max) < 1e-12}
+
+
+_CLASSIC_F1_HZ = (20.0, 50.0, 100.0, 200.0, 500.0)  # assumed: chirp tops, one per block
+
+
+def classic_runs(total_s: float, seed: int = 0) -> list[ExcitationRun]:
+    """PRBS and chirp runs, ``total_s`` in all (§III-C's classic signals).
+
+    Five blocks, each half PRBS (0.1 and 1 mm levels, its own seed, `prbs_runs`) and
+    half chirp (x then y from 0.5 Hz to one of `_CLASSIC_F1_HZ`, `chirp_runs`), all
+    within 5 m/s²; twenty runs, so that an 80/20 split by runs leaves some to validate.
+    """
+    part = total_s / (4 * len(_CLASSIC_F1_HZ))
+    out: list[ExcitationRun] = []
+    for k, f1 in enumerate(_CLASSIC_F1_HZ):
+        chirps = chirp_runs(part, f1_hz=f1, fade_s=min(1.0, part / 4))
+        for r in (*prbs_runs(part, seed=seed + k), *chirps):
+            out.append(dataclasses.replace(r, name=f"{r.name}_b{k}"))
+    return out
+
+
+def _train_dir(out: Path | None, name: str) -> Path | None:
+    return None if out is None else out / name / "checkpoints"
+
+
+def _ann_progress(progress: Progress, task: str, max_epochs: int) -> Any:
+    def report(rec: Any) -> None:
+        progress(f"{task}, axis {rec.axis}", int(rec.epoch), max_epochs)
+
+    return report
+
+
+def run_study(
+    settings: StudySettings | None = None,
+    out: str | Path | None = None,
+    progress: Progress = no_progress,
+) -> IdentifyStudy:
+    """Run the study (module docstring); trainings checkpoint under ``out`` and resume.
+
+    Raises
+    ------
+    ValueError
+        From the fits (non-exciting data, unstable model) or the cases.
+    """
+    s = StudySettings() if settings is None else settings
+    out_dir = None if out is None else Path(out)
+    seconds: dict[str, float] = {}
+
+    t0 = time.perf_counter()
+    progress("linear model: data on the twin", 0, None)
+    lin_s = dataclasses.replace(s.linear, twin=s.twin)
+    runs = random_runs(lin_s.total_s, a_max=lin_s.a_max, seed=lin_s.seed)
+    played = play_runs(runs, s.twin)
+    progress("linear model: subspace fit", 0, None)
+    linear = fit_linear(played, lin_s)
+    seconds["linear"] = time.perf_counter() - t0
+    orders, sv = _order_check(played, lin_s, s.orders, progress)
+    seconds["order check"] = time.perf_counter() - t0 - seconds["linear"]
+    example_runs: tuple[ExcitationRun, ...] = tuple(runs[:6])
+
+    ann = coupled = classic = None
+    ann_val = lin_val = None
+    val_example = None
+    if s.ann is not None:
+        a = dataclasses.replace(s.ann, twin=s.twin)
+        t1 = time.perf_counter()
+        progress("networks: data on the twin", 0, None)
+        train, val = ann_records(a)
+        example_runs = _fig6_runs(a)
+        ann = train_networks(
+            train, val, a,
+            checkpoint_dir=_train_dir(out_dir, "ann"),
+            progress=_ann_progress(progress, "networks", a.max_epochs),
+        )  # fmt: skip
+        from microfab.identify.stage_ann import StageAnnModel
+
+        ann_val = StageAnnModel(ann.model).errors(val.records, keep=True)
+        lin_val = stage_data.run_errors(linear.model, val.records, linear.decimate, keep=True)
+        val_example = val.records[0]
+        seconds["networks"] = time.perf_counter() - t1
+        if s.coupling:
+            t1 = time.perf_counter()
+            coupled = train_networks(
+                train, val, a, inputs="both",
+                checkpoint_dir=_train_dir(out_dir, "ann_coupled"),
+                progress=_ann_progress(progress, "coupling networks", a.max_epochs),
+            )  # fmt: skip
+            seconds["coupling networks"] = time.perf_counter() - t1
+        if s.classic:
+            t1 = time.perf_counter()
+            progress("PRBS/chirp networks: data on the twin", 0, None)
+            total = ANN_TOTAL_S if a.total_s is None else a.total_s
+            c_train, c_val = split_runs(classic_runs(total, a.seed), a.validation, seed=a.seed)
+            classic = train_networks(
+                play_runs(c_train, s.twin),
+                play_runs(c_val, dataclasses.replace(s.twin, seed=s.twin.seed + 10_000)),
+                a,
+                checkpoint_dir=_train_dir(out_dir, "ann_classic"),
+                progress=_ann_progress(progress, "PRBS/chirp networks", a.max_epochs),
+            )
+            seconds["PRBS/chirp networks"] = time.perf_counter() - t1
+
+    t1 = time.perf_counter()
+    progress("test cases: sizes", 0, None)
+    sizes = case_sizes(s.cases.r_time_s, s.cases.airfoil_time_s)
+    cases = _play_cases(s, sizes, linear, ann, coupled, classic, progress)
+    seconds["test cases"] = time.perf_counter() - t1
+    return IdentifyStudy(
+        settings=s,
+        linear=linear,
+        linear_limited=int(sum(played.limited)),
+        orders=orders,
+        singular_values=sv,
+        ann=ann,
+        ann_validation=ann_val,
+        linear_on_validation=lin_val,
+        coupled=coupled,
+        classic=classic,
+        sizes=sizes,
+        cases=cases,
+        example_runs=example_runs,
+        validation_example=val_example,
+        seconds=seconds,
+    )
+
+
+def _fig6_runs(a: AnnSettings) -> tuple[ExcitationRun, ...]:
+    """Five random runs and one shape of the networks' data (Fig. 6)."""
+    from microfab.identify.excitation import ann_dataset
+
+    total = ANN_TOTAL_S if a.total_s is None else a.total_s
+    runs = ann_dataset(total, random_share=a.random_share, seed=a.seed)
+    rand = [r for r in runs if r.kind == "random"][:5]
+    shapes = [r for r in runs if r.kind == "shape"]
+    spiral = [r for r in shapes if "spiral" in r.name][:1] or shapes[:1]
+    return tuple(rand + spiral)
+
+
+def _order_check(
+    played: Played, s: LinearSettings, orders: Sequence[int], progress: Progress
+) -> tuple[tuple[OrderRow, ...], np.ndarray]:
+    if not orders:
+        return (), np.zeros(0)
+    from microfab.identify.subspace import SubspaceConfig, order_scan
+
+    progress("linear model: order check", 0, None)
+    q = s.decimate
+    data = [(stage_data.decimate(r.u, q), stage_data.decimate(r.y, q)) for r in played.records]
+    scan = order_scan(data, played.dt * q, orders, SubspaceConfig(feedthrough=s.feedthrough))
+    rows = []
+    for n, model, (_, ratio, _) in zip(scan.orders, scan.models, scan.rows(), strict=True):
+        err = stage_data.run_errors(model, played.records, q)
+        rows.append(OrderRow(n, ratio, (float(err.std[0]), float(err.std[1]))))
+    return tuple(rows), np.asarray(scan.singular_values)
+
+
+def _play_cases(
+    s: StudySettings,
+    sizes: CaseSizes,
+    linear: LinearFit,
+    ann: AnnStudy | None,
+    coupled: AnnStudy | None,
+    classic: AnnStudy | None,
+    progress: Progress,
+) -> tuple[CaseRun, ...]:
+    from microfab.identify.stage_ann import StageAnnModel
+
+    paths = case_paths(sizes, CASES)
+    commands: list[CaseCommand] = []
+    a_values = s.cases.a_max_values
+    for i, a_max in enumerate(a_values):
+        progress("test cases: references", i, len(a_values))
+        commands += [case_command(name, p, a_max) for name, p in paths.items()]
+    progress("test cases: on the twin", 0, None)
+    played = play_runs(commands, dataclasses.replace(s.twin, seed=s.twin.seed + 20_000))
+
+    def errs(study: AnnStudy | None, rec: StageRecord) -> RunErrors | None:
+        return None if study is None else StageAnnModel(study.model).errors([rec], keep=True)
+
+    out = []
+    for cmd, rec, lim in zip(commands, played.records, played.limited, strict=True):
+        out.append(
+            CaseRun(
+                case=cmd.case,
+                a_max=cmd.a_max,
+                duration_s=cmd.duration_s,
+                limited=lim,
+                record=rec,
+                linear=stage_data.run_errors(linear.model, [rec], linear.decimate, keep=True),
+                ann=errs(ann, rec),
+                coupled=errs(coupled, rec),
+                classic=errs(classic, rec),
+            )
+        )
+    return tuple(out)

@@ -1,0 +1,147 @@
+"""The ``stage-identify`` job kind and the ``stage-models`` reproduction (seed 002 part 1)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
+from microfab.experiments.kinds import no_progress
+from microfab.experiments.seed002_stage.job import STAGE_IDENTIFY, config_from_sections
+from microfab.experiments.seed002_stage.study import classic_runs
+from microfab.identify.excitation_run import ExcitationRun
+from microfab.identify.stage_data import RunErrors, read_stage_model
+from microfab.io.job import JobFileError, parse_job
+
+EXAMPLE = Path(__file__).parents[3] / "examples" / "blackbox_stage_identify.toml"
+
+TINY = """
+[job]
+kind = "stage-identify"
+[linear]
+total_s = 20.0
+orders = [2, 4]
+[ann]
+total_s = 20.0
+max_epochs = 1
+epoch_windows = 4096
+val_windows = 4096
+[cases]
+table_a_max = [1.0, 3.0]
+sweep_a_max = [1.0]
+"""
+
+
+def _job(text: str):
+    import tomllib
+
+    file = parse_job(tomllib.loads(text), "job.toml")
+    return JOB_KINDS["stage-identify"].config(file)
+
+
+@pytest.fixture(scope="module")
+def ran(tmp_path_factory):
+    out = tmp_path_factory.mktemp("stage")
+    cfg = _job(TINY)
+    result = STAGE_IDENTIFY.run(cfg, out, no_progress)
+    report = STAGE_IDENTIFY.write_report(result, out, "tiny")
+    return out, result, report
+
+
+def test_registered_with_its_example():
+    assert JOB_KINDS["stage-identify"] is STAGE_IDENTIFY
+    assert "stage-models" in REPRODUCTIONS
+    job = load_job(EXAMPLE)
+    s = job.config
+    assert s.linear.total_s == 600.0 and s.linear.order == 4  # seed §III-C.1, §III-A
+    assert s.ann is not None and s.ann.validation == 0.2  # seed §III-C
+    assert s.cases.table_a_max == (1.0, 3.0)  # seed Fig. 8
+    assert s.coupling and s.classic
+
+
+def test_config_refusals():
+    with pytest.raises(ValueError, match="need the networks"):
+        _job(TINY.replace("[ann]\n", "[ann]\nenabled = false\n"))
+    with pytest.raises(JobFileError, match="bogus"):
+        _job(TINY + "\n[twin]\nbogus = 1\n")
+    with pytest.raises(ValueError, match="table_a_max"):
+        _job(TINY.replace("table_a_max = [1.0, 3.0]", "table_a_max = []"))
+    with pytest.raises(JobFileError):
+        _job(TINY.replace("sweep_a_max = [1.0]", "sweep_a_max = [-1.0]"))
+    sec = {
+        "twin": {"seed": 0, "noise": True, "hold_s": 0.5},
+        "linear": {"total_s": 20.0, "a_max": 5.0, "order": 4, "decimate": 10,
+                   "feedthrough": True, "orders": [], "seed": 0},
+        "ann": {"enabled": False, "total_s": 1.0, "random_share": 0.6, "validation": 0.2,
+                "max_epochs": 1, "epoch_windows": 0, "val_windows": 0, "threads": 1, "seed": 0},
+        "cases": {"table_a_max": [1.0], "sweep_a_max": [], "r_time_s": 0.807,
+                  "airfoil_time_s": 1.322},
+        "studies": {"coupling": False, "classic": False},
+    }  # fmt: skip
+    s = config_from_sections(sec)
+    assert s.ann is None and s.orders == ()
+
+
+def test_the_job_writes_its_models_summary_and_report(ran):
+    out, result, report = ran
+    assert report == out / "report.html"
+    for name in ("summary.json", "linear_model.json", "fig9.png", "fig8_histograms.png",
+                 "bode.png", "excitation.png", "losses.png", "prediction.png"):  # fmt: skip
+        assert (out / name).is_file(), name
+    for folder in ("ann", "ann_coupled", "ann_classic"):
+        assert (out / folder / "model").is_dir()
+    summary = json.loads((out / "summary.json").read_text())
+    ours = summary["table_ii"]["ours"]
+    assert set(ours) == {"linear", "ann"}
+    assert summary["table_ii"]["seed"]["linear"]["x"]["training"][1] == pytest.approx(48.0e-6)
+    # the files read back as models `identify validate` takes
+    lin = read_stage_model(out / "linear_model.json")
+    assert lin.kind == "linear"
+    ann = read_stage_model(out / "ann" / "model")
+    assert ann.kind == "ann"
+    study = result.study
+    err = lin.errors(study.case("r", 1.0).record)
+    assert np.allclose(err.std, study.case("r", 1.0).linear.std)
+
+
+def test_table_ii_columns_pool_the_four_letters(ran):
+    study = ran[1].study
+    pooled = study.letters(3.0, "linear")
+    parts = [study.case(ch, 3.0).linear for ch in "urch"]
+    e = np.concatenate([p.samples for p in parts])
+    assert pooled.n_samples == e.shape[0]
+    assert np.allclose(pooled.mean, e.mean(axis=0))
+    assert np.allclose(pooled.std, e.std(axis=0))
+    # every case ran within Table I: the guard changed nothing
+    assert all(c.limited == 0 for c in study.cases)
+    assert {c.a_max for c in study.cases} == {1.0, 3.0}
+    assert len(study.orders) == 2 and study.orders[1].order == 4
+
+
+def test_a_rerun_resumes_the_trainings(ran, tmp_path):
+    out, result, _ = ran
+    again = STAGE_IDENTIFY.run(_job(TINY), out, no_progress).study
+    for name in ("ann", "coupled", "classic"):
+        a, b = getattr(result.study, name), getattr(again, name)
+        assert a.validation == b.validation  # the finished trainings are read back
+
+
+def test_classic_runs_are_prbs_and_chirps_within_table_i():
+    runs = classic_runs(40.0, seed=1)
+    assert len(runs) == 20
+    assert {r.kind for r in runs} == {"prbs", "chirp"}
+    assert len({r.name for r in runs}) == 20
+    assert all(isinstance(r, ExcitationRun) for r in runs)  # each passed check_trajectory
+    total = sum(r.command.shape[0] * r.dt for r in runs)
+    assert total == pytest.approx(40.0, rel=0.1)
+
+
+def test_run_errors_pooled_needs_kept_samples():
+    e = RunErrors.of([("a", np.ones((3, 2)))], 1e3)
+    with pytest.raises(ValueError, match="keep"):
+        RunErrors.pooled([e])
+    with pytest.raises(ValueError, match="no error samples"):
+        RunErrors.of([], 1e3)
