@@ -338,3 +338,21 @@ def test_bad_runs_refused():
         AnnConfig(axes=("x", "z"))
     with pytest.raises(ValueError, match="lr_decay must lie in"):
         AnnConfig(lr_decay=1.5)
+
+
+def test_epoch_windows_draws_a_subset_each_epoch_and_is_fingerprinted(tmp_path):
+    full = small_config(max_epochs=1, axes=("x",))
+    part = small_config(max_epochs=1, axes=("x",), epoch_windows=1024, val_windows=512)
+    t_full = train_ann(TRAIN, VAL, full)
+    t_part = train_ann(TRAIN, VAL, part)
+    h_full = t_full.info["axes"]["x"]["history"][0]
+    h_part = t_part.info["axes"]["x"]["history"][0]
+    assert h_full != h_part
+    d = tmp_path / "ck"
+    train_ann(TRAIN, VAL, part, checkpoint_dir=d)
+    with pytest.raises(CheckpointMismatchError, match="epoch_windows"):
+        train_ann(TRAIN, VAL, small_config(max_epochs=2, axes=("x",)), checkpoint_dir=d)
+    with pytest.raises(ValueError, match="epoch_windows"):
+        AnnConfig(epoch_windows=0)
+    with pytest.raises(ValueError, match="val_windows"):
+        AnnConfig(val_windows=-3)

@@ -145,3 +145,18 @@ def test_run_errors_pooled_needs_kept_samples():
         RunErrors.pooled([e])
     with pytest.raises(ValueError, match="no error samples"):
         RunErrors.of([], 1e3)
+
+
+def test_reproduction_runs_the_seed_design():
+    from microfab.experiments.seed002_stage.job import reproduction_settings
+
+    rep = REPRODUCTIONS["stage-models"]
+    opts = rep.parse_options({})
+    assert opts == {"seed": 0, "noise": True, "networks": True, "studies": True,
+                    "checkpoints": ""}  # fmt: skip
+    s = reproduction_settings(opts)
+    assert s.linear.total_s == 600.0 and s.ann is not None and s.coupling and s.classic
+    lin_only = reproduction_settings(rep.parse_options({"networks": False}))
+    assert lin_only.ann is None and not lin_only.coupling and not lin_only.classic
+    with pytest.raises(JobFileError, match="unknown key"):
+        rep.parse_options({"epochs": 3})

@@ -46,6 +46,7 @@ __all__ = [
     "STAGE_MODELS_REPRODUCTION",
     "IdentifyResult",
     "config_from_sections",
+    "reproduction_settings",
 ]
 
 _F = "float"
@@ -228,20 +229,25 @@ def _write_report(result: IdentifyResult, out: Path, title: str) -> Path:
     return write_report(result.study, out, title)
 
 
-def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
-    from microfab.experiments.seed002_stage.tables import NOTES, study_summary
-
+def reproduction_settings(options: dict[str, Any]) -> StudySettings:
+    """The study ``microfab reproduce stage-models`` runs: the seed's design, job defaults."""
     twin = TwinSettings(seed=options["seed"], noise=options["noise"])
     ann = AnnSettings(epoch_windows=EPOCH_WINDOWS, val_windows=VAL_WINDOWS, twin=twin)
-    settings = StudySettings(
+    studies = options["networks"] and options["studies"]
+    return StudySettings(
         twin=twin,
         linear=LinearSettings(twin=twin),
         ann=ann if options["networks"] else None,
-        coupling=options["networks"] and options["studies"],
-        classic=options["networks"] and options["studies"],
+        coupling=studies,
+        classic=studies,
     )
+
+
+def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
+    from microfab.experiments.seed002_stage.tables import NOTES, study_summary
+
     folder = options["checkpoints"]
-    study = run_study(settings, Path(folder) if folder else None, progress)
+    study = run_study(reproduction_settings(options), Path(folder) if folder else None, progress)
     return ReproductionResult(tables=_tables(study), notes=NOTES, data=study_summary(study))
 
 
