@@ -72,7 +72,7 @@ def test_config_refusals():
     with pytest.raises(JobFileError):
         _job(TINY.replace("sweep_a_max = [1.0]", "sweep_a_max = [-1.0]"))
     sec = {
-        "twin": {"seed": 0, "noise": True, "hold_s": 0.5},
+        "twin": {"seed": 0, "noise": True, "hold_s": 0.5, "magnitudes": "assumed"},
         "linear": {"total_s": 20.0, "a_max": 5.0, "order": 4, "decimate": 10,
                    "feedthrough": True, "orders": [], "seed": 0},
         "ann": {"enabled": False, "total_s": 1.0, "random_share": 0.6, "validation": 0.2,
@@ -83,6 +83,10 @@ def test_config_refusals():
     }  # fmt: skip
     s = config_from_sections(sec)
     assert s.ann is None and s.orders == ()
+    # the assumed magnitudes: the reference friction and cogging, before calibration
+    assert dict(s.twin.changes)["coulomb_n"] == (20.0, 12.0)
+    with pytest.raises(ValueError, match="magnitudes must be one of"):
+        config_from_sections({**sec, "twin": {**sec["twin"], "magnitudes": "soft"}})
 
 
 def test_the_job_writes_its_models_summary_and_report(ran):
@@ -152,10 +156,11 @@ def test_reproduction_runs_the_seed_design():
 
     rep = REPRODUCTIONS["stage-models"]
     opts = rep.parse_options({})
-    assert opts == {"seed": 0, "noise": True, "networks": True, "studies": True,
-                    "checkpoints": ""}  # fmt: skip
+    assert opts == {"seed": 0, "noise": True, "magnitudes": "calibrated", "networks": True,
+                    "studies": True, "checkpoints": ""}  # fmt: skip
     s = reproduction_settings(opts)
     assert s.linear.total_s == 600.0 and s.ann is not None and s.coupling and s.classic
+    assert s.twin.changes == ()  # the twin file's (calibrated) magnitudes
     lin_only = reproduction_settings(rep.parse_options({"networks": False}))
     assert lin_only.ann is None and not lin_only.coupling and not lin_only.classic
     with pytest.raises(JobFileError, match="unknown key"):

@@ -62,9 +62,12 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
         Key(name="noise", type="bool", default=True, help="2 µm output noise (seed eq. 3)"),
         Key(name="hold_s", type=_F, default=0.5, low=0.0, high=10.0, unit="s",
             help="hold after each command so the stage settles (assumed 0.5 s)"),
+        Key(name="magnitudes", type="str", default="calibrated",
+            help="friction and cogging: 'calibrated' (the twin file's, fitted to Table II "
+            "column 1) or 'assumed' (the magnitudes before calibration)"),
     ),
     "linear": (
-        Key(name="total_s", type=_F, default=600.0, low=1.0, high=36_000.0, unit="s",
+        Key(name="total_s", type=_F, default=600.0, low=1.0, high=6000.0, unit="s",
             help="random-run data (seed §III-C.1: 6e6 samples, 600 s)"),
         Key(name="a_max", type=_F, default=5.0, low=0.0, high=40.0, unit="m/s²",
             help="largest acceleration of the runs (seed §III-D: 5)"),
@@ -78,7 +81,7 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
     ),
     "ann": (
         Key(name="enabled", type="bool", default=True, help="train the per-axis networks"),
-        Key(name="total_s", type=_F, default=525.0, low=1.0, high=36_000.0, unit="s",
+        Key(name="total_s", type=_F, default=525.0, low=1.0, high=6000.0, unit="s",
             help="data (about 34 training windows per weight, seed §III-C)"),
         Key(name="random_share", type=_F, default=0.6, low=0.0, high=1.0,
             help="share of random runs (seed: about 60 %)"),
@@ -113,16 +116,33 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
 }  # fmt: skip
 
 
+MAGNITUDES = ("calibrated", "assumed")
+
+
+def _magnitudes(tw: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
+    """Twin changes of the ``magnitudes`` choice (``"assumed"``: scale 1 of the reference)."""
+    from microfab.experiments.seed002_stage.calibration import scaled_changes
+
+    if tw["magnitudes"] not in MAGNITUDES:
+        raise ValueError(
+            f"[twin] magnitudes must be one of {', '.join(MAGNITUDES)}, got {tw['magnitudes']!r}"
+        )
+    return () if tw["magnitudes"] == "calibrated" else scaled_changes((1.0, 1.0))
+
+
 def config_from_sections(sec: dict[str, dict[str, Any]]) -> StudySettings:
     """`StudySettings` from checked job-file sections (`SCHEMA`).
 
     Raises
     ------
     ValueError
-        Studies without the networks, a non-positive a_max or sizing time.
+        Studies without the networks, unknown magnitudes, a non-positive a_max or sizing
+        time.
     """
     tw, li, an, ca, st = (sec[k] for k in ("twin", "linear", "ann", "cases", "studies"))
-    twin = TwinSettings(seed=tw["seed"], noise=tw["noise"], hold_s=tw["hold_s"])
+    twin = TwinSettings(
+        seed=tw["seed"], noise=tw["noise"], hold_s=tw["hold_s"], changes=_magnitudes(tw)
+    )
     linear = LinearSettings(
         total_s=li["total_s"],
         a_max=li["a_max"],
@@ -231,7 +251,7 @@ def _write_report(result: IdentifyResult, out: Path, title: str) -> Path:
 
 def reproduction_settings(options: dict[str, Any]) -> StudySettings:
     """The study ``microfab reproduce stage-models`` runs: the seed's design, job defaults."""
-    twin = TwinSettings(seed=options["seed"], noise=options["noise"])
+    twin = TwinSettings(seed=options["seed"], noise=options["noise"], changes=_magnitudes(options))
     ann = AnnSettings(epoch_windows=EPOCH_WINDOWS, val_windows=VAL_WINDOWS, twin=twin)
     studies = options["networks"] and options["studies"]
     return StudySettings(
@@ -273,6 +293,8 @@ STAGE_MODELS_REPRODUCTION = Reproduction(
     options=(
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),
         Key(name="noise", type="bool", default=True, help="2 µm output noise on"),
+        Key(name="magnitudes", type="str", default="calibrated",
+            help="twin friction and cogging: 'calibrated' or 'assumed'"),
         Key(name="networks", type="bool", default=True,
             help="train the networks (about 10 min per training on one CPU thread)"),
         Key(name="studies", type="bool", default=True,
