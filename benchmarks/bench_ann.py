@@ -10,9 +10,10 @@ Prints, in one run on this machine:
    networks' data (`ann_records`: about 60 % random runs, the rest shapes at constant
    speeds, split 80/20 by whole runs, seed 002 §III-C) played on the calibrated twin
    with 2 µm noise, one network per axis trained with the job's epochs of 262 144 random
-   windows (`train_networks`). Prints the training's wall time against the 15 min goal
-   (issue 17) and the validation μ, σ per axis at every 10 kHz sample beside the seed's
-   Table II (ANN on validation data: x 3.2, y 6.0 µm).
+   windows (`train_networks`), the axes side by side in ``--workers`` processes (2).
+   Prints the training's wall time against the 15 min goal (issue 17) and the
+   validation μ, σ per axis at every 10 kHz sample beside the seed's Table II (ANN on
+   validation data: x 3.2, y 6.0 µm).
 
 Run: ``python benchmarks/bench_ann.py [--quick]``.
 """
@@ -93,7 +94,7 @@ def throughput(threads: int, n_steps: int) -> None:
     )
 
 
-def real_run(total_s: float, max_epochs: int, threads: int) -> None:
+def real_run(total_s: float, max_epochs: int, threads: int, workers: int) -> None:
     """The ``stage-identify`` job's training (its data and epoch settings) on the twin."""
     from microfab.experiments.seed002_stage.job import EPOCH_WINDOWS, VAL_WINDOWS
     from microfab.experiments.seed002_stage.run import AnnSettings, ann_records, train_networks
@@ -104,6 +105,7 @@ def real_run(total_s: float, max_epochs: int, threads: int) -> None:
         epoch_windows=EPOCH_WINDOWS,
         val_windows=VAL_WINDOWS,
         threads=threads,
+        workers=workers,
     )
     t0 = time.perf_counter()
     train, val = ann_records(settings)
@@ -126,7 +128,8 @@ def real_run(total_s: float, max_epochs: int, threads: int) -> None:
         f"twin: {total_s:g} s of the networks' data ({len(train.records)} training and "
         f"{len(val.records)} validation runs) made and played in {t_sim:.1f} s; "
         f"{model.info['train_windows']} training windows; {EPOCH_WINDOWS} per epoch; "
-        f"training {t_train:.0f} s on {threads} thread(s) ({epochs}); goal <= 900 s "
+        f"training {t_train:.0f} s, {workers} worker process(es) of {threads} thread(s) "
+        f"({epochs}); goal <= 900 s on 2 cores "
         f"(issue 17), seed: 24 h per axis on a GPU"
     )
     lin = linear_baseline([(r.u, r.y) for r in val.records])
@@ -148,6 +151,7 @@ def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--threads", type=int, default=2, help="threads of the throughput test")
     p.add_argument("--train-threads", type=int, default=1, help="threads of the real run")
+    p.add_argument("--workers", type=int, default=2, help="axes trained at once (processes)")
     p.add_argument("--total-s", type=float, default=525.0, help="data, s (the job's 525)")
     p.add_argument("--epochs", type=int, default=200)
     p.add_argument("--quick", action="store_true", help="20 s of data, 2 epochs")
@@ -155,9 +159,9 @@ def main() -> None:
     for threads in sorted({1, args.threads}):
         throughput(threads, 3 if args.quick else 10)
     if args.quick:
-        real_run(20.0, 2, args.train_threads)
+        real_run(20.0, 2, args.train_threads, args.workers)
     else:
-        real_run(args.total_s, args.epochs, args.train_threads)
+        real_run(args.total_s, args.epochs, args.train_threads, args.workers)
 
 
 if __name__ == "__main__":

@@ -356,3 +356,25 @@ def test_epoch_windows_draws_a_subset_each_epoch_and_is_fingerprinted(tmp_path):
         AnnConfig(epoch_windows=0)
     with pytest.raises(ValueError, match="val_windows"):
         AnnConfig(val_windows=-3)
+
+
+def test_axes_in_worker_processes_give_the_same_networks(tmp_path):
+    seen = []
+    one = train_ann(TRAIN, VAL, small_config(max_epochs=2))
+    two = train_ann(
+        TRAIN, VAL, small_config(max_epochs=2, workers=2), checkpoint_dir=tmp_path / "ck",
+        progress=seen.append,
+    )  # fmt: skip
+    for a in ("x", "y"):
+        s1, s2 = one.networks[a].state_dict(), two.networks[a].state_dict()
+        assert all(torch.equal(s1[k], s2[k]) for k in s1)
+        assert one.info["axes"][a]["history"] == two.info["axes"][a]["history"]
+    assert sorted((r.axis, r.epoch) for r in seen) == [("x", 1), ("x", 2), ("y", 1), ("y", 2)]
+    # a worker's refusal reaches the caller
+    with pytest.raises(CheckpointMismatchError, match="learning_rate"):
+        train_ann(
+            TRAIN, VAL, small_config(max_epochs=3, workers=2, learning_rate=1e-3),
+            checkpoint_dir=tmp_path / "ck",
+        )  # fmt: skip
+    with pytest.raises(ValueError, match="workers"):
+        AnnConfig(workers=0)

@@ -49,6 +49,22 @@ def ann_cmd(
     threads: Annotated[
         int, typer.Option(min=1, help="CPU threads of PyTorch (1: best on a shared 2-core box).")
     ] = 1,
+    workers: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            help="Axes trained at once, each in its own process (2: x and y "
+            "side by side, half the time on 2 cores; same networks).",
+        ),
+    ] = 1,
+    epoch_windows: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="Training windows per epoch, a fresh random draw each "
+            "epoch (0: all windows every epoch).",
+        ),
+    ] = 0,
     validation: Annotated[
         float, typer.Option(help="Share of the runs kept for validation (seed 002: 0.2).")
     ] = 0.2,
@@ -92,7 +108,14 @@ def ann_cmd(
     try:
         train, val = split_records(records, validation, seed)
         config = ann_config(
-            1.0 / dt, _AXES[axis], max_epochs=epochs, seed=seed, device=device, threads=threads
+            1.0 / dt,
+            _AXES[axis],
+            max_epochs=epochs,
+            seed=seed,
+            device=device,
+            threads=threads,
+            workers=workers,
+            epoch_windows=epoch_windows or None,
         )
     except ValueError as exc:
         fail(renamed(str(exc), {"validation must": "--validation must"}))

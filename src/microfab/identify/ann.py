@@ -111,6 +111,13 @@ class AnnConfig:
     val_windows : int, optional
         Validation windows for the per-epoch loss (early stopping): a fixed random subset
         drawn once (default all).
+    workers : int
+        Axes trained at once on the CPU, each in its own (spawned) process with
+        ``threads`` threads; 1 (default): one after the other in this process. The
+        networks are the same either way (each axis is seeded on its own). On a 2-core
+        machine 2 threads in one process trained no faster than 1 (measured: 4.9 against
+        5.0 s per epoch of 262 144 windows), two processes halve the time. Not
+        fingerprinted.
     seed : int
         Seeds the initial weights and each epoch's shuffle.
     device : str
@@ -135,6 +142,7 @@ class AnnConfig:
     checkpoint_every: int = 1
     epoch_windows: int | None = None
     val_windows: int | None = None
+    workers: int = 1
     seed: int = 0
     device: str = "auto"
     threads: int | None = 1  # assumed: see the docstring (shared machines)
@@ -165,11 +173,12 @@ class AnnConfig:
             raise ValueError(f"device must be 'auto', 'cpu' or 'cuda', got {self.device!r}")
         if self.threads is not None:
             check_int("threads", self.threads, 1)
+        check_int("workers", self.workers, 1)
         for name in ("epoch_windows", "val_windows"):
             if getattr(self, name) is not None:
                 check_int(name, getattr(self, name), 1, "windows")
 
-    _NOT_FINGERPRINTED = ("max_epochs", "checkpoint_every", "device", "threads")
+    _NOT_FINGERPRINTED = ("max_epochs", "checkpoint_every", "device", "threads", "workers")
 
     def fingerprint(self) -> dict[str, Any]:
         """What decides the training's course (JSON): all but the stopping and device knobs."""

@@ -177,12 +177,15 @@ def train_ann(
         "command_accel_max_m_s2": dict(zip(AXES, train.command_accel_max(), strict=True)),
         "axes": {},
     }
+    if config.workers > 1 and len(config.axes) > 1 and device.type == "cpu":
+        done = _train_in_processes(train, val, config, expect, ckdir, progress, restart)
+    else:
+        done = {
+            a: _train_axis(a, train, val, config, device, expect, ckdir, progress, restart)
+            for a in config.axes
+        }
     for a in config.axes:
-        net, scaling, summary = _train_axis(
-            a, train, val, config, device, expect, ckdir, progress, restart
-        )
-        nets[a], scalings[a] = net, scaling
-        info["axes"][a] = summary
+        nets[a], scalings[a], info["axes"][a] = done[a]
     return AnnModel(config, nets, scalings, info)
 
 
@@ -295,6 +298,73 @@ def _train_axis(
         "history": st["history"],
     }
     return net, scaling, summary
+
+
+def _axis_job(
+    axis: str,
+    train: WindowSet,
+    val: WindowSet,
+    config: AnnConfig,
+    expect: dict[str, Any],
+    ckdir: Path | None,
+    queue: Any,
+    restart: bool,
+) -> tuple[dict[str, torch.Tensor], Scaling, dict[str, Any]]:
+    """One axis's training in a worker process; epochs go to ``queue`` (if any)."""
+    _set_threads(config)
+    report = None if queue is None else queue.put
+    net, scaling, summary = _train_axis(
+        axis, train, val, config, torch.device("cpu"), expect, ckdir, report, restart
+    )
+    return net.state_dict(), scaling, summary
+
+
+def _train_in_processes(
+    train: WindowSet,
+    val: WindowSet,
+    config: AnnConfig,
+    expect: dict[str, Any],
+    ckdir: Path | None,
+    progress: Callable[[EpochRecord], None] | None,
+    restart: bool,
+) -> dict[str, tuple[nn.Module, Scaling, dict[str, Any]]]:
+    """`_train_axis` of each axis in its own spawned process (``config.workers`` at once).
+
+    Epoch records come back through a queue and are handed to ``progress`` here, in this
+    process. A failure in a worker is raised here once the others have ended.
+    """
+    import multiprocessing as mp
+    from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+
+    ctx = mp.get_context("spawn")  # forking a process that ran torch can deadlock
+    n = min(config.workers, len(config.axes))
+    with ctx.Manager() as manager, ProcessPoolExecutor(n, mp_context=ctx) as pool:
+        queue = None if progress is None else manager.Queue()
+        futures = {
+            a: pool.submit(_axis_job, a, train, val, config, expect, ckdir, queue, restart)
+            for a in config.axes
+        }
+
+        def drain() -> None:
+            while queue is not None and not queue.empty():
+                progress(queue.get())  # type: ignore[misc]
+
+        pending = set(futures.values())
+        while pending:
+            _, pending = wait(pending, timeout=0.2, return_when=FIRST_EXCEPTION)
+            drain()
+            if any(f.done() and f.exception() is not None for f in futures.values()):
+                for f in pending:
+                    f.cancel()
+                break
+        drain()
+        results = {a: f.result() for a, f in futures.items()}  # raises a worker's error
+    out = {}
+    for a, (state, scaling, summary) in results.items():
+        net = build_network(config.window.n_inputs, seed=0)
+        net.load_state_dict(state)
+        out[a] = (net.eval(), scaling, summary)
+    return out
 
 
 def _tensors(arrays: dict[str, np.ndarray], prefix: str, device: torch.device) -> dict[str, Any]:

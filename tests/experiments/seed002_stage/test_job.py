@@ -29,6 +29,7 @@ total_s = 20.0
 max_epochs = 1
 epoch_windows = 4096
 val_windows = 4096
+workers = 1
 [cases]
 table_a_max = [1.0, 3.0]
 sweep_a_max = [1.0]
@@ -76,7 +77,8 @@ def test_config_refusals():
         "linear": {"total_s": 20.0, "a_max": 5.0, "order": 4, "decimate": 10,
                    "feedthrough": True, "orders": [], "seed": 0},
         "ann": {"enabled": False, "total_s": 1.0, "random_share": 0.6, "validation": 0.2,
-                "max_epochs": 1, "epoch_windows": 0, "val_windows": 0, "threads": 1, "seed": 0},
+                "max_epochs": 1, "epoch_windows": 0, "val_windows": 0, "threads": 1,
+                "workers": 1, "seed": 0},
         "cases": {"table_a_max": [1.0], "sweep_a_max": [], "r_time_s": 0.807,
                   "airfoil_time_s": 1.322},
         "studies": {"coupling": False, "classic": False},

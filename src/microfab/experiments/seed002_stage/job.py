@@ -93,7 +93,10 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="training windows per epoch (0: all)"),
         Key(name="val_windows", type="int", default=VAL_WINDOWS, low=0,
             help="validation windows of the stopping loss (0: all)"),
-        Key(name="threads", type="int", default=1, low=1, high=256, help="CPU threads"),
+        Key(name="threads", type="int", default=1, low=1, high=256,
+            help="CPU threads per worker (1: best on 2 cores)"),
+        Key(name="workers", type="int", default=2, low=1, high=2,
+            help="axes trained at once, one process each (2: half the time on 2 cores)"),
         Key(name="seed", type="int", default=0, low=0,
             help="seed of the runs, the split and the training"),
     ),
@@ -162,6 +165,7 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> StudySettings:
             epoch_windows=an["epoch_windows"] or None,
             val_windows=an["val_windows"] or None,
             threads=an["threads"],
+            workers=an["workers"],
             seed=an["seed"],
             twin=twin,
         )
@@ -252,7 +256,7 @@ def _write_report(result: IdentifyResult, out: Path, title: str) -> Path:
 def reproduction_settings(options: dict[str, Any]) -> StudySettings:
     """The study ``microfab reproduce stage-models`` runs: the seed's design, job defaults."""
     twin = TwinSettings(seed=options["seed"], noise=options["noise"], changes=_magnitudes(options))
-    ann = AnnSettings(epoch_windows=EPOCH_WINDOWS, val_windows=VAL_WINDOWS, twin=twin)
+    ann = AnnSettings(epoch_windows=EPOCH_WINDOWS, val_windows=VAL_WINDOWS, workers=2, twin=twin)
     studies = options["networks"] and options["studies"]
     return StudySettings(
         twin=twin,

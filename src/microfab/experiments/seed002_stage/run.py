@@ -265,7 +265,9 @@ class AnnSettings:
         Training windows per epoch and validation windows of the stopping loss
         (`microfab.identify.ann.AnnConfig`; None: all).
     threads : int
-        CPU threads of the training.
+        CPU threads of the training (per worker).
+    workers : int
+        Axes trained at once, each in its own process (`microfab.identify.ann.AnnConfig`).
     seed : int
         Seed of the runs, the split and the training.
     """
@@ -277,6 +279,7 @@ class AnnSettings:
     epoch_windows: int | None = None
     val_windows: int | None = None
     threads: int = 1
+    workers: int = 1
     seed: int = 0
     twin: TwinSettings = field(default_factory=TwinSettings)
 
@@ -350,6 +353,7 @@ def train_networks(
         val_windows=s.val_windows,
         seed=s.seed,
         threads=s.threads,
+        workers=s.workers,
     )
     model = train_ann(
         runs_of(train.records),
