@@ -331,10 +331,11 @@ def _train_in_processes(
     """`_train_axis` of each axis in its own spawned process (``config.workers`` at once).
 
     Epoch records come back through a queue and are handed to ``progress`` here, in this
-    process. A failure in a worker is raised here once the others have ended.
+    process. A failure in a worker is raised here once the others have ended (a running
+    training cannot be cancelled).
     """
     import multiprocessing as mp
-    from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+    from concurrent.futures import ProcessPoolExecutor, wait
 
     ctx = mp.get_context("spawn")  # forking a process that ran torch can deadlock
     n = min(config.workers, len(config.axes))
@@ -351,13 +352,8 @@ def _train_in_processes(
 
         pending = set(futures.values())
         while pending:
-            _, pending = wait(pending, timeout=0.2, return_when=FIRST_EXCEPTION)
+            _, pending = wait(pending, timeout=0.2)
             drain()
-            if any(f.done() and f.exception() is not None for f in futures.values()):
-                for f in pending:
-                    f.cancel()
-                break
-        drain()
         results = {a: f.result() for a, f in futures.items()}  # raises a worker's error
     out = {}
     for a, (state, scaling, summary) in results.items():

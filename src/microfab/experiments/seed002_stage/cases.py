@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,8 +172,3 @@ def case_sizes(r_time_s: float = R_TIME_S, airfoil_time_s: float = AIRFOIL_TIME_
     c = _fit_size(lambda k: airfoil_path(chord=k, start="leading", direction="cw"),
                   airfoil_time_s, 0.1)  # fmt: skip
     return CaseSizes(letter_height_m=h, airfoil_chord_m=c)
-
-
-def durations(commands: Mapping[str, CaseCommand]) -> dict[str, float]:
-    """Duration of each command, s."""
-    return {k: c.duration_s for k, c in commands.items()}

@@ -29,6 +29,7 @@ from typing import Any
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed002_stage.run import AnnSettings, LinearSettings, TwinSettings
 from microfab.experiments.seed002_stage.study import (
+    MODEL_FOLDERS,
     SWEEP_A_MAX,
     TABLE_A_MAX,
     CaseSettings,
@@ -237,10 +238,9 @@ def _run(config: StudySettings, out: Path, progress: Progress) -> IdentifyResult
         StageLinearModel(model=lin.model, input_dt=lin.model.dt / lin.decimate,
                          decimate=lin.decimate),
     )  # fmt: skip
-    for name in ("ann", "coupled", "classic"):
+    for name, folder in MODEL_FOLDERS.items():
         st = getattr(study, name)
         if st is not None:
-            folder = {"ann": "ann", "coupled": "ann_coupled", "classic": "ann_classic"}[name]
             save_ann_model(st.model, out / folder / "model")
     result = IdentifyResult(study=study)
     atomic_write_json(out / "summary.json", result.summary())

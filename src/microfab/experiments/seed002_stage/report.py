@@ -20,7 +20,7 @@ def _figures(study: IdentifyStudy) -> list[tuple[str, object, str]]:
     out: list[tuple[str, object, str]] = [
         (
             "excitation.png",
-            f.plot_excitation([(r.name, np.asarray(r.command)) for r in study.example_runs]),
+            f.plot_excitation(study.example_runs),
             "Redraws seed 002 Fig. 6: training commands (random runs and a shape) in the "
             "workspace.",
         ),
@@ -104,8 +104,6 @@ def _bode(study: IdentifyStudy) -> object:
 
 
 def _prediction(study: IdentifyStudy) -> object:
-    from microfab.identify.stage_ann import StageAnnModel
-
     rec = study.validation_example
     assert rec is not None and study.ann is not None
     dt = study.linear.model.dt / study.linear.decimate
@@ -115,7 +113,7 @@ def _prediction(study: IdentifyStudy) -> object:
     y_lin = study.linear.model.simulate(ud, rest_state(study.linear.model, ud[0]))
     preds = {
         "linear": (np.arange(ud.shape[0]) * dt * q, y_lin),
-        "ANN": (t, StageAnnModel(study.ann.model).model.predict(rec.u, at="10khz")),
+        "ANN": (t, study.ann.model.predict(rec.u, at="10khz")),
     }
     return f.plot_prediction(t, rec.y, preds)
 

@@ -60,6 +60,7 @@ __all__ = [
     "fit_linear",
     "linear_study",
     "play_runs",
+    "play_split",
     "train_networks",
 ]
 
@@ -298,12 +299,15 @@ class AnnStudy:
         (`microfab.identify.stage_ann.StageAnnModel.errors`).
     train_names, validation_names : tuple of str
         Which runs went where.
+    errors : RunErrors or None
+        The same errors with every sample kept (histograms, Fig. 8a).
     """
 
     model: AnnModel
     validation: dict[str, ErrorStats]
     train_names: tuple[str, ...]
     validation_names: tuple[str, ...]
+    errors: stage_data.RunErrors | None = None
 
 
 def ann_records(settings: AnnSettings | None = None) -> tuple[Played, Played]:
@@ -317,9 +321,15 @@ def ann_records(settings: AnnSettings | None = None) -> tuple[Played, Played]:
     s = AnnSettings() if settings is None else settings
     total = ANN_TOTAL_S if s.total_s is None else s.total_s
     runs = ann_dataset(total, random_share=s.random_share, seed=s.seed)
-    train, val = split_runs(runs, s.validation, seed=s.seed)
-    return play_runs(train, s.twin), play_runs(
-        val, dataclasses.replace(s.twin, seed=s.twin.seed + 10_000)
+    return play_split(*split_runs(runs, s.validation, seed=s.seed), s.twin)
+
+
+def play_split(
+    train: Sequence[CommandRun], val: Sequence[CommandRun], twin: TwinSettings
+) -> tuple[Played, Played]:
+    """`play_runs` of a train/validation split (validation noise seeds 10 000 higher)."""
+    return play_runs(train, twin), play_runs(
+        val, dataclasses.replace(twin, seed=twin.seed + 10_000)
     )
 
 
@@ -362,7 +372,7 @@ def train_networks(
         checkpoint_dir=checkpoint_dir,
         progress=progress,
     )
-    err = StageAnnModel(model).errors(val.records)
+    err = StageAnnModel(model).errors(val.records, keep=True)
     return AnnStudy(
         model=model,
         validation={
@@ -371,6 +381,7 @@ def train_networks(
         },
         train_names=tuple(r.name for r in train.records),
         validation_names=tuple(r.name for r in val.records),
+        errors=err,
     )
 
 

@@ -53,13 +53,14 @@ from microfab.experiments.seed002_stage.run import (
     Played,
     TwinSettings,
     ann_records,
-    fit_linear,
+    linear_study,
     play_runs,
+    play_split,
     train_networks,
 )
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.identify import stage_data
-from microfab.identify.excitation import ANN_TOTAL_S, random_runs, split_runs
+from microfab.identify.excitation import ANN_TOTAL_S, split_runs
 from microfab.identify.excitation_signals import chirp_runs, prbs_runs
 from microfab.identify.stage_data import RunErrors, StageRecord
 
@@ -67,6 +68,7 @@ if TYPE_CHECKING:
     from microfab.identify.excitation import ExcitationRun
 
 __all__ = [
+    "MODEL_FOLDERS",
     "CaseRun",
     "CaseSettings",
     "IdentifyStudy",
@@ -218,8 +220,9 @@ class IdentifyStudy:
         The both-axes and the PRBS/chirp-trained networks.
     sizes : CaseSizes
     cases : tuple of CaseRun
-    example_runs : tuple of ExcitationRun
-        A few of the networks' training commands (Fig. 6), or of the linear data.
+    example_runs : tuple of (str, numpy.ndarray)
+        Name and command (n, 2), m, of a few of the networks' runs (Fig. 6), or of the
+        linear data's.
     validation_example : StageRecord or None
         One validation run (measured vs models figure).
     seconds : dict of str to float
@@ -238,7 +241,7 @@ class IdentifyStudy:
     classic: AnnStudy | None
     sizes: CaseSizes
     cases: tuple[CaseRun, ...]
-    example_runs: tuple[ExcitationRun, ...]
+    example_runs: tuple[tuple[str, np.ndarray], ...]
     validation_example: StageRecord | None
     seconds: dict[str, float]
 
@@ -280,8 +283,12 @@ def classic_runs(total_s: float, seed: int = 0) -> list[ExcitationRun]:
     return out
 
 
+#: Folder of each trained model (and of its checkpoints) under a study's output folder.
+MODEL_FOLDERS = {"ann": "ann", "coupled": "ann_coupled", "classic": "ann_classic"}
+
+
 def _train_dir(out: Path | None, name: str) -> Path | None:
-    return None if out is None else out / name / "checkpoints"
+    return None if out is None else out / MODEL_FOLDERS[name] / "checkpoints"
 
 
 def _ann_progress(progress: Progress, task: str, max_epochs: int) -> Any:
@@ -308,16 +315,13 @@ def run_study(
     seconds: dict[str, float] = {}
 
     t0 = time.perf_counter()
-    progress("linear model: data on the twin", 0, None)
+    progress("linear model: data on the twin and subspace fit", 0, None)
     lin_s = dataclasses.replace(s.linear, twin=s.twin)
-    runs = random_runs(lin_s.total_s, a_max=lin_s.a_max, seed=lin_s.seed)
-    played = play_runs(runs, s.twin)
-    progress("linear model: subspace fit", 0, None)
-    linear = fit_linear(played, lin_s)
+    played, linear = linear_study(lin_s)
     seconds["linear"] = time.perf_counter() - t0
     orders, sv = _order_check(played, lin_s, s.orders, progress)
     seconds["order check"] = time.perf_counter() - t0 - seconds["linear"]
-    example_runs: tuple[ExcitationRun, ...] = tuple(runs[:6])
+    example_runs = tuple((r.name, r.u) for r in played.records[:6])
 
     ann = coupled = classic = None
     ann_val = lin_val = None
@@ -327,15 +331,13 @@ def run_study(
         t1 = time.perf_counter()
         progress("networks: data on the twin", 0, None)
         train, val = ann_records(a)
-        example_runs = _fig6_runs(a)
+        example_runs = _fig6_commands([*train.records, *val.records])
         ann = train_networks(
             train, val, a,
             checkpoint_dir=_train_dir(out_dir, "ann"),
             progress=_ann_progress(progress, "networks", a.max_epochs),
         )  # fmt: skip
-        from microfab.identify.stage_ann import StageAnnModel
-
-        ann_val = StageAnnModel(ann.model).errors(val.records, keep=True)
+        ann_val = ann.errors
         lin_val = stage_data.run_errors(linear.model, val.records, linear.decimate, keep=True)
         val_example = val.records[0]
         seconds["networks"] = time.perf_counter() - t1
@@ -343,7 +345,7 @@ def run_study(
             t1 = time.perf_counter()
             coupled = train_networks(
                 train, val, a, inputs="both",
-                checkpoint_dir=_train_dir(out_dir, "ann_coupled"),
+                checkpoint_dir=_train_dir(out_dir, "coupled"),
                 progress=_ann_progress(progress, "coupling networks", a.max_epochs),
             )  # fmt: skip
             seconds["coupling networks"] = time.perf_counter() - t1
@@ -351,12 +353,11 @@ def run_study(
             t1 = time.perf_counter()
             progress("PRBS/chirp networks: data on the twin", 0, None)
             total = ANN_TOTAL_S if a.total_s is None else a.total_s
-            c_train, c_val = split_runs(classic_runs(total, a.seed), a.validation, seed=a.seed)
+            c_runs = split_runs(classic_runs(total, a.seed), a.validation, seed=a.seed)
             classic = train_networks(
-                play_runs(c_train, s.twin),
-                play_runs(c_val, dataclasses.replace(s.twin, seed=s.twin.seed + 10_000)),
+                *play_split(*c_runs, s.twin),
                 a,
-                checkpoint_dir=_train_dir(out_dir, "ann_classic"),
+                checkpoint_dir=_train_dir(out_dir, "classic"),
                 progress=_ann_progress(progress, "PRBS/chirp networks", a.max_epochs),
             )
             seconds["PRBS/chirp networks"] = time.perf_counter() - t1
@@ -385,16 +386,12 @@ def run_study(
     )
 
 
-def _fig6_runs(a: AnnSettings) -> tuple[ExcitationRun, ...]:
-    """Five random runs and one shape of the networks' data (Fig. 6)."""
-    from microfab.identify.excitation import ann_dataset
-
-    total = ANN_TOTAL_S if a.total_s is None else a.total_s
-    runs = ann_dataset(total, random_share=a.random_share, seed=a.seed)
-    rand = [r for r in runs if r.kind == "random"][:5]
-    shapes = [r for r in runs if r.kind == "shape"]
+def _fig6_commands(records: Sequence[StageRecord]) -> tuple[tuple[str, np.ndarray], ...]:
+    """Five random runs and one shape (a spiral if any) of the networks' data (Fig. 6)."""
+    rand = [r for r in records if r.name.startswith("random")][:5]
+    shapes = [r for r in records if r.name.startswith("shape")]
     spiral = [r for r in shapes if "spiral" in r.name][:1] or shapes[:1]
-    return tuple(rand + spiral)
+    return tuple((r.name, r.u) for r in rand + spiral)
 
 
 def _order_check(
