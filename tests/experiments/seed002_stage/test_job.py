@@ -167,3 +167,25 @@ def test_reproduction_runs_the_seed_design():
     assert lin_only.ann is None and not lin_only.coupling and not lin_only.classic
     with pytest.raises(JobFileError, match="unknown key"):
         rep.parse_options({"epochs": 3})
+
+
+def test_seed_values_only_beside_columns_at_the_seeds_a_max(ran):
+    import dataclasses
+
+    from microfab.experiments.seed002_stage.study import CaseSettings
+    from microfab.experiments.seed002_stage.tables import cases_table, table_ii
+
+    study = ran[1].study
+    row = table_ii(study).rows[0]  # linear x: training, letters at 1 and 3 m/s²
+    assert row[3].endswith("/ 48.0") and row[5].endswith("/ 30.1") and row[7].endswith("/ 57.2")
+    swapped = dataclasses.replace(
+        study,
+        settings=dataclasses.replace(
+            study.settings, cases=CaseSettings(table_a_max=(3.0, 1.0), sweep_a_max=(1.0,))
+        ),
+    )
+    row = table_ii(swapped).rows[0]
+    assert row[3].endswith("/ 48.0")  # training: no a_max
+    assert row[5].endswith("/ —") and row[7].endswith("/ —")  # not the seed's a_max there
+    r_row = next(r for r in cases_table(swapped).rows if r[0] == "r")
+    assert r_row[1].endswith("/ 0.473") and r_row[2].endswith("/ 0.807")

@@ -43,6 +43,9 @@ NOTES = (
 )
 
 _COLUMNS = ("training", "letters_1", "letters_3")
+#: The a_max of Table II's letters columns (seed 002 Fig. 8: 1 and 3 m/s²); a column run
+#: at another a_max is shown without the seed's value.
+_SEED_A_MAX = {"letters_1": 1.0, "letters_3": 3.0}
 
 
 def _um(x: float | None) -> str:
@@ -89,12 +92,14 @@ def table_ii(study: IdentifyStudy) -> Table:
     for model, label in (("linear", "linear"), ("ann", "non-linear (ANN)")):
         for ax in AXES:
             row = [label, ax]
-            for col in _COLUMNS[: len(labels)]:
+            for col, a_col in zip(_COLUMNS[: len(labels)], (None, *a[:2]), strict=True):
                 seed = paper.TABLE_II[model][ax][col]
+                same = a_col is None or a_col == _SEED_A_MAX[col]  # the seed's a_max there
                 v = ours[model][ax][col]
                 mu, sd = (None, None) if v is None else v
-                row += [versus(_n(mu), seed.mu_m * 1e6, "{:.1f}".format),
-                        versus(_n(sd), seed.sigma_m * 1e6, "{:.1f}".format)]  # fmt: skip
+                s_mu, s_sd = (seed.mu_m * 1e6, seed.sigma_m * 1e6) if same else (None, None)
+                row += [versus(_n(mu), s_mu, "{:.1f}".format),
+                        versus(_n(sd), s_sd, "{:.1f}".format)]  # fmt: skip
             rows.append(row)
     return Table(
         title="Table II: prediction error, ours / seed [µm]",
@@ -153,16 +158,15 @@ def cases_table(study: IdentifyStudy) -> Table:
     """Command lengths of the cases at Table II's a_max (the sizing step's checks)."""
     a = study.settings.cases.table_a_max
     seed = {  # seed 002 Table III: T at a_max 1 and 3 m/s²
-        "u": (1.052, 0.618), "r": (0.807, 0.473), "c": (0.807, 0.473),
-        "h": (0.971, 0.568), "airfoil": (1.322, None),
+        "u": {1.0: 1.052, 3.0: 0.618}, "r": {1.0: 0.807, 3.0: 0.473},
+        "c": {1.0: 0.807, 3.0: 0.473}, "h": {1.0: 0.971, 3.0: 0.568}, "airfoil": {1.0: 1.322},
     }  # fmt: skip
     rows = []
     for name in CASES:
         row = [name]
-        for k, v in enumerate(a[:2]):
+        for v in a[:2]:
             d = study.durations(v).get(name)
-            s = seed[name][k] if v in (1.0, 3.0) and k < 2 else None
-            row.append(versus(d, s, "{:.3f}".format))
+            row.append(versus(d, seed[name].get(v), "{:.3f}".format))
         rows.append(row)
     return Table(
         title="Test cases: command length, ours (time-optimal) / seed (optimised) [s]",
