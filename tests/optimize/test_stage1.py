@@ -12,13 +12,8 @@ pytest.importorskip("casadi")
 from microfab.geometry.shapes import circle, rectangle
 from microfab.identify.subspace_model import ContinuousModel
 from microfab.optimize.problem import ContourProblem
-from microfab.optimize.stage1 import (
-    Stage1Error,
-    Stage1Settings,
-    balanced,
-    rk4_matrices,
-    solve_stage1,
-)
+from microfab.optimize.linear_steps import balanced, rk4_matrices
+from microfab.optimize.stage1 import Stage1Error, Stage1Settings, solve_stage1
 
 
 def axis_model(wn: float, zeta: float, wz: float, d: float) -> ContinuousModel:

@@ -62,16 +62,17 @@ single step when the bound allows it).
 from __future__ import annotations
 
 import math
+import os
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from microfab.identify.subspace_model import ContinuousModel
+from microfab.io.atomic import atomic_save_npz
 from microfab.optimize.blocks import Block, BlockNLP
+from microfab.optimize.linear_steps import balanced, rk4_matrices, rk4_poly, warm_inputs
 from microfab.optimize.problem import ContourProblem, n_points
 from microfab.trajectory.optimal import time_optimal
 
@@ -222,81 +223,48 @@ class Stage1Result:
         tt = np.asarray(t, dtype=float)
         return np.column_stack([np.interp(tt, self.t, self.rho[:, a]) for a in range(2)])
 
-    def arrays(self) -> dict[str, np.ndarray]:
-        """Every array, for `microfab.io.atomic.atomic_save_npz`."""
-        out = {k: getattr(self, k) for k in ("t", "s", "target", "rho", "gamma", "z",
-                                             "deviation")}  # fmt: skip
-        out.update({f"active_{k}": v for k, v in self.active.items()})
-        return out
+    def sample(self, rate_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Eq. (13): times, path progress and input at a fixed rate.
 
+        Parameters
+        ----------
+        rate_hz : float
+            The network model's rate (400 Hz).
 
-def balanced(model: ContinuousModel) -> ContinuousModel:
-    """The model in a balanced realisation (equal, diagonal Gramians; same input-output).
+        Returns
+        -------
+        t : numpy.ndarray
+            ``t_i = i Δt``, ``i = 0 … M`` with ``M = ceil(T / Δt)``, shape (M + 1,), s.
+        s : numpy.ndarray
+            ``s(t_i)``, shape (M + 1,), m, held at ``S`` after ``T``.
+        rho : numpy.ndarray
+            Stage 1's input at ``t_i`` (linear between knots, held after ``T``),
+            shape (M + 1, 2), m.
+        """
+        dt = 1.0 / rate_hz
+        m = math.ceil(self.duration / dt - 1e-9)
+        t = np.arange(m + 1) * dt
+        return t, self.s_of_t(t), self.rho_of_t(t)
 
-    Square-root method: Gramians from the Lyapunov equations, their Cholesky factors, the
-    SVD of their product. Falls back to the model as given if it is not stable.
-    """
-    a, b, c, d = (np.asarray(m, dtype=float) for m in (model.a, model.b, model.c, model.d))
-    if np.any(np.linalg.eigvals(a).real >= 0):
-        return model
-    wc = scipy.linalg.solve_continuous_lyapunov(a, -b @ b.T)
-    wo = scipy.linalg.solve_continuous_lyapunov(a.T, -c.T @ c)
-    lc = np.linalg.cholesky((wc + wc.T) / 2)
-    lo = np.linalg.cholesky((wo + wo.T) / 2)
-    u, sv, vt = np.linalg.svd(lo.T @ lc)
-    s_half = np.diag(sv**-0.5)
-    t = lc @ vt.T @ s_half  # z = t x_bal
-    ti = s_half @ u.T @ lo.T
-    return ContinuousModel(a=ti @ a @ t, b=ti @ b, c=c @ t, d=d)
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the arrays (``.npz``) atomically; the rest goes in the caller's summary."""
+        arrays = {k: getattr(self, k) for k in ("t", "s", "target", "rho", "gamma", "z",
+                                                "deviation")}  # fmt: skip
+        arrays.update({f"active_{k}": v for k, v in self.active.items()})
+        atomic_save_npz(path, **arrays)
 
-
-def rk4_matrices(
-    a: np.ndarray, b: np.ndarray, h: float, substeps: int = 1
-) -> tuple[np.ndarray, np.ndarray]:
-    """``Φ, Γ`` of ``substeps`` RK4 steps of ``h / substeps`` with the input held.
-
-    ``z⁺ = Φ z + Γ ρ`` (module docstring).
-    """
-    if substeps > 1:
-        ph, ga = rk4_matrices(a, b, h / substeps)
-        phi_m, gam_m = ph, ga
-        for _ in range(substeps - 1):
-            phi_m, gam_m = ph @ phi_m, ph @ gam_m + ga
-        return phi_m, gam_m
-    n = a.shape[0]
-    ha = h * a
-    p = np.eye(n)
-    phi = np.eye(n)
-    gam = np.zeros_like(a)
-    fact = 1.0
-    for j in range(1, 5):
-        gam = gam + p / (fact * j)  # (hA)^{j-1} / j!
-        p = p @ ha
-        fact *= j
-        phi = phi + p / fact
-    return phi, h * gam @ b
-
-
-def _rk4_poly(
-    ca: Any, powers: list[np.ndarray], B: np.ndarray, tau: float, d: Any, m: int
-) -> tuple[Any, Any]:
-    """``Φ, Γ`` of ``m`` RK4 sub-steps over ``d τ`` as expressions of ``d`` (`rk4_matrices`).
-
-    ``powers[j] = (τ A)^j``; works on CasADi SX (``ca`` the module) and on floats
-    (``ca`` None).
-    """
-
-    def lift(x: np.ndarray) -> Any:
-        return x if ca is None else ca.DM(x)
-
-    h = d / m
-    phi = sum(lift(powers[j] / math.factorial(j)) * h**j for j in range(5))
-    gam = sum(lift(powers[j] @ B * tau / math.factorial(j + 1)) * h ** (j + 1) for j in range(4))
-    mul = (lambda a, b: a @ b) if ca is None else ca.mtimes
-    phi_m, gam_m = phi, gam
-    for _ in range(m - 1):  # z⁺ = Φ(Φ z + Γ ρ) + Γ ρ
-        phi_m, gam_m = mul(phi, phi_m), mul(phi, gam_m) + gam
-    return phi_m, gam_m
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready: T, N, status, iterations, time, active counts, info."""
+        return {
+            "duration_s": self.duration,
+            "n": self.n,
+            "status": self.status,
+            "iterations": self.iterations,
+            "wall_s": self.wall_s,
+            "max_deviation_m": float(np.abs(self.deviation).max()),
+            "active": {k: int(v.sum()) for k, v in self.active.items()},
+            **self.info,
+        }
 
 
 def _frames(
@@ -332,47 +300,6 @@ def _warm_times(problem: ContourProblem, s: np.ndarray, settings: Stage1Settings
     return np.concatenate([[0.0], np.cumsum(step)])
 
 
-def _warm_inputs(
-    step: Callable[[float], tuple[np.ndarray, np.ndarray]],
-    z0: np.ndarray,
-    rho: np.ndarray,
-    d: np.ndarray,
-    target: np.ndarray,
-    A: np.ndarray,
-    B: np.ndarray,
-    C: np.ndarray,
-    D: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """State and input of the warm start, shapes (N, n) and (N, 2).
-
-    When ``D`` is invertible and the discrete zero dynamics ``Φ - Γ D⁻¹ C`` of every step
-    is stable, the input is the exact inverse of the RK4 model along the warm times
-    (``γ_k = Ξ_k`` at every point: 12b-12h hold from the start); otherwise every point
-    starts at the equilibrium of ``rho`` (the path through the static-gain inverse), so
-    ``γ_k = Ξ_k`` again but the dynamics (12b) do not hold until IPOPT makes them.
-    """
-    n = rho.shape[0]
-    z = np.empty((n, z0.shape[0]))
-    z[0] = z0
-    r = rho.copy()
-    invert = abs(np.linalg.det(D)) > 1e-6 * max(1.0, float(np.abs(D).max())) ** 2
-    if invert:
-        dinv_c = np.linalg.solve(D, C)
-        for dk in (float(d.min()), float(d.max())):
-            ph, ga = step(dk)
-            if np.max(np.abs(np.linalg.eigvals(ph - ga @ dinv_c))) >= 1.0:
-                invert = False
-    if not invert:  # every point at its equilibrium: 12c-12j hold, 12b does not
-        ainv_b = np.linalg.solve(A, B)
-        return -(ainv_b @ r.T).T, r
-    for k in range(n - 1):
-        r[k] = np.linalg.solve(D, target[k] - C @ z[k])
-        ph, ga = step(float(d[k]))
-        z[k + 1] = ph @ z[k] + ga @ r[k]
-    r[-1] = np.linalg.solve(D, target[-1] - C @ z[-1])
-    return z, r
-
-
 def _blocks(
     ca: Any, powers: list[np.ndarray], B: np.ndarray, C: np.ndarray, D: np.ndarray,
     scales: dict[str, float], n: int, nx: int, frames: np.ndarray, frame0: np.ndarray,
@@ -389,7 +316,7 @@ def _blocks(
     mu_mm, v_step, a_step = scales["mu_mm"], scales["v_step"], scales["a_step"]
     sx = ca.SX
     dsym = sx.sym("d")
-    phi, gam = _rk4_poly(ca, powers, B, tau, dsym, scales["substeps"])
+    phi, gam = rk4_poly(ca, powers, B, tau, dsym, scales["substeps"])
 
     def out(c: Any) -> Any:
         return ca.mtimes(ca.DM(C), c[:nx]) + ca.mtimes(ca.DM(D), c[nx:])
@@ -532,9 +459,9 @@ def solve_stage1(
     rho_init = np.linalg.solve(g0, (xi * _MM).T).T
 
     def step(dk: float) -> tuple[np.ndarray, np.ndarray]:
-        return _rk4_poly(None, powers, B, tau, dk, substeps)
+        return rk4_poly(None, powers, B, tau, dk, substeps)
 
-    z_init, rho_init = _warm_inputs(step, z0, rho_init, d_init, xi * _MM, A, B, C, D)
+    z_init, rho_init = warm_inputs(step, z0, rho_init, d_init, xi * _MM, A, B, C, D)
     x0 = np.concatenate([d_init, np.hstack([z_init, rho_init]).ravel()])
     # z_0 fixed at rest (the equilibrium of ρ_rest); ρ_0 is free
     lbx = np.concatenate([np.full(n - 1, _DT_MIN), z0, [-inf, -inf], np.full(nw * (n - 1), -inf)])
