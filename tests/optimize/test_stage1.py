@@ -11,8 +11,8 @@ pytest.importorskip("casadi")
 
 from microfab.geometry.shapes import circle, rectangle
 from microfab.identify.subspace_model import ContinuousModel
-from microfab.optimize.problem import ContourProblem
 from microfab.optimize.linear_steps import balanced, rk4_matrices
+from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Error, Stage1Settings, solve_stage1
 
 
