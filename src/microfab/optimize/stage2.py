@@ -1,0 +1,435 @@
+"""Stage 2 of seed 002: the 400 Hz input refined on the networks (eqs. 13-14).
+
+The timing is stage 1's (eq. 13: the target ``Ξ̄_i = Ξ(s(t_i))`` at ``t_i = iΔt``); the
+variables are the inputs ``r_0 … r_{M-1}`` (``r_{i-1}`` is the newest input of ``φ_i``,
+eq. 7); before the start the stage rests on ``rest`` and after the end ``r_{M-1}`` is
+held (the tail, `NetworkMap`). Problem (14), in µm:
+
+* cost (14a): ``Σ_{i=1..M} ‖φ_i - Ξ̄_i‖²``;
+* tolerance (14c) as an exact L1 penalty with slacks (seed §IV-B): ``‖φ_i - Ξ̄_i‖ ≤ μ +
+  s_i``, ``s ≥ 0``, ``w Σ s_i``. 14c writes ``|·|`` of a vector: the Euclidean norm
+  (default; inside the subproblem an inscribed octagon, so a step that meets it meets the
+  circle) or, with ``norm="axis"``, each axis's absolute value;
+* 14d-14f (workspace, ``|Δφ|∞ ≤ v_max Δt``, ``|Δ²φ|∞ ≤ a_max Δt²``, a_max bounding the
+  *output* as the equations read) as L1 penalties too, with a larger weight: a network's
+  output is not exactly smooth, so these can be infeasible at the start;
+* the machine's limits on the *command* (Table I, through the 10 kHz spline of
+  `microfab.optimize.command`) as hard bounds on ``Δr`` and ``Δ²r`` (`input_bounds`),
+  including the steps from rest and into the held end.
+
+**Gauss-Newton with a trust region.** Each iteration linearises ``φ(r + δ) ≈ φ + J δ``
+(`NetworkMap.linearize`: the Jacobian from one backward pass, banded, per axis), and
+solves the convex QP in ``δ`` and the residuals ``e = φ + J δ - Ξ̄`` (so the Hessian is
+diagonal and ``J`` only appears in equality rows) with HiGHS through CasADi's ``conic``
+(``solver`` option). A step is taken only if the true merit (cost + penalties, through
+the networks) decreases; the trust region grows after a good step and shrinks after a
+bad one. The merit therefore never rises above its start (the input made feasible for
+the command's bounds first, by the nearest such input). Exact Hessians through the
+network are avoided: one took about 72 s per evaluation in a trial (issue 18).
+
+Checkpoints: with ``checkpoint`` a file path, the iterate, the trust radius, the penalty
+weight and the iteration count are saved atomically every ``checkpoint_every`` accepted
+iterations, keyed by a fingerprint of the inputs and settings; a rerun with the same ones
+resumes (another fingerprint is refused, naming the file).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from microfab.core.limits import MachineLimits
+from microfab.optimize.ann_torch import NetworkMap
+from microfab.optimize.command import input_bounds
+
+__all__ = ["Stage2Result", "Stage2Settings", "feasible_input", "solve_stage2"]
+
+_UM = 1e6  # scaled unit: µm per m
+NORMS = ("euclidean", "axis")
+#: Settings that stop or pace the iterations but do not change their course: a rerun with
+#: more iterations resumes the checkpoint.
+_NOT_FINGERPRINTED = frozenset({"max_iter", "tol", "checkpoint_every"})
+
+
+@dataclass(frozen=True)
+class Stage2Settings:
+    """Settings of stage 2 (module docstring).
+
+    Parameters
+    ----------
+    norm : {"euclidean", "axis"}
+        The norm of 14c.
+    penalty : float
+        Weight of the tolerance slacks, µm (µm² of cost per µm of violation). Assumed
+        1e3: the cost's gradient at the bound is ``2 μ`` = 40 µm for μ = 20 µm, so the
+        penalty is exact with a wide margin.
+    limit_penalty : float
+        Weight of the slacks of 14d-14f, µm. Assumed 1: the networks' predicted output
+        has 400 Hz second differences far above ``a_max Δt²`` (6.25 µm at 1 m/s²) where
+        it turns (their σ on this twin is 20-40 µm, the seed's 3-6 µm), so 14f as a hard
+        constraint was infeasible, and a weight like the tolerance's made the refinement
+        chase the prediction's jitter instead of the contour (letter r at 1 m/s²: the
+        merit rose on every step); the violations are reported.
+    max_iter : int
+        Gauss-Newton iterations (accepted or not).
+    tol : float
+        Stop when an accepted step lowers the merit by less than this share of it.
+    trust_um : float
+        Initial trust radius, max-norm of the step, µm (assumed 50 µm).
+    checkpoint_every : int
+        Accepted iterations between checkpoints.
+    solver : str
+        CasADi conic plugin of the subproblem ("highs", or "osqp", "qpoases", ...).
+    rate_hz : float
+        The networks' rate, Hz.
+    """
+
+    norm: str = "euclidean"
+    penalty: float = 1e3
+    limit_penalty: float = 1.0
+    max_iter: int = 20
+    tol: float = 1e-3
+    trust_um: float = 50.0
+    checkpoint_every: int = 3
+    solver: str = "highs"
+    rate_hz: float = 400.0
+
+    def __post_init__(self) -> None:
+        if self.norm not in NORMS:
+            raise ValueError(f"norm must be one of {', '.join(NORMS)}, got {self.norm!r}")
+        for name in ("penalty", "limit_penalty", "trust_um", "rate_hz"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number, got {v!r}")
+        for name in ("max_iter", "checkpoint_every"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+        if not (math.isfinite(self.tol) and self.tol >= 0):
+            raise ValueError(f"tol must be >= 0, got {self.tol!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Stage2Result:
+    """The refined input.
+
+    Attributes
+    ----------
+    r : numpy.ndarray
+        ``r_0 … r_{M-1}``, (M, 2), m.
+    phi : numpy.ndarray
+        Predicted ``φ_1 … φ_M``, (M, 2), m.
+    phi_tail : numpy.ndarray
+        Predicted output in the tail (input held), (tail, 2), m.
+    target : numpy.ndarray
+        ``Ξ̄_1 … Ξ̄_M``, (M, 2), m.
+    cost_history : list of float
+        The merit (cost 14a + penalties, µm²) at the start and after every accepted step.
+    cost_start, cost_end : float
+        Cost 14a alone (µm²) at the start (stage 1's input made feasible) and the end.
+    violation : dict of str to float
+        Largest violation at the end: "tolerance" (µm beyond μ), "velocity" (m/s beyond
+        v_max), "acceleration" (m/s² beyond a_max).
+    iterations : int
+        Gauss-Newton iterations.
+    converged : bool
+        Stopped by ``tol`` (or a zero step) rather than ``max_iter``.
+    wall_s : float
+    resumed_from : int
+        Iterations done before a resume (0: fresh).
+    """
+
+    r: np.ndarray
+    phi: np.ndarray
+    phi_tail: np.ndarray
+    target: np.ndarray
+    cost_history: list[float]
+    cost_start: float
+    cost_end: float
+    violation: dict[str, float]
+    iterations: int
+    converged: bool
+    wall_s: float
+    resumed_from: int = 0
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready."""
+        return {
+            "iterations": self.iterations,
+            "converged": self.converged,
+            "merit_start": self.cost_history[0],
+            "merit_end": self.cost_history[-1],
+            "cost_start": self.cost_start,
+            "cost_end": self.cost_end,
+            "violation": self.violation,
+            "wall_s": self.wall_s,
+            "resumed_from": self.resumed_from,
+            **self.info,
+        }
+
+
+class _Problem:
+    """The scaled data of one stage-2 problem and its merit."""
+
+    def __init__(self, target: np.ndarray, rest: np.ndarray, mu: float, v_max: float,
+                 a_max: float, limits: MachineLimits, st: Stage2Settings) -> None:  # fmt: skip
+        self.m = target.shape[0]
+        self.dt = 1.0 / st.rate_hz
+        self.tgt = target.T.ravel() * _UM  # [x…, y…], µm
+        self.rest = np.asarray(rest, dtype=float) * _UM
+        self.mu = mu * _UM
+        self.v_step = v_max * self.dt * _UM
+        self.a_step = a_max * self.dt**2 * _UM
+        self.ws = np.array(limits.workspace, dtype=float) * _UM  # (2, 2)
+        dv, d2 = input_bounds(limits, st.rate_hz)
+        self.dv, self.d2 = dv * _UM, d2 * _UM
+        self.st = st
+
+    def violations(self, phi: np.ndarray) -> dict[str, np.ndarray]:
+        """Per-row violations (µm) of 14c-14f for ``phi`` (2, M) µm."""
+        e = phi - self.tgt.reshape(2, self.m)
+        if self.st.norm == "euclidean":
+            tol = np.maximum(np.hypot(e[0], e[1]) - self.mu, 0.0)
+        else:
+            tol = np.maximum(np.abs(e) - self.mu, 0.0).ravel()
+        # φ_0 = φ_{-1} = rest: at rest before the start
+        full = np.hstack([self.rest[:, None], self.rest[:, None], phi])
+        vel = np.maximum(np.abs(np.diff(full[:, 1:], axis=1)) - self.v_step, 0.0)
+        acc = np.maximum(np.abs(np.diff(full, 2, axis=1)) - self.a_step, 0.0)
+        ws = np.maximum(self.ws[:, :1] - phi, 0.0) + np.maximum(phi - self.ws[:, 1:], 0.0)
+        return {"tolerance": tol, "velocity": vel, "acceleration": acc, "workspace": ws}
+
+    def merit(self, phi: np.ndarray) -> tuple[float, float]:
+        """(merit, cost 14a) of ``phi`` (2, M), µm²."""
+        e = phi - self.tgt.reshape(2, self.m)
+        cost = float(np.sum(e**2))
+        v = self.violations(phi)
+        pen = self.st.penalty * float(v["tolerance"].sum()) + self.st.limit_penalty * float(
+            v["velocity"].sum() + v["acceleration"].sum() + v["workspace"].sum())  # fmt: skip
+        return cost + pen, cost
+
+
+def _diff_ops(m: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """The command's differences as maps of ``x``: shapes (m + 1, m) and (m + 2, m).
+
+    First and second differences of ``[rest, rest, x_0 … x_{m-1}, x_{m-1}, x_{m-1}]``; the
+    constant rest parts go to the bounds (`_rest_terms`).
+    """
+    held = sp.csr_matrix(([1.0, 1.0], ([0, 1], [m - 1, m - 1])), shape=(2, m))
+    ext = sp.vstack([sp.csr_matrix((2, m)), sp.eye(m, format="csr"), held])
+    d1 = sp.diags([-1.0, 1.0], [0, 1], shape=(m + 3, m + 4)) @ ext
+    d2 = sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(m + 2, m + 4)) @ ext
+    return sp.csr_matrix(d1[1:-1]), sp.csr_matrix(d2)
+
+
+def _rest_terms(m: int, rest: float) -> tuple[np.ndarray, np.ndarray]:
+    """The constant (rest) parts of `_diff_ops`' differences for one axis, µm."""
+    x = np.zeros(m + 4)
+    x[:2] = rest
+    d1 = np.diff(x)[1:-1]
+    d2 = np.diff(x, 2)
+    return d1, d2
+
+
+def feasible_input(
+    r: np.ndarray, rest: np.ndarray, limits: MachineLimits, settings: Stage2Settings | None = None
+) -> np.ndarray:
+    """The input nearest to ``r`` (M, 2), m, whose command stays within ``limits``.
+
+    The bounds of `microfab.optimize.command.input_bounds` on ``Δr`` and ``Δ²r`` from rest
+    and into the held end; ``r`` itself when it meets them already.
+    """
+    from microfab.optimize.stage2_qp import Subproblem
+
+    st = Stage2Settings() if settings is None else settings
+    r = np.asarray(r, dtype=float)
+    pb = _Problem(r, np.asarray(rest, dtype=float), 1e-6, 1.0, 1.0, limits, st)
+    qp = Subproblem(pb, st, _diff_ops(pb.m), [_rest_terms(pb.m, float(x)) for x in pb.rest])
+    return (qp.project(r.T.ravel() * _UM) / _UM).reshape(2, pb.m).T
+
+
+def fingerprint(target: np.ndarray, r_init: np.ndarray, rest: np.ndarray, extra: dict) -> str:
+    """SHA-256 of the inputs of a stage-2 problem (checkpoint key)."""
+    h = hashlib.sha256()
+    for a in (target, r_init, rest):
+        arr = np.ascontiguousarray(a, dtype=np.float64)
+        h.update(repr(arr.shape).encode())
+        h.update(arr.tobytes())
+    h.update(repr(sorted(extra.items())).encode())
+    return h.hexdigest()
+
+
+def solve_stage2(
+    target: np.ndarray,
+    r_init: np.ndarray,
+    model: Any,
+    *,
+    rest: np.ndarray,
+    tolerance_m: float,
+    v_max: float,
+    a_max: float,
+    limits: MachineLimits,
+    settings: Stage2Settings | None = None,
+    checkpoint: str | None = None,
+    progress: Callable[[int, float], None] | None = None,
+) -> Stage2Result:
+    """Refine ``r_init`` on the networks (module docstring).
+
+    Parameters
+    ----------
+    target : numpy.ndarray
+        ``Ξ̄_1 … Ξ̄_M``, (M, 2), m.
+    r_init : numpy.ndarray
+        ``r_0 … r_{M-1}`` to start from (stage 1's input), (M, 2), m.
+    model : microfab.identify.ann.AnnModel
+        The per-axis networks.
+    rest : numpy.ndarray
+        Rest position before the start, (2,), m.
+    tolerance_m, v_max, a_max : float
+        μ (m), the output's speed (m/s) and acceleration (m/s²) bounds.
+    limits : MachineLimits
+        The machine's limits (the command's bounds and the workspace).
+    settings : Stage2Settings, optional
+    checkpoint : str, optional
+        Checkpoint file (``.npz``); resumed when it matches.
+    progress : callable, optional
+        ``progress(iteration, merit)`` after every iteration.
+
+    Returns
+    -------
+    Stage2Result
+
+    Raises
+    ------
+    ValueError
+        Mismatched shapes, non-finite values, or a checkpoint of other inputs.
+    """
+    st = Stage2Settings() if settings is None else settings
+    t_start = time.perf_counter()
+    target = np.asarray(target, dtype=float)
+    r_init = np.asarray(r_init, dtype=float)
+    if target.shape != r_init.shape or target.ndim != 2 or target.shape[1] != 2:
+        raise ValueError(f"target and r_init must both be (M, 2), got {target.shape} and "
+                         f"{r_init.shape}")  # fmt: skip
+    if target.shape[0] < 3 or not (np.all(np.isfinite(target)) and np.all(np.isfinite(r_init))):
+        raise ValueError("target and r_init must be finite with M >= 3 samples")
+    nm = NetworkMap(model)
+    pb = _Problem(target, np.asarray(rest, dtype=float), tolerance_m, v_max, a_max, limits, st)
+    from microfab.optimize.stage2_qp import Subproblem
+
+    qp = Subproblem(pb, st, _diff_ops(pb.m), [_rest_terms(pb.m, float(x)) for x in pb.rest])
+    key = fingerprint(target, r_init, np.asarray(rest, dtype=float),
+                      {**{k: v for k, v in asdict(st).items() if k not in _NOT_FINGERPRINTED},
+                       "mu": tolerance_m, "v": v_max, "a": a_max,
+                       "ws": limits.workspace, "acc": limits.acceleration,
+                       "vel": limits.velocity})  # fmt: skip
+    state = _load(checkpoint, key)
+    if state is None:
+        r = qp.project(r_init.T.ravel() * _UM)  # the nearest input within the command bounds
+        trust, it0, history = st.trust_um, 0, []
+    else:
+        r, trust, it0, history = state
+    phi, jac = _linearize(nm, r, pb)
+    merit, cost = pb.merit(phi)
+    cost_start = cost if not history else float(history[0][1])
+    if not history:
+        history = [(merit, cost)]
+    converged = False
+    accepted = 0
+    it = it0
+    while it < st.max_iter:
+        it += 1
+        step = qp.solve(r, phi, jac, trust)
+        if step is None or np.max(np.abs(step)) < 1e-9:
+            converged = True
+            break
+        r_new = r + step
+        phi_new = nm.predict((r_new / _UM).reshape(2, pb.m).T, pb.rest / _UM)[: pb.m].T * _UM
+        m_new, c_new = pb.merit(phi_new)
+        predicted = merit - qp.model_merit
+        if m_new < merit:
+            gain = merit - m_new
+            ratio = gain / predicted if predicted > 0 else 0.0
+            r, merit, cost = r_new, m_new, c_new
+            phi, jac = _linearize(nm, r, pb)
+            history.append((merit, cost))
+            accepted += 1
+            trust = min(trust * 2.0, 1e4) if ratio > 0.75 else trust
+            if accepted % st.checkpoint_every == 0:
+                _save(checkpoint, key, r, trust, it, history)
+            if gain < st.tol * max(merit, 1e-12):
+                converged = True
+                break
+        else:
+            trust *= 0.25
+            if trust < 1e-4:
+                converged = True
+                break
+        if progress is not None:
+            progress(it, merit)
+    _save(checkpoint, key, r, trust, it, history)
+    full = nm.predict((r / _UM).reshape(2, pb.m).T, pb.rest / _UM)
+    viol = pb.violations(full[: pb.m].T * _UM)
+    return Stage2Result(
+        r=(r / _UM).reshape(2, pb.m).T,
+        phi=full[: pb.m],
+        phi_tail=full[pb.m :],
+        target=target,
+        cost_history=[float(mv) for mv, _ in history],
+        cost_start=float(cost_start),
+        cost_end=float(cost),
+        violation={
+            "tolerance": float(viol["tolerance"].max(initial=0.0)),
+            "velocity": float(viol["velocity"].max(initial=0.0)) / _UM / pb.dt,
+            "acceleration": float(viol["acceleration"].max(initial=0.0)) / _UM / pb.dt**2,
+        },
+        iterations=it,
+        converged=converged,
+        wall_s=time.perf_counter() - t_start,
+        resumed_from=it0,
+        info={"norm": st.norm, "penalty": st.penalty, "solver": st.solver},
+    )
+
+
+def _linearize(nm: NetworkMap, r: np.ndarray, pb: _Problem) -> tuple[np.ndarray, sp.csr_matrix]:
+    """``φ_1 … φ_M`` (2, M) and ``∂φ/∂r`` (2M, 2M), µm."""
+    m = pb.m
+    phi, jac = nm.linearize((r / _UM).reshape(2, m).T, pb.rest / _UM)
+    n_out = phi.shape[0]
+    rows = np.concatenate([np.arange(m), n_out + np.arange(m)])
+    return phi[:m].T * _UM, sp.csr_matrix(jac[rows])
+
+
+def _load(path: str | None, key: str) -> tuple[np.ndarray, float, int, list] | None:
+    if path is None or not Path(path).is_file():
+        return None
+    try:
+        with np.load(path) as z:
+            saved = str(z["fingerprint"])
+            if saved != key:
+                raise ValueError(
+                    f"{path}: a stage-2 checkpoint of other inputs or settings; remove it to "
+                    "start afresh"
+                )
+            hist = [tuple(row) for row in z["history"].tolist()]
+            return np.array(z["r"]), float(z["trust"]), int(z["iteration"]), hist
+    except (OSError, KeyError) as exc:
+        raise ValueError(f"{path}: unreadable stage-2 checkpoint ({exc}); remove it") from None
+
+
+def _save(path: str | None, key: str, r: np.ndarray, trust: float, it: int, hist: list) -> None:
+    if path is None:
+        return
+    from microfab.io.atomic import atomic_save_npz
+
+    atomic_save_npz(path, fingerprint=np.array(key), r=r, trust=np.array(trust),
+                    iteration=np.array(it), history=np.array(hist, dtype=float))  # fmt: skip
