@@ -17,6 +17,10 @@ from microfab.experiments.seed001_nanomanipulator.job import (
     NANOMANIPULATOR_MSL,
     NANOMANIPULATOR_REPRODUCTION,
 )
+from microfab.experiments.seed002_reference.job import (
+    REFERENCE_OPT_REPRODUCTION,
+    STAGE_REFERENCE_OPT,
+)
 from microfab.experiments.seed002_stage.job import STAGE_IDENTIFY, STAGE_MODELS_REPRODUCTION
 from microfab.experiments.seed003_inkjet.job import DROPLET_FIG4_REPRODUCTION, DROPLET_SWEEP
 from microfab.experiments.seed003_slm.job import SLM_SHAPER_REPRODUCTION, SLM_SHAPING
@@ -41,6 +45,7 @@ JOB_KINDS: dict[str, JobKind] = {
         MSL_ILC,
         NANOMANIPULATOR_MSL,
         STAGE_IDENTIFY,
+        STAGE_REFERENCE_OPT,
         DROPLET_SWEEP,
         LASER_MICROMACHINING,
         SLM_SHAPING,
@@ -53,6 +58,7 @@ REPRODUCTIONS: dict[str, Reproduction] = {
         MSL_ILC_REPRODUCTION,
         NANOMANIPULATOR_REPRODUCTION,
         STAGE_MODELS_REPRODUCTION,
+        REFERENCE_OPT_REPRODUCTION,
         DROPLET_FIG4_REPRODUCTION,
         LASER_REPRODUCTION,
         SLM_SHAPER_REPRODUCTION,

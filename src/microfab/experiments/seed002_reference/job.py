@@ -1,0 +1,235 @@
+"""The ``stage-reference-opt`` job kind and the ``reference-opt`` reproduction (seed 002 §IV-V).
+
+Job file (``examples/blackbox_stage_reference.toml``)::
+
+    [job]
+    kind = "stage-reference-opt"
+    out = "report/stage_reference"
+
+    [models]    # the output of a stage-identify job (linear_model.json, ann/model)
+    [twin]      # the twin the models were identified on: noise seed, noise on/off
+    [cases]     # shapes, Table III's a_max, the airfoil's extra a_max, μ, sizes
+    [tradeoff]  # Figs. 16-17: a_max of the letters and the airfoil, longer baselines
+    [stage2]    # Gauss-Newton iterations
+
+Every key, its unit and its range is in `SCHEMA`; unknown keys are refused. The run
+(`microfab.experiments.seed002_reference.study.run_reference`) writes every finished
+point atomically under ``out/points/`` (a rerun skips it; stage 2 checkpoints there every
+few iterations and resumes), ``sizes.json`` and ``summary.json``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
+from microfab.experiments.seed002_reference.study import (
+    ReferenceSettings,
+    ReferenceStudy,
+    run_reference,
+)
+from microfab.experiments.seed002_stage.cases import CASES, CaseSizes
+from microfab.experiments.seed002_stage.run import TwinSettings
+from microfab.io.atomic import atomic_write_json
+from microfab.io.job import Key
+from microfab.report.tables import Table
+
+__all__ = [
+    "REFERENCE_OPT_REPRODUCTION",
+    "SCHEMA",
+    "STAGE_REFERENCE_OPT",
+    "ReferenceResult",
+    "config_from_sections",
+]
+
+_F = "float"
+HOLD_S = 0.51  # the 200-sample tail (500 ms at 400 Hz) and one 10 ms margin
+
+SCHEMA: dict[str, tuple[Key, ...]] = {
+    "models": (
+        Key(name="dir", type="str", default="",
+            help="output of a stage-identify job (linear_model.json and ann/model)"),
+    ),
+    "twin": (
+        Key(name="seed", type="int", default=0, low=0, help="noise seed (run k uses seed + k)"),
+        Key(name="noise", type="bool", default=True, help="2 µm output noise (seed eq. 3)"),
+    ),
+    "cases": (
+        Key(name="names", type="str", default=",".join(CASES),
+            help="shapes, comma-separated, of u, r, c, h, airfoil"),
+        Key(name="a_max", type="float_list", default=(1.0, 3.0), low=0.0, high=40.0,
+            unit="m/s²", help="Table III's columns (seed: 1 and 3)"),
+        Key(name="airfoil_a_max", type="float_list", default=(2.0,), low=0.0, high=40.0,
+            unit="m/s²", allow_empty=True, help="more airfoil points (seed §V-A: 2)"),
+        Key(name="tolerance_um", type=_F, default=20.0, low=0.0, high=1000.0, unit="µm",
+            help="μ (seed: 20)"),
+        Key(name="letter_height_mm", type=_F, default=0.0, low=0.0, high=200.0, unit="mm",
+            help="letter size; 0: the sizing step (stage 1 gives 'r' 0.807 s at 1 m/s²)"),
+        Key(name="airfoil_chord_mm", type=_F, default=0.0, low=0.0, high=370.0, unit="mm",
+            help="airfoil chord; 0: the sizing step (1.322 s at 1 m/s²)"),
+    ),
+    "tradeoff": (
+        Key(name="letters_a_max", type="float_list", default=(), low=0.0, high=40.0,
+            unit="m/s²", allow_empty=True, help="Fig. 16's points (seed: 0.1-3.3)"),
+        Key(name="airfoil_a_max", type="float_list", default=(), low=0.0, high=40.0,
+            unit="m/s²", allow_empty=True, help="Fig. 17's points (seed: 0.1-10)"),
+        Key(name="baseline_factors", type="float_list", default=(1.5, 2.0, 3.0, 4.0, 6.0),
+            low=1.0, high=100.0, allow_empty=True,
+            help="longer baseline runs, times the slowest optimised time"),
+    ),
+    "stage2": (
+        Key(name="max_iter", type="int", default=30, low=1, high=1000,
+            help="Gauss-Newton iterations"),
+    ),
+}  # fmt: skip
+
+
+def _names(text: str) -> tuple[str, ...]:
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in CASES]
+    if not names or unknown:
+        raise ValueError(
+            f"[cases] names must be a comma-separated list of {', '.join(CASES)}, got {text!r}"
+        )
+    return names
+
+
+def config_from_sections(sec: dict[str, dict[str, Any]]) -> ReferenceSettings:
+    """`ReferenceSettings` from checked job-file sections (`SCHEMA`).
+
+    Raises
+    ------
+    ValueError
+        No model directory, unknown shapes, a zero a_max or tolerance, one size given
+        without the other.
+    """
+    mo, tw, ca, tr, s2 = (sec[k] for k in ("models", "twin", "cases", "tradeoff", "stage2"))
+    if not mo["dir"]:
+        raise ValueError(
+            "[models] dir is required: the output folder of a stage-identify job "
+            "(microfab run examples/blackbox_stage_identify.toml)"
+        )
+    for key, vals in (("[cases] a_max", ca["a_max"]), ("[cases] airfoil_a_max",
+                      ca["airfoil_a_max"]), ("[tradeoff] letters_a_max", tr["letters_a_max"]),
+                      ("[tradeoff] airfoil_a_max", tr["airfoil_a_max"])):  # fmt: skip
+        if any(v <= 0 for v in vals):
+            raise ValueError(f"{key} must hold accelerations above 0 m/s², got {list(vals)}")
+    if ca["tolerance_um"] <= 0:
+        raise ValueError(f"[cases] tolerance_um must be above 0, got {ca['tolerance_um']:g}")
+    h, c = ca["letter_height_mm"], ca["airfoil_chord_mm"]
+    if (h > 0) != (c > 0):
+        raise ValueError("[cases] give both letter_height_mm and airfoil_chord_mm, or neither")
+    sizes = CaseSizes(h * 1e-3, c * 1e-3) if h > 0 else None
+    return ReferenceSettings(
+        models_dir=mo["dir"],
+        twin=TwinSettings(seed=tw["seed"], noise=tw["noise"], hold_s=HOLD_S),
+        cases=_names(ca["names"]),
+        a_max=tuple(ca["a_max"]),
+        airfoil_extra=tuple(ca["airfoil_a_max"]),
+        tolerance_m=ca["tolerance_um"] / 1e6,
+        sizes=sizes,
+        tradeoff_letters=tuple(tr["letters_a_max"]),
+        tradeoff_airfoil=tuple(tr["airfoil_a_max"]),
+        baseline_factors=tuple(tr["baseline_factors"]),
+        stage2_max_iter=s2["max_iter"],
+    )
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ReferenceResult:
+    """A finished ``stage-reference-opt`` job."""
+
+    study: ReferenceStudy
+
+    def comparison(self) -> tuple[Table, ...]:
+        """Table III (twin and networks), times, trade-off, stages, every point."""
+        return _tables(self.study)
+
+    def failures(self) -> tuple[str, ...]:
+        """Points whose optimisation failed, with the reason."""
+        return tuple(f"{c} at {a:g} m/s²: {p['error']}" for (c, a), p in
+                     sorted(self.study.points.items()) if "error" in p)  # fmt: skip
+
+    def summary(self) -> dict[str, Any]:
+        """The numbers of the tables, JSON-ready."""
+        from microfab.experiments.seed002_reference.tables import study_summary
+
+        return study_summary(self.study)
+
+
+def _tables(study: ReferenceStudy) -> tuple[Table, ...]:
+    from microfab.experiments.seed002_reference import tables as t
+
+    out = [t.table_iii(study), t.table_iii(study, "ann"), t.times_table(study)]
+    if study.tradeoff:
+        out.append(t.tradeoff_table(study))
+    out += [t.stages_table(study), t.points_table(study)]
+    return tuple(out)
+
+
+def _run(config: ReferenceSettings, out: Path, progress: Progress) -> ReferenceResult:
+    study = run_reference(config, out, progress)
+    result = ReferenceResult(study=study)
+    atomic_write_json(out / "summary.json", result.summary())
+    return result
+
+
+def _write_report(result: ReferenceResult, out: Path, title: str) -> Path:
+    from microfab.experiments.seed002_reference.report import write_report
+
+    return write_report(result.study, out, title)
+
+
+def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
+    from microfab.experiments.seed002_reference.tables import NOTES, study_summary
+
+    if not options["models"]:
+        raise ValueError(
+            "reference-opt needs identified models: run `microfab run "
+            "examples/blackbox_stage_identify.toml` (about 20 min) and pass its output folder "
+            "with --set models=FOLDER"
+        )
+    folder = options["checkpoints"]
+    settings = ReferenceSettings(
+        models_dir=options["models"],
+        twin=TwinSettings(seed=options["seed"], noise=options["noise"], hold_s=HOLD_S),
+        tradeoff_letters=(0.1, 0.3, 1.0, 2.0, 3.3) if options["tradeoff"] else (),
+        tradeoff_airfoil=(0.1, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0) if options["tradeoff"] else (),
+    )
+    study = run_reference(settings, Path(folder) if folder else None, progress)
+    return ReproductionResult(tables=_tables(study), notes=NOTES, data=study_summary(study))
+
+
+STAGE_REFERENCE_OPT = JobKind(
+    name="stage-reference-opt",
+    description="Black-box XY stage (seed 002 part 2): two-stage reference optimisation "
+    "(minimum-time contouring on the linear model, network refinement), Table III on the "
+    "letters and the airfoil, the precision-productivity trade-off",
+    seed="002",
+    schema=SCHEMA,
+    make_config=config_from_sections,
+    run=_run,
+    write_report=_write_report,
+    example="blackbox_stage_reference.toml",
+    default_title="Black-box XY stage: optimised references",
+)
+
+REFERENCE_OPT_REPRODUCTION = Reproduction(
+    name="reference-opt",
+    description="Seed 002 Table III, letter r and the airfoil, the trade-off (Figs. 16-17), "
+    "on the models of a stage-identify job",
+    seed="002",
+    run=_reproduce,
+    options=(
+        Key(name="models", type="str", default="",
+            help="output folder of a stage-identify job (required)"),
+        Key(name="seed", type="int", default=0, low=0, help="noise seed"),
+        Key(name="noise", type="bool", default=True, help="2 µm output noise on"),
+        Key(name="tradeoff", type="bool", default=True,
+            help="also the trade-off points (about 30 more optimisations)"),
+        Key(name="checkpoints", type="str", default="",
+            help="folder for the points and stage-2 checkpoints, so a rerun resumes"),
+    ),
+)  # fmt: skip

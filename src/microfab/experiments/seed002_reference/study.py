@@ -1,0 +1,255 @@
+"""Seed 002 §V on the twin: Table III, the airfoil at 2 m/s², the trade-off curves.
+
+`run_reference` does, in order, saving every finished point atomically under
+``out/points/`` and skipping a point already there on a rerun (same settings: the
+fingerprint is in the point's JSON):
+
+1. the models: read from a ``stage-identify`` output (`run.load_models`);
+2. the sizes: the documented step of `sizing` (stage 1's ``T`` of "r" and of the airfoil
+   at 1 m/s²), or the sizes given;
+3. every case at every ``a_max`` of `ReferenceSettings.a_max` (Table III: 1 and 3) and the
+   airfoil at `ReferenceSettings.airfoil_extra` (§V-A: 2 m/s²), each through
+   `run.run_point` (both stages, the twin, the networks, the baselines);
+4. the trade-off (§V-B, Figs. 16-17): the letters at each of ``tradeoff_letters``
+   (the four letters one after another, each from rest: times summed, deviations pooled)
+   and the airfoil at each of ``tradeoff_airfoil``; the eq. (15) baseline also at longer
+   times (``baseline_factors`` times the slowest optimised time) to find the baseline's
+   time at a given L2.
+
+Points are independent; a failed stage (infeasible, not converged) is recorded in the
+point's JSON with its message and the study goes on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from microfab.experiments.seed002_reference.run import (
+    Models,
+    load_models,
+    read_point_summary,
+    run_point,
+    write_point,
+)
+from microfab.experiments.seed002_stage.cases import CASES, CaseSizes, case_paths
+from microfab.experiments.seed002_stage.run import TwinSettings
+from microfab.geometry.text import SEED002_LETTERS
+from microfab.optimize.problem import ContourProblem
+from microfab.optimize.stage1 import Stage1Error, Stage1Settings
+
+__all__ = ["ReferenceSettings", "ReferenceStudy", "run_reference"]
+
+Progress = Callable[[str, int, int | None], None]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReferenceSettings:
+    """What `run_reference` runs (module docstring).
+
+    Parameters
+    ----------
+    models_dir : str
+        Output of a ``stage-identify`` job (``linear_model.json``, ``ann/model``).
+    twin : TwinSettings
+        The twin the networks were trained on (its noise seed).
+    cases : tuple of str
+        Of `CASES`.
+    a_max : tuple of float
+        Table III's columns, m/s².
+    airfoil_extra : tuple of float
+        More airfoil points (§V-A: 2 m/s²).
+    tolerance_m : float
+        μ, m.
+    sizes : CaseSizes or None
+        Given sizes; None: the sizing step on stage 1.
+    tradeoff_letters, tradeoff_airfoil : tuple of float
+        The trade-off's a_max values (seed: 0.1-3.3 and 0.1-10 m/s²); empty: none.
+    baseline_factors : tuple of float
+        Longer baseline times for the trade-off, in units of the slowest optimised time.
+    stage2_max_iter : int
+        Stage 2's Gauss-Newton iterations.
+    """
+
+    models_dir: str
+    twin: TwinSettings = field(default_factory=TwinSettings)
+    cases: tuple[str, ...] = CASES
+    a_max: tuple[float, ...] = (1.0, 3.0)
+    airfoil_extra: tuple[float, ...] = (2.0,)
+    tolerance_m: float = 20e-6
+    sizes: CaseSizes | None = None
+    tradeoff_letters: tuple[float, ...] = ()
+    tradeoff_airfoil: tuple[float, ...] = ()
+    baseline_factors: tuple[float, ...] = (1.5, 2.0, 3.0, 4.0, 6.0)
+    stage2_max_iter: int = 30
+
+    def fingerprint(self) -> str:
+        """Hash of what decides a point's numbers (not the list of points)."""
+        keep = {"models_dir": str(Path(self.models_dir).resolve()),
+                "twin": asdict(self.twin), "tolerance_m": self.tolerance_m,
+                "sizes": None if self.sizes is None else asdict(self.sizes),
+                "stage2_max_iter": self.stage2_max_iter}  # fmt: skip
+        return hashlib.sha256(json.dumps(keep, sort_keys=True, default=str).encode()).hexdigest()
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceStudy:
+    """What `run_reference` found.
+
+    Attributes
+    ----------
+    settings : ReferenceSettings
+    sizes : CaseSizes
+    sizing_steps : dict
+        The sizing's stage-1 solves (empty when sizes were given).
+    points : dict of (str, float) to dict
+        Every point's summary (`run.PointResult.summary`, or ``{"error": ...}``).
+    tradeoff : dict of str to list of dict
+        "letters" and "airfoil": one row per a_max (time, pooled norms per output).
+    baseline_curve : dict of str to list of dict
+        "letters" and "airfoil": the eq. (15) baseline on the twin at longer times.
+    """
+
+    settings: ReferenceSettings
+    sizes: CaseSizes
+    sizing_steps: dict[str, Any]
+    points: dict[tuple[str, float], dict[str, Any]]
+    tradeoff: dict[str, list[dict[str, float]]] = field(default_factory=dict)
+    baseline_curve: dict[str, list[dict[str, float]]] = field(default_factory=dict)
+
+
+def _sizes(st: ReferenceSettings, models: Models, out: Path | None) -> tuple[CaseSizes, dict]:
+    from microfab.experiments.seed002_reference.sizing import reference_sizes
+    from microfab.io.atomic import atomic_write_json
+
+    if st.sizes is not None:
+        return st.sizes, {}
+    path = None if out is None else out / "sizes.json"
+    if path is not None and path.is_file():
+        saved = json.loads(path.read_text())
+        if saved.get("fingerprint") == st.fingerprint():
+            return CaseSizes(**saved["sizes"]), saved["steps"]
+    res = reference_sizes(models.linear, tolerance_m=st.tolerance_m)
+    if path is not None:
+        atomic_write_json(path, {"fingerprint": st.fingerprint(), "sizes": asdict(res.sizes),
+                                 "steps": res.steps})  # fmt: skip
+    return res.sizes, res.steps
+
+
+def _point(
+    case: str, a: float, paths: dict[str, Any], models: Models, st: ReferenceSettings,
+    folder: Path | None,
+) -> dict[str, Any]:  # fmt: skip
+    from microfab.optimize.stage2 import Stage2Settings
+
+    if folder is not None:
+        saved = read_point_summary(folder, case, a)
+        if saved is not None and saved.get("fingerprint") == st.fingerprint():
+            return saved
+    problem = ContourProblem(paths[case], a_max=a, tolerance_m=st.tolerance_m)
+    ckpt = None if folder is None else str(folder / f"{case}_a{a:g}_stage2.ckpt.npz")
+    try:
+        s2 = Stage2Settings(max_iter=st.stage2_max_iter)
+        res = run_point(case, problem, models, twin=st.twin, stage1=Stage1Settings(),
+                        stage2=s2, checkpoint=ckpt)  # fmt: skip
+    except (Stage1Error, ValueError) as exc:
+        summary = {"case": case, "a_max": a, "error": f"{type(exc).__name__}: {exc}"}
+    else:
+        summary = res.summary()
+        if folder is not None:
+            write_point(res, folder)
+    summary["fingerprint"] = st.fingerprint()
+    if folder is not None:
+        from microfab.io.atomic import atomic_write_json
+
+        atomic_write_json(folder / f"{case}_a{a:g}.json", summary)
+    return summary
+
+
+def _pooled(points: Sequence[dict[str, Any]]) -> dict[str, float]:
+    """Letters one after another: times summed, deviations pooled over the samples."""
+    out: dict[str, float] = {"time_s": float(sum(p["duration_s"] for p in points))}
+    for key in points[0]["scores"]:
+        n = np.array([p["scores"][key]["n"] for p in points], dtype=float)
+        l1 = np.array([p["scores"][key]["l1"] for p in points])
+        l2 = np.array([p["scores"][key]["l2"] for p in points])
+        linf = np.array([p["scores"][key]["linf"] for p in points])
+        out[f"{key}_l1"] = float(np.sum(n * l1) / n.sum())
+        out[f"{key}_l2"] = float(math.sqrt(np.sum(n * l2**2) / n.sum()))
+        out[f"{key}_linf"] = float(linf.max())
+    return out
+
+
+def run_reference(
+    settings: ReferenceSettings, out: Path | None = None, progress: Progress | None = None
+) -> ReferenceStudy:
+    """Run the study (module docstring); ``out`` keeps the points for a resume."""
+    report = progress or (lambda task, done, total: None)
+    st = settings
+    models = load_models(st.models_dir)
+    sizes, steps = _sizes(st, models, out)
+    paths = case_paths(sizes, st.cases)
+    folder = None if out is None else out / "points"
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+    todo = [(c, a) for c in st.cases for a in st.a_max]
+    if "airfoil" in st.cases:
+        todo += [("airfoil", a) for a in st.airfoil_extra if a not in st.a_max]
+    letters = [c for c in SEED002_LETTERS if c in st.cases] if st.tradeoff_letters else []
+    todo += [(c, a) for a in st.tradeoff_letters for c in letters if (c, a) not in todo]
+    if "airfoil" in st.cases:
+        todo += [("airfoil", a) for a in st.tradeoff_airfoil if ("airfoil", a) not in todo]
+    points: dict[tuple[str, float], dict[str, Any]] = {}
+    for k, (case, a) in enumerate(todo):
+        report("points", k, len(todo))
+        points[(case, a)] = _point(case, a, paths, models, st, folder)
+    report("points", len(todo), len(todo))
+    tradeoff: dict[str, list[dict[str, float]]] = {}
+    if letters:
+        rows = []
+        for a in st.tradeoff_letters:
+            pts = [points[(c, a)] for c in letters]
+            if all("error" not in p for p in pts):
+                rows.append({"a_max": a, **_pooled(pts)})
+        tradeoff["letters"] = rows
+    if st.tradeoff_airfoil and "airfoil" in st.cases:
+        tradeoff["airfoil"] = [
+            {"a_max": a, **_pooled([points[("airfoil", a)]])}
+            for a in st.tradeoff_airfoil if "error" not in points[("airfoil", a)]
+        ]  # fmt: skip
+    curve = _baseline_curves(st, paths, tradeoff, letters)
+    return ReferenceStudy(settings=st, sizes=sizes, sizing_steps=steps, points=points,
+                          tradeoff=tradeoff, baseline_curve=curve)  # fmt: skip
+
+
+def _baseline_curves(
+    st: ReferenceSettings, paths: dict[str, Any], tradeoff: dict[str, list[dict[str, float]]],
+    letters: list[str],
+) -> dict[str, list[dict[str, float]]]:  # fmt: skip
+    """The eq. (15) baseline on the twin at longer times (pooled like the trade-off)."""
+    from microfab.experiments.seed002_reference.run import baseline_scores
+
+    out: dict[str, list[dict[str, float]]] = {}
+    for name, cases in (("letters", letters), ("airfoil", ["airfoil"])):
+        rows = tradeoff.get(name)
+        if not rows:
+            continue
+        slowest = max(r["time_s"] for r in rows)
+        curve = []
+        for f in st.baseline_factors:
+            total = f * slowest
+            length = sum(paths[c].length for c in cases)
+            per = [(c, total * paths[c].length / length) for c in cases]  # same path speed
+            scored = [baseline_scores(paths[c], t, st.twin) for c, t in per]
+            n = np.array([s.n for s in scored], dtype=float)
+            l2 = math.sqrt(float(np.sum(n * np.array([s.l2 for s in scored]) ** 2) / n.sum()))
+            curve.append({"time_s": total, "baseline_twin_l2": l2})
+        out[name] = curve
+    return out
