@@ -6,8 +6,9 @@
 (`geometry.py`), ``droplet`` (`droplet.py`), ``identify chirp``, ``identify linear`` and
 ``identify validate`` (`identify.py`), ``identify ann`` (`identify_ann.py`, registered on
 the ``identify`` group when imported here), ``shaper design`` (`shaper.py`), ``slm scan-time``
-(`slm.py`), ``stage excite`` (`stage.py`); `_kit.py` holds the console, errors, progress
-bars, tables and the readers several groups share (``LOW:HIGH`` ranges, measured traces).
+(`slm.py`), ``stage excite`` (`stage.py`), ``optimize`` (`optimize.py`); `_kit.py` holds
+the console, errors, progress bars, tables and the readers several groups share
+(``LOW:HIGH`` ranges, measured traces).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from microfab.cli.identify_ann import ann_cmd as _ann_cmd  # noqa: F401 (registe
 from microfab.cli.ilc import ilc_app
 from microfab.cli.laser import laser_app
 from microfab.cli.nanomanipulator import nanomanipulator_app
+from microfab.cli.optimize import optimize_cmd
 from microfab.cli.rc import rc_app
 from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
 from microfab.cli.shaper import shaper_app
@@ -117,6 +119,7 @@ app.add_typer(shaper_app, name="shaper", context_settings=_SETTINGS)
 app.add_typer(slm_app, name="slm", context_settings=_SETTINGS)
 app.add_typer(stage_app, name="stage", context_settings=_SETTINGS)
 app.command("trajectory")(trajectory_cmd)
+app.command("optimize")(optimize_cmd)
 
 
 def main() -> None:  # pragma: no cover - entry point

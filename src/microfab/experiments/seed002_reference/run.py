@@ -206,14 +206,7 @@ class PointResult:
 
 
 def _stage2_summary(st2: Any) -> dict[str, Any]:
-    hist = [float(c) for c in getattr(st2, "cost_history", [])]
-    return {
-        "iterations": int(getattr(st2, "iterations", -1)),
-        "converged": bool(getattr(st2, "converged", False)),
-        "cost_start": hist[0] if hist else None,
-        "cost_end": hist[-1] if hist else None,
-        "wall_s": float(getattr(st2, "wall_s", float("nan"))),
-    }
+    return st2.summary()
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""A tiny stage model for the optimisation tests: a linear 4-state model and small networks.
+"""Shared fixtures: a tiny stage model for the optimisation tests (optimize, cli, experiments).
 
 The "stage" is a per-axis second-order lag (70 and 60 rad/s) with a feedthrough, simulated
 at 10 kHz; the networks (Fig. 5, h = 200) train for a few epochs on

@@ -1,0 +1,196 @@
+"""``microfab optimize``: the two-stage reference optimisation of seed 002 on a drawing.
+
+Stage 1 (eqs. 8-12, linear model, minimum time within the tolerance) and stage 2 (eqs.
+13-14, the networks refine the 400 Hz input), then the 10 kHz command, checked against
+Table I. The models are those of a ``stage-identify`` job (``--model DIR``:
+``linear_model.json`` and ``ann/model``).
+
+Writes into ``--out``: ``command.<fmt>`` (the columns of ``microfab trajectory``: time,
+x, y, m, 10 kHz), ``input_400hz.csv`` (``r``), ``predicted.csv`` (the networks' output
+and the target at 400 Hz), ``stage1.npz``, ``summary.json`` and two figures (the contour
+with the input and the predicted output, the deviation along ``s``). Stage 2 saves a
+checkpoint (``stage2_checkpoint.npz``) every few iterations and a rerun resumes it;
+``--stage 1`` stops after stage 1 (no networks needed). A refusal is one ``error:``
+line, exit code 2, and nothing is written (a stage-2 checkpoint already saved is kept
+for the resume).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from microfab.cli._kit import check_option, console, fail
+
+__all__ = ["optimize_cmd"]
+
+_FORMATS = ("csv", "h5", "mat")
+_STAGES = ("1", "both")
+_A_MAX = 40.0  # seed 002 Table I: the machine's acceleration limit, m/s²
+
+
+def optimize_cmd(
+    drawing: Annotated[
+        str,
+        typer.Argument(
+            help="A .dxf/.svg/.dat file, a shape (circle:radius=0.01, ...), text:LETTERS or "
+            "airfoil:e344; one closed or open contour (see --contour)."
+        ),
+    ],
+    model: Annotated[
+        Path,
+        typer.Option(
+            "--model",
+            help="Output directory of a stage-identify job (linear_model.json, ann/model).",
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Directory for the results.")],
+    amax: Annotated[
+        float, typer.Option(help="Output acceleration bound a_max, m/s² (0-40; seed 002: 1-3).")
+    ] = 1.0,
+    tolerance: Annotated[
+        float, typer.Option(help="Tolerance μ around the contour, m (seed 002: 20e-6).")
+    ] = 20e-6,
+    stage: Annotated[
+        str, typer.Option(help="'both' (default) or '1' (stage 1 only, no networks).")
+    ] = "both",
+    n: Annotated[
+        int | None,
+        typer.Option(help="Stage-1 points N (default: spacing μ, 200-2000; at least 10)."),
+    ] = None,
+    contour: Annotated[
+        int | None, typer.Option(help="The contour to trace when the drawing has several.")
+    ] = None,
+    fmt: Annotated[str, typer.Option("--format", help="Command file: csv, h5 or mat.")] = "csv",
+    chord: Annotated[float, typer.Option(help="Airfoil chord, m.")] = 0.1,
+    text_height: Annotated[float, typer.Option(help="Text font size, m.")] = 0.01,
+    units: Annotated[
+        str | None, typer.Option(help="DXF units when the header has none (mm, inch, m, um).")
+    ] = None,
+) -> None:
+    """Optimise the reference of a contour on a black-box stage (seed 002 §IV)."""
+    from microfab.optimize.problem import ContourProblem
+    from microfab.optimize.stage1 import Stage1Error, Stage1Settings
+
+    if stage not in _STAGES:
+        fail(f"--stage must be 1 or both, got {stage!r}")
+    if fmt not in _FORMATS:
+        fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
+    check_option("--amax", amax, "m/s²", high=_A_MAX)
+    check_option("--tolerance", tolerance, "m", high=1e-3)
+    if n is not None and n < 10:
+        fail(f"--n must be at least 10 points, got {n}")
+    if out.exists() and not out.is_dir():
+        fail(f"--out {out} exists and is not a directory")
+    from microfab.cli.geometry import _load
+
+    layer = _load(drawing, units, chord, text_height)
+    if len(layer) == 0:
+        fail(f"{drawing}: no contour to trace")
+    if contour is None and len(layer) > 1:
+        fail(f"{drawing} has {len(layer)} contours: choose one with --contour 0..{len(layer) - 1}")
+    k = 0 if contour is None else contour
+    if not 0 <= k < len(layer):
+        fail(f"--contour {k} is out of range: the drawing has {len(layer)} contours")
+    try:
+        problem = ContourProblem(layer[k], a_max=float(amax), tolerance_m=float(tolerance))
+    except ValueError as exc:
+        fail(str(exc))
+    models = _models(model, need_networks=stage == "both")
+    from microfab.core.limits import LimitViolation
+    from microfab.optimize.pipeline import optimize_reference
+
+    checkpoint = str(out / "stage2_checkpoint.npz") if stage == "both" else None
+    try:
+        with console.status("stage 1: minimum time on the linear model (IPOPT)"):
+            from microfab.optimize.stage1 import solve_stage1
+
+            st1 = solve_stage1(problem, models.linear, Stage1Settings(n=n))
+        console.print(
+            f"stage 1: T = {st1.duration:.4f} s, N = {st1.n}, {st1.iterations} iterations, "
+            f"{st1.wall_s:.1f} s",
+            highlight=False,
+        )
+        out.mkdir(parents=True, exist_ok=True)  # only now: a refusal above writes nothing
+        res = _stage2(problem, models, st1, stage, checkpoint, optimize_reference)
+    except Stage1Error as exc:
+        fail(str(exc))
+    except LimitViolation as exc:
+        fail(f"{exc}; the optimised input breaks Table I: raise the tolerance or lower --amax")
+    except ValueError as exc:
+        fail(str(exc))
+    _write(out, res, fmt, drawing, k)
+
+
+def _models(directory: Path, need_networks: bool) -> Any:
+    from microfab.experiments.seed002_reference.run import load_models
+
+    try:
+        return load_models(directory, networks=need_networks)
+    except ValueError as exc:
+        fail(str(exc))
+
+
+def _stage2(problem: Any, models: Any, st1: Any, stage: str, checkpoint: str | None,
+            run: Any) -> Any:  # fmt: skip
+    from microfab.cli._kit import progress
+
+    if stage == "1":
+        return run(problem, models.linear, models.networks, stage="1", stage1=st1)
+    with progress() as prog:
+        task = prog.add_task("stage 2: Gauss-Newton on the networks", total=None)
+
+        def report(it: int, cost: float) -> None:
+            prog.update(task, completed=it, description=f"stage 2: cost {cost:.4g}")
+
+        return run(problem, models.linear, models.networks, stage="both", stage1=st1,
+                   checkpoint=checkpoint, progress=report)  # fmt: skip
+
+
+def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int) -> None:
+    from microfab.experiments.seed002_reference.figures import plot_contour, plot_deviation
+    from microfab.io.atomic import atomic_write_json
+    from microfab.io.trace import write_columns
+    from microfab.report.canvas import save_figure
+
+    cmd = res.command
+    try:
+        write_columns(out / f"command.{fmt}", cmd.columns(), unit="m")
+        r_cols = {"time": res.t[:-1], "x": res.r[:, 0], "y": res.r[:, 1]}
+        write_columns(out / "input_400hz.csv", r_cols, unit="m")
+        if res.predicted is not None:
+            p, tg = res.predicted, res.target[1:]
+            cols = {"time": res.t[1:], "x": p[:, 0], "y": p[:, 1],
+                    "target_x": tg[:, 0], "target_y": tg[:, 1]}  # fmt: skip
+            write_columns(out / "predicted.csv", cols, unit="m")
+        res.stage1.save(out / "stage1.npz")
+        summary = {
+            "drawing": drawing,
+            "contour": contour,
+            "a_max": res.problem.a_max,
+            "tolerance_m": res.problem.tolerance_m,
+            "duration_s": res.duration,
+            "m": res.m,
+            "stage1": res.stage1.summary(),
+            "stage2": None if res.stage2 is None else res.stage2.summary(),
+            "wall_s": res.wall_s,
+            "command_samples": int(cmd.position.shape[0]),
+        }
+        if res.predicted is not None:
+            from microfab.optimize.metrics import DeviationNorms
+
+            summary["predicted"] = DeviationNorms.of(res.problem.path, res.predicted).as_dict()
+        save_figure(plot_contour(res), out / "contour.png")
+        save_figure(plot_deviation(res), out / "deviation.png")
+        atomic_write_json(out / "summary.json", summary)
+    except (OSError, ValueError) as exc:
+        fail(f"cannot write the results: {exc}")
+    pred = summary.get("predicted")
+    extra = ""
+    if pred:
+        extra = f", predicted L2 {pred['l2'] * 1e6:.2f} µm, L∞ {pred['linf'] * 1e6:.2f} µm"
+    console.print(
+        f"T = {res.duration:.4f} s, M = {res.m} at 400 Hz{extra}; wrote {out}", highlight=False
+    )

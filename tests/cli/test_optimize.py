@@ -1,0 +1,89 @@
+"""``microfab optimize`` (seed 002 §IV): both stages on a drawing, files, refusals."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from microfab.cli import app
+from microfab.core.limits import MachineLimits, check_trajectory
+from microfab.io.trace import read_columns
+from microfab.trajectory.base import Trajectory
+
+pytest.importorskip("casadi")
+pytest.importorskip("torch")
+runner = CliRunner()
+
+
+def test_optimize_writes_a_checked_command_and_resumes(tiny_models, tmp_path):
+    d, _ = tiny_models
+    out = tmp_path / "opt"
+    args = ["optimize", "circle:radius=0.002", "--model", str(d), "--out", str(out),
+            "--amax", "2", "--n", "80"]  # fmt: skip
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    names = {p.name for p in out.iterdir()}
+    assert {"command.csv", "input_400hz.csv", "predicted.csv", "stage1.npz", "summary.json",
+            "contour.png", "deviation.png", "stage2_checkpoint.npz"} <= names  # fmt: skip
+    cols = read_columns(out / "command.csv")
+    pos = np.column_stack([cols["x"], cols["y"]])
+    check_trajectory(Trajectory(dt=1e-4, position=pos), MachineLimits.seed002_stage())
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["stage2"]["merit_end"] <= summary["stage2"]["merit_start"]
+    assert summary["predicted"]["linf"] > 0
+    # a rerun resumes stage 2 from its checkpoint
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    again = json.loads((out / "summary.json").read_text())
+    assert again["stage2"]["resumed_from"] == summary["stage2"]["iterations"]
+
+
+def test_stage_one_needs_only_the_linear_model(tiny_models, tmp_path):
+    d, _ = tiny_models
+    lin_only = tmp_path / "lin"
+    lin_only.mkdir()
+    (lin_only / "linear_model.json").write_text((d / "linear_model.json").read_text())
+    out = tmp_path / "s1"
+    args = ["optimize", "circle:radius=0.002", "--model", str(lin_only), "--out", str(out),
+            "--stage", "1", "--n", "60", "--format", "h5"]  # fmt: skip
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert (out / "command.h5").is_file() and not (out / "predicted.csv").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        (["--amax", "0"], "--amax must be more than 0"),
+        (["--amax", "41"], "at most 40"),
+        (["--tolerance", "-1e-6"], "--tolerance must be more than 0"),
+        (["--n", "5"], "--n must be at least 10"),
+        (["--stage", "3"], "--stage must be 1 or both"),
+        (["--format", "xls"], "--format must be one of"),
+    ],
+)
+def test_bad_options_refused_and_nothing_written(tiny_models, tmp_path, one_error_line, extra,
+                                                 says):  # fmt: skip
+    d, _ = tiny_models
+    out = tmp_path / "o"
+    res = runner.invoke(app, ["optimize", "circle:radius=0.002", "--model", str(d),
+                              "--out", str(out), *extra])  # fmt: skip
+    one_error_line(res, says)
+    assert not out.exists()
+
+
+def test_bad_drawing_and_model_refused(tiny_models, tmp_path, one_error_line):
+    d, _ = tiny_models
+    out = tmp_path / "o"
+    res = runner.invoke(app, ["optimize", "circle:radius=0.3", "--model", str(d), "--out",
+                              str(out)])  # fmt: skip
+    one_error_line(res, "leaves the workspace")
+    res = runner.invoke(app, ["optimize", "text:ab", "--model", str(d), "--out", str(out)])
+    one_error_line(res, "contours: choose one with --contour")
+    res = runner.invoke(app, ["optimize", "circle:radius=0.002", "--model", str(tmp_path),
+                              "--out", str(out)])  # fmt: skip
+    one_error_line(res, "no linear model")
+    assert not out.exists()

@@ -1,0 +1,104 @@
+"""The stage-reference-opt job (seed 002 §V) on tiny models: points, resume, report."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+pytest.importorskip("casadi")
+pytest.importorskip("torch")
+
+from microfab.experiments.catalog import REPRODUCTIONS, load_job
+from microfab.experiments.seed002_reference import study as study_mod
+from microfab.experiments.seed002_reference.job import STAGE_REFERENCE_OPT
+from microfab.experiments.seed002_reference.study import (
+    ReferenceSettings,
+    run_reference,
+)
+from microfab.experiments.seed002_stage.cases import CaseSizes
+from microfab.experiments.seed002_stage.run import TwinSettings
+
+
+def job_file(tmp_path, body: str):
+    p = tmp_path / "j.toml"
+    p.write_text('[job]\nkind = "stage-reference-opt"\n' + body, encoding="utf-8")
+    return p
+
+
+@pytest.mark.parametrize(
+    ("body", "says"),
+    [
+        ("", "[models] dir is required"),
+        ('[models]\ndir = "m"\n[cases]\nnames = "r,q"\n', "names must be"),
+        ('[models]\ndir = "m"\n[cases]\na_max = [0.0]\n', "above 0"),
+        ('[models]\ndir = "m"\n[cases]\nletter_height_mm = 5.0\n', "give both"),
+        ('[models]\ndir = "m"\n[cases]\ntolerance_um = 0.0\n', "tolerance_um"),
+        ('[models]\ndir = "m"\n[stage2]\nmax_iter = 0\n', "max_iter"),
+        ('[models]\ndir = "m"\n[twin]\nspeed = 1\n', "speed"),
+    ],
+)
+def test_bad_job_files_refused(tmp_path, body, says):
+    with pytest.raises(Exception, match=says.replace("[", r"\[").replace("]", r"\]")):
+        load_job(job_file(tmp_path, body))
+
+
+def test_example_and_registry():
+    assert "reference-opt" in REPRODUCTIONS
+    assert STAGE_REFERENCE_OPT.example == "blackbox_stage_reference.toml"
+
+
+@pytest.fixture(scope="module")
+def small(tiny_models, tmp_path_factory):
+    d, _ = tiny_models
+    out = tmp_path_factory.mktemp("ref")
+    settings = ReferenceSettings(
+        models_dir=str(d),
+        twin=TwinSettings(hold_s=0.51),
+        cases=("r",),
+        a_max=(2.0,),
+        airfoil_extra=(),
+        tolerance_m=100e-6,
+        sizes=CaseSizes(5e-3, 20e-3),
+        stage2_max_iter=3,
+    )
+    return settings, out, run_reference(settings, out)
+
+
+def test_a_point_is_optimised_played_and_scored(small):
+    _, out, study = small
+    p = study.points[("r", 2.0)]
+    assert "error" not in p, p
+    for key in ("optimised_twin", "baseline_twin", "stretched_twin", "optimised_ann"):
+        sc = p["scores"][key]
+        assert 0 < sc["l1"] <= sc["l2"] <= sc["linf"]
+    assert p["limited"]["optimised"] == 0 and p["limited"]["stretched"] == 0
+    assert p["stage2"]["merit_end"] <= p["stage2"]["merit_start"]
+    saved = json.loads((out / "points" / "r_a2.json").read_text())
+    assert saved["improvement"] == p["improvement"]
+    assert (out / "points" / "r_a2.npz").is_file()
+
+
+def test_a_rerun_skips_finished_points(small, monkeypatch):
+    settings, out, study = small
+
+    def boom(*a, **k):
+        raise AssertionError("a finished point was run again")
+
+    monkeypatch.setattr(study_mod, "run_point", boom)
+    again = run_reference(settings, out)
+    assert again.points[("r", 2.0)]["improvement"] == study.points[("r", 2.0)]["improvement"]
+
+
+def test_tables_and_report(small):
+    from microfab.experiments.seed002_reference.job import ReferenceResult
+    from microfab.experiments.seed002_reference.report import write_report
+
+    _, out, study = small
+    res = ReferenceResult(study=study)
+    tables = res.comparison()
+    assert tables[0].rows[0][0] == "r"
+    assert "/ —" in tables[0].rows[0][2]  # no seed time at 2 m/s² for the letter r
+    page = write_report(study, out, "t")
+    assert page.is_file() and "Table III" in page.read_text()
+    json.dumps(res.summary())
