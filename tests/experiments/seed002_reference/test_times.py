@@ -3,9 +3,10 @@
 The letter height and the chord are the job's sizing step on this model (stage 1 gives
 "r" 0.807 s and the airfoil 1.322 s at 1 m/s²; `sizing.reference_sizes`, 18.95 mm and
 106.3 mm, pinned here to keep the test short: the step itself is checked on a coarse
-grid in `test_sizing_step_reaches_its_target`, whose sizes then differ by up to 9 %). Everything else is a check: the other
-letters' times within ±20 % of Table III, T(3)/T(1) = 0.586 ± 0.04 for every letter (seed
-0.59), the airfoil at 2 and 3 m/s² within ±15 % of 1.081 and 1.024 s (issue 18).
+grid in `test_sizing_step_reaches_its_target`, whose sizes then differ by up to 9 %).
+Everything else is a check: the other letters' times within ±20 % of Table III,
+T(3)/T(1) = 0.586 ± 0.04 for every letter (seed 0.59), the airfoil at 2 and 3 m/s² within
+±15 % of 1.081 and 1.024 s (issue 18).
 """
 
 from __future__ import annotations
