@@ -180,8 +180,8 @@ class Subproblem:
         lo1, hi1, lo2, hi2 = self._cmd_bounds(r0)
         if np.all(lo1 <= 0) and np.all(hi1 >= 0) and np.all(lo2 <= 0) and np.all(hi2 >= 0):
             return r0.copy()
-        solver = ca.conic("project", self.st.solver, {"h": _sparsity(h), "a": _sparsity(a)},
-                          self._options())  # fmt: skip
+        solver = ca.conic("project", "highs", {"h": _sparsity(h), "a": _sparsity(a)},
+                          {"highs": {"output_flag": False}, "error_on_fail": False})  # fmt: skip
         sol = solver(h=_dm(h), g=np.zeros(r0.size), a=_dm(a),
                      lba=np.concatenate([lo1, lo2]), uba=np.concatenate([hi1, hi2]))  # fmt: skip
         return r0 + np.asarray(sol["x"]).ravel()
@@ -192,11 +192,6 @@ class Subproblem:
         g[self.sl["sv"]] = self.st.limit_penalty
         g[self.sl["sa"]] = self.st.limit_penalty
         return g
-
-    def _options(self) -> dict[str, Any]:
-        if self.st.solver == "highs":
-            return {"highs": {"output_flag": False}, "error_on_fail": False}
-        return {"error_on_fail": False}
 
     def solve(self, r: np.ndarray, phi: np.ndarray, jac: sp.csr_matrix,
               trust: float) -> np.ndarray | None:  # fmt: skip
