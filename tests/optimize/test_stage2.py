@@ -101,3 +101,12 @@ def test_pipeline_stage_one_only_needs_no_networks(case):
 def test_settings_refused(kw, match):
     with pytest.raises(ValueError, match=match):
         Stage2Settings(**kw)
+
+
+def test_a_max_beyond_the_training_data_is_a_warning(tiny_models):
+    from microfab.optimize.pipeline import training_warning
+
+    _, model = tiny_models
+    seen = max(model.info["command_accel_max_m_s2"].values())
+    assert training_warning(model, 0.5 * seen) is None
+    assert "beyond the networks' training data" in training_warning(model, 2 * seen)

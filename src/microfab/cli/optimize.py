@@ -121,7 +121,7 @@ def optimize_cmd(
         fail(f"{exc}; the optimised input breaks Table I: raise the tolerance or lower --amax")
     except ValueError as exc:
         fail(str(exc))
-    _write(out, res, fmt, drawing, k)
+    _write(out, res, fmt, drawing, k, models.networks)
 
 
 def _models(directory: Path, need_networks: bool) -> Any:
@@ -149,10 +149,11 @@ def _stage2(problem: Any, models: Any, st1: Any, stage: str, checkpoint: str | N
                    checkpoint=checkpoint, progress=report)  # fmt: skip
 
 
-def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int) -> None:
+def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, networks: Any) -> None:
     from microfab.experiments.seed002_reference.figures import plot_contour, plot_deviation
     from microfab.io.atomic import atomic_write_json
     from microfab.io.trace import write_columns
+    from microfab.optimize.pipeline import training_warning
     from microfab.report.canvas import save_figure
 
     cmd = res.command
@@ -177,6 +178,7 @@ def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int) -> None:
             "stage2": None if res.stage2 is None else res.stage2.summary(),
             "wall_s": res.wall_s,
             "command_samples": int(cmd.position.shape[0]),
+            "warning": None if networks is None else training_warning(networks, res.problem.a_max),
         }
         if res.predicted is not None:
             from microfab.optimize.metrics import DeviationNorms
@@ -187,6 +189,8 @@ def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int) -> None:
         atomic_write_json(out / "summary.json", summary)
     except (OSError, ValueError) as exc:
         fail(f"cannot write the results: {exc}")
+    if summary["warning"]:
+        console.print(f"[yellow]warning:[/] {summary['warning']}", highlight=False)
     pred = summary.get("predicted")
     extra = ""
     if pred:

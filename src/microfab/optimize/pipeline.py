@@ -30,7 +30,7 @@ from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Result, Stage1Settings, solve_stage1
 from microfab.trajectory.base import Trajectory
 
-__all__ = ["MODEL_RATE_HZ", "ReferenceResult", "optimize_reference"]
+__all__ = ["MODEL_RATE_HZ", "ReferenceResult", "optimize_reference", "training_warning"]
 
 MODEL_RATE_HZ = 400.0  # seed 002 §III-B: the networks run at 400 Hz
 STAGES = ("1", "both")
@@ -87,6 +87,24 @@ class ReferenceResult:
     def m(self) -> int:
         """``M``."""
         return int(self.r.shape[0])
+
+
+def training_warning(networks: Any, a_max: float) -> str | None:
+    """A warning when ``a_max`` exceeds the largest command acceleration the networks saw.
+
+    Seed 002 §V-B: beyond its training data the model "over exploits" and the simulated
+    deviation is "overly optimistic". Not an error (issue 18).
+    """
+    seen = (getattr(networks, "info", {}) or {}).get("command_accel_max_m_s2")
+    if not seen:
+        return None
+    top = max(float(v) for v in seen.values())
+    if a_max <= top:
+        return None
+    return (
+        f"a_max {a_max:g} m/s² is beyond the networks' training data (commands up to "
+        f"{top:.2g} m/s²): the predicted deviation is likely optimistic (seed 002 §V-B)"
+    )
 
 
 def optimize_reference(

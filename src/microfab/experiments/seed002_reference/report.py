@@ -71,8 +71,10 @@ def write_report(study: ReferenceStudy, out: Path, title: str) -> Path:
     figs = [Figure(name=n, png=render_png(fig), caption=cap) for n, fig, cap in
             _figures(study, out)]  # fmt: skip
     s = study.settings
+    warnings = sorted({p["warning"] for p in study.points.values() if p.get("warning")})
     notes = [
         *NOTES,
+        *(f"Warning: {w}." for w in warnings),
         f"Models: {s.models_dir}. Sizes: letter height "
         f"{study.sizes.letter_height_m * 1e3:.2f} mm, airfoil chord "
         f"{study.sizes.airfoil_chord_m * 1e3:.1f} mm.",

@@ -35,7 +35,12 @@ import numpy as np
 from microfab.experiments.seed002_stage.run import Played, TwinSettings, play_runs
 from microfab.identify.subspace_model import ContinuousModel
 from microfab.optimize.command import LEAD
-from microfab.optimize.pipeline import MODEL_RATE_HZ, ReferenceResult, optimize_reference
+from microfab.optimize.pipeline import (
+    MODEL_RATE_HZ,
+    ReferenceResult,
+    optimize_reference,
+    training_warning,
+)
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Settings
 
@@ -176,6 +181,7 @@ class PointResult:
     limited: dict[str, int]
     outputs: dict[str, np.ndarray] = field(default_factory=dict)
     wall_s: dict[str, float] = field(default_factory=dict)
+    reference_networks: Any = None
 
     @property
     def duration(self) -> float:
@@ -202,6 +208,7 @@ class PointResult:
             "improvement": {"twin": self.improvement("twin"), "ann": self.improvement("ann")},
             "limited": self.limited,
             "wall_s": self.wall_s,
+            "warning": training_warning(self.reference_networks, self.a_max),
         }  # fmt: skip
 
 
@@ -279,7 +286,8 @@ def run_point(
         outputs[f"{name}_ann"] = phi
     wall["score"] = time.perf_counter() - t0
     return PointResult(case=case, a_max=problem.a_max, reference=ref, scores=scores,
-                       limited=limited, outputs=outputs, wall_s=wall)  # fmt: skip
+                       limited=limited, outputs=outputs, wall_s=wall,
+                       reference_networks=models.networks)  # fmt: skip
 
 
 def baseline_scores(path: Any, duration_s: float, twin: TwinSettings | None = None) -> Scored:
