@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["Block", "BlockNLP"]
+__all__ = ["Block", "BlockNLP", "casadi_dm", "casadi_sparsity"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,13 +69,22 @@ def _assembly(target: np.ndarray, n_target: int) -> sp.csr_matrix:
     return sp.csr_matrix((np.ones(n), (target, np.arange(n))), shape=(n_target, n))
 
 
-def _dm(m: sp.spmatrix) -> Any:
+def casadi_sparsity(m: sp.spmatrix) -> Any:
+    """The CasADi ``Sparsity`` of a SciPy sparse matrix (column-compressed, sorted)."""
     import casadi as ca
 
     c = sp.csc_matrix(m)
     c.sort_indices()
-    sparsity = ca.Sparsity(c.shape[0], c.shape[1], c.indptr.tolist(), c.indices.tolist())
-    return ca.DM(sparsity, c.data.tolist())
+    return ca.Sparsity(c.shape[0], c.shape[1], c.indptr.tolist(), c.indices.tolist())
+
+
+def casadi_dm(m: sp.spmatrix) -> Any:
+    """A SciPy sparse matrix as a sparse CasADi ``DM`` (same nonzeros, same order)."""
+    import casadi as ca
+
+    c = sp.csc_matrix(m)
+    c.sort_indices()
+    return ca.DM(casadi_sparsity(c), c.data)
 
 
 class BlockNLP:
@@ -167,18 +176,18 @@ class BlockNLP:
         self._g = g
         # gradient
         pos = np.concatenate(grad_pos)
-        grad = ca.mtimes(_dm(_assembly(pos, self.n_x)), ca.vertcat(*grad_nz))
+        grad = ca.mtimes(casadi_dm(_assembly(pos, self.n_x)), ca.vertcat(*grad_nz))
         # Jacobian
         jr_all, jc_all = np.concatenate(jac_r), np.concatenate(jac_c)
         jsp_g = ca.Sparsity.triplet(self.n_g, self.n_x, jr_all.tolist(), jc_all.tolist())
         jpos = _nz_positions(jsp_g, jr_all, jc_all)
-        jac_vals = ca.mtimes(_dm(_assembly(jpos, jsp_g.nnz())), ca.vertcat(*jac_nz))
+        jac_vals = ca.mtimes(casadi_dm(_assembly(jpos, jsp_g.nnz())), ca.vertcat(*jac_nz))
         jac_g = ca.MX(jsp_g, jac_vals)
         # Hessian (upper triangle)
         hr_all, hc_all = np.concatenate(hess_r), np.concatenate(hess_c)
         hsp_g = ca.Sparsity.triplet(self.n_x, self.n_x, hr_all.tolist(), hc_all.tolist())
         hpos = _nz_positions(hsp_g, hr_all, hc_all)
-        hess_vals = ca.mtimes(_dm(_assembly(hpos, hsp_g.nnz())), ca.vertcat(*hess_nz))
+        hess_vals = ca.mtimes(casadi_dm(_assembly(hpos, hsp_g.nnz())), ca.vertcat(*hess_nz))
         hess_g = ca.MX(hsp_g, hess_vals)
         self.grad_f = ca.Function("grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"])
         self.jac_g = ca.Function("jac_g", [x, p], [g, jac_g], ["x", "p"], ["g", "jac_g_x"])

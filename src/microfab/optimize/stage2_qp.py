@@ -28,26 +28,11 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from microfab.optimize.blocks import casadi_dm, casadi_sparsity
+
 __all__ = ["Subproblem"]
 
 _OCT = 8
-
-
-def _dm(m: sp.spmatrix) -> Any:
-    import casadi as ca
-
-    c = sp.csc_matrix(m)
-    c.sort_indices()
-    return ca.DM(ca.Sparsity(c.shape[0], c.shape[1], c.indptr.tolist(), c.indices.tolist()),
-                 c.data)  # fmt: skip
-
-
-def _sparsity(m: sp.spmatrix) -> Any:
-    import casadi as ca
-
-    c = sp.csc_matrix(m)
-    c.sort_indices()
-    return ca.Sparsity(c.shape[0], c.shape[1], c.indptr.tolist(), c.indices.tolist())
 
 
 def _out_diffs(m: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -71,7 +56,7 @@ def _ipopt_qp(a: sp.csc_matrix, h_diag: np.ndarray, g: np.ndarray) -> Any:
     x = ca.MX.sym("x", a.shape[1])
     p = ca.MX.sym("p", a.nnz)
     f = 0.5 * ca.dot(ca.DM(h_diag), x * x) + ca.dot(ca.DM(g), x)
-    cons = ca.densify(ca.mtimes(ca.MX(_sparsity(a), p), x))
+    cons = ca.densify(ca.mtimes(ca.MX(casadi_sparsity(a), p), x))
     opts = {
         "print_time": False,
         "ipopt.print_level": 0,
@@ -180,9 +165,9 @@ class Subproblem:
         lo1, hi1, lo2, hi2 = self._cmd_bounds(r0)
         if np.all(lo1 <= 0) and np.all(hi1 >= 0) and np.all(lo2 <= 0) and np.all(hi2 >= 0):
             return r0.copy()
-        solver = ca.conic("project", "highs", {"h": _sparsity(h), "a": _sparsity(a)},
+        solver = ca.conic("project", "highs", {"h": casadi_sparsity(h), "a": casadi_sparsity(a)},
                           {"highs": {"output_flag": False}, "error_on_fail": False})  # fmt: skip
-        sol = solver(h=_dm(h), g=np.zeros(r0.size), a=_dm(a),
+        sol = solver(h=casadi_dm(h), g=np.zeros(r0.size), a=casadi_dm(a),
                      lba=np.concatenate([lo1, lo2]), uba=np.concatenate([hi1, hi2]))  # fmt: skip
         return r0 + np.asarray(sol["x"]).ravel()
 
