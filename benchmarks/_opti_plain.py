@@ -71,11 +71,20 @@ def solve_plain(
             opti.bounded(-problem.v_max, (gamma[:, k + 1] - gamma[:, k]) / dtau[k], problem.v_max)
         )  # 12i
     for k in range(1, n - 1):
-        acc = 2 * ((gamma[:, k + 1] - gamma[:, k]) / dtau[k]
-                   - (gamma[:, k] - gamma[:, k - 1]) / dtau[k - 1]) / (dtau[k - 1] + dtau[k])
+        acc = (
+            2
+            * (
+                (gamma[:, k + 1] - gamma[:, k]) / dtau[k]
+                - (gamma[:, k] - gamma[:, k - 1]) / dtau[k - 1]
+            )
+            / (dtau[k - 1] + dtau[k])
+        )
         opti.subject_to(opti.bounded(-problem.a_max, acc, problem.a_max))  # 12j
-        racc = 2 * ((rho[:, k + 1] - rho[:, k]) / dtau[k]
-                    - (rho[:, k] - rho[:, k - 1]) / dtau[k - 1]) / (dtau[k - 1] + dtau[k])
+        racc = (
+            2
+            * ((rho[:, k + 1] - rho[:, k]) / dtau[k] - (rho[:, k] - rho[:, k - 1]) / dtau[k - 1])
+            / (dtau[k - 1] + dtau[k])
+        )
         cost = cost + smoothing / (n - 2) * ca.sumsqr(racc)  # fmt: skip
     opti.minimize(cost)
     # the seed's start: the path at constant speed
