@@ -40,6 +40,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_slm.py
 	$(BIN)/python benchmarks/bench_identify.py
 	$(BIN)/python benchmarks/bench_ann.py
+	$(BIN)/python benchmarks/bench_optimize.py --plain-cpu 120
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
