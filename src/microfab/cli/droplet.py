@@ -37,20 +37,25 @@ def simulate_cmd(
         float, typer.Option(help="NaAlg concentration, % w/v (0 to 2).")
     ] = 1.0,
     voltage: Annotated[float, typer.Option(help="Bipolar drive amplitude, V.")] = 50.0,
-    duration: Annotated[float, typer.Option(help="Simulated time, µs (at most 5000).")] = 300.0,
+    duration: Annotated[
+        float, typer.Option(help="Simulated time, µs (at most 5000; the sweep's default).")
+    ] = 400.0,
     after_breakup: Annotated[
         float,
         typer.Option(help="How long to follow the bodies after breakup, µs (at most 5000)."),
-    ] = 60.0,
+    ] = 20.0,
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet"),
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Also write the summary to this JSON file.")
     ] = None,
 ) -> None:
-    """Predict breakup time, position, mode, satellites and head speed; write a report."""
-    from microfab.process.inkjet.droplet import simulate_droplet
+    """Predict breakup time, position, mode, satellites and head speed; write a report.
+
+    Runs the same path as a sweep point (`microfab.experiments.seed003_inkjet.sweep.run_point`)
+    with the same defaults, so both give the same answer for the same point.
+    """
+    from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
     from microfab.process.inkjet.fluids import naalg
-    from microfab.trajectory.waveform import seed003_waveform
 
     _check_voltage("--voltage", voltage)
     for name, value in (("--duration", duration), ("--after-breakup", after_breakup)):
@@ -59,16 +64,14 @@ def simulate_cmd(
             fail(f"{name} must be more than 0 µs, got {value:g} µs")
     try:
         fluid = naalg(concentration)
-        waveform = seed003_waveform(voltage)
     except ValueError as exc:
         fail(f"--concentration: {exc}")
+    settings = DropletSettings(duration_s=duration * 1e-6, after_breakup_s=after_breakup * 1e-6)
     with progress() as bar:
         task = bar.add_task(f"{fluid.name}, {voltage:g} V", total=round(duration))
-        res = simulate_droplet(
-            fluid,
-            waveform,
-            duration_s=duration * 1e-6,
-            after_breakup_s=after_breakup * 1e-6,
+        res = run_point(
+            SweepPoint(concentration, voltage),
+            settings,
             progress=lambda t: bar.update(task, completed=round(t * 1e6)),
         )
     summary = res.to_dict()

@@ -100,3 +100,14 @@ def test_a_drop_pinched_at_the_exit_stays_in_the_silhouettes() -> None:
     assert len(after) >= 3
     reach = [max(float(b[0][-1]) for b in s.bodies) for s in after]  # all non-empty
     assert all(b > a for a, b in itertools.pairwise(reach))
+
+
+def test_a_shorter_run_is_the_prefix_of_a_longer_one() -> None:
+    # issue 19: the orifice flow's FFT rounding used to depend on the record length, and a
+    # 300 µs and a 400 µs run of the same point parted after 51 µs
+    short = simulate_droplet(naalg(1.5), duration_s=60e-6, after_breakup_s=20e-6)
+    long = simulate_droplet(naalg(1.5), duration_s=90e-6, after_breakup_s=20e-6)
+    n = short.run.t.size - 1  # the last step of the short run is cut at its end time
+    np.testing.assert_allclose(short.run.t[:n], long.run.t[:n], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(short.run.tip_z[:n], long.run.tip_z[:n], rtol=1e-12, atol=1e-12)
+    assert short.flow.t_s[-1] == pytest.approx(61e-6, abs=1e-7)  # the flow is cut to the run

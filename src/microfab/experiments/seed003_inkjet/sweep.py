@@ -32,11 +32,14 @@ from microfab.experiments.sweep import SweepResult, run_sweep
 if TYPE_CHECKING:
     from distributed import Client
 
+    from microfab.process.inkjet.droplet import DropletResult
+
 __all__ = [
     "SWEEP_MAX_STEPS",
     "DropletSettings",
     "SweepPoint",
     "droplet_sweep",
+    "run_point",
     "simulate_point",
     "sweep_points",
 ]
@@ -121,26 +124,56 @@ def sweep_points(
     return list(dict.fromkeys(out))
 
 
+def run_point(
+    point: SweepPoint,
+    settings: DropletSettings | None = None,
+    *,
+    progress: Callable[[float], None] | None = None,
+) -> DropletResult:
+    """Simulate one point with the seed's bipolar waveform (Table 1).
+
+    The one path from a (concentration, voltage) point to a droplet: the sweep, the job and
+    ``microfab droplet simulate`` all run it, so one point gives one answer whichever
+    command runs it (and a shorter run is the prefix of a longer one,
+    `microfab.process.inkjet.droplet.FLOW_RECORD_S`).
+
+    Parameters
+    ----------
+    point : SweepPoint
+        Concentration (% w/v) and drive amplitude (V).
+    settings : DropletSettings, optional
+        Simulated time, time after the first breakup, step budget (defaults: the sweep's).
+    progress : callable, optional
+        Called with the simulated time in s.
+
+    Returns
+    -------
+    microfab.process.inkjet.droplet.DropletResult
+    """
+    from microfab.process.inkjet.droplet import DOD_NUMERICS, simulate_droplet
+    from microfab.process.inkjet.fluids import naalg
+    from microfab.trajectory.waveform import seed003_waveform
+
+    settings = settings or DropletSettings()
+    return simulate_droplet(
+        naalg(point.concentration_pct),
+        seed003_waveform(point.voltage_v),
+        duration_s=settings.duration_s,
+        after_breakup_s=settings.after_breakup_s,
+        numerics=dataclasses.replace(DOD_NUMERICS, max_steps=settings.max_steps),
+        progress=progress,
+    )
+
+
 def simulate_point(point: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
-    """Simulate one point with the seed's bipolar waveform (Table 1); the summary row.
+    """Simulate one point (:func:`run_point`); the summary row.
 
     Returns
     -------
     dict
         :meth:`microfab.process.inkjet.droplet.DropletResult.to_dict`.
     """
-    from microfab.process.inkjet.droplet import DOD_NUMERICS, simulate_droplet
-    from microfab.process.inkjet.fluids import naalg
-    from microfab.trajectory.waveform import seed003_waveform
-
-    res = simulate_droplet(
-        naalg(point.concentration_pct),
-        seed003_waveform(point.voltage_v),
-        duration_s=settings.duration_s,
-        after_breakup_s=settings.after_breakup_s,
-        numerics=dataclasses.replace(DOD_NUMERICS, max_steps=settings.max_steps),
-    )
-    return res.to_dict()
+    return run_point(point, settings).to_dict()
 
 
 def droplet_sweep(
