@@ -71,6 +71,8 @@ from microfab.core.validate import (
     check_positive,
 )
 from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
+from microfab.process.inkjet.head_tail import HeadTail, Thinning, head_and_tail, thinning_rate
+from microfab.process.inkjet.silhouette import Silhouette
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -321,6 +323,14 @@ class DropletAnalysis:
         Ligament length in the breakup frame, m.
     frame_names : tuple of str
         Source of each frame (file names), if known.
+    silhouettes : tuple of Silhouette
+        The measured bodies of each frame (row radii), for the head-and-tail measures.
+    head_tail : HeadTail or None
+        Head and tail (:func:`microfab.process.inkjet.head_tail.head_and_tail`) in the last
+        frame before the breakup frame: head radius, tail length at pinch-off.
+    thinning : Thinning or None
+        Ligament thinning over the 40 µs before the breakup frame
+        (:func:`microfab.process.inkjet.head_tail.thinning_rate`).
     """
 
     times_s: np.ndarray
@@ -346,6 +356,9 @@ class DropletAnalysis:
     drop_volume_m3: float | None
     ligament_length_m: float | None
     frame_names: tuple[str, ...] = field(default=())
+    silhouettes: tuple[Silhouette, ...] = field(default=(), repr=False)
+    head_tail: HeadTail | None = None
+    thinning: Thinning | None = None
 
     @property
     def n_frames(self) -> int:
@@ -399,6 +412,11 @@ class DropletAnalysis:
             "drop_volume_m3": _opt(self.drop_volume_m3),
             "drop_diameter_m": _opt(self.drop_diameter_m),
             "ligament_length_m": _opt(self.ligament_length_m),
+            "head_tail": None if self.head_tail is None else self.head_tail.to_dict(),
+            "ligament_thinning_m_s": None if self.thinning is None else self.thinning.speed_m_s,
+            "ligament_thinning_rate_per_s": (
+                None if self.thinning is None else self.thinning.rate_per_s
+            ),
             "frames": {
                 "name": list(self.frame_names),
                 "time_s": _list(self.times_s),
@@ -539,6 +557,8 @@ class _Body:
     centroid_z_m: float
     tip_z_m: float
     tail_z_m: float
+    z_m: np.ndarray  # row centres, m from the exit plane
+    r_m: np.ndarray  # half the edge-to-edge width of each row, m
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -626,6 +646,8 @@ def _measure_frame(
                 centroid_z_m=centroid,
                 tip_z_m=float(z_of(tip)),
                 tail_z_m=float(z_of(tail)),
+                z_m=np.asarray(z_rows, dtype=float),
+                r_m=radius_px * px,
             )
         )
     bodies.sort(key=lambda b: (b.top, b.bottom))
@@ -817,6 +839,10 @@ def analyze(
             volume = fr.leading.volume_m3
             break
 
+    sils = _silhouettes(measured, times, px)
+    before = kb - 1 if kb is not None and kb > 0 else None
+    ht = head_and_tail(sils[before]) if before is not None else None
+    thin = thinning_rate(sils, float(times[kb])) if kb is not None else None
     return DropletAnalysis(
         times_s=times,
         head_z_m=head,
@@ -841,7 +867,37 @@ def analyze(
         drop_volume_m3=volume,
         ligament_length_m=lig_b,
         frame_names=names,
+        silhouettes=tuple(sils),
+        head_tail=ht,
+        thinning=thin,
     )
+
+
+def _silhouettes(measured: Sequence[_Frame], times: np.ndarray, px: float) -> list[Silhouette]:
+    """The measured bodies of each frame as silhouettes (rows with free tips closed).
+
+    A body joined to the nozzle starts at the exit plane (``z = 0``) with the radius of its
+    first row; free ends get radius 0 at their sub-pixel tip. The silhouettes' nozzle
+    radius is the largest first-row radius of an attached body in the sequence (an
+    estimate: the orifice is hidden in the glass tip), or one pixel without one.
+    """
+    firsts = [b.r_m[0] for fr in measured for b in fr.bodies if b.attached and b.r_m.size]
+    nozzle_r = max([float(v) for v in firsts if v > 0.0], default=px)
+    out = []
+    for t, fr in zip(times, measured, strict=True):
+        bodies = []
+        for b in fr.bodies:
+            z, r = list(b.z_m), list(b.r_m)
+            if b.attached:
+                z, r = [0.0, *z], [r[0], *r]
+            elif b.tail_z_m < z[0]:
+                z, r = [b.tail_z_m, *z], [0.0, *r]
+            if b.tip_z_m > z[-1]:
+                z, r = [*z, b.tip_z_m], [*r, 0.0]
+            if len(z) >= 2:
+                bodies.append((np.asarray(z), np.asarray(r)))
+        out.append(Silhouette(time_s=float(t), bodies=tuple(bodies), nozzle_radius_m=nozzle_r))
+    return out
 
 
 def _read_sidecar(folder: Path) -> dict[str, Any]:

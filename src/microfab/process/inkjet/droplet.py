@@ -28,6 +28,7 @@ from microfab.process.inkjet.breakup import BreakupMode
 from microfab.process.inkjet.dimensionless import Dimensionless, numbers
 from microfab.process.inkjet.dispenser import default_printhead
 from microfab.process.inkjet.fluids import Fluid
+from microfab.process.inkjet.head_tail import HeadTail, Thinning, head_and_tail, thinning_rate
 from microfab.process.inkjet.jet import Body, JetModel, JetRun, Numerics, run_jet
 from microfab.process.inkjet.silhouette import Silhouette
 from microfab.trajectory.waveform import Waveform, seed003_waveform
@@ -145,6 +146,11 @@ class DropletResult:
         The dimensionless solver output (history, events, statistics).
     numbers : Dimensionless
         Oh, We, Re, De, Ec, Z at the head speed (or the peak orifice speed if none).
+    head_tail : HeadTail or None
+        Head and tail in the last stored silhouette before the first breakup (the frame a
+        camera would show last before it; :mod:`.head_tail`); None without breakup.
+    thinning : Thinning or None
+        Ligament thinning over the 40 µs of silhouettes before the first breakup.
     """
 
     fluid: Fluid
@@ -163,6 +169,8 @@ class DropletResult:
     scales: Scales
     run: JetRun = field(repr=False)
     numbers: Dimensionless
+    head_tail: HeadTail | None = None
+    thinning: Thinning | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary; keys carry their units."""
@@ -175,6 +183,15 @@ class DropletResult:
             "drop_volume_m3": self.drop_volume_m3,
             "drop_diameter_m": (6.0 * self.drop_volume_m3 / math.pi) ** (1.0 / 3.0),
             "jet_length_at_breakup_m": self.jet_length_m,
+            "head_radius_m": None if self.head_tail is None else self.head_tail.head_radius_m,
+            "tail_length_at_breakup_m": (
+                None if self.head_tail is None else self.head_tail.tail_length_m
+            ),
+            "distinct_head": None if self.head_tail is None else self.head_tail.distinct_head,
+            "ligament_thinning_m_s": None if self.thinning is None else self.thinning.speed_m_s,
+            "ligament_thinning_rate_per_s": (
+                None if self.thinning is None else self.thinning.rate_per_s
+            ),
             "outcome": self.outcome,
             "fluid": self.fluid.name,
             "concentration_pct": self.fluid.concentration_pct,
@@ -384,6 +401,12 @@ def _summarise(
         satellites = sum(1 for b in bodies if b is not lead and b.left == "tip" and b.volume > tiny)
     speed_for_numbers = head_speed if head_speed > 0 else flow.peak_velocity_m_s
     silhouettes = tuple(_silhouette(t, b, sc) for t, b in run.snapshots)
+    head_tail = thinning = None
+    if first is not None:
+        t_b = first.t * sc.time_s
+        before = [s for s in silhouettes if s.time_s < t_b and s.bodies]
+        head_tail = head_and_tail(before[-1]) if before else None
+        thinning = thinning_rate(silhouettes, t_b)
     return DropletResult(
         fluid=fluid,
         waveform=waveform,
@@ -403,4 +426,6 @@ def _summarise(
         numbers=numbers(
             fluid, nozzle_radius_m=printhead.nozzle_radius_m, speed_m_s=speed_for_numbers
         ),
+        head_tail=head_tail,
+        thinning=thinning,
     )
