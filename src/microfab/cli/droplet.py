@@ -48,6 +48,7 @@ def simulate_cmd(
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Also write the summary to this JSON file.")
     ] = None,
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
 ) -> None:
     """Predict breakup time, position, mode, satellites and head speed; write a report.
 
@@ -66,7 +67,9 @@ def simulate_cmd(
         fluid = naalg(concentration)
     except ValueError as exc:
         fail(f"--concentration: {exc}")
-    settings = DropletSettings(duration_s=duration * 1e-6, after_breakup_s=after_breakup * 1e-6)
+    settings = DropletSettings(
+        duration_s=duration * 1e-6, after_breakup_s=after_breakup * 1e-6, model=_model(model)
+    )
     with progress() as bar:
         task = bar.add_task(f"{fluid.name}, {voltage:g} V", total=round(duration))
         res = run_point(
@@ -80,6 +83,21 @@ def simulate_cmd(
     if json_out is not None:
         _json(summary, json_out)
     console.print_json(json.dumps(summary, default=float))
+
+
+_MODEL_HELP = (
+    "Jet model: 'lagrangian' (moving nodes, bodies split at each pinch) or 'eulerian' "
+    "(fixed grid, TVD, a thin film through pinch-offs)."
+)
+
+
+def _model(name: str) -> str:
+    """Refuse an unknown jet model on one line."""
+    from microfab.process.inkjet.droplet import JET_MODELS
+
+    if name not in JET_MODELS:
+        fail(f"--model must be one of {', '.join(JET_MODELS)}, got {name!r}")
+    return name
 
 
 def _check_voltage(name: str, volts: float) -> None:
@@ -264,6 +282,7 @@ def sweep_cmd(
         str | None,
         typer.Option(help="Run on this Dask scheduler (tcp://host:8786) instead."),
     ] = None,
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
 ) -> None:
     """Breakup time against concentration (the seed's Fig. 4) and the 40-70 V trend.
 
@@ -294,7 +313,7 @@ def sweep_cmd(
             task = bar.add_task("droplet sweep", total=len(points))
             res = droplet_sweep(
                 points,
-                settings=DropletSettings(duration_s=duration / 1e6),
+                settings=DropletSettings(duration_s=duration / 1e6, model=_model(model)),
                 results_dir=out / "sweep",
                 progress=lambda n, total, p, ok: bar.update(
                     task,
@@ -366,3 +385,58 @@ def calibrate_cmd(
         except (OSError, ValueError) as exc:
             fail(str(exc))
         console.print(f"wrote {write}")
+
+
+@droplet_app.command("sensitivity")
+def sensitivity_cmd(
+    concentrations: Annotated[
+        str, typer.Option(help="NaAlg concentrations at 50 V, % w/v, comma-separated.")
+    ] = "0.15,1,2",
+    out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet-sensitivity"),
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
+    jobs: Annotated[
+        int, typer.Option("--jobs", min=1, max=256, help="Local Dask worker processes.")
+    ] = 1,
+) -> None:
+    """Breakup time when each assumed fluid value is changed, one at a time.
+
+    The NaAlg values of data/naalg.toml are assumed or calibrated (no published
+    measurement of this alginate was found); this shows which of them the breakup times
+    hang on. Points are kept in OUT/points/ as they finish; a rerun resumes.
+    """
+    from microfab.experiments.seed003_inkjet.sensitivity import (
+        markdown,
+        sensitivity_points,
+        sensitivity_study,
+        sensitivity_table,
+    )
+    from microfab.experiments.seed003_inkjet.sweep import DropletSettings
+    from microfab.process.inkjet.fluids import naalg
+
+    cs = _floats(concentrations, "concentrations")
+    settings = DropletSettings(model=_model(model))
+    try:
+        for c in cs:
+            naalg(c)
+        points = sensitivity_points(cs)
+        with progress() as bar:
+            task = bar.add_task("sensitivity", total=len(points))
+            res = sensitivity_study(
+                points,
+                settings=settings,
+                results_dir=out / "points",
+                progress=lambda n, total, p, ok: bar.update(
+                    task,
+                    completed=n,
+                    description=f"{p.concentration_pct:g} % {p.prop} ×{p.factor:g}",
+                ),
+                workers=jobs,
+            )
+    except (OSError, ValueError) as exc:
+        fail(str(exc))
+    table = sensitivity_table(list(res.rows))
+    atomic_write_text(out / "sensitivity.json", json.dumps({"model": model, "rows": table},
+                                                           indent=2) + "\n")  # fmt: skip
+    atomic_write_text(out / "sensitivity.md", markdown(table))
+    console.print(markdown(table))
+    console.print(f"wrote {out / 'sensitivity.json'} and {out / 'sensitivity.md'}")

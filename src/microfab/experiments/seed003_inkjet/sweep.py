@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from distributed import Client
 
     from microfab.process.inkjet.droplet import DropletResult
+    from microfab.process.inkjet.fluids import Fluid
 
 __all__ = [
     "SWEEP_MAX_STEPS",
@@ -72,13 +73,20 @@ class DropletSettings:
         How long the bodies are followed after the first breakup, s.
     max_steps : int
         Solver step budget per point (`SWEEP_MAX_STEPS`).
+    model : {"lagrangian", "eulerian"}
+        The jet model (:func:`microfab.process.inkjet.droplet.simulate_droplet`).
     """
 
     duration_s: float = 400e-6
     after_breakup_s: float = 20e-6
     max_steps: int = SWEEP_MAX_STEPS
+    model: str = "lagrangian"
 
     def __post_init__(self) -> None:
+        from microfab.process.inkjet.droplet import JET_MODELS
+
+        if self.model not in JET_MODELS:
+            raise ValueError(f"model must be one of {JET_MODELS}, got {self.model!r}")
         check_positive("duration_s", self.duration_s, "s")
         check_positive("after_breakup_s", self.after_breakup_s, "s")
         if isinstance(self.max_steps, bool) or self.max_steps < 1:
@@ -128,6 +136,7 @@ def run_point(
     point: SweepPoint,
     settings: DropletSettings | None = None,
     *,
+    fluid: Fluid | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> DropletResult:
     """Simulate one point with the seed's bipolar waveform (Table 1).
@@ -143,6 +152,8 @@ def run_point(
         Concentration (% w/v) and drive amplitude (V).
     settings : DropletSettings, optional
         Simulated time, time after the first breakup, step budget (defaults: the sweep's).
+    fluid : Fluid, optional
+        The ink, if not the table's NaAlg at the point's concentration (a sensitivity run).
     progress : callable, optional
         Called with the simulated time in s.
 
@@ -150,19 +161,28 @@ def run_point(
     -------
     microfab.process.inkjet.droplet.DropletResult
     """
-    from microfab.process.inkjet.droplet import DOD_NUMERICS, simulate_droplet
+    from microfab.process.inkjet.droplet import simulate_droplet
     from microfab.process.inkjet.fluids import naalg
     from microfab.trajectory.waveform import seed003_waveform
 
     settings = settings or DropletSettings()
     return simulate_droplet(
-        naalg(point.concentration_pct),
+        fluid if fluid is not None else naalg(point.concentration_pct),
         seed003_waveform(point.voltage_v),
         duration_s=settings.duration_s,
         after_breakup_s=settings.after_breakup_s,
-        numerics=dataclasses.replace(DOD_NUMERICS, max_steps=settings.max_steps),
+        numerics=_numerics(settings),
+        model=settings.model,  # type: ignore[arg-type]
         progress=progress,
     )
+
+
+def _numerics(settings: DropletSettings) -> Any:
+    """The chosen model's drop-on-demand settings with the sweep's step budget."""
+    from microfab.process.inkjet.droplet import DOD_NUMERICS, EULER_DOD_NUMERICS
+
+    base = DOD_NUMERICS if settings.model == "lagrangian" else EULER_DOD_NUMERICS()
+    return dataclasses.replace(base, max_steps=settings.max_steps)
 
 
 def simulate_point(point: SweepPoint, settings: DropletSettings) -> dict[str, Any]:

@@ -18,7 +18,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -33,11 +33,17 @@ from microfab.process.inkjet.jet import Body, JetModel, JetRun, Numerics, run_je
 from microfab.process.inkjet.silhouette import Silhouette
 from microfab.trajectory.waveform import Waveform, seed003_waveform
 
+if TYPE_CHECKING:
+    from microfab.process.inkjet.jet_euler import EulerNumerics
+
 __all__ = [
     "BREAKUP_RADIUS_M",
     "DOD_NUMERICS",
+    "EULER_DOD_NUMERICS",
     "FLOW_RECORD_S",
+    "JET_MODELS",
     "DropletResult",
+    "JetModelKind",
     "Scales",
     "jet_inflow",
     "simulate_droplet",
@@ -62,6 +68,17 @@ DOD_NUMERICS = Numerics(resolution=0.8, rtol=1e-3, max_nodes=4000)
 #: run of 1.5 % NaAlg parted after 51 µs. With one record, a run is the prefix of any
 #: longer run of the same point (tested).
 FLOW_RECORD_S = 5.001e-3
+
+#: The two jet models of :func:`simulate_droplet`.
+JetModelKind = Literal["lagrangian", "eulerian"]
+JET_MODELS: tuple[JetModelKind, ...] = ("lagrangian", "eulerian")
+
+
+def EULER_DOD_NUMERICS() -> EulerNumerics:  # noqa: N802 (a constant, built on first use)
+    """Settings of the Eulerian model for drop-on-demand runs (its documented defaults)."""
+    from microfab.process.inkjet.jet_euler import EulerNumerics
+
+    return EulerNumerics()
 
 
 @dataclass(frozen=True)
@@ -151,6 +168,8 @@ class DropletResult:
         camera would show last before it; :mod:`.head_tail`); None without breakup.
     thinning : Thinning or None
         Ligament thinning over the 40 µs of silhouettes before the first breakup.
+    model : {"lagrangian", "eulerian"}
+        The jet model that ran.
     """
 
     fluid: Fluid
@@ -171,10 +190,12 @@ class DropletResult:
     numbers: Dimensionless
     head_tail: HeadTail | None = None
     thinning: Thinning | None = None
+    model: JetModelKind = "lagrangian"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary; keys carry their units."""
         return {
+            "jet_model": self.model,
             "breakup_time_s": self.breakup_time_s,
             "breakup_mode": self.breakup_mode,
             "breakup_z_m": self.breakup_z_m,
@@ -219,7 +240,8 @@ def simulate_droplet(
     after_breakup_s: float = 60e-6,
     frame_interval_s: float = 10e-6,
     breakup_radius_m: float = BREAKUP_RADIUS_M,
-    numerics: Numerics | None = None,
+    numerics: Numerics | EulerNumerics | None = None,
+    model: JetModelKind = "lagrangian",
     progress: Callable[[float], None] | None = None,
 ) -> DropletResult:
     """Simulate one drop-on-demand ejection.
@@ -240,8 +262,13 @@ def simulate_droplet(
         Spacing of the stored silhouettes.
     breakup_radius_m : float, optional
         Neck radius that counts as broken.
-    numerics : Numerics, optional
-        Solver settings (``h_break`` is set from ``breakup_radius_m``).
+    numerics : Numerics or EulerNumerics, optional
+        Solver settings of the chosen model (``h_break`` is set from ``breakup_radius_m``);
+        default `DOD_NUMERICS` or `EULER_DOD_NUMERICS`.
+    model : {"lagrangian", "eulerian"}, optional
+        The jet model: the Lagrangian slender-jet solver (:mod:`.jet`, moving nodes,
+        adaptive regridding, bodies split at each pinch) or the regularised Eulerian one
+        (:mod:`.jet_euler`, fixed grid, TVD mass flux, a thin film through pinch-offs).
     progress : callable, optional
         Called with the simulated time in s as the run advances.
 
@@ -292,21 +319,31 @@ def simulate_droplet(
     )
     flow_jet = jet_inflow(flow)
     sc = Scales.of(fluid, radius)
-    base = numerics or DOD_NUMERICS
-    nu = dataclasses.replace(base, h_break=breakup_radius_m / radius)
     frames = np.arange(0.0, duration_s + 0.5 * frame_interval_s, frame_interval_s)
-    run = run_jet(
-        [],
-        sc.model(fluid),
-        nu,
-        t_end=duration_s / sc.time_s,
-        inflow=_ScaledInflow(flow_jet, sc),
-        on_pinch="split",
-        snapshot_times=frames / sc.time_s,
-        after_first_pinch=after_breakup_s / sc.time_s,
-        progress=None if progress is None else (lambda t: progress(t * sc.time_s)),
-    )
-    return _summarise(fluid, waveform, printhead, flow, sc, run)
+    common: dict[str, Any] = {
+        "t_end": duration_s / sc.time_s,
+        "inflow": _ScaledInflow(flow_jet, sc),
+        "on_pinch": "split",
+        "snapshot_times": frames / sc.time_s,
+        "after_first_pinch": after_breakup_s / sc.time_s,
+        "progress": None if progress is None else (lambda t: progress(t * sc.time_s)),
+    }
+    if model == "lagrangian":
+        if numerics is not None and not isinstance(numerics, Numerics):
+            raise TypeError("the Lagrangian model takes jet.Numerics settings")
+        nu = dataclasses.replace(numerics or DOD_NUMERICS, h_break=breakup_radius_m / radius)
+        run = run_jet([], sc.model(fluid), nu, **common)
+    elif model == "eulerian":
+        from microfab.process.inkjet.jet_euler import EulerNumerics, run_jet_euler
+
+        if numerics is not None and not isinstance(numerics, EulerNumerics):
+            raise TypeError("the Eulerian model takes jet_euler.EulerNumerics settings")
+        base = numerics or EULER_DOD_NUMERICS()
+        nu_e = dataclasses.replace(base, h_break=breakup_radius_m / radius)
+        run = run_jet_euler(sc.model(fluid), nu_e, **common)
+    else:
+        raise ValueError(f"model must be 'lagrangian' or 'eulerian', got {model!r}")
+    return _summarise(fluid, waveform, printhead, flow, sc, run, model)
 
 
 def jet_inflow(flow: NozzleFlow) -> NozzleFlow:
@@ -366,6 +403,7 @@ def _summarise(
     flow: NozzleFlow,
     sc: Scales,
     run: JetRun,
+    model: JetModelKind = "lagrangian",
 ) -> DropletResult:
     t_s = run.t * sc.time_s
     tip_z = run.tip_z * sc.length_m
@@ -428,4 +466,5 @@ def _summarise(
         ),
         head_tail=head_tail,
         thinning=thinning,
+        model=model,
     )
