@@ -128,10 +128,48 @@ def test_a_failed_point_is_reported_and_the_rest_kept(
 def test_config_refuses_an_empty_sweep() -> None:
     with pytest.raises(ValueError, match="no points"):
         DropletSweepConfig(concentrations_pct=(), voltages_v=())
+    with pytest.raises(ValueError, match="models must name one or more of lagrangian"):
+        DropletSweepConfig(models=("lagrangian", "smooth"))
+
+
+def test_two_models_are_run_saved_apart_and_compared(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    seen: list[str] = []
+
+    def fake(p: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
+        seen.append(settings.model)
+        t = 1e-4 if settings.model == "lagrangian" else 2e-4
+        row = _row(p.concentration_pct, p.voltage_v, t, "front")
+        return {**row, "tail_length_at_breakup_m": 5e-5}
+
+    real = droplet_job.droplet_sweep
+
+    def sweep(*args: Any, **kwargs: Any) -> SweepResult[SweepPoint]:
+        return real(*args, simulate=fake, **kwargs)
+
+    monkeypatch.setattr(droplet_job, "droplet_sweep", sweep)
+    job = load_job(
+        _write(
+            tmp_path,
+            'concentrations_pct = [0.15]\nvoltages_v = []\nmodels = "lagrangian, eulerian"',
+        )
+    )
+    out = tmp_path / "out"
+    result = job.kind.run(job.config, out, lambda *a: None)
+    assert seen == ["lagrangian", "eulerian"]
+    assert [r["jet_model"] for r in result.rows] == ["lagrangian", "eulerian"]
+    assert (out / "sweep-lagrangian").is_dir() and (out / "sweep-eulerian").is_dir()
+    tables = result.comparison()
+    assert tables[0].title.startswith("Jet models side by side")
+    assert tables[0].rows[0] == ("0.15", "100 µs front", "50", "200 µs front", "50", "95 µs front")
+    report = job.kind.write_report(result, out, "t").read_text()
+    assert "eulerian model: 0.15 %: front at 200 µs" in report
+    assert (out / "breakup_time_eulerian.png").stat().st_size > 0
 
 
 def test_fig4_reproduction_options() -> None:
     rep = REPRODUCTIONS["droplet-fig4"]
-    assert rep.parse_options({}) == {"duration_us": 400.0, "workers": 1}
+    assert rep.parse_options({}) == {"duration_us": 400.0, "models": "lagrangian", "workers": 1}
     with pytest.raises(JobFileError, match="workers"):
         rep.parse_options({"workers": 0})

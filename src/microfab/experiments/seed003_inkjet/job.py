@@ -12,19 +12,21 @@ Job file (``examples/droplet_sweep.toml``)::
     voltage_concentration_pct = 1.0                       # of the voltage series
     duration_us = 400.0
     after_breakup_us = 20.0
+    models = "lagrangian,eulerian"                        # jet models to run and compare
 
     [run]
     workers = 1                  # local worker processes (Dask) side by side
     # scheduler = "tcp://host:8786"   # or a running Dask scheduler
 
-Every finished point is saved under ``OUT/sweep/`` as it comes back; running the same
-job again skips them. The report puts the seed's two quoted breakups (0.15 % and 1 % at
+Every finished point is saved under ``OUT/sweep-<model>/`` as it comes back; running the
+same job again skips them. The report puts the seed's two quoted breakups (0.15 % and 1 % at
 50 V, "Typical droplet formation process") and its Fig. 4 trend (breakup time rises
 with concentration) beside ours.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
@@ -94,6 +96,12 @@ _AFTER = Key(
     unit="µs",
     help="how long the bodies are followed after the first breakup",
 )
+_MODELS = Key(
+    name="models",
+    type="str",
+    default="lagrangian",
+    help="jet models, comma-separated: lagrangian, eulerian (each runs every point)",
+)
 _WORKERS = Key(
     name="workers",
     type="int",
@@ -127,6 +135,7 @@ SCHEMA = {
         ),
         _DURATION,
         _AFTER,
+        _MODELS,
     ),
     "run": (
         _WORKERS,
@@ -153,7 +162,11 @@ class DropletSweepConfig:
     voltage_concentration_pct : float
         Concentration of the voltage series, % w/v.
     settings : DropletSettings
-        Simulated time, time after breakup, step budget (shared by every point).
+        Simulated time, time after breakup, step budget (shared by every point); its
+        ``model`` is replaced by each of ``models`` in turn.
+    models : tuple of str
+        Jet models to run (`microfab.process.inkjet.droplet.JET_MODELS`), each on every
+        point.
     workers : int
         Local worker processes; 1 runs in this process.
     scheduler : str or None
@@ -164,12 +177,21 @@ class DropletSweepConfig:
     voltages_v: tuple[float, ...] = SEED_VOLTAGES_V
     voltage_concentration_pct: float = 1.0
     settings: DropletSettings = field(default_factory=DropletSettings)
+    models: tuple[str, ...] = ("lagrangian",)
     workers: int = 1
     scheduler: str | None = None
 
     def __post_init__(self) -> None:
+        from microfab.process.inkjet.droplet import JET_MODELS
+
         if not self.concentrations_pct and not self.voltages_v:
             raise ValueError("the sweep has no points: give concentrations_pct or voltages_v")
+        bad = [m for m in self.models if m not in JET_MODELS]
+        if bad or not self.models:
+            raise ValueError(
+                f"[sweep] models must name one or more of {', '.join(JET_MODELS)}, "
+                f"got {', '.join(self.models) or 'none'}"
+            )
 
     @property
     def points(self) -> list[SweepPoint]:
@@ -192,9 +214,15 @@ def _make_config(sec: dict[str, dict[str, Any]]) -> DropletSweepConfig:
             after_breakup_s=sweep["after_breakup_us"] / 1e6,
             max_steps=SWEEP_MAX_STEPS,
         ),
+        models=parse_models(sweep["models"]),
         workers=run["workers"],
         scheduler=run["scheduler"],
     )
+
+
+def parse_models(text: str) -> tuple[str, ...]:
+    """``"lagrangian, eulerian"`` -> ``("lagrangian", "eulerian")`` (duplicates dropped)."""
+    return tuple(dict.fromkeys(m.strip() for m in text.split(",") if m.strip()))
 
 
 def _us(seconds: float | None) -> float | None:
@@ -217,21 +245,67 @@ def _trend(at50: Sequence[dict[str, Any]]) -> str:
     return "yes" if not falls else "no: falls from " + ", ".join(falls)
 
 
+def _model_of(row: dict[str, Any]) -> str:
+    return str(row.get("jet_model", "lagrangian"))
+
+
 def breakup_tables(rows: Sequence[dict[str, Any]]) -> tuple[Table, ...]:
     """Our breakups beside the seed's: the 50 V series, its trend, the voltage series.
+
+    With rows of more than one jet model, the tables come once per model (titled with
+    it) after a table that puts the models' 50 V breakups side by side.
 
     Parameters
     ----------
     rows : sequence of dict
         Sweep rows (`droplet_sweep`): ``concentration_pct``, ``voltage_v``,
         ``breakup_time_s``, ``breakup_mode``, ``breakup_z_m``, ``head_speed_m_s``,
-        ``satellites``, ``drop_diameter_m``.
+        ``satellites``, ``drop_diameter_m`` and ``jet_model`` (default "lagrangian").
 
     Returns
     -------
     tuple of Table
-        Two or three tables (the voltage series only when the rows hold one).
+        Two or three tables per model (the voltage series only when the rows hold one).
     """
+    models = list(dict.fromkeys(_model_of(r) for r in rows))
+    if len(models) <= 1:
+        return _tables_of_one_model(rows, "")
+    out: list[Table] = [_model_comparison(rows, models)]
+    for m in models:
+        out += _tables_of_one_model([r for r in rows if _model_of(r) == m], f" ({m} model)")
+    return tuple(out)
+
+
+def _model_comparison(rows: Sequence[dict[str, Any]], models: Sequence[str]) -> Table:
+    at50 = [r for r in rows if r["voltage_v"] == FIG4_VOLTAGE_V]
+    cs = sorted({r["concentration_pct"] for r in at50})
+    table_rows = []
+    for c in cs:
+        cells = []
+        for m in models:
+            r = next((r for r in at50 if r["concentration_pct"] == c and _model_of(r) == m), None)
+            t = None if r is None else _us(r["breakup_time_s"])
+            tail = None if r is None else r.get("tail_length_at_breakup_m")
+            cells.append(
+                DASH if t is None else f"{t:.0f} µs {r['breakup_mode']}"  # type: ignore[index]
+            )
+            cells.append(DASH if tail is None else f"{tail * 1e6:.0f}")
+        seed_t, seed_mode = SEED_BREAKUP.get(c, (None, None))
+        seed = DASH if seed_t is None else f"{seed_t * 1e6:.0f} µs {seed_mode}"
+        table_rows.append((f"{c:g}", *cells, seed))
+    columns = ["NaAlg [% w/v]"]
+    for m in models:
+        columns += [f"{m}: first breakup", f"{m}: tail [µm]"]
+    return Table(
+        title=f"Jet models side by side at {FIG4_VOLTAGE_V:g} V, and the seed",
+        columns=(*columns, "seed 003"),
+        rows=table_rows,
+        note="tail: length of the ligament behind the head in the last 10 µs frame before "
+        "the first breakup (microfab.process.inkjet.head_tail); a plug has none.",
+    )
+
+
+def _tables_of_one_model(rows: Sequence[dict[str, Any]], label: str) -> tuple[Table, ...]:
 
     def cells(r: dict[str, Any]) -> tuple[str, ...]:
         z = r.get("breakup_z_m")
@@ -260,7 +334,7 @@ def breakup_tables(rows: Sequence[dict[str, Any]]) -> tuple[Table, ...]:
     tail = ("z [µm]", "head speed [m/s]", "satellites", "drop Ø [µm]")
     tables = [
         Table(
-            title=f"First breakup at {FIG4_VOLTAGE_V:g} V, ours / seed 003 part 1",
+            title=f"First breakup at {FIG4_VOLTAGE_V:g} V, ours / seed 003 part 1{label}",
             columns=("NaAlg [% w/v]", "time [µs]", "mode", *tail),
             rows=series,
             note="The seed quotes two breakups (0.15 % at 95 µs by front-pinching, 1 % at "
@@ -269,7 +343,7 @@ def breakup_tables(rows: Sequence[dict[str, Any]]) -> tuple[Table, ...]:
             "nozzle exit; a dash: no breakup within the simulated time.",
         ),
         Table(
-            title="Seed Fig. 4 trend: breakup time rises with concentration (50 V)",
+            title=f"Seed Fig. 4 trend: breakup time rises with concentration (50 V){label}",
             columns=("claim", "ours", "seed"),
             rows=[("breakup time rises with concentration", _trend(at50), "yes")],
         ),
@@ -282,7 +356,7 @@ def breakup_tables(rows: Sequence[dict[str, Any]]) -> tuple[Table, ...]:
         vrows = sorted(longest, key=lambda r: r["voltage_v"])
         tables.append(
             Table(
-                title=f"Voltage series at {vrows[0]['concentration_pct']:g} % NaAlg (ours)",
+                title=f"Voltage series at {vrows[0]['concentration_pct']:g} % NaAlg (ours){label}",
                 columns=("voltage [V]", "time [µs]", "mode", *tail),
                 rows=[
                     (
@@ -328,13 +402,15 @@ class DropletSweepResult:
 
     def summary(self) -> dict[str, Any]:
         """Breakups by point, the seed's beside them, the trend, the failures."""
-        at50 = [r for r in self.rows if r["voltage_v"] == FIG4_VOLTAGE_V]
+        models = self.config.models
         return {
             "settings": self.config.settings.to_dict(),
+            "models": list(models),
             "points": [
                 {
                     k: r.get(k)
                     for k in (
+                        "jet_model",
                         "concentration_pct",
                         "voltage_v",
                         "breakup_time_s",
@@ -343,12 +419,21 @@ class DropletSweepResult:
                         "head_speed_m_s",
                         "satellites",
                         "drop_diameter_m",
+                        "head_radius_m",
+                        "tail_length_at_breakup_m",
+                        "distinct_head",
+                        "ligament_thinning_m_s",
                         "solver_stop_reason",
                     )
                 }
                 for r in self.rows
             ],
-            "trend_rises_with_concentration": _trend(at50),
+            "trend_rises_with_concentration": {
+                m: _trend(
+                    [r for r in self.rows if _model_of(r) == m and r["voltage_v"] == FIG4_VOLTAGE_V]
+                )
+                for m in models
+            },
             "failed": list(self.failed),
             "seed": {
                 "breakup_at_50V": {
@@ -359,47 +444,73 @@ class DropletSweepResult:
         }
 
 
-def _sweep(config: DropletSweepConfig, out: Path | None, label: str, progress: Progress) -> Any:
+def _sweep(
+    config: DropletSweepConfig, out: Path | None, label: str, progress: Progress
+) -> tuple[list[dict[str, Any]], list[str]]:
+    """Every point with every model: rows (``jet_model`` set) and failures, in order."""
     points = config.points
-    progress(label, 0, len(points))
-    return droplet_sweep(
-        points,
-        settings=config.settings,
-        results_dir=None if out is None else out / "sweep",
-        workers=config.workers,
-        scheduler=config.scheduler,
-        progress=lambda done, total, p, ok: progress(label, done, total),
-        raise_on_failure=False,
-    )
+    rows: list[dict[str, Any]] = []
+    failed: list[str] = []
+    for model in config.models:
+        tag = f"{label} ({model})" if len(config.models) > 1 else label
+        progress(tag, 0, len(points))
+        res = droplet_sweep(
+            points,
+            settings=dataclasses.replace(config.settings, model=model),
+            results_dir=None if out is None else out / f"sweep-{model}",
+            workers=config.workers,
+            scheduler=config.scheduler,
+            progress=lambda done, total, p, ok, tag=tag: progress(tag, done, total),
+            raise_on_failure=False,
+        )
+        rows += [{**r, "jet_model": model} for r in res.rows]
+        prefix = f"{model}: " if len(config.models) > 1 else ""
+        failed += [
+            f"{prefix}{f.point.concentration_pct:g} %, {f.point.voltage_v:g} V: {f.error}"
+            for f in res.failed
+        ]
+    return rows, failed
 
 
 def _run(config: DropletSweepConfig, out: Path, progress: Progress) -> DropletSweepResult:
-    res = _sweep(config, out, "droplet sweep", progress)
-    result = DropletSweepResult(
-        config=config,
-        rows=res.rows,
-        failed=tuple(
-            f"{f.point.concentration_pct:g} %, {f.point.voltage_v:g} V: {f.error}"
-            for f in res.failed
-        ),
-    )
+    rows, failed = _sweep(config, out, "droplet sweep", progress)
+    result = DropletSweepResult(config=config, rows=tuple(rows), failed=tuple(failed))
     atomic_write_json(out / "summary.json", result.summary())
     return result
+
+
+def _findings(rows: Sequence[dict[str, Any]], model: str) -> str:
+    """What one model says about the seed's two quoted breakups and its trend."""
+    parts = []
+    for c, (t_seed, mode_seed) in SEED_BREAKUP.items():
+        r = next((r for r in rows if r["concentration_pct"] == c
+                  and r["voltage_v"] == FIG4_VOLTAGE_V), None)  # fmt: skip
+        if r is None:
+            continue
+        t = _us(r["breakup_time_s"])
+        ours = "no breakup" if t is None else f"{r['breakup_mode']} at {t:.0f} µs"
+        parts.append(f"{c:g} %: {ours} (seed {mode_seed} at {t_seed * 1e6:.0f} µs)")
+    at50 = [r for r in rows if r["voltage_v"] == FIG4_VOLTAGE_V]
+    parts.append(f"time rises with concentration: {_trend(at50)}")
+    return f"{model} model: " + "; ".join(parts) + "."
 
 
 def _notes(result: DropletSweepResult) -> list[str]:
     s = result.config.settings
     notes = [
         "Model: acoustic printhead (calibrated to the seed's drop speed) driving a "
-        "Lagrangian one-dimensional slender jet with FENE-P polymer stress; NaAlg "
-        "properties from microfab/data/naalg.toml (a source for every value).",
+        "one-dimensional slender jet with FENE-P polymer stress, Lagrangian (moving nodes, "
+        "bodies split at each pinch) or Eulerian (fixed grid, TVD, a thin film through "
+        "pinch-offs); NaAlg properties from microfab/data/naalg.toml (a source for every "
+        "value, all assumed or calibrated; microfab droplet sensitivity shows what each "
+        "one does).",
         f"Each point simulates {s.duration_s * 1e6:g} µs (then {s.after_breakup_s * 1e6:g} µs "
         f"after the first breakup), at most {s.max_steps} solver steps.",
-        "Known gaps (strict expected failures in the test suite): 0.15 % pinches at the "
-        "nozzle exit, not at the front as the seed saw; the breakup time does not rise "
-        "over all six concentrations (1.5 % and 2 % are slowed or drawn back by the "
-        "assumed FENE-P rheology).",
-        "Finished points are saved under sweep/; running the job again resumes.",
+        *(
+            _findings([r for r in result.rows if _model_of(r) == m], m)
+            for m in result.config.models
+        ),
+        "Finished points are saved under sweep-<model>/; running the job again resumes.",
     ]
     notes += [f"Failed point: {f}" for f in result.failed]
     return notes
@@ -411,15 +522,19 @@ def _write_report(result: DropletSweepResult, out: Path, title: str) -> Path:
     from microfab.report.page import Figure, page_html, write_page
 
     figures = []
-    if result.rows:
+    for m in result.config.models:
+        rows = [r for r in result.rows if _model_of(r) == m]
+        if not rows:
+            continue
+        single = len(result.config.models) == 1
         figures.append(
             Figure(
-                name="breakup_time.png",
-                png=render_png(fig_sweep(result.rows, seed_points=SEED_BREAKUP)),
-                caption="Redraws seed 003 Fig. 4: first breakup time against NaAlg "
-                f"concentration at {FIG4_VOLTAGE_V:g} V (open squares: the seed's two quoted "
-                "breakups), and against drive voltage; crosses: no breakup in the "
-                "simulated time; labels: breakup mode.",
+                name="breakup_time.png" if single else f"breakup_time_{m}.png",
+                png=render_png(fig_sweep(rows, seed_points=SEED_BREAKUP)),
+                caption=f"{m.capitalize()} jet model. Redraws seed 003 Fig. 4: first breakup "
+                f"time against NaAlg concentration at {FIG4_VOLTAGE_V:g} V (open squares: the "
+                "seed's two quoted breakups), and against drive voltage; crosses: no breakup "
+                "in the simulated time; labels: breakup mode.",
             )
         )
     text = page_html(
@@ -440,14 +555,14 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
         concentrations_pct=SEED_CONCENTRATIONS_PCT,
         voltages_v=(),
         settings=DropletSettings(duration_s=options["duration_us"] / 1e6),
+        models=parse_models(options["models"]),
         workers=options["workers"],
     )
-    res = _sweep(config, None, "seed 003 Fig. 4", progress)
-    failed = [f"{f.point.concentration_pct:g} %: {f.error}" for f in res.failed]
+    rows, failed = _sweep(config, None, "seed 003 Fig. 4", progress)
     return ReproductionResult(
-        tables=breakup_tables(res.rows),
+        tables=breakup_tables(rows),
         notes=tuple(f"failed: {f}" for f in failed),
-        data={"rows": list(res.rows), "failed": failed},
+        data={"rows": rows, "failed": failed},
     )
 
 
@@ -469,5 +584,5 @@ DROPLET_FIG4_REPRODUCTION = Reproduction(
     description="Seed 003 Fig. 4 and Fig. 2: first breakup of six NaAlg solutions at 50 V",
     seed="003",
     run=_reproduce,
-    options=(_DURATION, _WORKERS),
+    options=(_DURATION, _MODELS, _WORKERS),
 )
