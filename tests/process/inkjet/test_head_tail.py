@@ -108,3 +108,22 @@ def test_the_camera_sees_the_head_and_tail_the_solver_describes() -> None:
     assert res.head_tail.tail_min_radius_m == pytest.approx(truth.tail_min_radius_m, abs=1.5e-6)
     assert res.to_dict()["head_tail"]["distinct_head"] is True
     assert res.thinning is not None and res.thinning.speed_m_s > 0.0
+
+
+def test_the_neck_behind_the_head_is_found_before_a_thinner_one_at_the_nozzle() -> None:
+    # a 47 µm head, a neck of 8 µm behind it, an 11 µm thread and a 3 µm neck at the exit
+    # (the Eulerian 1 % NaAlg jet 10 µs before it pinches at the exit)
+    z = np.linspace(0.0, 620e-6, 621)
+    r = np.full(z.size, 11e-6)
+    r[z < 30e-6] = 3e-6 + (z[z < 30e-6] / 30e-6) * 8e-6
+    neck = (z > 450e-6) & (z < 500e-6)
+    r[neck] = 8e-6
+    head = z >= 500e-6
+    sphere = np.sqrt(np.clip(47e-6**2 - (z - 573e-6) ** 2, 0.0, None))
+    r[head] = np.where(z[head] < 573e-6, np.maximum(sphere[head], 8e-6), sphere[head])
+    r[0], r[-1] = R_NOZZLE, 0.0
+    ht = head_and_tail(Silhouette(time_s=0.0, bodies=((z, r),), nozzle_radius_m=R_NOZZLE))
+    assert ht is not None and ht.distinct_head
+    assert 450e-6 < ht.neck_z_m < 530e-6 and ht.neck_radius_m == pytest.approx(8e-6, rel=0.2)
+    assert ht.tail_length_m == pytest.approx(ht.neck_z_m)
+    assert ht.tail_min_radius_m == pytest.approx(3e-6, rel=0.2)  # the exit neck

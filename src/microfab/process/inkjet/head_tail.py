@@ -12,10 +12,11 @@ and on silhouettes measured from camera frames alike:
 * **head**: walking back from the leading tip of the body that carries it, the head ends
   where the radius first falls below ``neck_fraction`` (default 0.7) of the largest
   radius met so far; its radius is that largest radius.
-* **neck**: between the end of the head and the first point behind it where the radius
-  rises again above ``neck_fraction`` of the head's radius (or the body's tail end), the
-  point nearest the head whose radius is within 15 % of the thinnest there
-  (``NECK_TOLERANCE``; on a uniform tail, where the head ends).
+* **neck**: walking back from the end of the head, the first local minimum of the radius
+  (confirmed where the radius rises 15 % above the least seen so far,
+  ``NECK_TOLERANCE``, or the body ends); on a flat stretch, the point nearest the head
+  within that 15 % (on a uniform tail, where the head ends). A second neck nearer the
+  nozzle belongs to the tail.
 * **tail**: from the neck back to the body's tail end (the nozzle exit for a body still
   attached, its free tail tip otherwise); its length and its mean radius.
 * **distinct head**: a neck thinner than ``neck_fraction`` of the head radius with a tail
@@ -45,9 +46,9 @@ __all__ = ["NECK_FRACTION", "HeadTail", "Thinning", "head_and_tail", "thinning_r
 
 #: Radius ratio below which the jet behind the head counts as a neck (assumption, above).
 NECK_FRACTION = 0.7
-#: The neck is the point nearest the head whose radius is within this fraction of the
-#: thinnest radius behind the head (assumption: measured radii carry about a tenth of a
-#: pixel of noise, 5 % of a 4 µm ligament at 2 µm/pixel).
+#: A local minimum of the radius counts once the radius rises this fraction above it, and
+#: the neck is the point nearest the head within it (assumption: measured radii carry
+#: about a tenth of a pixel of noise, 5 % of a 4 µm ligament at 2 µm/pixel).
 NECK_TOLERANCE = 0.15
 
 
@@ -176,16 +177,17 @@ def head_and_tail(
         )
     k_end = r.size - 1 - int(below[0])  # first index (from the nozzle side) out of the head
     head_r = float(run_max[below[0]])
-    # the neck: thinnest point between the head's end and where r rises again above f·head_r
+    # the neck: walking back from the head's end, the first local minimum of the radius
+    # (confirmed once the radius rises NECK_TOLERANCE above the least seen so far, or the
+    # body ends); on a flat stretch, the point nearest the head within that tolerance
     behind = r[: k_end + 1][::-1]  # from the head's end back towards the tail end
-    rises = np.flatnonzero(behind > f * head_r)
-    stop = int(rises[0]) if rises.size else behind.size
-    search = behind[:stop]
-    search = np.where(search > 0.0, search, np.inf)  # a free tail tip is not a neck
-    if np.isfinite(search).any():
-        # nearest the head where the radius is within NECK_TOLERANCE of the thinnest: on a
-        # uniform tail that is where the head ends, whatever the pixel noise along the tail
-        near = np.flatnonzero(search <= (1.0 + NECK_TOLERANCE) * float(search.min()))
+    pos = np.where(behind > 0.0, behind, np.inf)  # a free tail tip is not a neck
+    least = np.minimum.accumulate(pos)
+    rises = np.flatnonzero(pos > (1.0 + NECK_TOLERANCE) * least)
+    stop = int(rises[0]) if rises.size else pos.size
+    seg = pos[:stop]
+    if np.isfinite(seg).any():
+        near = np.flatnonzero(seg <= (1.0 + NECK_TOLERANCE) * float(seg.min()))
         k_neck = k_end - int(near[0])
     else:
         k_neck = k_end
