@@ -42,7 +42,6 @@ from microfab.experiments.seed003_inkjet.paper import (
     SEED_VOLTAGES_V,
 )
 from microfab.experiments.seed003_inkjet.sweep import (
-    SWEEP_MAX_STEPS,
     DropletSettings,
     SweepPoint,
     droplet_sweep,
@@ -212,7 +211,6 @@ def _make_config(sec: dict[str, dict[str, Any]]) -> DropletSweepConfig:
         settings=DropletSettings(
             duration_s=sweep["duration_us"] / 1e6,
             after_breakup_s=sweep["after_breakup_us"] / 1e6,
-            max_steps=SWEEP_MAX_STEPS,
         ),
         models=parse_models(sweep["models"]),
         workers=run["workers"],
@@ -505,7 +503,12 @@ def _notes(result: DropletSweepResult) -> list[str]:
         "value, all assumed or calibrated; microfab droplet sensitivity shows what each "
         "one does).",
         f"Each point simulates {s.duration_s * 1e6:g} µs (then {s.after_breakup_s * 1e6:g} µs "
-        f"after the first breakup), at most {s.max_steps} solver steps.",
+        "after the first breakup), at most "
+        + ", ".join(
+            f"{dataclasses.replace(s, model=m).step_budget} solver steps ({m})"
+            for m in result.config.models
+        )
+        + ".",
         *(
             _findings([r for r in result.rows if _model_of(r) == m], m)
             for m in result.config.models

@@ -18,7 +18,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -30,11 +30,9 @@ from microfab.process.inkjet.dispenser import default_printhead
 from microfab.process.inkjet.fluids import Fluid
 from microfab.process.inkjet.head_tail import HeadTail, Thinning, head_and_tail, thinning_rate
 from microfab.process.inkjet.jet import Body, JetModel, JetRun, Numerics, run_jet
+from microfab.process.inkjet.jet_euler import EulerNumerics, run_jet_euler
 from microfab.process.inkjet.silhouette import Silhouette
 from microfab.trajectory.waveform import Waveform, seed003_waveform
-
-if TYPE_CHECKING:
-    from microfab.process.inkjet.jet_euler import EulerNumerics
 
 __all__ = [
     "BREAKUP_RADIUS_M",
@@ -74,11 +72,10 @@ JetModelKind = Literal["lagrangian", "eulerian"]
 JET_MODELS: tuple[JetModelKind, ...] = ("lagrangian", "eulerian")
 
 
-def EULER_DOD_NUMERICS() -> EulerNumerics:  # noqa: N802 (a constant, built on first use)
-    """Settings of the Eulerian model for drop-on-demand runs (its documented defaults)."""
-    from microfab.process.inkjet.jet_euler import EulerNumerics
-
-    return EulerNumerics()
+#: Settings of the Eulerian model for drop-on-demand runs: its documented defaults (25
+#: cells per nozzle radius over 30 radii; the 0.15 % and 1 % NaAlg breakups move by 2.7 and
+#: 1.6 µs on a grid twice as fine).
+EULER_DOD_NUMERICS = EulerNumerics()
 
 
 @dataclass(frozen=True)
@@ -334,11 +331,9 @@ def simulate_droplet(
         nu = dataclasses.replace(numerics or DOD_NUMERICS, h_break=breakup_radius_m / radius)
         run = run_jet([], sc.model(fluid), nu, **common)
     elif model == "eulerian":
-        from microfab.process.inkjet.jet_euler import EulerNumerics, run_jet_euler
-
         if numerics is not None and not isinstance(numerics, EulerNumerics):
             raise TypeError("the Eulerian model takes jet_euler.EulerNumerics settings")
-        base = numerics or EULER_DOD_NUMERICS()
+        base = numerics or EULER_DOD_NUMERICS
         nu_e = dataclasses.replace(base, h_break=breakup_radius_m / radius)
         run = run_jet_euler(sc.model(fluid), nu_e, **common)
     else:

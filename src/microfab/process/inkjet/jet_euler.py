@@ -1,0 +1,532 @@
+"""Eulerian slender-jet solver on a fixed grid, regularised by a thin film.
+
+Model
+-----
+The same one-dimensional axisymmetric slender-jet model as :mod:`.jet` (Eggers & Dupont,
+J. Fluid Mech. 262, 205, 1994, with the full curvature, a Newtonian solvent and a FENE-P
+or Oldroyd-B polymer; parameters from :class:`.jet.JetModel`), in dimensionless form
+(length: nozzle radius ``R``; time: capillary time ``t_c = sqrt(rho R^3 / sigma)``;
+stress: ``sigma / R``), written for a fixed grid in the variables ``a = h^2``, ``u``,
+``A_zz``, ``A_rr``::
+
+    da/dt + d(a u)/dz = 0
+    du/dt + u du/dz = (1 / a) dS/dz
+    S = 4 a^2 (2 + a_zz) / (4 a + a_z^2)^(3/2) + a (3 Oh u_z + G f (A_zz - A_rr))
+    dA/dt + u dA/dz = upper-convected stretching - (f A - 1) / De
+
+with ``G = Oh_p / De`` and ``f = (1 - 3/L^2) / (1 - tr A / L^2)``. The capillary part of
+``S`` is ``2 h / sqrt(1 + h_z^2) - h^2 kappa`` with the full curvature, regular where
+``a`` vanishes (derivation in :mod:`.jet`).
+
+Discretisation
+--------------
+In the manner of Driessen & Jeurissen, "A regularised one-dimensional drop formation and
+coalescence model using a total variation diminishing (TVD) scheme on a single Eulerian
+grid", Int. J. Comput. Fluid Dyn. 25, 333-343 (2011): one uniform grid from the nozzle
+exit, staggered (``a`` and the conformation at cell centres, ``u`` at the faces). The
+mass equation is conservative with a flux-limited (van Leer by default, or minmod)
+Lax-Wendroff/upwind TVD flux (Sweby 1984), so the squared radius stays positive and
+monotone where it should and mass is conserved to round-off; the momentum advection is
+written in the conservative staggered form of Stelling & Duinmeijer (Int. J. Numer.
+Meth. Fluids 43, 1329, 2003: cell-centred mass fluxes carry limited upwind face
+velocities), so a recoiling rim that sweeps up a thread conserves momentum and moves at
+the Taylor-Culick speed rather than at a Burgers shock speed; the polymer
+content ``a A`` is carried by the mass flux times a limited face value of ``A``, so a
+uniform conformation stays uniform. Time stepping is first order, forward-backward:
+the face velocities are advanced with the capillary and polymer tension of the old
+profile and an implicit solvent viscosity (one tridiagonal solve per step), then the
+profile and the conformation with the new velocities; stretching is integrated exactly
+over the step and the FENE-P relaxation implicitly (a quadratic in ``tr A``). The step
+is limited by advection, capillary waves (``dt <= min(2 cfl, 0.9) dz^2 / sqrt(2
+h_max)``) and polymer waves (:func:`.jet_euler_kernels.time_step_limit`); a step that
+would make ``a`` negative is retried at half the size (counted in ``JetRun.rejected``).
+
+Regularisation
+--------------
+Where there is no liquid the grid holds a film of area ``a_film = film^2`` (default
+``film = 1e-3``, a twentieth of the usual breakup radius 0.02): the initial state
+outside the nozzle is this film, and the coefficients of the momentum equation (the
+``1 / a`` in front of ``dS/dz``, the area in the capillary tension and in the viscous
+stress) use ``max(a, a_film)``, so the equations stay defined wherever the liquid has
+gone. The capillary tension is switched off smoothly in the film (weight 0 at
+``a <= a_film``, 1 from ``a >= 4 a_film``, a smoothstep between): otherwise the film,
+a thread of radius ``film``, would retract at its Taylor-Culick speed ``sqrt(2 / film)``
+from every place where it ends (the nozzle rim, each drop) and drain itself. Mass is
+never added or removed: ``a`` follows the conservative update and may thin below the
+film (it stays >= 0). The film holds no polymer (the conformation is reset to 1 where
+``a < a_film``) and has a negligible volume (``30 film^2`` over the default domain). A
+jet, its pinch-off, the recoil of the broken ends and the coalescence of drops are all
+one field on one grid, with no change of topology.
+
+Breakup bookkeeping
+-------------------
+A cell holds liquid (is *wet*) while ``h > h_break``; a cell that has dried is wet again
+only above ``rewet_factor * h_break``. Runs of at least two wet cells are bodies (a run
+touching a nozzle boundary is attached to the nozzle). A breakup is a body that splits
+into two bodies (or into the nozzle and a body) across cells that dried during the step;
+its time is interpolated linearly in ``h`` between the two steps. Details in
+:func:`.jet_euler_kernels.analyse`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from microfab.core.arrays import readonly
+from microfab.process.inkjet import jet_euler_kernels as ek
+from microfab.process.inkjet.breakup import classify_pinch
+from microfab.process.inkjet.jet import Body, Inflow, JetModel, JetRun, PinchEvent
+
+__all__ = ["EulerInitial", "EulerNumerics", "euler_thread", "run_jet_euler"]
+
+LeftEnd = Literal["nozzle", "wall"]
+RightEnd = Literal["outflow", "wall"]
+_LEFT = {"nozzle": ek.BC_NOZZLE, "wall": ek.BC_WALL}
+_RIGHT = {"outflow": ek.BC_OUTFLOW, "wall": ek.BC_WALL}
+_LIMITERS = {"van_leer": 0, "minmod": 1}
+
+
+@dataclass(frozen=True, kw_only=True)
+class EulerNumerics:
+    """Grid, step and breakup settings of the Eulerian solver (all dimensionless).
+
+    Parameters
+    ----------
+    dz : float
+        Grid spacing in nozzle radii (default 0.04: 25 cells per radius).
+    length : float
+        Domain length from the nozzle exit (default 30 nozzle radii). ``dz`` and
+        ``length`` are only used when the run starts from the nozzle (no ``initial``
+        profile, which brings its own grid).
+    cfl : float
+        Safety factor on the stable step, in ``(0, 0.9]`` (default 0.4): the advective
+        Courant number; the polymer-wave limit is scaled by it and the capillary-wave
+        limit by ``min(2 cfl, 0.9)`` (1 is the stability edge of the forward-backward
+        scheme).
+    film : float
+        Radius of the regularising film, below ``h_break`` (default 1e-3).
+    h_break : float
+        Neck radius at which the jet counts as broken (default 0.02; ``droplet.py`` sets
+        it from the camera resolution).
+    rewet_factor : float
+        A dried cell counts as liquid again above this many ``h_break`` (>= 1, default
+        1.5).
+    limiter : {"van_leer", "minmod"}
+        Flux limiter of the TVD fluxes.
+    dt_max : float
+        Largest time step (default 0.02).
+    inflow_dt : float
+        Spacing of the table of the nozzle displacement the kernels interpolate
+        (default 1e-3).
+    max_steps : int
+        Safety limit on time steps (default 2 000 000).
+
+    Examples
+    --------
+    >>> EulerNumerics(dz=0.05).cells_for(30.0)
+    600
+    """
+
+    dz: float = 0.04
+    length: float = 30.0
+    cfl: float = 0.4
+    film: float = 1e-3
+    h_break: float = 0.02
+    rewet_factor: float = 1.5
+    limiter: Literal["van_leer", "minmod"] = "van_leer"
+    dt_max: float = 0.02
+    inflow_dt: float = 1e-3
+    max_steps: int = 2_000_000
+
+    def __post_init__(self) -> None:
+        for name in ("dz", "length", "film", "h_break", "dt_max", "inflow_dt"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        if not 0.0 < self.cfl <= 0.9:
+            raise ValueError(f"cfl must lie in (0, 0.9] for the TVD fluxes, got {self.cfl}")
+        if self.h_break >= 1.0:
+            raise ValueError(
+                f"h_break {self.h_break} must be below the nozzle radius 1 (lengths are in "
+                "nozzle radii)"
+            )
+        if self.film >= self.h_break:
+            raise ValueError(
+                f"film radius {self.film} must be below h_break {self.h_break}: lower `film` "
+                "or raise `h_break`"
+            )
+        if self.rewet_factor < 1.0:
+            raise ValueError(f"rewet_factor must be >= 1, got {self.rewet_factor}")
+        if self.limiter not in _LIMITERS:
+            raise ValueError(f"limiter must be one of {sorted(_LIMITERS)}, got {self.limiter!r}")
+        if self.cells_for(self.length) < 8:
+            raise ValueError(
+                f"length {self.length} holds fewer than 8 cells of dz {self.dz}: lower `dz`"
+            )
+        if not (isinstance(self.max_steps, int) and self.max_steps >= 1):
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+
+    def cells_for(self, length: float) -> int:
+        """Number of cells that cover ``length`` at spacing ``dz`` (rounded)."""
+        return round(length / self.dz)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EulerInitial:
+    """An initial state on the grid, which then defines the grid.
+
+    Parameters
+    ----------
+    length : float
+        Domain length; the grid has ``a.size`` cells of ``length / a.size``.
+    a : numpy.ndarray
+        Cell means of the squared radius, shape ``(n,)``, all > 0 (``n >= 8``).
+    u : numpy.ndarray, optional
+        Face velocities, shape ``(n + 1,)`` (default at rest; a wall's face is set to 0).
+    a_zz, a_rr : numpy.ndarray, optional
+        Conformation per cell, shape ``(n,)`` (default 1: at rest).
+    left : {"nozzle", "wall"}
+        Nozzle exit (inflow) or symmetry plane at ``z = 0``.
+    right : {"outflow", "wall"}
+        Open end or symmetry plane at ``z = length``.
+    """
+
+    length: float
+    a: np.ndarray
+    u: np.ndarray | None = None
+    a_zz: np.ndarray | None = None
+    a_rr: np.ndarray | None = None
+    left: LeftEnd = "wall"
+    right: RightEnd = "wall"
+
+    def __post_init__(self) -> None:
+        a = readonly(self.a)
+        n = a.size
+        if a.ndim != 1 or n < 8:
+            raise ValueError(f"the initial profile needs at least 8 cells, got shape {a.shape}")
+        if not np.all(np.isfinite(a)) or np.any(a <= 0.0):
+            raise ValueError("the initial squared radius must be finite and > 0 in every cell")
+        if not (math.isfinite(self.length) and self.length > 0.0):
+            raise ValueError(f"length must be > 0, got {self.length}")
+        object.__setattr__(self, "a", a)
+        u = np.zeros(n + 1) if self.u is None else np.array(self.u, float)
+        if u.shape != (n + 1,):
+            raise ValueError(f"u needs one value per face ({n + 1}), got shape {u.shape}")
+        if self.left == "wall":
+            u[0] = 0.0
+        if self.right == "wall":
+            u[-1] = 0.0
+        object.__setattr__(self, "u", readonly(u))
+        for name in ("a_zz", "a_rr"):
+            v = np.ones(n) if getattr(self, name) is None else np.asarray(getattr(self, name))
+            if v.shape != (n,) or np.any(~(v > 0.0)):
+                raise ValueError(f"{name} needs one positive value per cell ({n})")
+            object.__setattr__(self, name, readonly(v))
+        if self.left not in _LEFT or self.right not in _RIGHT:
+            raise ValueError(
+                f"left must be one of {sorted(_LEFT)} and right one of {sorted(_RIGHT)}, got "
+                f"{self.left!r}, {self.right!r}"
+            )
+
+    @property
+    def dz(self) -> float:
+        """Grid spacing."""
+        return self.length / self.a.size
+
+
+def euler_thread(
+    length: float,
+    radius: Callable[[np.ndarray], np.ndarray],
+    *,
+    cells: int = 200,
+    velocity: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> EulerInitial:
+    """A thread between two symmetry walls at ``z = 0`` and ``z = length``.
+
+    Parameters
+    ----------
+    length : float
+        Domain length (dimensionless).
+    radius : callable
+        ``h(z)`` of the initial thread; cell means of ``h^2`` are integrated with
+        8-point Gauss-Legendre per cell.
+    cells : int, optional
+        Number of cells.
+    velocity : callable, optional
+        Initial ``u(z)`` at the faces (default at rest).
+
+    Returns
+    -------
+    EulerInitial
+
+    Examples
+    --------
+    >>> th = euler_thread(3.0, lambda z: 1.0 + 0.0 * z, cells=30)
+    >>> round(float(th.a.sum() * th.dz), 12)
+    3.0
+    """
+    z = np.linspace(0.0, length, cells + 1)
+    x, wq = np.polynomial.legendre.leggauss(8)
+    half = 0.5 * np.diff(z)
+    pts = 0.5 * (z[1:] + z[:-1])[:, None] + half[:, None] * x[None, :]
+    a = 0.5 * (radius(pts) ** 2 * wq[None, :]).sum(axis=1)
+    u = None if velocity is None else np.asarray(velocity(z), float)
+    return EulerInitial(length=length, a=a, u=u, left="wall", right="wall")
+
+
+def run_jet_euler(
+    model: JetModel,
+    numerics: EulerNumerics | None = None,
+    *,
+    t_end: float,
+    t0: float = 0.0,
+    inflow: Inflow | None = None,
+    initial: EulerInitial | None = None,
+    a_nozzle: float = 1.0,
+    snapshot_times: Sequence[float] = (),
+    after_first_pinch: float = math.inf,
+    on_pinch: Literal["stop", "split"] = "split",
+    progress: Callable[[float], None] | None = None,
+) -> JetRun:
+    """Integrate the Eulerian slender-jet model from ``t0`` to ``t_end`` (dimensionless).
+
+    Parameters
+    ----------
+    model : JetModel
+        Fluid parameters (the same as for :func:`.jet.run_jet`).
+    numerics : EulerNumerics, optional
+        Grid, step and breakup settings.
+    t_end : float
+        End time.
+    t0 : float, optional
+        Start time (the inflow is read from ``t0`` on).
+    inflow : Inflow, optional
+        Nozzle exit velocity (positive out of the nozzle; negative values suck liquid
+        back through the exit). Needs a nozzle at the left end.
+    initial : EulerInitial, optional
+        Initial state, which also fixes the grid and the ends. Default: a flat meniscus at
+        the nozzle exit and the film everywhere on ``[0, numerics.length]``, cells of
+        ``numerics.dz``, open far end.
+    a_nozzle : float, optional
+        Squared rim radius (1 with the nozzle radius as the length unit).
+    snapshot_times : sequence of float
+        Times at which the bodies are stored (steps land on them exactly).
+    after_first_pinch : float, optional
+        With ``on_pinch="split"``, stop this long after the first breakup.
+    on_pinch : {"stop", "split"}
+        Stop at the first breakup, or go on (the grid needs no split) and record later
+        breakups too.
+    progress : callable, optional
+        Called with the current time whenever the kernels hand back control (at
+        snapshots, breakups and every few thousand steps).
+
+    Returns
+    -------
+    JetRun
+        The same record as :func:`.jet.run_jet`, with these meanings: ``neck_radius``
+        the thinnest local minimum of ``h`` inside a body (not at a free end), ``tip_z``
+        where ``h`` falls through ``h_break`` at the right end of the leading body,
+        ``tip_v`` the velocity of the face behind it, ``volume`` the integral of ``a``
+        over the whole grid (film included) plus what left through the far end,
+        ``injected`` the volume that crossed the nozzle exit (the numerical flux: exactly
+        ``a_nozzle`` times the inflow displacement while the exit pushes out; while it
+        sucks, the liquid in the first cell goes back), so ``volume - volume[0] -
+        injected`` is conserved to round-off. Bodies are the wet runs of at least two
+        cells converted to :class:`.jet.Body` (nodes at the cell faces, ``w = a dz``);
+        the left end of a run at the nozzle is "nozzle" (at a wall "wall"), other ends
+        are "tip" (at a right wall "wall").
+
+    Raises
+    ------
+    ValueError
+        For an end time not after the start, an inflow without a nozzle, an unknown
+        ``on_pinch`` or a negative ``after_first_pinch``.
+    """
+    nu = numerics or EulerNumerics()
+    if not t_end > t0:
+        raise ValueError(f"t_end {t_end} must be after t0 {t0}")
+    if on_pinch not in ("stop", "split"):
+        raise ValueError(f"on_pinch must be 'stop' or 'split', got {on_pinch!r}")
+    if not after_first_pinch >= 0.0:
+        raise ValueError(f"after_first_pinch must be >= 0, got {after_first_pinch}")
+    if not a_nozzle > 0.0:
+        raise ValueError(f"a_nozzle must be > 0, got {a_nozzle}")
+    if initial is None:
+        n = nu.cells_for(nu.length)
+        initial = EulerInitial(
+            length=n * nu.dz,
+            a=np.full(n, nu.film**2),
+            left="nozzle",
+            right="outflow",
+        )
+    if inflow is not None and initial.left != "nozzle":
+        raise ValueError("an inflow needs a nozzle at the left end (initial.left='nozzle')")
+    dz = initial.dz
+    par = np.zeros(ek.N_PAR)
+    par[ek.P_DZ] = dz
+    par[ek.P_OH] = model.ohnesorge
+    par[ek.P_GP] = model.polymer_modulus
+    par[ek.P_INV_DE] = 1.0 / model.deborah if model.deborah > 0 else 0.0
+    par[ek.P_INV_L2] = 0.0 if math.isinf(model.extensibility_l2) else 1.0 / model.extensibility_l2
+    par[ek.P_A_FILM] = nu.film**2
+    par[ek.P_A_NOZ] = a_nozzle if initial.left == "nozzle" else 0.0
+    par[ek.P_CFL] = nu.cfl
+    par[ek.P_H_BREAK] = nu.h_break
+    par[ek.P_REWET] = nu.rewet_factor
+    par[ek.P_DT_MAX] = nu.dt_max
+    ipar = np.array(
+        [_LEFT[initial.left], _RIGHT[initial.right], _LIMITERS[nu.limiter]], dtype=np.int64
+    )
+    d_tab, tab_dt = _inflow_table(inflow, t0, t_end, nu.inflow_dt)
+
+    a = np.array(initial.a, float)
+    u = np.array(initial.u, float)
+    azz = np.array(initial.a_zz, float)
+    arr = np.array(initial.a_rr, float)
+    wet = np.sqrt(a) > nu.h_break
+    field = _Field(a, u, azz, arr, wet, dz, initial.left, initial.right)
+    snaps_t = sorted(float(s) for s in snapshot_times if t0 <= s <= t_end)
+    snapshots: list[tuple[float, tuple[Body, ...]]] = []
+    events: list[PinchEvent] = []
+    counters = np.zeros(2, dtype=np.int64)
+    acc = np.zeros(2)
+    ev = np.zeros((32, ek.EV_COLS))
+    hist = np.empty((ek.HIST_ROWS, 4096))
+    stats = np.empty(5)
+    ek.analyse(a, a, u, wet, wet, par, ipar, t0, t0, stats, ev)
+    hist[:, 0] = (t0, stats[0], stats[1], stats[2], stats[3], a.sum() * dz, 0.0, stats[4])
+    n_hist = 1
+    t = t0
+    stop_at = t_end
+    stop_reason = "end time reached"
+    _take_snapshots(snaps_t, t, field, snapshots)
+    chunk = 5000
+    while True:
+        target = min(stop_at, snaps_t[0]) if snaps_t else stop_at
+        limit = min(nu.max_steps, int(counters[0]) + chunk)
+        t, n_hist, status, n_ev = ek.advance(
+            a, u, azz, arr, wet, t, target, par, ipar, d_tab, t0, tab_dt,
+            hist, n_hist, limit, counters, acc, ev,
+        )  # fmt: skip
+        if progress is not None:
+            progress(t)
+        if status == 2:
+            hist = np.concatenate((hist, np.empty_like(hist)), axis=1)
+            continue
+        if status == 3:
+            if counters[0] >= nu.max_steps:
+                stop_reason = "step limit"
+                break
+            continue
+        if status == 4:
+            stop_reason = f"time step collapsed at t = {t:.6g}"
+            break
+        if status == 5:
+            stop_reason = f"liquid reached the end of the domain at t = {t:.6g}"
+            break
+        if status == 1:
+            for row in ev[:n_ev]:
+                events.append(_event(row))
+            if on_pinch == "stop":
+                stop_reason = "pinch-off"
+                _take_snapshots(snaps_t, t, field, snapshots)
+                break
+            stop_at = min(t_end, events[0].t + after_first_pinch)
+        _take_snapshots(snaps_t, t, field, snapshots)
+        if t >= stop_at - 1e-12 * max(1.0, abs(stop_at)):
+            if stop_at < t_end:
+                stop_reason = "followed long enough after the first breakup"
+            break
+    h = hist[:, :n_hist]
+    return JetRun(
+        t=readonly(h[0]),
+        neck_radius=readonly(h[1]),
+        neck_z=readonly(h[2]),
+        tip_z=readonly(h[3]),
+        tip_v=readonly(h[4]),
+        volume=readonly(h[5]),
+        injected=readonly(h[6]),
+        n_bodies=readonly(h[7], int),
+        events=tuple(events),
+        snapshots=tuple(snapshots),
+        bodies=field.bodies(),
+        steps=int(counters[0]),
+        rejected=int(counters[1]),
+        stop_reason=stop_reason,
+    )
+
+
+def _inflow_table(
+    inflow: Inflow | None, t0: float, t_end: float, spacing: float
+) -> tuple[np.ndarray, float]:
+    """Inflow displacement on a uniform table from ``t0`` to ``t_end`` (kernels interpolate)."""
+    if inflow is None:
+        return np.zeros(2), t_end - t0
+    m = max(2, math.ceil((t_end - t0) / spacing))
+    dt = (t_end - t0) / m
+    d0 = inflow.displacement(t0)
+    tab = np.array([inflow.displacement(min(t0 + k * dt, t_end)) - d0 for k in range(m + 1)])
+    return tab, dt
+
+
+def _event(row: np.ndarray) -> PinchEvent:
+    t, z, z_tip, z_tail, attached = (float(x) for x in row[:5])
+    return PinchEvent(t, z, z_tip, z_tail, bool(attached), classify_pinch(z, z_tip, z_tail))
+
+
+@dataclass
+class _Field:
+    """The state on the grid (arrays updated in place by the kernels) and its ends."""
+
+    a: np.ndarray
+    u: np.ndarray
+    azz: np.ndarray
+    arr: np.ndarray
+    wet: np.ndarray
+    dz: float
+    left: LeftEnd
+    right: RightEnd
+
+    def bodies(self) -> tuple[Body, ...]:
+        """Wet runs of at least two cells as :class:`.jet.Body` (nodes at the cell faces)."""
+        n = self.a.size
+        out = []
+        i = 0
+        while i < n:
+            if not self.wet[i]:
+                i += 1
+                continue
+            j = i
+            while j + 1 < n and self.wet[j + 1]:
+                j += 1
+            if j - i + 1 >= ek.MIN_CELLS:
+                left = self.left if i == 0 else "tip"
+                right = "wall" if (j == n - 1 and self.right == "wall") else "tip"
+                out.append(
+                    Body(
+                        z=self.dz * np.arange(i, j + 2),
+                        v=self.u[i : j + 2],
+                        w=self.a[i : j + 1] * self.dz,
+                        a_zz=self.azz[i : j + 1],
+                        a_rr=self.arr[i : j + 1],
+                        left=left,
+                        right=right,
+                    )
+                )
+            i = j + 1
+        return tuple(out)
+
+
+def _take_snapshots(
+    snaps_t: list[float],
+    t: float,
+    field: _Field,
+    out: list[tuple[float, tuple[Body, ...]]],
+) -> None:
+    while snaps_t and snaps_t[0] <= t + 1e-12 * max(1.0, abs(t)):
+        out.append((snaps_t.pop(0), field.bodies()))

@@ -1,0 +1,691 @@
+"""Numba kernels of the Eulerian slender-jet model (one time step, breakup bookkeeping).
+
+The model and its discretisation are described in :mod:`.jet_euler`. This module holds
+the per-cell loops. All quantities are dimensionless (length: nozzle radius ``R``; time:
+capillary time ``sqrt(rho R^3 / sigma)``; stress: ``sigma / R``).
+
+Grid
+----
+``n`` uniform cells of length ``dz`` on ``[0, n dz]``; cell ``i`` spans
+``[i dz, (i + 1) dz]``. Cell arrays (length ``n``): ``a = h^2`` (cell mean of the
+squared radius), ``azz``, ``arr`` (polymer conformation). Face arrays (length ``n + 1``):
+``u`` (axial velocity at ``z = j dz``; face ``j`` lies between cells ``j - 1`` and ``j``).
+
+Boundary codes
+--------------
+``BC_NOZZLE`` (left only): nozzle exit, prescribed face velocity, ghost cells of
+``a = a_nozzle`` and an unstretched conformation. ``BC_WALL``: symmetry plane, zero
+velocity, mirrored cells. ``BC_OUTFLOW`` (right only): zero gradient.
+
+Parameter vector ``par`` (float64)
+---------------------------------
+Indexed by the ``P_*`` constants: ``dz``, solvent Ohnesorge number, polymer modulus
+``G = Oh_p / De``, ``1 / De``, ``1 / L^2`` (0: Oldroyd-B), film area ``a_film``, nozzle
+area, CFL number, breakup radius, re-wetting factor, largest time step.
+
+Integer vector ``ipar`` (int64)
+-------------------------------
+Indexed by ``I_*``: left and right boundary codes, flux limiter (0: van Leer, 1: minmod).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = [
+    "BC_NOZZLE",
+    "BC_OUTFLOW",
+    "BC_WALL",
+    "HIST_ROWS",
+    "advance",
+    "analyse",
+    "step",
+]
+
+#: Left end at the nozzle exit: prescribed velocity, full nozzle behind it.
+BC_NOZZLE = 0
+#: Symmetry plane: zero velocity, mirrored profile.
+BC_WALL = 1
+#: Open far end: zero gradient, liquid leaves the domain.
+BC_OUTFLOW = 2
+
+P_DZ, P_OH, P_GP, P_INV_DE, P_INV_L2, P_A_FILM, P_A_NOZ, P_CFL, P_H_BREAK, P_REWET, P_DT_MAX = (
+    range(11)
+)
+N_PAR = 11
+I_BL, I_BR, I_LIMITER = range(3)
+N_IPAR = 3
+
+#: Rows of the history array: t, neck radius, neck z, tip z, tip v, volume, injected, bodies.
+HIST_ROWS = 8
+#: Columns of the event array: t, neck z, tip z, tail z, attached (0/1), neck cell.
+EV_COLS = 6
+#: Bodies shorter than this many cells are not followed as bodies (their volume stays).
+MIN_CELLS = 2
+
+
+@njit(cache=True)
+def _phi(r: float, kind: int) -> float:
+    """Flux limiter: van Leer (``kind`` 0) or minmod (1)."""
+    if kind == 1:
+        return max(0.0, min(1.0, r))
+    ar = abs(r)
+    return (r + ar) / (1.0 + ar)
+
+
+@njit(cache=True)
+def _ghost_cells(a: np.ndarray, bl: int, br: int, left: float, out: np.ndarray) -> None:
+    """``out[i + 2] = a[i]`` with two ghost cells either side (``left`` at a nozzle)."""
+    n = a.size
+    for i in range(n):
+        out[i + 2] = a[i]
+    if bl == BC_NOZZLE:
+        out[1] = left
+        out[0] = left
+    else:
+        out[1] = a[0]
+        out[0] = a[1] if n > 1 else a[0]
+    if br == BC_WALL:
+        out[n + 2] = a[n - 1]
+        out[n + 3] = a[n - 2] if n > 1 else a[n - 1]
+    else:
+        out[n + 2] = a[n - 1]
+        out[n + 3] = a[n - 1]
+
+
+@njit(cache=True)
+def _ghost_faces(u: np.ndarray, bl: int, br: int, out: np.ndarray) -> None:
+    """``out[j + 1] = u[j]`` with one ghost face either side."""
+    nf = u.size
+    for j in range(nf):
+        out[j + 1] = u[j]
+    out[0] = u[0] if bl == BC_NOZZLE else -u[1]
+    out[nf + 1] = -u[nf - 2] if br == BC_WALL else u[nf - 1]
+
+
+@njit(cache=True)
+def _fene(azz: float, arr: float, inv_l2: float) -> float:
+    """FENE-P factor ``f = (1 - 3/L^2) / (1 - tr A / L^2)`` (1 for Oldroyd-B)."""
+    if inv_l2 == 0.0:
+        return 1.0
+    den = 1.0 - (azz + 2.0 * arr) * inv_l2
+    if den <= 1e-12:
+        den = 1e-12
+    return (1.0 - 3.0 * inv_l2) / den
+
+
+@njit(cache=True)
+def _film_switch(a: float, a_film: float) -> float:
+    """Weight of the capillary tension: 0 in the film (``a <= a_film``), 1 from ``4 a_film``.
+
+    A smoothstep in ``a``; without it the film, a thread of radius ``film``, would retract
+    at the Taylor-Culick speed from every place where it ends (the nozzle rim, a drop)
+    and drain itself.
+    """
+    x = (a - a_film) / (3.0 * a_film)
+    if x <= 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    return x * x * (3.0 - 2.0 * x)
+
+
+@njit(cache=True)
+def _tension(am: float, a0: float, ap: float, dz: float) -> float:
+    """Capillary tension ``4 a^2 (2 + a_zz) / (4 a + a_z^2)^(3/2)`` by central differences."""
+    az = (ap - am) / (2.0 * dz)
+    azz = (ap - 2.0 * a0 + am) / (dz * dz)
+    q = 4.0 * a0 + az * az
+    return 4.0 * a0 * a0 * (2.0 + azz) / (q * np.sqrt(q))
+
+
+@njit(cache=True)
+def time_step_limit(
+    a: np.ndarray, u: np.ndarray, azz: np.ndarray, arr: np.ndarray, par: np.ndarray
+) -> float:
+    """Largest stable explicit step: advection, capillary waves, polymer waves.
+
+    * advection (TVD fluxes, Burgers momentum): ``cfl dz / max |u|``;
+    * capillary waves, treated explicitly in forward-backward order (velocity from the
+      old profile, profile from the new velocity, stable for ``omega dt <= 2``), the
+      grid-scale frequency being ``omega = (4 / dz^2) sqrt(h / 2)``:
+      ``min(2 cfl, 0.9) dz^2 / sqrt(2 h_max)``;
+    * polymer stress (explicit, relaxation implicit): the two-variable scheme for
+      ``u`` and the stress is stable while ``G_eff dt^2 k^2 <= 2 (2 + dt / De)`` with
+      ``k^2 = 4 / dz^2``, ``G_eff = G f (2 A_zz + A_rr) (1 + f tr A / (L^2 - 3))``; this
+      is ``dz / sqrt(G_eff)`` for an elastic solid and ``dz^2 / (6 Oh_p)`` for a fast
+      relaxing polymer.
+    """
+    dz = par[P_DZ]
+    cfl = par[P_CFL]
+    a_film = par[P_A_FILM]
+    gp = par[P_GP]
+    inv_de = par[P_INV_DE]
+    inv_l2 = par[P_INV_L2]
+    umax = 0.0
+    for j in range(u.size):
+        umax = max(umax, abs(u[j]))
+    amax = par[P_A_NOZ]
+    geff = 0.0
+    for i in range(a.size):
+        amax = max(amax, a[i])
+        if gp > 0.0 and a[i] > a_film:
+            f = _fene(azz[i], arr[i], inv_l2)
+            tr = azz[i] + 2.0 * arr[i]
+            stiff = 1.0
+            if inv_l2 > 0.0:
+                stiff += f * tr * inv_l2 / (1.0 - 3.0 * inv_l2)
+            geff = max(geff, gp * f * (2.0 * azz[i] + arr[i]) * stiff)
+    dt = par[P_DT_MAX]
+    if umax > 0.0:
+        dt = min(dt, cfl * dz / umax)
+    dt = min(dt, min(2.0 * cfl, 0.9) * dz * dz / np.sqrt(2.0 * np.sqrt(amax)))
+    if geff > 0.0:
+        k2 = 4.0 / (dz * dz)
+        dt_el = (2.0 * inv_de + np.sqrt(4.0 * inv_de * inv_de + 16.0 * geff * k2)) / (
+            2.0 * geff * k2
+        )
+        dt = min(dt, cfl * dt_el)
+    return dt
+
+
+@njit(cache=True)
+def _limited(q: np.ndarray, iu: int, idn: int, iuu: int, nu: float, lim: int) -> float:
+    """Face value of ``q`` from its upwind cell ``iu``: limited Lax-Wendroff (Sweby 1984)."""
+    d = q[idn] - q[iu]
+    if d == 0.0:
+        return q[iu]
+    return q[iu] + 0.5 * (1.0 - nu) * _phi((q[iu] - q[iuu]) / d, lim) * d
+
+
+@njit(cache=True)
+def _face_fluxes(
+    ae: np.ndarray,
+    cz: np.ndarray,
+    cr: np.ndarray,
+    vel: np.ndarray,
+    lam: float,
+    bl: int,
+    br: int,
+    lim: int,
+    poly: bool,
+    flux: np.ndarray,
+    fz: np.ndarray,
+    fr: np.ndarray,
+) -> None:
+    """TVD fluxes of ``a`` (and of ``a A_zz``, ``a A_rr``) through the faces, velocity ``vel``.
+
+    ``ae``, ``cz``, ``cr`` carry two ghost cells either side (see :func:`_ghost_cells`).
+    Interior faces use the flux-limited Lax-Wendroff face value; the two end faces are
+    first-order upwind (a nozzle supplies ``a_nozzle`` and an unstretched polymer).
+    """
+    n = vel.size - 1
+    for j in range(n + 1):
+        w = vel[j]
+        if j == 0 or j == n:
+            if (j == 0 and bl == BC_WALL) or (j == n and br == BC_WALL):
+                flux[j] = 0.0
+                fz[j] = 0.0
+                fr[j] = 0.0
+                continue
+            iu = (j + 1 if w >= 0.0 else j + 2) if j == 0 else n + 1
+            flux[j] = w * ae[iu]
+            if poly:
+                fz[j] = flux[j] * cz[iu]
+                fr[j] = flux[j] * cr[iu]
+            continue
+        nu = abs(w) * lam
+        if w >= 0.0:
+            iu, idn, iuu = j + 1, j + 2, j
+        else:
+            iu, idn, iuu = j + 2, j + 1, j + 3
+        flux[j] = w * _limited(ae, iu, idn, iuu, nu, lim)
+        if poly:
+            fz[j] = flux[j] * _limited(cz, iu, idn, iuu, nu, lim)
+            fr[j] = flux[j] * _limited(cr, iu, idn, iuu, nu, lim)
+
+
+@njit(cache=True)
+def step(
+    a: np.ndarray,
+    u: np.ndarray,
+    azz: np.ndarray,
+    arr: np.ndarray,
+    dt: float,
+    u_left: float,
+    par: np.ndarray,
+    ipar: np.ndarray,
+    a_new: np.ndarray,
+    u_new: np.ndarray,
+    azz_new: np.ndarray,
+    arr_new: np.ndarray,
+) -> tuple:
+    """One time step; returns ``(ok, flux_in, flux_out)``.
+
+    Order (forward-backward, first order in time): (1) face velocities from the old
+    profile and conformation (momentum advection in the conservative staggered form of
+    Stelling & Duinmeijer, Int. J. Numer. Meth. Fluids 43, 1329, 2003, with limited
+    upwind face velocities; capillary and polymer tension explicit), the solvent
+    viscous stress implicit (one tridiagonal solve); (2) the squared radius from the
+    new velocities with TVD fluxes; (3) the polymer content ``a A`` with the same
+    fluxes, then stretching (exact exponential over the step) and relaxation (implicit,
+    solved exactly). ``ok`` is False if the step produced a negative or non-finite area
+    (the caller retries with a shorter step). ``flux_in`` and ``flux_out`` are the
+    volume fluxes over pi
+    through the left and right ends (positive in the +z direction).
+    """
+    n = a.size
+    dz = par[P_DZ]
+    oh = par[P_OH]
+    gp = par[P_GP]
+    inv_de = par[P_INV_DE]
+    inv_l2 = par[P_INV_L2]
+    a_film = par[P_A_FILM]
+    a_noz = par[P_A_NOZ]
+    bl = ipar[I_BL]
+    br = ipar[I_BR]
+    lim = ipar[I_LIMITER]
+    lam = dt / dz
+
+    ae = np.empty(n + 4)
+    _ghost_cells(a, bl, br, a_noz, ae)
+    ef = np.empty(n + 4)  # regularised area
+    for i in range(n + 4):
+        ef[i] = max(ae[i], a_film)
+    ue = np.empty(n + 4)
+    _ghost_faces(u, bl, br, ue)
+
+    # --- tension per cell: capillary + polymer (explicit) ---
+    s = np.empty(n)
+    for i in range(n):
+        s[i] = _tension(ef[i + 1], ef[i + 2], ef[i + 3], dz) * _film_switch(a[i], a_film)
+        if gp > 0.0:
+            f = _fene(azz[i], arr[i], inv_l2)
+            s[i] += a[i] * gp * f * (azz[i] - arr[i])
+
+    # --- momentum advection, conservative (Stelling & Duinmeijer 2003) ---
+    # mass fluxes with the old velocities, averaged to the cell centres, carry the
+    # limited upwind face velocity; the face's momentum balance then gives u u_z
+    poly = gp > 0.0
+    cz = np.ones(n + 4)
+    cr = np.ones(n + 4)
+    if poly:
+        _ghost_cells(azz, bl, br, 1.0, cz)
+        _ghost_cells(arr, bl, br, 1.0, cr)
+    flux = np.empty(n + 1)
+    fz = np.zeros(n + 1)
+    fr = np.zeros(n + 1)
+    _face_fluxes(ae, cz, cr, u, lam, bl, br, lim, False, flux, fz, fr)
+    qc = np.empty(n)
+    mflux = np.empty(n)
+    for i in range(n):
+        qc[i] = 0.5 * (flux[i] + flux[i + 1])
+        nu = 0.5 * abs(ue[i + 1] + ue[i + 2]) * lam
+        if qc[i] >= 0.0:
+            us = _limited(ue, i + 1, i + 2, i, nu, lim)
+        else:
+            us = _limited(ue, i + 2, i + 1, i + 3, nu, lim)
+        mflux[i] = qc[i] * us
+
+    # --- momentum at interior faces 1..n-1, implicit viscosity (Thomas algorithm) ---
+    # face j between cells j-1 and j; unknowns u_1..u_{n-1}
+    m = n - 1
+    lo = np.zeros(m)
+    di = np.zeros(m)
+    up = np.zeros(m)
+    rhs = np.zeros(m)
+    u0 = u_left if bl == BC_NOZZLE else 0.0
+    for k in range(m):
+        j = k + 1
+        el = ef[j + 1]  # cell j-1 (regularised)
+        er = ef[j + 2]  # cell j
+        af = 0.5 * (el + er)
+        adv = mflux[j] - mflux[j - 1] - u[j] * (qc[j] - qc[j - 1])
+        rhs[k] = u[j] + lam * (s[j] - s[j - 1] - adv) / af
+        kap = dt * 3.0 * oh / (af * dz * dz)
+        right_visc = not (br == BC_OUTFLOW and j == n - 1)
+        lo[k] = -kap * el
+        di[k] = 1.0 + kap * el + (kap * er if right_visc else 0.0)
+        up[k] = -kap * er if (right_visc and k < m - 1) else 0.0
+        if k == 0:
+            rhs[k] += kap * el * u0
+            lo[k] = 0.0
+    for k in range(1, m):
+        w = lo[k] / di[k - 1]
+        di[k] -= w * up[k - 1]
+        rhs[k] -= w * rhs[k - 1]
+    u_new[0] = u0
+    u_new[m] = rhs[m - 1] / di[m - 1]
+    for k in range(m - 2, -1, -1):
+        u_new[k + 1] = (rhs[k] - up[k] * u_new[k + 2]) / di[k]
+    u_new[n] = u_new[n - 1] if br == BC_OUTFLOW else 0.0
+
+    # --- TVD fluxes of a (and of a A) with the new velocities ---
+    _face_fluxes(ae, cz, cr, u_new, lam, bl, br, lim, poly, flux, fz, fr)
+
+    ok = True
+    for i in range(n):
+        an = a[i] - lam * (flux[i + 1] - flux[i])
+        if not (an >= 0.0) or not np.isfinite(an):
+            ok = False
+        a_new[i] = an
+    if not ok:
+        return False, 0.0, 0.0
+
+    # --- polymer: advect a A, stretch, relax ---
+    if poly:
+        c = dt * inv_de
+        b = 1.0 - 3.0 * inv_l2
+        for i in range(n):
+            an = a_new[i]
+            if an < a_film:
+                azz_new[i] = 1.0  # no polymer in the regularising film
+                arr_new[i] = 1.0
+                continue
+            qz = (a[i] * azz[i] - lam * (fz[i + 1] - fz[i])) / an
+            qr = (a[i] * arr[i] - lam * (fr[i + 1] - fr[i])) / an
+            uz = (u_new[i + 1] - u_new[i]) / dz
+            qz = max(qz, 0.0) * np.exp(2.0 * uz * dt)
+            qr = max(qr, 0.0) * np.exp(-uz * dt)
+            # implicit relaxation: A = (A* + c) / (1 + c f(A)), f from tr A (exact root)
+            big = qz + 2.0 * qr + 3.0 * c
+            if inv_l2 > 0.0:
+                bb = 1.0 + c * b + big * inv_l2
+                tr = 2.0 * big / (bb + np.sqrt(max(bb * bb - 4.0 * big * inv_l2, 0.0)))
+                f = b / (1.0 - tr * inv_l2)
+            else:
+                f = 1.0
+            azz_new[i] = (qz + c) / (1.0 + c * f)
+            arr_new[i] = (qr + c) / (1.0 + c * f)
+            if not (np.isfinite(azz_new[i]) and np.isfinite(arr_new[i])):
+                return False, 0.0, 0.0
+    else:
+        for i in range(n):
+            azz_new[i] = 1.0
+            arr_new[i] = 1.0
+    return True, flux[0], flux[n]
+
+
+@njit(cache=True)
+def _cross_left(h: np.ndarray, i: int, hb: float, dz: float) -> float:
+    """Where ``h`` rises through ``hb`` between the centres of cells ``i - 1`` and ``i``."""
+    zc = (i + 0.5) * dz
+    if i == 0:
+        return zc - 0.5 * dz
+    d = h[i] - h[i - 1]
+    frac = (h[i] - hb) / d if d > 0.0 else 0.5
+    return zc - dz * min(max(frac, 0.0), 1.0)
+
+
+@njit(cache=True)
+def _cross_right(h: np.ndarray, i: int, hb: float, dz: float) -> float:
+    """Where ``h`` falls through ``hb`` between the centres of cells ``i`` and ``i + 1``."""
+    zc = (i + 0.5) * dz
+    if i == h.size - 1:
+        return zc + 0.5 * dz
+    d = h[i] - h[i + 1]
+    frac = (h[i] - hb) / d if d > 0.0 else 0.5
+    return zc + dz * min(max(frac, 0.0), 1.0)
+
+
+@njit(cache=True)
+def _runs(wet: np.ndarray, lo: int, hi: int, starts: np.ndarray, ends: np.ndarray) -> int:
+    """Runs of wet cells within ``[lo, hi]``: first and last cell of each; returns count."""
+    k = 0
+    i = lo
+    while i <= hi:
+        if wet[i]:
+            j = i
+            while j + 1 <= hi and wet[j + 1]:
+                j += 1
+            starts[k] = i
+            ends[k] = j
+            k += 1
+            i = j + 1
+        else:
+            i += 1
+    return k
+
+
+@njit(cache=True)
+def analyse(
+    a: np.ndarray,
+    a_prev: np.ndarray,
+    u: np.ndarray,
+    wet_prev: np.ndarray,
+    wet: np.ndarray,
+    par: np.ndarray,
+    ipar: np.ndarray,
+    t_prev: float,
+    t: float,
+    stats: np.ndarray,
+    ev: np.ndarray,
+) -> int:
+    """Update the wet mask, find breakups, and measure neck and tip; returns the event count.
+
+    A cell is *wet* (liquid) while ``h > h_break``; a dry cell becomes wet again only
+    above ``rewet h_break`` (hysteresis, so that a neck hovering at ``h_break`` does not
+    break and heal over and over). Runs of at least ``MIN_CELLS`` wet cells are bodies;
+    a nozzle boundary counts as a wet run of any length on the left. A *breakup* is a
+    body of the previous step that now holds two or more bodies (or the nozzle and a
+    body) separated by dry cells; each separation is one event, at the thinnest cell
+    between the two, its time interpolated linearly in ``h`` between the steps.
+
+    ``stats`` receives: neck radius (thinnest local minimum of ``h`` over cells inside a
+    body, not a body's end cell unless that end is the nozzle or a wall; ``inf`` if
+    none), neck z, tip z (the leading body's right end, where ``h`` falls through
+    ``h_break`` by linear interpolation between cell centres), tip velocity (face to the
+    right of the last wet cell), number of bodies. ``ev`` rows: t, neck z, tip z and tail
+    z of the body that broke (tail 0 when it hung on the nozzle), attached (1/0), cell.
+    """
+    n = a.size
+    dz = par[P_DZ]
+    hb = par[P_H_BREAK]
+    rew = par[P_REWET]
+    bl = ipar[I_BL]
+    br = ipar[I_BR]
+    h = np.sqrt(a)
+    hp = np.sqrt(a_prev)
+    for i in range(n):
+        wet[i] = h[i] > hb if wet_prev[i] else h[i] > rew * hb
+    nozzle = bl == BC_NOZZLE
+    starts = np.empty(n + 1, dtype=np.int64)
+    ends = np.empty(n + 1, dtype=np.int64)
+    sub_s = np.empty(n + 1, dtype=np.int64)
+    sub_e = np.empty(n + 1, dtype=np.int64)
+    n_ev = 0
+    # --- breakups: previous bodies that now hold several ---
+    n_prev = _runs(wet_prev, 0, n - 1, starts, ends)
+    for r in range(n_prev):
+        p0 = starts[r]
+        p1 = ends[r]
+        on_nozzle = nozzle and p0 == 0
+        if p1 - p0 + 1 < MIN_CELLS and not on_nozzle:
+            continue
+        k = _runs(wet, p0, p1, sub_s, sub_e)
+        # keep only the sub-runs that are bodies; the nozzle is one on the left
+        sig_s = np.empty(k + 1, dtype=np.int64)
+        sig_e = np.empty(k + 1, dtype=np.int64)
+        ns = 0
+        if on_nozzle:
+            sig_s[0] = -1
+            sig_e[0] = -1
+            ns = 1
+        for q in range(k):
+            if sub_e[q] - sub_s[q] + 1 >= MIN_CELLS:
+                if on_nozzle and ns == 1 and sub_s[q] == 0:
+                    sig_e[0] = sub_e[q]  # the nozzle's own body
+                    continue
+                sig_s[ns] = sub_s[q]
+                sig_e[ns] = sub_e[q]
+                ns += 1
+        if ns < 2:
+            continue
+        z_tip = _cross_right(h, sig_e[ns - 1], hb, dz)
+        z_tail = 0.0 if on_nozzle else _cross_left(h, sig_s[0], hb, dz)
+        for q in range(ns - 1):
+            g0 = sig_e[q] + 1
+            g1 = sig_s[q + 1] - 1
+            kmin = g0
+            for i in range(g0, g1 + 1):
+                if h[i] < h[kmin]:
+                    kmin = i
+            frac = 1.0
+            if hp[kmin] > h[kmin]:
+                frac = min(max((hp[kmin] - hb) / (hp[kmin] - h[kmin]), 0.0), 1.0)
+            if n_ev < ev.shape[0]:
+                ev[n_ev, 0] = t_prev + frac * (t - t_prev)
+                ev[n_ev, 1] = (kmin + 0.5) * dz
+                ev[n_ev, 2] = z_tip
+                ev[n_ev, 3] = z_tail
+                ev[n_ev, 4] = 1.0 if on_nozzle else 0.0
+                ev[n_ev, 5] = kmin
+                n_ev += 1
+    # --- neck, tip, body count on the new mask ---
+    nr = _runs(wet, 0, n - 1, starts, ends)
+    neck = np.inf
+    neck_z = np.nan
+    n_bodies = 0
+    last = -1
+    for r in range(nr):
+        r0 = starts[r]
+        r1 = ends[r]
+        if r1 - r0 + 1 < MIN_CELLS:
+            continue
+        n_bodies += 1
+        last = r1
+        for i in range(r0, r1 + 1):
+            left_closed = i > r0 or (i == 0 and bl != BC_OUTFLOW)
+            right_closed = i < r1 or (i == n - 1 and br == BC_WALL)
+            if not (left_closed and right_closed):
+                continue
+            if i > 0:
+                hl = h[i - 1]
+            elif nozzle:
+                hl = np.sqrt(par[P_A_NOZ])
+            else:
+                hl = h[i]
+            hr = h[i + 1] if i < n - 1 else h[i]
+            if h[i] <= hl and h[i] <= hr and h[i] < neck:
+                neck = h[i]
+                neck_z = (i + 0.5) * dz
+    stats[0] = neck
+    stats[1] = neck_z
+    if last >= 0:
+        stats[2] = _cross_right(h, last, hb, dz)
+        stats[3] = u[last + 1]
+    else:
+        stats[2] = 0.0
+        stats[3] = 0.0
+    stats[4] = n_bodies
+    return n_ev
+
+
+@njit(cache=True)
+def _displacement(d_tab: np.ndarray, t0: float, dtab: float, t: float) -> float:
+    """Inflow displacement at ``t`` by linear interpolation in the table."""
+    x = (t - t0) / dtab
+    if x <= 0.0:
+        return d_tab[0]
+    k = int(x)
+    if k >= d_tab.size - 1:
+        return d_tab[d_tab.size - 1]
+    return d_tab[k] + (x - k) * (d_tab[k + 1] - d_tab[k])
+
+
+@njit(cache=True)
+def advance(
+    a: np.ndarray,
+    u: np.ndarray,
+    azz: np.ndarray,
+    arr: np.ndarray,
+    wet: np.ndarray,
+    t: float,
+    t_stop: float,
+    par: np.ndarray,
+    ipar: np.ndarray,
+    d_tab: np.ndarray,
+    tab_t0: float,
+    tab_dt: float,
+    hist: np.ndarray,
+    n_hist: int,
+    max_steps: int,
+    counters: np.ndarray,
+    acc: np.ndarray,
+    ev: np.ndarray,
+) -> tuple:
+    """Step from ``t`` towards ``t_stop`` (landing on it exactly); state updated in place.
+
+    Returns ``(t, n_hist, status, n_events)``. Status: 0 ``t_stop`` reached, 1 breakup
+    (events in ``ev``), 2 history array full, 3 step limit, 4 step size collapsed, 5
+    liquid reached the open far end. ``counters`` holds accepted and rejected steps,
+    ``acc`` the volume over pi injected at the left end and lost at the right end.
+    One history column (``HIST_ROWS`` rows) is written per accepted step.
+    """
+    n = a.size
+    a_new = np.empty(n)
+    u_new = np.empty(n + 1)
+    zz_new = np.empty(n)
+    rr_new = np.empty(n)
+    a_old = np.empty(n)
+    wet_new = np.empty(n, dtype=np.bool_)
+    stats = np.empty(5)
+    dz = par[P_DZ]
+    eps_t = 1e-12 * max(1.0, abs(t_stop))
+    while True:
+        if t >= t_stop - eps_t:
+            return t, n_hist, 0, 0
+        if counters[0] >= max_steps:
+            return t, n_hist, 3, 0
+        if n_hist >= hist.shape[1]:
+            return t, n_hist, 2, 0
+        dt = time_step_limit(a, u, azz, arr, par)
+        last = False
+        if t + dt >= t_stop - eps_t:
+            dt = t_stop - t
+            last = True
+        elif t + 1.5 * dt > t_stop:
+            dt = 0.5 * (t_stop - t)  # two even steps rather than a sliver
+        while True:
+            d0 = _displacement(d_tab, tab_t0, tab_dt, t)
+            d1 = _displacement(d_tab, tab_t0, tab_dt, t + dt)
+            u_left = (d1 - d0) / dt
+            ok, f_in, f_out = step(
+                a, u, azz, arr, dt, u_left, par, ipar, a_new, u_new, zz_new, rr_new
+            )
+            if ok:
+                break
+            counters[1] += 1
+            dt *= 0.5
+            last = False
+            if dt < 1e-13:
+                return t, n_hist, 4, 0
+        t_prev = t
+        t = t_stop if last else t + dt
+        acc[0] += f_in * dt
+        acc[1] += f_out * dt
+        a_old[:] = a
+        a[:] = a_new
+        u[:] = u_new
+        azz[:] = zz_new
+        arr[:] = rr_new
+        counters[0] += 1
+        n_ev = analyse(a, a_old, u, wet, wet_new, par, ipar, t_prev, t, stats, ev)
+        wet[:] = wet_new
+        vol = 0.0
+        for i in range(n):
+            vol += a[i]
+        hist[0, n_hist] = t
+        hist[1, n_hist] = stats[0]
+        hist[2, n_hist] = stats[1]
+        hist[3, n_hist] = stats[2]
+        hist[4, n_hist] = stats[3]
+        hist[5, n_hist] = vol * dz + acc[1]
+        hist[6, n_hist] = acc[0]
+        hist[7, n_hist] = stats[4]
+        n_hist += 1
+        if n_ev > 0:
+            return t, n_hist, 1, n_ev
+        if ipar[I_BR] == BC_OUTFLOW and (wet[n - 1] or wet[n - 2] or wet[n - 3]):
+            return t, n_hist, 5, 0
