@@ -87,3 +87,31 @@ def test_write_relaxation_refuses_a_file_without_the_table(tmp_path: Path) -> No
     with pytest.raises(ValueError, match="relaxation"):
         write_relaxation(fit, path, command="test")
     assert path.read_text() == "a = 1\n"
+
+
+def test_each_jet_model_keeps_its_own_law(tmp_path: Path) -> None:
+    src = resources.files("microfab.data").joinpath("naalg.toml")
+    path = tmp_path / "naalg.toml"
+    with resources.as_file(src) as f:
+        shutil.copy(f, path)
+    text = path.read_text()
+    # without an Eulerian law the table says how to get one
+    stripped = text[: text.index("[relaxation_eulerian]")]
+    path.write_text(stripped)
+    with pytest.raises(ValueError, match="--model eulerian --write"):
+        load_table(path).law("eulerian")
+    before = load_table(path)
+    fit = calibrate_relaxation(breakup=_stand_in(20e-6, 1.7), rtol=1e-3)
+    write_relaxation(fit, path, command="test", model="eulerian")  # appended
+    fit2 = calibrate_relaxation(breakup=_stand_in(30e-6, 0.9), rtol=1e-3)
+    write_relaxation(fit2, path, command="test2", model="eulerian")  # replaced in place
+    after = load_table(path)
+    law = after.law("eulerian")
+    assert law.lambda_ref_s == pytest.approx(30e-6, rel=1e-2)
+    assert law.exponent == pytest.approx(0.9, abs=1e-2)
+    assert "`test2`" in law.note and "eulerian jet model" in law.note
+    assert path.read_text().count("[relaxation_eulerian]") == 1
+    assert after.lambda_ref_s == before.lambda_ref_s  # the Lagrangian law is untouched
+    assert after.relaxation_time_s(1.0, "eulerian") == pytest.approx(law.lambda_ref_s)
+    with pytest.raises(ValueError, match="lower-case"):
+        write_relaxation(fit, path, command="x", model="Euler 2")

@@ -28,6 +28,7 @@ status ``"calibrated"`` and a note naming the command.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 import tomllib
@@ -47,6 +48,7 @@ __all__ = [
     "Evaluation",
     "RelaxationFit",
     "calibrate_relaxation",
+    "model_breakup",
     "simulated_breakup",
     "write_relaxation",
 ]
@@ -59,7 +61,7 @@ BreakupFn = Callable[[float, float], tuple[float | None, BreakupMode | None]]
 
 
 def simulated_breakup(
-    concentration_pct: float, relaxation_time_s: float
+    concentration_pct: float, relaxation_time_s: float, model: str = "lagrangian"
 ) -> tuple[float | None, BreakupMode | None]:
     """First breakup time and mode of NaAlg at the seed's 50 V drive.
 
@@ -69,22 +71,27 @@ def simulated_breakup(
         NaAlg concentration, % w/v.
     relaxation_time_s : float
         Relaxation time to use instead of the table's law, s.
+    model : {"lagrangian", "eulerian"}, optional
+        Jet model (:func:`microfab.process.inkjet.droplet.simulate_droplet`).
 
     Returns
     -------
     (float or None, str or None)
         Breakup time in s and mode; ``(None, None)`` without breakup in 400 µs.
     """
-    from microfab.process.inkjet.droplet import simulate_droplet
-    from microfab.trajectory.waveform import seed003_waveform
+    from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
 
-    res = simulate_droplet(
-        naalg(concentration_pct, relaxation_time_s=relaxation_time_s),
-        seed003_waveform(SEED_VOLTAGE_V),
-        duration_s=_DURATION_S,
-        after_breakup_s=2e-6,
+    res = run_point(
+        SweepPoint(concentration_pct, SEED_VOLTAGE_V),
+        DropletSettings(duration_s=_DURATION_S, after_breakup_s=2e-6, model=model),
+        fluid=naalg(concentration_pct, relaxation_time_s=relaxation_time_s),
     )
     return res.breakup_time_s, res.breakup_mode
+
+
+def model_breakup(model: str) -> BreakupFn:
+    """:func:`simulated_breakup` with one jet model, as `calibrate_relaxation` takes it."""
+    return functools.partial(simulated_breakup, model=model)
 
 
 @dataclass(frozen=True)
@@ -266,11 +273,14 @@ def calibrate_relaxation(
 _BLOCK = re.compile(r"^\[relaxation\]\n(.*?)(?=^\[relaxation\.bounds\])", re.S | re.M)
 
 
-def write_relaxation(fit: RelaxationFit, path: str | Path, *, command: str) -> None:
+def write_relaxation(
+    fit: RelaxationFit, path: str | Path, *, command: str, model: str = "lagrangian"
+) -> None:
     """Store a fitted relaxation law in a property-table file, atomically.
 
-    Only the ``[relaxation]`` table is rewritten (``status = "calibrated"``); comments,
-    bounds and every other value are kept.
+    Only the law of ``model`` is rewritten (``status = "calibrated"``): ``[relaxation]`` for
+    the Lagrangian jet model, ``[relaxation_<model>]`` for another (added at the end of
+    the file if missing); comments, bounds and every other value are kept.
 
     Parameters
     ----------
@@ -280,6 +290,8 @@ def write_relaxation(fit: RelaxationFit, path: str | Path, *, command: str) -> N
         A TOML file with the layout of ``microfab/data/naalg.toml``.
     command : str
         The command that produced ``fit``, recorded in the note.
+    model : str, optional
+        The jet model the fit was made with.
 
     Raises
     ------
@@ -291,7 +303,9 @@ def write_relaxation(fit: RelaxationFit, path: str | Path, *, command: str) -> N
     text = p.read_text(encoding="utf-8")
     if not _BLOCK.search(text):
         raise ValueError(f"{p}: no [relaxation] table followed by [relaxation.bounds]")
-    model = "; ".join(
+    if not re.fullmatch(r"[a-z]+", model):
+        raise ValueError(f"model must be a lower-case name, got {model!r}")
+    result = "; ".join(
         f"{c:g} %: " + ("no breakup" if tb is None else f"{tb * 1e6:.1f} µs {mode}")
         for c, (tb, mode) in fit.model_breakup.items()
     )
@@ -303,10 +317,18 @@ def write_relaxation(fit: RelaxationFit, path: str | Path, *, command: str) -> N
         f"exponent = {fit.exponent:.3f}\n"
         'status = "calibrated"\n'
         f'note = """fitted by `{command}` (microfab.experiments.seed003_inkjet.calibration) '
-        f"to the seed's first-breakup times at 50 V (seed 003 part 1, Fig. 2: {seed}). "
-        "Model with the fit: "
-        f'{model}.{bound}"""\n\n'
+        f"with the {model} jet model to the seed's first-breakup times at 50 V (seed 003 "
+        f"part 1, Fig. 2: {seed}). Model with the fit: "
+        f'{result}.{bound}"""\n\n'
     )
-    new = _BLOCK.sub(lambda _: "[relaxation]\n" + block, text, count=1)
+    if model == "lagrangian":
+        new = _BLOCK.sub(lambda _: "[relaxation]\n" + block, text, count=1)
+    else:
+        head = f"[relaxation_{model}]\n"
+        own = re.compile(rf"^\[relaxation_{model}\]\n(.*?)(?=^\[|\Z)", re.S | re.M)
+        if own.search(text):
+            new = own.sub(lambda _: head + block, text, count=1)
+        else:
+            new = text.rstrip("\n") + "\n\n" + head + block.rstrip("\n") + "\n"
     _parse_table(tomllib.loads(new), str(p))  # refuse to write a table that would not load
     atomic_write_text(p, new)

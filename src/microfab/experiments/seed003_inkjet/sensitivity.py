@@ -67,8 +67,10 @@ class SensitivityPoint:
             raise ValueError(f"factor must be > 0, got {self.factor}")
 
 
-def perturbed_fluid(point: SensitivityPoint) -> Any:
+def perturbed_fluid(point: SensitivityPoint, model: str = "lagrangian") -> Any:
     """The NaAlg fluid of ``point`` with its one property scaled.
+
+    ``model`` picks the relaxation law calibrated for that jet model.
 
     Returns
     -------
@@ -76,7 +78,7 @@ def perturbed_fluid(point: SensitivityPoint) -> Any:
     """
     from microfab.process.inkjet.fluids import naalg
 
-    base = naalg(point.concentration_pct)
+    base = naalg(point.concentration_pct, model=model)
     f = point.factor
     if point.prop == "none":
         return base
@@ -113,7 +115,7 @@ def sensitivity_points(
 
 def _simulate(point: SensitivityPoint, settings: DropletSettings) -> dict[str, Any]:
     res = run_point(SweepPoint(point.concentration_pct, FIG4_VOLTAGE_V), settings,
-                    fluid=perturbed_fluid(point))  # fmt: skip
+                    fluid=perturbed_fluid(point, settings.model))  # fmt: skip
     return res.to_dict()
 
 

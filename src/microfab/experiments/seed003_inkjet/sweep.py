@@ -166,7 +166,8 @@ def run_point(
     settings : DropletSettings, optional
         Simulated time, time after the first breakup, step budget (defaults: the sweep's).
     fluid : Fluid, optional
-        The ink, if not the table's NaAlg at the point's concentration (a sensitivity run).
+        The ink, if not the table's NaAlg at the point's concentration with the relaxation
+        law calibrated for the chosen jet model (a sensitivity run).
     progress : callable, optional
         Called with the simulated time in s.
 
@@ -180,7 +181,7 @@ def run_point(
 
     settings = settings or DropletSettings()
     return simulate_droplet(
-        fluid if fluid is not None else naalg(point.concentration_pct),
+        fluid if fluid is not None else naalg(point.concentration_pct, model=settings.model),
         seed003_waveform(point.voltage_v),
         duration_s=settings.duration_s,
         after_breakup_s=settings.after_breakup_s,

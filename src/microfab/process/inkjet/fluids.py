@@ -51,6 +51,7 @@ __all__ = [
     "WATER",
     "Fluid",
     "NaAlgTable",
+    "RelaxationLaw",
     "fluid_table_rows",
     "load_table",
     "naalg",
@@ -212,6 +213,39 @@ def newtonian(
 WATER = newtonian("water (25 °C)", 997.05, 0.07197, 0.89e-3)
 
 
+@dataclass(frozen=True, kw_only=True)
+class RelaxationLaw:
+    """A relaxation law ``λ(c) = lambda_ref_s · (c/reference_pct)^exponent``.
+
+    A calibrated law belongs to the jet model it was calibrated with: the two models
+    of :mod:`.droplet` reach the seed's breakup times with different relaxation times.
+
+    Attributes
+    ----------
+    lambda_ref_s : float
+        λ at the reference concentration, s.
+    reference_pct : float
+        Reference concentration, % w/v.
+    exponent : float
+        Power of the concentration.
+    status, note : str
+        ``"calibrated"`` or ``"uncalibrated"``, and how it was obtained.
+    """
+
+    lambda_ref_s: float
+    reference_pct: float
+    exponent: float
+    status: str
+    note: str = ""
+
+    def time_s(self, concentration_pct: float) -> float:
+        """λ at ``concentration_pct`` (% w/v, >= 0), s."""
+        check_nonnegative("NaAlg concentration", concentration_pct, "% w/v")
+        return float(
+            self.lambda_ref_s * (concentration_pct / self.reference_pct) ** self.exponent
+        )
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class NaAlgTable:
     """The NaAlg property table of ``data/naalg.toml`` (read-only arrays, SI units).
@@ -225,7 +259,8 @@ class NaAlgTable:
     extensibility_l2 : float
         FENE-P L² used for every concentration.
     lambda_ref_s, reference_pct, exponent : float
-        Relaxation law ``λ(c) = lambda_ref_s · (c/reference_pct)^exponent``.
+        Relaxation law ``λ(c) = lambda_ref_s · (c/reference_pct)^exponent`` of the
+        Lagrangian jet model (``[relaxation]``).
     relaxation_status, relaxation_note : str
         ``"uncalibrated"`` or ``"calibrated"``, and the note of the ``[relaxation]`` table.
     lambda_ref_bounds_s, exponent_bounds : tuple of float
@@ -235,6 +270,9 @@ class NaAlgTable:
         ...}`` source strings.
     global_sources : dict
         Source strings of the solvent properties and of ``extensibility_l2``.
+    model_laws : dict
+        Relaxation laws of other jet models by name (``[relaxation_<model>]`` tables,
+        e.g. ``"eulerian"``).
     """
 
     concentration_pct: NDArray[np.float64]
@@ -254,6 +292,31 @@ class NaAlgTable:
     exponent_bounds: tuple[float, float]
     sources: tuple[dict[str, str], ...] = field(default=())
     global_sources: dict[str, str] = field(default_factory=dict)
+    model_laws: dict[str, RelaxationLaw] = field(default_factory=dict)
+
+    def law(self, model: str = "lagrangian") -> RelaxationLaw:
+        """The relaxation law calibrated with jet model ``model``.
+
+        Raises
+        ------
+        ValueError
+            If the table holds no law for that model.
+        """
+        if model == "lagrangian":
+            return RelaxationLaw(
+                lambda_ref_s=self.lambda_ref_s,
+                reference_pct=self.reference_pct,
+                exponent=self.exponent,
+                status=self.relaxation_status,
+                note=self.relaxation_note,
+            )
+        if model not in self.model_laws:
+            have = ", ".join(["lagrangian", *self.model_laws])
+            raise ValueError(
+                f"the NaAlg table has no relaxation law for the {model!r} jet model (it has: "
+                f"{have}); calibrate one with microfab droplet calibrate --model {model} --write"
+            )
+        return self.model_laws[model]
 
     @property
     def max_concentration_pct(self) -> float:
@@ -265,13 +328,15 @@ class NaAlgTable:
         """Specific viscosity η_sp = η0/η_s - 1 at the table points."""
         return self.zero_shear_viscosity_pa_s / self.solvent_viscosity_pa_s - 1.0
 
-    def relaxation_time_s(self, concentration_pct: float) -> float:
+    def relaxation_time_s(self, concentration_pct: float, model: str = "lagrangian") -> float:
         """Relaxation time λ(c) = lambda_ref_s · (c/reference_pct)^exponent, s.
 
         Parameters
         ----------
         concentration_pct : float
             Concentration, % w/v (>= 0).
+        model : str, optional
+            Jet model whose calibrated law to use (`law`).
 
         Returns
         -------
@@ -284,8 +349,7 @@ class NaAlgTable:
         >>> t.relaxation_time_s(t.reference_pct) == t.lambda_ref_s
         True
         """
-        check_nonnegative("NaAlg concentration", concentration_pct, "% w/v")
-        return float(self.lambda_ref_s * (concentration_pct / self.reference_pct) ** self.exponent)
+        return self.law(model).time_s(concentration_pct)
 
 
 def _frozen(values: list[float]) -> NDArray[np.float64]:
@@ -342,8 +406,24 @@ def _parse_table(data: Mapping[str, Any], origin: str) -> NaAlgTable:
                 "extensibility_l2": str(data.get("extensibility_l2_source", "")),
             },
         )
+        laws = {}
+        for key, raw in data.items():
+            if key.startswith("relaxation_") and isinstance(raw, Mapping):
+                laws[key.removeprefix("relaxation_")] = RelaxationLaw(
+                    lambda_ref_s=float(raw["lambda_ref_s"]),
+                    reference_pct=float(raw["reference_pct"]),
+                    exponent=float(raw["exponent"]),
+                    status=str(raw["status"]),
+                    note=str(raw.get("note", "")),
+                )
+        table = dataclasses.replace(table, model_laws=laws)
     except (KeyError, TypeError) as exc:
         raise ValueError(f"{origin}: malformed NaAlg table ({exc!r})") from exc
+    for name, law in table.model_laws.items():
+        check_positive(f"{origin}: [relaxation_{name}] reference concentration",
+                       law.reference_pct, "% w/v")  # fmt: skip
+        check_positive(f"{origin}: [relaxation_{name}] λ_ref", law.lambda_ref_s, "s")
+        check_finite(f"{origin}: [relaxation_{name}] exponent", law.exponent)
 
     if c.size < 1 or c[0] <= 0.0 or np.any(np.diff(c) <= 0.0):
         raise ValueError(f"{origin}: concentrations must be positive and distinct: {list(c)}")
@@ -441,6 +521,7 @@ def naalg(
     *,
     relaxation_time_s: float | None = None,
     table: NaAlgTable | None = None,
+    model: str = "lagrangian",
 ) -> Fluid:
     """Sodium alginate in deionised water at 25 °C, at any concentration of the table range.
 
@@ -452,6 +533,9 @@ def naalg(
         Override the table's relaxation law λ(c) (e.g. during a calibration).
     table : NaAlgTable, optional
         Property table; default: ``load_table()`` (package data, read once).
+    model : str, optional
+        Jet model whose calibrated relaxation law to use (`NaAlgTable.law`): "lagrangian"
+        (default) or "eulerian".
 
     Returns
     -------
@@ -508,7 +592,7 @@ def naalg(
     elif c == 0.0:
         lam = 0.0
     else:
-        lam = t.relaxation_time_s(c)
+        lam = t.relaxation_time_s(c, model)
     return Fluid(
         name=f"NaAlg {c:g} % w/v",
         density_kg_m3=rho,
