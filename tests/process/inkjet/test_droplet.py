@@ -111,3 +111,23 @@ def test_a_shorter_run_is_the_prefix_of_a_longer_one() -> None:
     np.testing.assert_allclose(short.run.t[:n], long.run.t[:n], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(short.run.tip_z[:n], long.run.tip_z[:n], rtol=1e-12, atol=1e-12)
     assert short.flow.t_s[-1] == pytest.approx(61e-6, abs=1e-7)  # the flow is cut to the run
+
+
+@pytest.mark.parametrize("model", ["lagrangian", "eulerian"])
+@pytest.mark.parametrize("c", [0.15, 1.0])
+def test_the_camera_sees_the_breakup_the_solver_reports(model: str, c: float) -> None:
+    # issue 19: frames of either model through the image analyser give the solver's mode,
+    # and its time to within one frame
+    dt = 5e-6
+    res = simulate_droplet(naalg(c, model=model), duration_s=400e-6, after_breakup_s=20e-6,
+                           frame_interval_s=dt, model=model)  # fmt: skip
+    assert res.breakup_time_s is not None
+    sil = [s for s in res.silhouettes if s.bodies]
+    reach = max(float(b[0][-1]) for s in sil for b in s.bodies)
+    cam = Camera(pixel_size_m=2e-6, width_px=120, height_px=int(reach / 2e-6) + 40)
+    frames = render_sequence(sil, cam, seed=0)
+    seen = analyze(frames, pixel_size_m=2e-6, frame_interval_s=dt,
+                   nozzle_row=cam.nozzle_row, t0_s=sil[0].time_s)  # fmt: skip
+    assert seen.breakup_time_s is not None
+    assert abs(seen.breakup_time_s - res.breakup_time_s) <= dt + 1e-9
+    assert seen.breakup_mode == res.breakup_mode
