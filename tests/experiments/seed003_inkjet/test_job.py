@@ -170,6 +170,10 @@ def test_two_models_are_run_saved_apart_and_compared(
 
 def test_fig4_reproduction_options() -> None:
     rep = REPRODUCTIONS["droplet-fig4"]
-    assert rep.parse_options({}) == {"duration_us": 400.0, "models": "lagrangian", "workers": 1}
+    assert rep.parse_options({}) == {
+        "duration_us": 400.0,
+        "models": "lagrangian,eulerian",
+        "workers": 1,
+    }
     with pytest.raises(JobFileError, match="workers"):
         rep.parse_options({"workers": 0})

@@ -101,6 +101,12 @@ _MODELS = Key(
     default="lagrangian",
     help="jet models, comma-separated: lagrangian, eulerian (each runs every point)",
 )
+_REPRO_MODELS = Key(
+    name="models",
+    type="str",
+    default="lagrangian,eulerian",
+    help="jet models, comma-separated: lagrangian, eulerian (each runs every point)",
+)
 _WORKERS = Key(
     name="workers",
     type="int",
@@ -587,5 +593,5 @@ DROPLET_FIG4_REPRODUCTION = Reproduction(
     description="Seed 003 Fig. 4 and Fig. 2: first breakup of six NaAlg solutions at 50 V",
     seed="003",
     run=_reproduce,
-    options=(_DURATION, _MODELS, _WORKERS),
+    options=(_DURATION, _REPRO_MODELS, _WORKERS),
 )
