@@ -312,9 +312,11 @@ def write_relaxation(
     seed = "; ".join(f"{c:g} %: {tb * 1e6:g} µs {mode}" for c, (tb, mode) in SEED_BREAKUP.items())
     bound = f" Parameters at a bound: {', '.join(fit.at_bound)}." if fit.at_bound else ""
     block = (
-        f"lambda_ref_s = {fit.lambda_ref_s:.4e}\n"
+        # every digit: a rounded λ_ref moves a breakup near its threshold (the Lagrangian
+        # 1 % run broke at 338 µs with the fit and 350 µs with λ_ref to five digits)
+        f"lambda_ref_s = {fit.lambda_ref_s!r}\n"
         f"reference_pct = {fit.reference_pct:g}\n"
-        f"exponent = {fit.exponent:.3f}\n"
+        f"exponent = {fit.exponent!r}\n"
         'status = "calibrated"\n'
         f'note = """fitted by `{command}` (microfab.experiments.seed003_inkjet.calibration) '
         f"with the {model} jet model to the seed's first-breakup times at 50 V (seed 003 "

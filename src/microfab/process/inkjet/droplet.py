@@ -329,7 +329,7 @@ def simulate_droplet(
         if numerics is not None and not isinstance(numerics, Numerics):
             raise TypeError("the Lagrangian model takes jet.Numerics settings")
         nu = dataclasses.replace(numerics or DOD_NUMERICS, h_break=breakup_radius_m / radius)
-        run = run_jet([], sc.model(fluid), nu, **common)
+        run = run_jet([], sc.model(fluid), nu, land_on_snapshots=False, **common)
     elif model == "eulerian":
         if numerics is not None and not isinstance(numerics, EulerNumerics):
             raise TypeError("the Eulerian model takes jet_euler.EulerNumerics settings")
