@@ -382,7 +382,7 @@ def calibrate_cmd(
                 task,
                 advance=1,
                 description=f"{ev.concentration_pct:g} %, λ {ev.relaxation_time_s * 1e6:.3g} µs",
-            )
+            ),
         )
     console.print(fit.summary())
     if write is not None:

@@ -241,9 +241,7 @@ class RelaxationLaw:
     def time_s(self, concentration_pct: float) -> float:
         """λ at ``concentration_pct`` (% w/v, >= 0), s."""
         check_nonnegative("NaAlg concentration", concentration_pct, "% w/v")
-        return float(
-            self.lambda_ref_s * (concentration_pct / self.reference_pct) ** self.exponent
-        )
+        return float(self.lambda_ref_s * (concentration_pct / self.reference_pct) ** self.exponent)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
