@@ -50,18 +50,13 @@ ties go to the gap nearest the head). The mode comes from
 
 from __future__ import annotations
 
-import itertools
-import json
-import logging
 import math
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import ndimage
 
 from microfab.core.validate import (
     check_finite,
@@ -69,6 +64,23 @@ from microfab.core.validate import (
     check_int,
     check_nonnegative,
     check_positive,
+)
+from microfab.measure.frame_bodies import (
+    clean_mask,
+    detect_nozzle_row,
+    flatten,
+    measure_frame,
+    shadow_level,
+    silhouettes,
+)
+from microfab.measure.frames import (
+    IMAGE_SUFFIXES,
+    SIDECAR_NAME,
+    MissingSettingError,
+    as_frames,
+    load_frames,
+    natural_key,
+    read_sidecar,
 )
 from microfab.process.inkjet.breakup import BreakupMode, classify_pinch
 from microfab.process.inkjet.head_tail import HeadTail, Thinning, head_and_tail, thinning_rate
@@ -85,174 +97,6 @@ __all__ = [
     "load_frames",
     "natural_key",
 ]
-
-#: File suffixes read by :func:`load_frames` (case-insensitive).
-IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
-#: Sidecar with acquisition metadata (written by ``shadowgraph.write_frames``).
-SIDECAR_NAME = "frames.json"
-
-#: Pixels darker than this fraction of the current background estimate are left out of
-#: the background fit.
-_BG_FRACTION = 0.8
-#: A width drop to below this fraction of the row above ends the nozzle (detection).
-_NOZZLE_WIDTH_DROP = 0.75
-
-
-# ---------------------------------------------------------------------------- loading
-
-
-class MissingSettingError(ValueError):
-    """A camera setting that was neither passed nor found in the frames' sidecar.
-
-    Parameters
-    ----------
-    key : str
-        The setting's name (``"pixel_size_m"`` or ``"frame_interval_s"``), so that a
-        front end can name its own option for it.
-    message : str
-        The error message.
-    """
-
-    def __init__(self, key: str, message: str) -> None:
-        super().__init__(message)
-        self.key = key
-
-
-def natural_key(name: str) -> list[int | str]:
-    """Sort key that orders embedded numbers by value (``frame_2`` before ``frame_10``).
-
-    Parameters
-    ----------
-    name : str
-        File name.
-
-    Returns
-    -------
-    list of int or str
-        Alternating text (lower-cased) and integer parts.
-
-    Examples
-    --------
-    >>> sorted(["f_10.png", "f_2.png", "f_1.png"], key=natural_key)
-    ['f_1.png', 'f_2.png', 'f_10.png']
-    """
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
-
-
-def _to_float(arr: np.ndarray) -> np.ndarray:
-    if arr.dtype == bool:
-        return arr.astype(float)
-    if np.issubdtype(arr.dtype, np.integer):
-        info = np.iinfo(arr.dtype)
-        return np.clip(arr.astype(float) / info.max, 0.0, 1.0)
-    out = np.asarray(arr, dtype=float)
-    top = float(np.nanmax(out)) if out.size else 0.0
-    return out / top if top > 1.0 else out
-
-
-def _rgb_to_gray(arr: np.ndarray) -> np.ndarray:
-    from skimage.color import rgb2gray
-
-    return rgb2gray(arr[..., :3])
-
-
-# tifffile logs what it finds wrong in a damaged file before it raises; without a handler
-# Python prints that on stderr, beside the one-line error the file's refusal gives.
-logging.getLogger("tifffile").addHandler(logging.NullHandler())
-
-
-def _read_image(path: Path) -> list[np.ndarray]:
-    """Read one file into a list of 2-D gray float frames (several for a TIFF stack)."""
-    try:
-        if path.suffix.lower() in (".tif", ".tiff"):
-            import tifffile
-
-            raw = tifffile.imread(path)
-        else:
-            import imageio.v3 as iio
-
-            raw = iio.imread(path, plugin="pillow")
-    except Exception as exc:
-        raise ValueError(f"cannot read image file {path}: {exc}") from exc
-    arr = _to_float(np.asarray(raw))
-    if arr.ndim == 2:
-        return [arr]
-    if arr.ndim == 3 and arr.shape[-1] in (3, 4):
-        return [_rgb_to_gray(arr)]
-    if arr.ndim == 3 and arr.shape[-1] == 2:  # gray + alpha
-        return [arr[..., 0]]
-    if arr.ndim == 3:  # multi-page stack (n, h, w)
-        return list(arr)
-    if arr.ndim == 4 and arr.shape[-1] in (3, 4):  # stack of RGB pages
-        return [_rgb_to_gray(page) for page in arr]
-    raise ValueError(f"cannot use image file {path}: unsupported array shape {arr.shape}")
-
-
-def load_frames(
-    directory: str | Path, *, pattern: str | None = None
-) -> tuple[np.ndarray, list[str]]:
-    """Read a folder of PNG/TIFF frames into one gray float array.
-
-    Parameters
-    ----------
-    directory : str or pathlib.Path
-        Folder with the frames. Hidden files (names starting with ``.``) are skipped.
-    pattern : str, optional
-        Glob pattern of the files to read (e.g. ``"cam1_*.tif"``); default: every file
-        with a suffix in :data:`IMAGE_SUFFIXES`.
-
-    Returns
-    -------
-    frames : numpy.ndarray
-        Shape ``(n, h, w)``, float in [0, 1] (integers scaled by their type's maximum,
-        RGB converted to luminance, alpha ignored).
-    names : list of str
-        File name of each frame (``name[i]`` for page ``i`` of a multi-page TIFF), in
-        natural order.
-
-    Raises
-    ------
-    ValueError
-        If the folder does not exist or holds no matching image, a file cannot be read,
-        or the frames differ in size (both sizes and files are named).
-
-    Examples
-    --------
-    >>> frames, names = load_frames("run_50V")  # doctest: +SKIP
-    >>> frames.shape, names[:2]  # doctest: +SKIP
-    ((16, 400, 120), ['frame_0000.png', 'frame_0001.png'])
-    """
-    folder = Path(directory)
-    if not folder.is_dir():
-        raise ValueError(f"frame folder not found (or not a folder): {folder}")
-    if pattern is None:
-        files = [
-            p
-            for p in folder.iterdir()
-            if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")
-        ]
-    else:
-        files = [p for p in folder.glob(pattern) if p.is_file() and not p.name.startswith(".")]
-    if not files:
-        wanted = pattern if pattern is not None else "/".join(IMAGE_SUFFIXES)
-        raise ValueError(f"no image files ({wanted}) in folder {folder}")
-    files.sort(key=lambda p: natural_key(p.name))
-    frames: list[np.ndarray] = []
-    names: list[str] = []
-    for path in files:
-        pages = _read_image(path)
-        for i, page in enumerate(pages):
-            name = path.name if len(pages) == 1 else f"{path.name}[{i}]"
-            if frames and page.shape != frames[0].shape:
-                h0, w0 = frames[0].shape
-                h1, w1 = page.shape
-                raise ValueError(
-                    f"frames differ in size: {names[0]} is {w0} x {h0} px (w x h) but "
-                    f"{name} is {w1} x {h1} px"
-                )
-            frames.append(page)
-            names.append(name)
-    return np.stack(frames), names
 
 
 # ---------------------------------------------------------------------------- results
@@ -434,245 +278,6 @@ class DropletAnalysis:
 # ---------------------------------------------------------------------------- analysis
 
 
-def as_frames(frames: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
-    """Frames as a validated gray float stack, as :func:`analyze` reads them.
-
-    Parameters
-    ----------
-    frames : numpy.ndarray or sequence of numpy.ndarray
-        Gray frames ``(n, h, w)`` or one ``(h, w)`` frame, or RGB(A) frames
-        ``(n, h, w, 3 | 4)``; integer or float gray levels.
-
-    Returns
-    -------
-    numpy.ndarray
-        Float frames of shape ``(n, h, w)``: integers divided by their dtype's maximum,
-        floats divided by their maximum if it exceeds 1, RGB(A) converted to gray.
-
-    Raises
-    ------
-    ValueError
-        For another shape, frames smaller than 3 x 3 px, or NaN/inf values.
-    """
-    arr = np.asarray(frames)
-    if arr.ndim == 4 and arr.shape[-1] in (3, 4):
-        arr = _rgb_to_gray(_to_float(arr))
-    elif arr.ndim in (2, 3):
-        arr = _to_float(arr)
-    else:
-        raise ValueError(f"frames must have shape (n, h, w) or (h, w), got {arr.shape}")
-    if arr.ndim == 2:
-        arr = arr[None]
-    if arr.shape[0] == 0 or arr.shape[1] < 3 or arr.shape[2] < 3:
-        raise ValueError(f"need at least one frame of at least 3 x 3 px, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError("frames contain NaN or infinite values")
-    return arr
-
-
-def _flatten(frame: np.ndarray, smooth_px: float) -> np.ndarray:
-    """Smooth, then divide by a quadratic background surface (background -> 1)."""
-    img = ndimage.gaussian_filter(frame, smooth_px, mode="nearest") if smooth_px > 0 else frame
-    h, w = img.shape
-    step = max(1, int(math.sqrt(h * w / 5000.0)))
-    ys, xs = np.mgrid[0:h:step, 0:w:step]
-    yn = ys.ravel() / max(h - 1, 1) * 2.0 - 1.0
-    xn = xs.ravel() / max(w - 1, 1) * 2.0 - 1.0
-    vals = img[::step, ::step].ravel()
-    design = np.stack([np.ones_like(yn), yn, xn, yn * yn, xn * xn, yn * xn], axis=1)
-    level = float(np.percentile(vals, 90))
-    fitted = np.full_like(vals, level)
-    coef: np.ndarray | None = None
-    for _ in range(3):
-        bright = vals > _BG_FRACTION * fitted
-        if bright.sum() < 4 * design.shape[1]:
-            break
-        a = design[bright]
-        # Normal equations: 6 unknowns on coordinates scaled to [-1, 1] (well conditioned),
-        # much cheaper than an SVD-based lstsq.
-        coef = np.linalg.solve(a.T @ a, a.T @ vals[bright])
-        fitted = design @ coef
-    if coef is None:
-        background = np.full_like(img, max(level, 1e-6))
-    else:
-        yy = np.linspace(-1.0, 1.0, h)[:, None] if h > 1 else np.zeros((1, 1))
-        xx = np.linspace(-1.0, 1.0, w)[None, :] if w > 1 else np.zeros((1, 1))
-        background = (
-            coef[0] + coef[1] * yy + coef[2] * xx + coef[3] * yy**2 + coef[4] * xx**2
-        ) + coef[5] * yy * xx
-        background = np.maximum(background, 1e-3 * max(level, 1e-6))
-    return img / background
-
-
-def _shadow_level(flat: np.ndarray) -> float:
-    from skimage.filters import threshold_otsu
-
-    sample = flat.ravel()
-    if sample.size > 2_000_000:
-        sample = sample[:: sample.size // 1_000_000]
-    if np.ptp(sample) < 1e-6:  # flat images: no silhouette at all
-        return 1.0
-    otsu = float(threshold_otsu(sample))
-    dark = sample[sample < otsu]
-    return float(np.median(dark)) if dark.size else 1.0
-
-
-def _clean(mask: np.ndarray, min_area_px: int) -> np.ndarray:
-    """Fill holes and drop components smaller than ``min_area_px`` (8-connected)."""
-    filled = ndimage.binary_fill_holes(mask)
-    lab, n = ndimage.label(filled, structure=np.ones((3, 3), bool))
-    if n == 0:
-        return filled
-    areas = np.bincount(lab.ravel())
-    keep = areas >= min_area_px
-    keep[0] = False
-    return keep[lab]
-
-
-def _detect_nozzle_row(mask: np.ndarray) -> int:
-    lab, _ = ndimage.label(mask, structure=np.ones((3, 3), bool))
-    top = np.unique(lab[0][lab[0] > 0])
-    if top.size == 0:
-        raise ValueError(
-            "cannot find the nozzle: no dark region touches the top edge of the first "
-            "frame; pass nozzle_row=<index of the last nozzle row> (or -1 if the exit "
-            "plane is the top edge of the image)"
-        )
-    widths = np.isin(lab, top).sum(axis=1)
-    for row in range(1, widths.size):
-        if widths[row] < _NOZZLE_WIDTH_DROP * widths[row - 1]:
-            return row - 1
-    raise ValueError(
-        "cannot find the nozzle exit: the dark region at the top spans the whole image "
-        "height; pass nozzle_row=<index of the last nozzle row>"
-    )
-
-
-@dataclass(frozen=True, kw_only=True)
-class _Body:
-    top: int
-    bottom: int
-    attached: bool
-    volume_m3: float
-    centroid_z_m: float
-    tip_z_m: float
-    tail_z_m: float
-    z_m: np.ndarray  # row centres, m from the exit plane
-    r_m: np.ndarray  # half the edge-to-edge width of each row, m
-
-
-@dataclass(frozen=True, kw_only=True)
-class _Frame:
-    bodies: tuple[_Body, ...]  # sorted by top row
-    leading: _Body | None
-    touches_bottom: bool
-    gaps: tuple[tuple[int, float], ...]  # (empty rows, z of the middle, m)
-
-
-def _crossing(outside: np.ndarray, inside: np.ndarray, thr: float) -> np.ndarray:
-    """Fraction of the way from an outside to an inside sample where ``thr`` is crossed."""
-    denom = outside - inside
-    with np.errstate(divide="ignore", invalid="ignore"):
-        frac = np.where(denom > 0, (outside - thr) / denom, 0.5)
-    return np.clip(frac, 0.0, 1.0)
-
-
-def _axial_profile(flat: np.ndarray, col: int) -> np.ndarray:
-    lo, hi = max(col - 1, 0), min(col + 2, flat.shape[1])
-    return flat[:, lo:hi].mean(axis=1)
-
-
-def _measure_frame(
-    flat: np.ndarray, mask: np.ndarray, thr: float, nozzle_row: int, px: float
-) -> _Frame:
-    h, w = flat.shape
-    first = nozzle_row + 1  # first liquid row
-
-    def z_of(y_index: float | np.ndarray) -> Any:
-        # y_index: row index (pixel-centre coordinates); exit plane at edge ``first``.
-        return (np.asarray(y_index) + 0.5 - first) * px
-
-    liquid = np.zeros_like(mask)
-    liquid[first:] = mask[first:]
-    lab, _ = ndimage.label(liquid, structure=np.ones((3, 3), bool))
-    bodies: list[_Body] = []
-    for index, sl in enumerate(ndimage.find_objects(lab), start=1):
-        if sl is None:
-            continue
-        sub = lab[sl] == index
-        r0, c0 = sl[0].start, sl[1].start
-        rows = np.arange(r0, sl[0].stop)
-        left = c0 + np.argmax(sub, axis=1)
-        right = c0 + sub.shape[1] - 1 - np.argmax(sub[:, ::-1], axis=1)
-        xl = left.astype(float) - 0.5
-        ok = left > 0
-        xl[ok] = (
-            left[ok] - 1 + _crossing(flat[rows[ok], left[ok] - 1], flat[rows[ok], left[ok]], thr)
-        )
-        xr = right.astype(float) + 0.5
-        ok = right < w - 1
-        xr[ok] = (
-            right[ok] + 1 - _crossing(flat[rows[ok], right[ok] + 1], flat[rows[ok], right[ok]], thr)
-        )
-        radius_px = np.maximum(xr - xl, 0.0) / 2.0
-        slab = math.pi * radius_px**2
-        volume = float(slab.sum()) * px**3
-        z_rows = z_of(rows)
-        centroid = (
-            float((slab * z_rows).sum() / slab.sum()) if slab.sum() > 0 else float(z_rows.mean())
-        )
-        top, bottom = int(rows[0]), int(rows[-1])
-        # Tip (lower end) and tail (upper end), sub-pixel along the body's axis.
-        col_b = round(float(xl[-1] + xr[-1]) / 2.0)
-        prof = _axial_profile(flat, min(max(col_b, 0), w - 1))
-        tip = (
-            bottom + 0.5
-            if bottom == h - 1
-            else bottom + 1 - _crossing(np.array(prof[bottom + 1]), np.array(prof[bottom]), thr)
-        )
-        col_t = round(float(xl[0] + xr[0]) / 2.0)
-        prof = _axial_profile(flat, min(max(col_t, 0), w - 1))
-        tail = (
-            top - 0.5
-            if top == first
-            else top - 1 + _crossing(np.array(prof[top - 1]), np.array(prof[top]), thr)
-        )
-        bodies.append(
-            _Body(
-                top=top,
-                bottom=bottom,
-                attached=top == first,
-                volume_m3=volume,
-                centroid_z_m=centroid,
-                tip_z_m=float(z_of(tip)),
-                tail_z_m=float(z_of(tail)),
-                z_m=np.asarray(z_rows, dtype=float),
-                r_m=radius_px * px,
-            )
-        )
-    bodies.sort(key=lambda b: (b.top, b.bottom))
-    leading = max(bodies, key=lambda b: (b.bottom, b.volume_m3)) if bodies else None
-    # Gaps along z between the row extents (exit plane acts as the upper end).
-    intervals: list[list[int]] = []
-    if not any(b.attached for b in bodies):
-        intervals.append([nozzle_row, nozzle_row])
-    for b in bodies:
-        if intervals and b.top <= intervals[-1][1] + 1:
-            intervals[-1][1] = max(intervals[-1][1], b.bottom)
-        else:
-            intervals.append([b.top, b.bottom])
-    gaps = tuple(
-        (nxt[0] - prev[1] - 1, float(z_of((prev[1] + nxt[0]) / 2.0)))
-        for prev, nxt in itertools.pairwise(intervals)
-    )
-    return _Frame(
-        bodies=tuple(bodies),
-        leading=leading,
-        touches_bottom=leading is not None and leading.bottom == h - 1,
-        gaps=gaps,
-    )
-
-
 def analyze(
     frames: np.ndarray | Sequence[np.ndarray],
     *,
@@ -756,25 +361,25 @@ def analyze(
     if names and len(names) != n:
         raise ValueError(f"got {len(names)} frame names for {n} frames")
 
-    flat = np.stack([_flatten(f, smooth_px) for f in data])
-    shadow = _shadow_level(flat)
+    flat = np.stack([flatten(f, smooth_px) for f in data])
+    shadow = shadow_level(flat)
     if shadow > 0.9:
         raise ValueError(
             f"no dark silhouette found: shadow level {shadow:.3f} of the background "
             "(need liquid darker than the background)"
         )
     thr = 1.0 - threshold_fraction * (1.0 - shadow)
-    masks = np.stack([_clean(f < thr, min_area_px) for f in flat])
+    masks = np.stack([clean_mask(f < thr, min_area_px) for f in flat])
 
     if nozzle_row is None:
-        nozzle_row = _detect_nozzle_row(masks[0])
+        nozzle_row = detect_nozzle_row(masks[0])
     elif isinstance(nozzle_row, bool) or not isinstance(nozzle_row, int | np.integer):
         raise ValueError(f"nozzle_row must be an integer row index, got {nozzle_row!r}")
     if not -1 <= nozzle_row < h - 1:
         raise ValueError(f"nozzle_row must be in [-1, {h - 2}] px, got {nozzle_row} px")
     nozzle_row = int(nozzle_row)
 
-    measured = [_measure_frame(f, m, thr, nozzle_row, px) for f, m in zip(flat, masks, strict=True)]
+    measured = [measure_frame(f, m, thr, nozzle_row, px) for f, m in zip(flat, masks, strict=True)]
     times = t0_s + dt * np.arange(n)
     head = np.full(n, np.nan)
     lig = np.full(n, np.nan)
@@ -839,7 +444,7 @@ def analyze(
             volume = fr.leading.volume_m3
             break
 
-    sils = _silhouettes(measured, times, px)
+    sils = silhouettes(measured, times, px)
     before = kb - 1 if kb is not None and kb > 0 else None
     ht = head_and_tail(sils[before]) if before is not None else None
     thin = thinning_rate(sils, float(times[kb])) if kb is not None else None
@@ -871,46 +476,6 @@ def analyze(
         head_tail=ht,
         thinning=thin,
     )
-
-
-def _silhouettes(measured: Sequence[_Frame], times: np.ndarray, px: float) -> list[Silhouette]:
-    """The measured bodies of each frame as silhouettes (rows with free tips closed).
-
-    A body joined to the nozzle starts at the exit plane (``z = 0``) with the radius of its
-    first row; free ends get radius 0 at their sub-pixel tip. The silhouettes' nozzle
-    radius is the largest first-row radius of an attached body in the sequence (an
-    estimate: the orifice is hidden in the glass tip), or one pixel without one.
-    """
-    firsts = [b.r_m[0] for fr in measured for b in fr.bodies if b.attached and b.r_m.size]
-    nozzle_r = max([float(v) for v in firsts if v > 0.0], default=px)
-    out = []
-    for t, fr in zip(times, measured, strict=True):
-        bodies = []
-        for b in fr.bodies:
-            z, r = list(b.z_m), list(b.r_m)
-            if b.attached:
-                z, r = [0.0, *z], [r[0], *r]
-            elif b.tail_z_m < z[0]:
-                z, r = [b.tail_z_m, *z], [0.0, *r]
-            if b.tip_z_m > z[-1]:
-                z, r = [*z, b.tip_z_m], [*r, 0.0]
-            if len(z) >= 2:
-                bodies.append((np.asarray(z), np.asarray(r)))
-        out.append(Silhouette(time_s=float(t), bodies=tuple(bodies), nozzle_radius_m=nozzle_r))
-    return out
-
-
-def _read_sidecar(folder: Path) -> dict[str, Any]:
-    path = folder / SIDECAR_NAME
-    if not path.is_file():
-        return {}
-    try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"cannot read sidecar {path}: {exc}") from exc
-    if not isinstance(meta, dict):
-        raise ValueError(f"sidecar {path} must hold a JSON object, got {type(meta).__name__}")
-    return meta
 
 
 def analyze_folder(
@@ -956,7 +521,7 @@ def analyze_folder(
     """
     folder = Path(directory)
     frames, names = load_frames(folder, pattern=pattern)
-    meta = _read_sidecar(folder)
+    meta = read_sidecar(folder)
     for key in ("pixel_size_m", "frame_interval_s", "nozzle_row", "t0_s"):
         value = meta.get(key)
         if key not in meta or (value is None and key == "nozzle_row"):  # null: detect it
