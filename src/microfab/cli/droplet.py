@@ -142,16 +142,16 @@ def render_cmd(
         float, typer.Option(help="NaAlg concentration, % w/v (0 to 2).")
     ] = 1.0,
     voltage: Annotated[float, typer.Option(help="Bipolar drive amplitude, V.")] = 50.0,
-    duration: Annotated[float, typer.Option(help="Simulated time, µs.")] = 300.0,
+    duration: Annotated[float, typer.Option(help="Simulated time, µs.")] = 400.0,
     frame_interval: Annotated[float, typer.Option(help="Time between frames, µs.")] = 10.0,
     pixel_size: Annotated[float, typer.Option(help="Camera pixel size, µm.")] = 2.0,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the camera noise.")] = 0,
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
 ) -> None:
     """Simulate a droplet and write shadowgraph frames that droplet analyze can read."""
+    from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
     from microfab.measure.shadowgraph import render_sequence, write_frames
-    from microfab.process.inkjet.droplet import simulate_droplet
     from microfab.process.inkjet.fluids import naalg
-    from microfab.trajectory.waveform import seed003_waveform
 
     _check_voltage("--voltage", voltage)
     for name, value, low, high, unit in (
@@ -160,16 +160,16 @@ def render_cmd(
         ("--pixel-size", pixel_size, 0.1, 100.0, "µm"),
     ):
         check_option(name, value, unit, low=low, high=high, low_closed=True)
+    model = _model(model)
     try:
         fluid = naalg(concentration)
     except ValueError as exc:
         fail(str(exc))
     with progress() as bar:
         task = bar.add_task(f"{fluid.name}, {voltage:g} V", total=round(duration))
-        res = simulate_droplet(
-            fluid,
-            seed003_waveform(voltage),
-            duration_s=duration / 1e6,
+        res = run_point(
+            SweepPoint(concentration, voltage),
+            DropletSettings(duration_s=duration / 1e6, model=model),
             frame_interval_s=frame_interval / 1e6,
             progress=lambda t: bar.update(task, completed=round(t * 1e6)),
         )

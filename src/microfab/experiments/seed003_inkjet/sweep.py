@@ -150,6 +150,7 @@ def run_point(
     settings: DropletSettings | None = None,
     *,
     fluid: Fluid | None = None,
+    frame_interval_s: float = 10e-6,
     progress: Callable[[float], None] | None = None,
 ) -> DropletResult:
     """Simulate one point with the seed's bipolar waveform (Table 1).
@@ -168,6 +169,10 @@ def run_point(
     fluid : Fluid, optional
         The ink, if not the table's NaAlg at the point's concentration with the relaxation
         law calibrated for the chosen jet model (a sensitivity run).
+    frame_interval_s : float, optional
+        Spacing of the stored silhouettes, s. Pictures do not steer the run: the
+        Lagrangian model does not cut its steps to them, and the Eulerian breakup times
+        agree to 0.01 µs with 10, 5 and 2 µs frames.
     progress : callable, optional
         Called with the simulated time in s.
 
@@ -185,6 +190,7 @@ def run_point(
         seed003_waveform(point.voltage_v),
         duration_s=settings.duration_s,
         after_breakup_s=settings.after_breakup_s,
+        frame_interval_s=frame_interval_s,
         numerics=_numerics(settings),
         model=settings.model,  # type: ignore[arg-type]
         progress=progress,
