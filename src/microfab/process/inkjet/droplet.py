@@ -116,10 +116,10 @@ class _ScaledInflow:
     scales: Scales
 
     def velocity(self, t: float) -> float:
-        return float(self.flow.velocity(t * self.scales.time_s)) / self.scales.velocity_m_s
+        return self.flow.at(t * self.scales.time_s)[0] / self.scales.velocity_m_s
 
     def displacement(self, t: float) -> float:
-        return float(self.flow.displacement(t * self.scales.time_s)) / self.scales.length_m
+        return self.flow.at(t * self.scales.time_s)[1] / self.scales.length_m
 
 
 @dataclass(frozen=True, kw_only=True)
