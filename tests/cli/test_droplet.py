@@ -177,3 +177,13 @@ def test_analyze_of_noise_says_no_jet_found(tmp_path: Path) -> None:
     assert res.exit_code == 2
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: no jet found"), res.output
+
+
+def test_calibrate_refuses_a_missing_table_before_running(tmp_path: Path) -> None:
+    res = runner.invoke(
+        app, ["droplet", "calibrate", "--model", "eulerian", "--write", str(tmp_path / "no.toml")]
+    )
+    assert res.exit_code == 2
+    assert res.output.strip().startswith("error: --write") and not (tmp_path / "no.toml").exists()
+    res = runner.invoke(app, ["droplet", "calibrate", "--model", "smooth"])
+    assert res.exit_code == 2 and "--model must be one of" in res.output

@@ -374,6 +374,8 @@ def calibrate_cmd(
     )
 
     model = _model(model)
+    if write is not None and not write.is_file():
+        fail(f"--write {write}: no such property table (copy src/microfab/data/naalg.toml)")
     with progress() as bar:
         task = bar.add_task("calibration runs", total=None)
         fit = calibrate_relaxation(
@@ -442,6 +444,7 @@ def sensitivity_cmd(
                     description=f"{p.concentration_pct:g} % {p.prop} ×{p.factor:g}",
                 ),
                 workers=jobs,
+                raise_on_failure=False,
             )
     except (OSError, ValueError) as exc:
         fail(str(exc))
@@ -451,3 +454,11 @@ def sensitivity_cmd(
     atomic_write_text(out / "sensitivity.md", markdown(table))
     console.print(markdown(table))
     console.print(f"wrote {out / 'sensitivity.json'} and {out / 'sensitivity.md'}")
+    if res.failed:
+        first = res.failed[0]
+        fail(
+            f"{len(res.failed)} point(s) failed (running again retries them); first: "
+            f"{first.point.concentration_pct:g} % {first.point.prop} ×{first.point.factor:g}: "
+            f"{first.error}",
+            code=1,
+        )

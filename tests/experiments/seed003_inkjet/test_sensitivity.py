@@ -66,3 +66,26 @@ def test_cli_refuses_an_unknown_model_on_one_line(tmp_path) -> None:
     assert res.exit_code == 2
     assert res.output.strip().startswith("error: --model must be one of")
     assert not (tmp_path / "s").exists()
+
+
+def test_cli_reports_a_failed_point_and_keeps_the_rest(tmp_path, monkeypatch) -> None:
+    import microfab.experiments.seed003_inkjet.sensitivity as sens
+
+    def fake(point: SensitivityPoint, settings: object) -> dict:
+        if point.prop == "density" and point.factor > 1:
+            raise RuntimeError("solver diverged")
+        return {"breakup_time_s": 1e-4 * point.factor, "breakup_mode": "exit",
+                "outcome": "breakup"}  # fmt: skip
+
+    monkeypatch.setattr(sens, "_simulate", fake)
+    out = tmp_path / "s"
+    res = CliRunner().invoke(app, ["droplet", "sensitivity", "--concentrations", "1",
+                                   "--out", str(out)])  # fmt: skip
+    assert res.exit_code == 1
+    last = [ln for ln in res.output.splitlines() if ln.strip()][-1]
+    assert "1 point(s) failed" in res.output and "solver diverged" in res.output, last
+    md = (out / "sensitivity.md").read_text()
+    assert md.count("\n") == 2 + 10  # header, rule, the ten points that ran
+    # the study's points with 0 % are refused before anything runs
+    with pytest.raises(ValueError, match="no polymer"):
+        sensitivity_points([0.0])

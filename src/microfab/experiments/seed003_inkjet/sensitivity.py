@@ -105,6 +105,10 @@ def sensitivity_points(
     """The unperturbed run and each one-at-a-time change, per concentration."""
     out: list[SensitivityPoint] = []
     for c in concentrations_pct:
+        if not c > 0.0:
+            raise ValueError(
+                f"concentration {c} % w/v has no polymer to perturb; give concentrations > 0"
+            )
         out.append(SensitivityPoint(float(c), "none", 1.0))
         for p in props:
             if p not in FACTORS:
@@ -126,6 +130,7 @@ def sensitivity_study(
     results_dir: str | Path | None = None,
     progress: Callable[[int, int, SensitivityPoint, bool], None] | None = None,
     workers: int = 1,
+    raise_on_failure: bool = True,
 ) -> SweepResult[SensitivityPoint]:
     """Run every point (saved and resumed in ``results_dir``).
 
@@ -141,6 +146,9 @@ def sensitivity_study(
         ``progress(done, total, point, ok)``.
     workers : int, optional
         Local Dask worker processes (1: in this process).
+    raise_on_failure : bool, optional
+        Raise `microfab.experiments.sweep.SweepError` if a point failed (default), or
+        return the failures in the result.
 
     Returns
     -------
@@ -154,6 +162,7 @@ def sensitivity_study(
         settings={**settings.to_dict(), "study": "sensitivity"},
         workers=workers,
         progress=progress,
+        raise_on_failure=raise_on_failure,
     )
 
 
