@@ -89,29 +89,7 @@ def test_newtonian_thread_does_not_thin_exponentially_like_a_polymer() -> None:
     assert run.t[-1] < 60.0
 
 
-class _Pulse:
-    """u = U sin(pi t / T) for t < T, then -U/2 sin for T < t < 2T (push, then suck)."""
-
-    def __init__(self, u: float, period: float) -> None:
-        self.u, self.p = u, period
-
-    def velocity(self, t: float) -> float:
-        if t < self.p:
-            return self.u * math.sin(math.pi * t / self.p)
-        if t < 2 * self.p:
-            return -0.5 * self.u * math.sin(math.pi * (t - self.p) / self.p)
-        return 0.0
-
-    def displacement(self, t: float) -> float:
-        c = self.u * self.p / math.pi
-        if t < self.p:
-            return c * (1.0 - math.cos(math.pi * t / self.p))
-        if t < 2 * self.p:
-            return 2 * c - 0.5 * c * (1.0 - math.cos(math.pi * (t - self.p) / self.p))
-        return c
-
-
-def test_mass_is_conserved_through_injection_regrid_and_breakup() -> None:
+def test_mass_is_conserved_through_injection_regrid_and_breakup(push_suck) -> None:
     run = run_jet(
         [cap_body(cap_volume(0.3))],
         JetModel(ohnesorge=0.05, polymer_ohnesorge=0.1, deborah=1.0),
@@ -119,7 +97,7 @@ def test_mass_is_conserved_through_injection_regrid_and_breakup() -> None:
         # The first pinch-off comes at t ≈ 7.8 with numpy 2.4 / scipy 1.17 / numba 0.68 (it
         # came before 6 with earlier builds: breakup timing is sensitive to rounding).
         t_end=10.0,
-        inflow=_Pulse(4.0, 1.5),
+        inflow=push_suck,
         on_pinch="split",
     )
     assert run.events  # the run went through at least one breakup

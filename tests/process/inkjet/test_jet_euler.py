@@ -90,30 +90,8 @@ def test_newtonian_thread_does_not_thin_exponentially_like_a_polymer() -> None:
     assert run.t[-1] < 60.0
 
 
-class _Pulse:
-    """u = U sin(pi t / T) for t < T, then -U/2 sin for T < t < 2T (push, then suck)."""
-
-    def __init__(self, u: float, period: float, suck: float = 0.5) -> None:
-        self.u, self.p, self.s = u, period, suck
-
-    def velocity(self, t: float) -> float:
-        if t < self.p:
-            return self.u * math.sin(math.pi * t / self.p)
-        if t < 2 * self.p:
-            return -self.s * self.u * math.sin(math.pi * (t - self.p) / self.p)
-        return 0.0
-
-    def displacement(self, t: float) -> float:
-        c = self.u * self.p / math.pi
-        if t < self.p:
-            return c * (1.0 - math.cos(math.pi * t / self.p))
-        if t < 2 * self.p:
-            return 2 * c - self.s * c * (1.0 - math.cos(math.pi * (t - self.p) / self.p))
-        return 2 * c - 2 * self.s * c
-
-
-def test_mass_is_conserved_through_injection_suction_and_breakup() -> None:
-    pulse = _Pulse(4.0, 1.5)
+def test_mass_is_conserved_through_injection_suction_and_breakup(push_suck) -> None:
+    pulse = push_suck
     run = run_jet_euler(
         JetModel(ohnesorge=0.05, polymer_ohnesorge=0.1, deborah=1.0),
         EulerNumerics(h_break=0.05, length=20.0),
