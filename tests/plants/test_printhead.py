@@ -403,3 +403,19 @@ def test_near_defective_model_uses_the_doubling_route_accurately() -> None:
     sys = signal.StateSpace(a_mat, b_mat, c_mat / head.nozzle_area_m2, d_mat)
     _, y, _ = signal.lsim(sys, wave.slope(flow.t_s + 50e-9), flow.t_s, interp=False)
     np.testing.assert_allclose(flow.velocity_m_s, y, atol=1e-8 * np.max(np.abs(y)))
+
+
+def test_the_scalar_path_is_the_array_path_bit_for_bit() -> None:
+    # NozzleFlow.at repeats the arithmetic of velocity/displacement without the array
+    # overhead; the jet solvers' results depend on every bit, so the two must agree exactly
+    flow = nozzle_flow(default_printhead(), seed003_waveform(50.0), density_kg_m3=1000.0,
+                       viscosity_pa_s=2e-3, surface_tension_n_m=0.07)  # fmt: skip
+    rng = np.random.default_rng(3)
+    times = np.concatenate(([-1e-6, 0.0, flow.t_s[-1]], flow.t_s[::97], rng.random(300) * 3e-4))
+    for t in times:
+        v, x = flow.at(float(t))
+        assert v == float(flow.velocity(t)) and x == float(flow.displacement(t)), t
+    with pytest.raises(ValueError, match="beyond the end"):
+        flow.at(flow.t_s[-1] + 1e-6)
+    with pytest.raises(ValueError, match="beyond the end"):
+        flow.at(float("nan"))

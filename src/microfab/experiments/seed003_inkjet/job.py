@@ -101,12 +101,8 @@ _MODELS = Key(
     default="lagrangian",
     help="jet models, comma-separated: lagrangian, eulerian (each runs every point)",
 )
-_REPRO_MODELS = Key(
-    name="models",
-    type="str",
-    default="lagrangian,eulerian",
-    help="jet models, comma-separated: lagrangian, eulerian (each runs every point)",
-)
+#: The reproduction shows both models beside the seed by default.
+_REPRO_MODELS = dataclasses.replace(_MODELS, default="lagrangian,eulerian")
 _WORKERS = Key(
     name="workers",
     type="int",

@@ -337,7 +337,7 @@ def simulate_droplet(
         nu_e = dataclasses.replace(base, h_break=breakup_radius_m / radius)
         run = run_jet_euler(sc.model(fluid), nu_e, **common)
     else:
-        raise ValueError(f"model must be 'lagrangian' or 'eulerian', got {model!r}")
+        raise ValueError(f"model must be one of {', '.join(JET_MODELS)}, got {model!r}")
     return _summarise(fluid, waveform, printhead, flow, sc, run, model)
 
 
