@@ -269,7 +269,8 @@ class JetRun:
     events : tuple of PinchEvent
         Breakups in time order.
     snapshots : tuple of (float, tuple of Body)
-        The bodies at each requested snapshot time.
+        The bodies at each requested snapshot time (or at the first step after it, see
+        `run_jet`'s ``land_on_snapshots``).
     bodies : tuple of Body
         The state at the end.
     steps, rejected : int
@@ -682,7 +683,6 @@ def run_jet(
         :class:`microfab.sim.integrators.SDIRK2` with its default settings). It is handed
         the jet on the current grid for each step; regridding, inflow, breakup and
         coalescence happen between steps.
-
     land_on_snapshots : bool, optional
         True (default): steps are cut to land on each snapshot time exactly. False: the
         step sequence ignores the snapshots, and each stores the bodies of the first step
