@@ -24,7 +24,7 @@ import functools
 from collections.abc import Callable, Iterator
 from typing import Any, ParamSpec, TypeVar
 
-__all__ = ["one_blas_thread", "single_threaded"]
+__all__ = ["blas_kernels", "one_blas_thread", "single_threaded"]
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -96,3 +96,27 @@ def one_blas_thread() -> Iterator[None]:
         for lib, n in zip(libs, before, strict=True):
             if n != 1:
                 lib.set_num_threads(n)
+
+
+def blas_kernels() -> tuple[str, ...]:
+    """The BLAS kernel families loaded in this process (e.g. ``("Haswell",)`` for OpenBLAS).
+
+    A single-threaded computation is repeatable on one machine, but two OpenBLAS kernel
+    families (chosen by the processor, or forced with ``OPENBLAS_CORETYPE``) round some
+    products differently in the last bit; a chaotic computation such as a jet that is
+    close to pinching can then end another way. Benchmarks and tests name the kernel with
+    such a result.
+
+    Returns
+    -------
+    tuple of str
+        Sorted, distinct ``architecture`` names as threadpoolctl reports them (empty when
+        none is reported).
+    """
+    import numpy  # noqa: F401  (loads NumPy's BLAS)
+    import scipy.linalg  # noqa: F401  (and SciPy's)
+    from threadpoolctl import threadpool_info
+
+    return tuple(
+        sorted({str(i["architecture"]) for i in threadpool_info() if i.get("architecture")})
+    )

@@ -4,7 +4,9 @@ Each jet model has its own relaxation law, fitted to the two quoted times with t
 model (``microfab droplet calibrate --model M``), so the times check that the stored
 calibration still reproduces them with the current model; the modes and the other four
 concentrations are predictions. The models run single-threaded
-(`microfab.core.threads`), so these numbers are the same on every machine.
+(`microfab.core.threads`), so these numbers are the same on every machine with the same
+BLAS kernels; the Lagrangian 1 % jet is chaotic in the last bit and ends another way with
+OpenBLAS's Haswell kernels (`blas_kernels`), which its test names.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import itertools
 
 import pytest
 
+from microfab.core.threads import blas_kernels
 from microfab.experiments.seed003_inkjet.calibration import simulated_breakup
 from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP, SEED_CONCENTRATIONS_PCT
 from microfab.process.inkjet.fluids import load_table
@@ -78,9 +81,11 @@ def test_eulerian_one_percent_pinches_at_the_nozzle_exit(eulerian: Runs) -> None
 
 
 @pytest.mark.xfail(
+    "Haswell" not in blas_kernels(),
     strict=True,
     reason="known gap: with its calibrated law the Lagrangian 1 % jet first breaks behind the "
-    "head (338 µs), not at the nozzle exit",
+    "head (338 µs), not at the nozzle exit (with OpenBLAS's Haswell kernels it exit-pinches "
+    "at 122 µs: the run is chaotic in the last bit of the banded solve)",
 )
 def test_lagrangian_one_percent_pinches_at_the_nozzle_exit(lagrangian: Runs) -> None:
     assert lagrangian[1.0][1] == "exit"

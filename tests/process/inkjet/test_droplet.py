@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from microfab.core.threads import blas_kernels
 from microfab.measure.imaging import analyze
 from microfab.measure.shadowgraph import Camera, render_sequence
 from microfab.process.inkjet.droplet import Scales, simulate_droplet
@@ -113,7 +114,11 @@ def test_a_shorter_run_is_the_prefix_of_a_longer_one() -> None:
     assert short.flow.t_s[-1] == pytest.approx(61e-6, abs=1e-7)  # the flow is cut to the run
 
 
+# The Lagrangian 1 % jet is chaotic near its pinch: with OpenBLAS's Haswell kernels (the
+# LAPACK banded solve rounds otherwise) it exit-pinches at 122 µs, which the camera sees;
+# with the others measured (SkylakeX) it hangs on a thread and the gap below holds.
 _THIN_THREAD = pytest.mark.xfail(
+    "Haswell" not in blas_kernels(),
     strict=True,
     reason="known gap: the Lagrangian 1 % jet (its calibrated law) hangs on a thread thinner "
     "than the 2 µm pixel resolves for 53 µs before it breaks at 338 µs: the camera sees the "

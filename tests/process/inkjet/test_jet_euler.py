@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from microfab.core.threads import blas_kernels
 from microfab.process.inkjet.jet import Body, JetModel, Numerics, run_jet
 from microfab.process.inkjet.jet_euler import (
     EulerInitial,
@@ -129,8 +130,22 @@ class _Push:
 
 
 @pytest.mark.parametrize(
-    ("oh", "u", "period"), [(0.05, 4.0, 1.5), (0.1, 4.0, 1.5), (0.2, 3.0, 2.0)]
-)
+    ("oh", "u", "period"),
+    [
+        (0.05, 4.0, 1.5),
+        pytest.param(
+            0.1, 4.0, 1.5,
+            marks=pytest.mark.xfail(
+                "Haswell" in blas_kernels(),
+                strict=True,
+                reason="with OpenBLAS's Haswell kernels the Lagrangian column at Oh 0.1 first "
+                "pinches at t 3.73, not 2.885 (the Eulerian one at 2.94 on both): the last "
+                "bit of its banded solve decides whether the first neck closes",
+            ),
+        ),
+        (0.2, 3.0, 2.0),
+    ],
+)  # fmt: skip
 def test_drop_on_demand_breakup_agrees_with_the_lagrangian_solver(
     oh: float, u: float, period: float
 ) -> None:
