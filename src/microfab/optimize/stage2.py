@@ -345,11 +345,11 @@ def solve_stage2(
     if state is None:
         r = qp.project(r_init.T.ravel() * _UM)  # the nearest input within the command bounds
         trust, it0, history = st.trust_um, 0, []
-    else:
-        r, trust, it0, history = state
-    phi, jac = _linearize(nm, r, pb)
-    band = jacobian_band(jac, pb.m, st.band_mass) if st.band_mass < 1 else None
-    if band is not None:
+        phi, jac = _linearize(nm, r, pb)
+        band = jacobian_band(jac, pb.m, st.band_mass) if st.band_mass < 1 else None
+    else:  # the band chosen at the start, not at the resumed iterate: bit-identical resume
+        r, trust, it0, history, band = state
+    if band is not None or state is not None:
         phi, jac = _linearize(nm, r, pb, band)
     merit, cost = pb.merit(phi)
     cost_start = cost if not history else float(history[0][1])
@@ -377,7 +377,7 @@ def solve_stage2(
             accepted += 1
             trust = min(trust * 2.0, 1e4) if ratio > 0.75 else trust
             if accepted % st.checkpoint_every == 0:
-                _save(checkpoint, key, r, trust, it, history)
+                _save(checkpoint, key, r, trust, it, history, band)
             if gain < st.tol * max(merit, 1e-12):
                 converged = True
                 break
@@ -388,7 +388,7 @@ def solve_stage2(
                 break
         if progress is not None:
             progress(it, merit)
-    _save(checkpoint, key, r, trust, it, history)
+    _save(checkpoint, key, r, trust, it, history, band)
     full = nm.predict((r / _UM).reshape(2, pb.m).T, pb.rest / _UM)
     viol = pb.violations(full[: pb.m].T * _UM)
     return Stage2Result(
@@ -436,7 +436,9 @@ def jacobian_band(jac: sp.spmatrix, m: int, mass: float) -> int:
     return int(np.searchsorted(cum, mass) + 1)
 
 
-def _load(path: str | None, key: str) -> tuple[np.ndarray, float, int, list] | None:
+def _load(
+    path: str | None, key: str
+) -> tuple[np.ndarray, float, int, list, int | None] | None:
     if path is None or not Path(path).is_file():
         return None
     try:
@@ -448,15 +450,21 @@ def _load(path: str | None, key: str) -> tuple[np.ndarray, float, int, list] | N
                     "start afresh"
                 )
             hist = [tuple(row) for row in z["history"].tolist()]
-            return np.array(z["r"]), float(z["trust"]), int(z["iteration"]), hist
+            band = int(z["band"])
+            return (np.array(z["r"]), float(z["trust"]), int(z["iteration"]), hist,
+                    None if band < 0 else band)  # fmt: skip
     except (OSError, KeyError) as exc:
         raise ValueError(f"{path}: unreadable stage-2 checkpoint ({exc}); remove it") from None
 
 
-def _save(path: str | None, key: str, r: np.ndarray, trust: float, it: int, hist: list) -> None:
+def _save(
+    path: str | None, key: str, r: np.ndarray, trust: float, it: int, hist: list,
+    band: int | None,
+) -> None:  # fmt: skip
     if path is None:
         return
     from microfab.io.atomic import atomic_save_npz
 
     atomic_save_npz(path, fingerprint=np.array(key), r=r, trust=np.array(trust),
-                    iteration=np.array(it), history=np.array(hist, dtype=float))  # fmt: skip
+                    iteration=np.array(it), history=np.array(hist, dtype=float),
+                    band=np.array(-1 if band is None else band))  # fmt: skip
