@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any
@@ -22,34 +23,52 @@ def run_cmd(
         bool,
         typer.Option("--check", help="Only check the job file and say what would run."),
     ] = False,
+    fresh: Annotated[
+        bool,
+        typer.Option(
+            "--fresh",
+            help="Start clean: move the files an earlier run wrote in the report folder "
+            "to its _previous/ folder instead of resuming (or refusing other settings).",
+        ),
+    ] = False,
 ) -> None:
     """Run a job of any registered kind and write its report (report.html + figures + JSON).
 
     The kind is the job file's [job] kind (microfab kinds lists them). Results and
-    learning state are saved as the run goes; running the same job again resumes. With
-    --check the job file is read and checked and nothing runs or is written.
+    learning state are saved as the run goes; running the same job again resumes, and a
+    report folder that holds a run of other settings (or input files that changed) is
+    refused, naming the first difference, unless --fresh is given. With --check the job
+    file is read and checked and nothing runs or is written.
     """
     from microfab.experiments.catalog import default_job, load_job
+    from microfab.io.runstore import check_run, open_run
 
     try:
         job = load_job(job_file) if job_file is not None else default_job()
+        settings = job.fingerprint()
     except (OSError, ValueError) as exc:
         fail(str(exc))
     out_dir = out or job.out
     if check:
+        try:
+            what = check_run(out_dir, settings, fresh=fresh)
+        except ValueError as exc:
+            fail(str(exc))
         console.print(
             f"{job_file or 'default job'}: a valid {job.kind.name} job "
-            f"({job.title}); it would write {out_dir}",
+            f"({job.title}); it would {what} in {out_dir}",
             highlight=False,
             soft_wrap=True,
         )
         return
     try:
-        with progress() as prog:
+        with open_run(out_dir, settings, fresh=fresh) as store, progress() as prog:
+            if store.moved_to is not None:
+                console.print(f"moved the earlier run's files to {store.moved_to}")
             result = job.kind.run(job.config, out_dir, reporter(prog))
+            path = job.kind.write_report(result, out_dir, job.title)
     except (OSError, ValueError) as exc:  # e.g. a results folder of another job
         fail(str(exc))
-    path = job.kind.write_report(result, out_dir, job.title)
     for table in result.comparison():
         print_table(table)
     console.print(f"report: {path}", highlight=False)
@@ -115,20 +134,46 @@ def reproduce_cmd(
         list[str] | None,
         typer.Option("--set", help="Change a setting, key=value (see `microfab kinds`)."),
     ] = None,
+    fresh: Annotated[
+        bool,
+        typer.Option(
+            "--fresh",
+            help="With a checkpoint folder: move what an earlier run saved there to its "
+            "_previous/ folder and start clean.",
+        ),
+    ] = False,
 ) -> None:
-    """A seed paper's published numbers beside ours, run on the twin (--json keeps them)."""
+    """A seed paper's published numbers beside ours, run on the twin (--json keeps them).
+
+    A reproduction that saves checkpoints (a --set checkpoints=FOLDER option) resumes from
+    them when rerun with the same settings, and refuses a folder saved with other settings
+    (naming the first difference) unless --fresh is given.
+    """
     from microfab.experiments.catalog import reproduction
     from microfab.io.atomic import atomic_write_json
+    from microfab.io.runstore import open_run
 
     try:
         rep = reproduction(name)
-        options = rep.parse_options(_settings(settings or []))
     except KeyError as exc:
         fail(str(exc.args[0]))
+    try:
+        options = rep.parse_options(_settings(settings or []))
+        folder = options.get(rep.run_folder_option or "") or None
+        store = (
+            open_run(
+                folder,
+                rep.fingerprint(options),
+                fresh=fresh,
+                other_hint=f"give another --set {rep.run_folder_option}=FOLDER",
+            )
+            if folder
+            else contextlib.nullcontext()
+        )
+        with store, progress() as prog:
+            result = rep.run(options, reporter(prog))
     except ValueError as exc:
         fail(str(exc))
-    with progress() as prog:
-        result = rep.run(options, reporter(prog))
     for table in result.tables:
         print_table(table)
     for note in result.notes:

@@ -104,12 +104,17 @@ def reproduction(name: str) -> Reproduction:
 
 @dataclass(frozen=True, kw_only=True)
 class Job:
-    """A checked job: its kind, title, report folder and the kind's config."""
+    """A checked job: its kind, title, report folder, checked sections and the kind's config."""
 
     kind: JobKind
     title: str
     out: Path
+    sections: dict[str, dict[str, Any]]
     config: Any
+
+    def fingerprint(self) -> dict[str, Any]:
+        """What the job's results depend on (`JobKind.fingerprint`): the run store's key."""
+        return self.kind.fingerprint(self.sections)
 
 
 def _job(file: JobFile) -> Job:
@@ -117,11 +122,13 @@ def _job(file: JobFile) -> Job:
         kind = job_kind(file.kind or DEFAULT_KIND)
     except KeyError as exc:
         raise JobFileError(f"{file.source}: {exc.args[0]}") from None
+    sections = file.parse(kind.schema)
     return Job(
         kind=kind,
         title=file.name or kind.default_title,
         out=file.out or Path("report"),
-        config=kind.config(file),
+        sections=sections,
+        config=kind.make_config_of(sections, file.source),
     )
 
 

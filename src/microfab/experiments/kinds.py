@@ -10,7 +10,7 @@ machine adds one entry to each, nothing else changes.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -18,7 +18,15 @@ from typing import Any, Protocol, runtime_checkable
 from microfab.io.job import JobFile, Key, parse_section
 from microfab.report.tables import Table
 
-__all__ = ["JobKind", "KindResult", "Progress", "Reproduction", "ReproductionResult"]
+__all__ = [
+    "JobKind",
+    "KindResult",
+    "Progress",
+    "Reproduction",
+    "ReproductionResult",
+    "data_file",
+    "fingerprint_settings",
+]
 
 
 class Progress(Protocol):
@@ -55,6 +63,37 @@ class KindResult(Protocol):
         ...
 
 
+def data_file(name: str) -> Path:
+    """The path of a packaged data file (``microfab/data/<name>``)."""
+    from importlib import resources
+
+    return Path(str(resources.files("microfab.data").joinpath(name)))
+
+
+def fingerprint_settings(
+    kind: str,
+    version: str,
+    sections: Mapping[str, Mapping[str, Any]],
+    schema: Iterable[tuple[str, Sequence[Key]]],
+    data_files: Sequence[str],
+) -> dict[str, Any]:
+    """Resolved settings, input and data-file digests of a run (see `JobKind.fingerprint`)."""
+    from microfab.io.runstore import content_digest
+
+    out: dict[str, Any] = {"kind": kind, "version": version}
+    for sec, body in sections.items():
+        for key, value in body.items():
+            out[f"{sec}.{key}"] = value
+    for sec, keys in schema:
+        for key in keys:
+            value = sections.get(sec, {}).get(key.name)
+            if key.path and isinstance(value, str) and value and Path(value).exists():
+                out[f"input:{sec}.{key.name}"] = content_digest(value)
+    for name in data_files:
+        out[f"data:{name}"] = content_digest(data_file(name))
+    return out
+
+
 @dataclass(frozen=True, kw_only=True)
 class JobKind:
     """A kind of job ``microfab run`` knows.
@@ -80,6 +119,12 @@ class JobKind:
         The shipped example job file (under ``examples/``).
     default_title : str
         Report title when the job file gives none.
+    data_files : tuple of str
+        The packaged data files (under ``microfab/data``) a run reads; their content is
+        part of the run's fingerprint.
+    version : str
+        The model version: change it when the same settings would give other results
+        (physics, solver or saved-state layout), so that older runs are not resumed.
     """
 
     name: str
@@ -91,6 +136,8 @@ class JobKind:
     write_report: Callable[[Any, Path, str], Path]
     example: str
     default_title: str
+    data_files: tuple[str, ...] = ()
+    version: str = "1"
 
     def config(self, job: JobFile) -> Any:
         """The kind's config from a parsed job file (every key checked).
@@ -102,11 +149,33 @@ class JobKind:
         ValueError
             A combination of values the config refuses (message names the file).
         """
-        sections = job.parse(self.schema)
+        return self.make_config_of(job.parse(self.schema), job.source)
+
+    def make_config_of(self, sections: dict[str, dict[str, Any]], source: str) -> Any:
+        """The kind's config from checked sections (`microfab.io.job.JobFile.parse`)."""
         try:
             return self.make_config(sections)
         except ValueError as exc:
-            raise type(exc)(f"{job.source}: {exc}") from exc
+            raise type(exc)(f"{source}: {exc}") from exc
+
+    def fingerprint(self, sections: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+        """The settings a run of this kind depends on, for `microfab.io.runstore.open_run`.
+
+        Parameters
+        ----------
+        sections : mapping
+            Checked sections (every key, defaults included).
+
+        Returns
+        -------
+        dict
+            ``kind``, ``version``, ``<section>.<key>`` for every key; ``input:<section>.<key>``
+            with the content digest of every path key that names an existing file or folder;
+            ``data:<file>`` with that of every packaged data file the kind reads.
+        """
+        return fingerprint_settings(
+            self.name, self.version, sections, self.schema.items(), self.data_files
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -145,6 +214,12 @@ class Reproduction:
     options : tuple of Key
         Settings a user may change (``microfab reproduce NAME --set key=value``); the
         defaults are the seed's.
+    data_files, version : tuple of str, str
+        As for `JobKind`: what a resumed reproduction's checkpoints depend on.
+    run_folder_option : str, optional
+        The option that names a folder where the reproduction saves what it resumes from;
+        ``microfab reproduce`` opens it as a run store (`microfab.io.runstore`) keyed on
+        the other options, so a rerun with other settings is refused, not resumed.
     """
 
     name: str
@@ -152,6 +227,20 @@ class Reproduction:
     seed: str
     run: Callable[[dict[str, Any], Progress], ReproductionResult]
     options: tuple[Key, ...] = ()
+    data_files: tuple[str, ...] = ()
+    version: str = "1"
+    run_folder_option: str | None = None
+
+    def fingerprint(self, options: Mapping[str, Any]) -> dict[str, Any]:
+        """The settings a resumable reproduction depends on (see `JobKind.fingerprint`).
+
+        The run-folder option itself is left out: the same run may be moved.
+        """
+        given = {k: v for k, v in options.items() if k != self.run_folder_option}
+        return fingerprint_settings(
+            f"reproduce {self.name}", self.version, {"set": given}, [("set", self.options)],
+            self.data_files,
+        )  # fmt: skip
 
     def parse_options(self, given: Mapping[str, Any]) -> dict[str, Any]:
         """Check user settings against `options` (unknown names refused).

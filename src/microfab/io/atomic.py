@@ -16,7 +16,7 @@ import stat
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, Literal
 
 import numpy as np
 
@@ -26,7 +26,42 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_json",
     "atomic_write_text",
+    "watch_writes",
 ]
+
+#: Callbacks told of every file this module is about to write / has written (`watch_writes`).
+_BEFORE: list[Callable[[Path], None]] = []
+_AFTER: list[Callable[[Path], None]] = []
+
+
+@contextlib.contextmanager
+def watch_writes(
+    callback: Callable[[Path], None], *, when: Literal["before", "after"] = "after"
+) -> Iterator[None]:
+    """Call ``callback(path)`` for each file written here while the block runs.
+
+    Parameters
+    ----------
+    callback : callable
+        ``callback(target)`` with the file's path as given to the writer.
+    when : {"after", "before"}
+        ``"after"``: once the file is complete and renamed onto its name (an exception the
+        callback raises then reaches the writer with the file in place: how tests
+        interrupt a run right after a checkpoint). ``"before"``: before anything is
+        written (the run store records the name first, so no interruption leaves a file
+        it has not recorded); an exception then stops the write.
+    """
+    hooks = _BEFORE if when == "before" else _AFTER
+    hooks.append(callback)
+    try:
+        yield
+    finally:
+        hooks.remove(callback)
+
+
+def _notify(hooks: list[Callable[[Path], None]], target: Path) -> None:
+    for cb in tuple(hooks):
+        cb(target)
 
 
 def _default_mode() -> int:
@@ -78,6 +113,7 @@ def _remove(path: Path) -> None:
 def _atomic_write(path: str | os.PathLike[str], write: Callable[[BinaryIO], object]) -> None:
     """``write(fh)`` into a temporary file beside ``path``, sync it, rename it onto ``path``."""
     target = _prepare(path)
+    _notify(_BEFORE, target)
     fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     tmp = Path(name)
     try:
@@ -91,6 +127,7 @@ def _atomic_write(path: str | os.PathLike[str], write: Callable[[BinaryIO], obje
         _remove(tmp)
         raise
     _fsync_dir(target.parent)
+    _notify(_AFTER, target)
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
@@ -213,6 +250,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     ...         f["x"] = x
     """
     target = _prepare(path)
+    _notify(_BEFORE, target)
     fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.stem}.", suffix=target.suffix)
     os.close(fd)
     tmp = Path(name)
@@ -229,3 +267,4 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         _remove(tmp)
         raise
     _fsync_dir(target.parent)
+    _notify(_AFTER, target)

@@ -58,6 +58,10 @@ class Key:
         An older name still accepted for this key.
     allow_empty : bool
         A list key that accepts ``[]`` (default: a list must hold a value).
+    path : bool
+        The value may name an input file or folder (relative to the working directory);
+        when it names one that exists, its content is part of a run's fingerprint
+        (`microfab.io.runstore`), so a run resumed on changed data is refused.
     """
 
     name: str
@@ -69,6 +73,7 @@ class Key:
     help: str = ""
     alias: str | None = None
     allow_empty: bool = False
+    path: bool = False
 
     def _range(self) -> str:
         lo = "-inf" if self.low is None else f"{self.low:g}"

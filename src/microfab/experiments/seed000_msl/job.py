@@ -303,6 +303,7 @@ MSL_ILC = JobKind(
     write_report=_write_report,
     example="galvo_msl_default.toml",
     default_title="Galvo MSL: feedback vs ILC",
+    data_files=("galvo_twin.toml",),
 )
 
 MSL_ILC_REPRODUCTION = Reproduction(
@@ -314,4 +315,5 @@ MSL_ILC_REPRODUCTION = Reproduction(
         Key(name="iterations", type="int", default=30, low=2, high=MAX_ITERATIONS),
         Key(name="seed", type="int", default=0, low=0, high=2**32 - 1),
     ),
+    data_files=("galvo_twin.toml",),
 )

@@ -122,7 +122,7 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="sensor noise [x, y] (default: the data file's)"),
         Key(name="disturbance_mm_s2", type="float_list", default=None, low=0.0,
             unit="mm/s²", help="disturbance bound d0 [x, y] (default: the data file's)"),
-        Key(name="params_file", type="str", default=None, help="another twin data file"),
+        Key(name="params_file", type="str", default=None, path=True, help="another twin data file"),
     ),
     "transfer": (
         Key(name="pid_bandwidth_hz", type=_F, default=200.0, low=0.0, unit="Hz",
@@ -335,6 +335,7 @@ NANOMANIPULATOR_MSL = JobKind(
     write_report=_write_report,
     example="nanomanipulator_msl.toml",
     default_title="Nanomanipulator MSL: RBF + plug-in RC, gated laser",
+    data_files=("nanomanipulator_twin.toml",),
 )
 
 NANOMANIPULATOR_REPRODUCTION = Reproduction(
@@ -343,4 +344,5 @@ NANOMANIPULATOR_REPRODUCTION = Reproduction(
     seed="001",
     run=_reproduce,
     options=(Key(name="seed", type="int", default=0, low=0, help="twin seed"),),
+    data_files=("nanomanipulator_twin.toml",),
 )

@@ -49,7 +49,7 @@ HOLD_S = 0.51  # the 200-sample tail (500 ms at 400 Hz) and one 10 ms margin
 
 SCHEMA: dict[str, tuple[Key, ...]] = {
     "models": (
-        Key(name="dir", type="str", default="",
+        Key(name="dir", type="str", default="", path=True,
             help="output of a stage-identify job (linear_model.json and ann/model)"),
     ),
     "twin": (
@@ -214,6 +214,7 @@ STAGE_REFERENCE_OPT = JobKind(
     write_report=_write_report,
     example="blackbox_stage_reference.toml",
     default_title="Black-box XY stage: optimised references",
+    data_files=("xy_stage_twin.toml", "airfoils"),
 )
 
 REFERENCE_OPT_REPRODUCTION = Reproduction(
@@ -223,7 +224,7 @@ REFERENCE_OPT_REPRODUCTION = Reproduction(
     seed="002",
     run=_reproduce,
     options=(
-        Key(name="models", type="str", default="",
+        Key(name="models", type="str", default="", path=True,
             help="output folder of a stage-identify job (required)"),
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),
         Key(name="noise", type="bool", default=True, help="2 µm output noise on"),
@@ -232,4 +233,6 @@ REFERENCE_OPT_REPRODUCTION = Reproduction(
         Key(name="checkpoints", type="str", default="",
             help="folder for the points and stage-2 checkpoints, so a rerun resumes"),
     ),
+    data_files=("xy_stage_twin.toml", "airfoils"),
+    run_folder_option="checkpoints",
 )  # fmt: skip

@@ -286,6 +286,7 @@ STAGE_IDENTIFY = JobKind(
     write_report=_write_report,
     example="blackbox_stage_identify.toml",
     default_title="Black-box XY stage: linear and neural-network models",
+    data_files=("xy_stage_twin.toml", "airfoils"),
 )
 
 STAGE_MODELS_REPRODUCTION = Reproduction(
@@ -306,4 +307,6 @@ STAGE_MODELS_REPRODUCTION = Reproduction(
         Key(name="checkpoints", type="str", default="",
             help="folder for training checkpoints, so a rerun resumes (default: none)"),
     ),
+    data_files=("xy_stage_twin.toml", "airfoils"),
+    run_folder_option="checkpoints",
 )  # fmt: skip

@@ -582,6 +582,7 @@ DROPLET_SWEEP = JobKind(
     write_report=_write_report,
     example="droplet_sweep.toml",
     default_title="Inkjet: breakup time over concentration and voltage",
+    data_files=("naalg.toml",),
 )
 
 DROPLET_FIG4_REPRODUCTION = Reproduction(
@@ -590,4 +591,5 @@ DROPLET_FIG4_REPRODUCTION = Reproduction(
     seed="003",
     run=_reproduce,
     options=(_DURATION, _REPRO_MODELS, _WORKERS),
+    data_files=("naalg.toml",),
 )

@@ -91,7 +91,7 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="side-by-side inverse and classic shapers on both twins"),
     ),
     "layer": (
-        Key(name="source", type="str", default="lattice:z=8.2e-4,radius=8e-3",
+        Key(name="source", type="str", default="lattice:z=8.2e-4,radius=8e-3", path=True,
             help="lattice:z=...,radius=...,strut=...,fraction=... or a drawing file/shape"),
         Key(name="hatch_spacing_um", type=_F, default=100.0, low=0.0, unit="µm",
             help="hatch spacing (assumed 100 µm)"),
@@ -353,6 +353,7 @@ SLM_SHAPING = JobKind(
     write_report=_write_report,
     example="slm_shaping.toml",
     default_title="SLM galvo scanner: identification, input shaping and scan time",
+    data_files=("galvo_slm.toml",),
 )
 
 SLM_SHAPER_REPRODUCTION = Reproduction(
@@ -365,4 +366,5 @@ SLM_SHAPER_REPRODUCTION = Reproduction(
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),
         Key(name="noise", type="bool", default=True, help="0.3 bit output noise on"),
     ),
+    data_files=("galvo_slm.toml",),
 )

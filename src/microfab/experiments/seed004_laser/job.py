@@ -62,7 +62,7 @@ __all__ = [
 _F = "float"
 SCHEMA: dict[str, tuple[Key, ...]] = {
     "drawing": (
-        Key(name="source", type="str", default="circle:radius=30e-6",
+        Key(name="source", type="str", default="circle:radius=30e-6", path=True,
             help="drawing: a DXF/SVG file or a shape (seed 004 Fig. 3: 30 µm circle)"),
         Key(name="contour", type="int", default=0, low=0, help="which closed contour, from 0"),
     ),
@@ -543,6 +543,7 @@ LASER_MICROMACHINING = JobKind(
     write_report=_write_report,
     example="laser_micromachining.toml",
     default_title="Laser micromachining stage: preview + DOB with contour compensation",
+    data_files=("lmw_stage.toml", "lmw_focus.toml"),
 )
 
 LASER_REPRODUCTION = Reproduction(
@@ -552,4 +553,5 @@ LASER_REPRODUCTION = Reproduction(
     seed="004",
     run=_reproduce,
     options=(Key(name="seed", type="int", default=0, low=0, help="twin noise seed"),),
+    data_files=("lmw_stage.toml", "lmw_focus.toml"),
 )
