@@ -436,9 +436,7 @@ def jacobian_band(jac: sp.spmatrix, m: int, mass: float) -> int:
     return int(np.searchsorted(cum, mass) + 1)
 
 
-def _load(
-    path: str | None, key: str
-) -> tuple[np.ndarray, float, int, list, int | None] | None:
+def _load(path: str | None, key: str) -> tuple[np.ndarray, float, int, list, int | None] | None:
     if path is None or not Path(path).is_file():
         return None
     try:
