@@ -29,6 +29,7 @@ fuzz: $(STAMP)
 	$(BIN)/python tests/fuzz/run_fuzz.py --cases 10000
 
 bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_cli.py
 	$(BIN)/python benchmarks/bench_sim.py
 	$(BIN)/python benchmarks/bench_dxf.py
 	$(BIN)/python benchmarks/bench_topp.py

@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 from microfab.experiments.catalog import (
     JOB_KINDS,
+    KIND_ENTRIES,
+    REPRODUCTION_ENTRIES,
     REPRODUCTIONS,
+    KindEntry,
+    _Lazy,
     default_job,
     job_kind,
     load_job,
@@ -21,10 +29,40 @@ EXAMPLES = Path(__file__).parents[2] / "examples"
 
 def test_every_kind_has_an_example_that_loads():
     assert "msl-ilc" in JOB_KINDS
-    for kind in JOB_KINDS.values():
-        job = load_job(EXAMPLES / kind.example)
-        assert job.kind is kind
-        assert kind.description and kind.seed
+    for name, entry in KIND_ENTRIES.items():
+        job = load_job(EXAMPLES / entry.example)
+        assert job.kind is JOB_KINDS[name] and job.kind.name == name
+        assert entry.description and len(entry.seed) == 3 and entry.seed.isdigit()
+
+
+def test_every_registered_target_is_the_object_of_that_name():
+    for name, entry in REPRODUCTION_ENTRIES.items():
+        assert REPRODUCTIONS[name].name == name and entry.description
+    assert set(JOB_KINDS) == set(KIND_ENTRIES) and len(REPRODUCTIONS) == 7
+    bad = KindEntry(name="x", seed="000", description="d", example="e.toml",
+                    target=KIND_ENTRIES["msl-ilc"].target)  # fmt: skip
+    with pytest.raises(LookupError, match="registered as 'x'"):
+        _Lazy({"x": bad})["x"]
+
+
+def test_listing_and_checking_load_no_machine():
+    # microfab kinds and a broken job file answer without importing any kind's modules
+    code = (
+        "import sys, json\n"
+        "from typer.testing import CliRunner\n"
+        "from microfab.cli import app\n"
+        "r = CliRunner()\n"
+        "assert r.invoke(app, ['kinds']).exit_code == 0\n"
+        "open('broken.toml', 'w').write('[job')\n"
+        "assert r.invoke(app, ['run', 'broken.toml', '--check']).exit_code == 2\n"
+        "heavy = ('scipy', 'matplotlib', 'control', 'casadi', 'torch', 'numba')\n"
+        "loaded = [m for m in sys.modules if m.split('.')[0] in heavy\n"
+        "          or m.startswith('microfab.experiments.seed')]\n"
+        "print(json.dumps(loaded))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=tempfile.mkdtemp())  # fmt: skip
+    assert json.loads(out.stdout) == []
 
 
 def test_every_example_job_file_loads():

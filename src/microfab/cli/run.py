@@ -51,12 +51,13 @@ def run_cmd(
     out_dir = out or job.out
     if check:
         try:
-            what = check_run(out_dir, settings, fresh=fresh)
+            plan = check_run(out_dir, settings, fresh=fresh)
         except ValueError as exc:
             fail(str(exc))
+        what = {"start": "write", "resume": "resume the run in"}.get(plan, "start fresh in")
         console.print(
             f"{job_file or 'default job'}: a valid {job.kind.name} job "
-            f"({job.title}); it would {what} in {out_dir}",
+            f"({job.title}); it would {what} {out_dir}",
             highlight=False,
             soft_wrap=True,
         )
@@ -81,35 +82,88 @@ def run_cmd(
         )
 
 
-def kinds_cmd() -> None:
-    """List the job kinds (for microfab run) and the reproductions (for microfab reproduce)."""
-    from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS
+def kinds_cmd(
+    name: Annotated[
+        str | None,
+        typer.Argument(help="A kind or reproduction: show its settings (sections and keys)."),
+    ] = None,
+) -> None:
+    """List the job kinds (for microfab run) and the reproductions (for microfab reproduce).
+
+    With a NAME, the settings of that kind (its job-file sections and keys, defaults,
+    ranges and units) or reproduction (its --set options).
+    """
+    from microfab.experiments.catalog import KIND_ENTRIES, REPRODUCTION_ENTRIES
     from microfab.report.tables import Table
 
+    if name is not None:
+        _settings_of(name)
+        return
     print_table(
         Table(
             title="Job kinds: [job] kind = NAME in a job file, run with `microfab run JOB.toml`",
             columns=("kind", "seed", "example", "what it does"),
             rows=[
-                (k.name, k.seed, f"examples/{k.example}", k.description) for k in JOB_KINDS.values()
+                (k.name, k.seed, f"examples/{k.example}", k.description)
+                for k in KIND_ENTRIES.values()
             ],
         )
     )
     print_table(
         Table(
-            title="Reproductions: `microfab reproduce NAME`",
-            columns=("name", "seed", "options (--set key=value)", "what it reproduces"),
-            rows=[
-                (
-                    r.name,
-                    r.seed,
-                    ", ".join(f"{o.name}={o.default}" for o in r.options) or "-",
-                    r.description,
-                )
-                for r in REPRODUCTIONS.values()
-            ],
+            title="Reproductions: `microfab reproduce NAME` (settings: `microfab kinds NAME`)",
+            columns=("name", "seed", "what it reproduces"),
+            rows=[(r.name, r.seed, r.description) for r in REPRODUCTION_ENTRIES.values()],
         )
     )
+
+
+def _settings_of(name: str) -> None:
+    """Print the schema of the kind, and the options of the reproduction, called ``name``."""
+    from microfab.experiments.catalog import (
+        KIND_ENTRIES,
+        REPRODUCTION_ENTRIES,
+        job_kind,
+        reproduction,
+    )
+    from microfab.report.tables import Table
+
+    if name not in KIND_ENTRIES and name not in REPRODUCTION_ENTRIES:
+        known = ", ".join(sorted({*KIND_ENTRIES, *REPRODUCTION_ENTRIES}))
+        fail(f"unknown kind or reproduction {name!r} (known: {known})")
+
+    def rows(section: str, keys: Any) -> list[tuple[str, ...]]:
+        return [(section, k.name, _shown(k.default), _allowed(k), k.help) for k in keys]
+
+    columns = ("section", "key", "default", "allowed", "what it is")
+    if name in KIND_ENTRIES:
+        kind = job_kind(name)
+        body = [r for sec, keys in kind.schema.items() for r in rows(f"[{sec}]", keys)]
+        print_table(Table(title=f"Job kind {name}: its sections and keys", columns=columns,
+                          rows=body))  # fmt: skip
+    if name in REPRODUCTION_ENTRIES:
+        rep = reproduction(name)
+        print_table(Table(title=f"Reproduction {name}: --set key=value", columns=columns,
+                          rows=rows("--set", rep.options)))  # fmt: skip
+
+
+def _allowed(key: Any) -> str:
+    """A key's type or range and unit, e.g. ``[1, 125000] features/s``."""
+    if key.type not in ("int", "float", "int_list", "float_list"):
+        return key.type
+    lo = "-inf" if key.low is None else _shown(key.low)
+    hi = "inf" if key.high is None else _shown(key.high)
+    return f"[{lo}, {hi}] {key.unit}".rstrip()
+
+
+def _shown(value: Any) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, tuple):
+        return "[" + ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value) + "]"
+    if isinstance(value, float):
+        return str(int(value)) if value.is_integer() and abs(value) < 1e15 else f"{value:g}"
+    return str(value)
 
 
 def _settings(pairs: list[str]) -> dict[str, Any]:

@@ -3,9 +3,10 @@
 A `JobKind` is what ``microfab run JOB.toml`` runs: it names its TOML sections (a schema
 of `microfab.io.job.Key`), turns them into its own frozen config dataclass, runs, and
 writes its report. A `Reproduction` is what ``microfab reproduce NAME`` runs: the seed's
-published numbers beside ours, as tables. Both are plain data in the table of
-`microfab.experiments.catalog` (the pattern of Klipper's ``shaper_defs``): adding a
-machine adds one entry to each, nothing else changes.
+published numbers beside ours, as tables. Both are plain data; the registry
+`microfab.experiments.catalog` lists each by name, seed, one line and the import path of
+its object (the pattern of Klipper's ``shaper_defs``), so that listing them loads no
+machine: adding a machine adds one entry to each, nothing else changes.
 """
 
 from __future__ import annotations
@@ -102,10 +103,6 @@ class JobKind:
     ----------
     name : str
         The ``[job] kind`` value, e.g. ``"msl-ilc"``.
-    description : str
-        One line for ``microfab kinds``.
-    seed : str
-        Seed paper it reproduces (file stem in ``shared/seeds``), e.g. ``"000"``.
     schema : mapping of str to sequence of Key
         The kind's TOML sections and keys.
     make_config : callable
@@ -115,8 +112,6 @@ class JobKind:
         needs under ``out_dir`` to resume after an interruption.
     write_report : callable
         ``(result, out_dir, title) -> path of report.html``.
-    example : str
-        The shipped example job file (under ``examples/``).
     default_title : str
         Report title when the job file gives none.
     data_files : tuple of str
@@ -128,13 +123,10 @@ class JobKind:
     """
 
     name: str
-    description: str
-    seed: str
     schema: Mapping[str, Sequence[Key]]
     make_config: Callable[[dict[str, dict[str, Any]]], Any]
     run: Callable[[Any, Path, Progress], KindResult]
     write_report: Callable[[Any, Path, str], Path]
-    example: str
     default_title: str
     data_files: tuple[str, ...] = ()
     version: str = "1"
@@ -205,10 +197,6 @@ class Reproduction:
     ----------
     name : str
         Command-line name, e.g. ``"msl-ilc"``.
-    description : str
-        One line for ``microfab kinds``.
-    seed : str
-        Seed paper, e.g. ``"000"``.
     run : callable
         ``(options, progress) -> ReproductionResult``.
     options : tuple of Key
@@ -223,8 +211,6 @@ class Reproduction:
     """
 
     name: str
-    description: str
-    seed: str
     run: Callable[[dict[str, Any], Progress], ReproductionResult]
     options: tuple[Key, ...] = ()
     data_files: tuple[str, ...] = ()

@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("casadi")
 pytest.importorskip("torch")
 
-from microfab.experiments.catalog import REPRODUCTIONS, load_job
+from microfab.experiments.catalog import KIND_ENTRIES, REPRODUCTIONS, load_job
 from microfab.experiments.seed002_reference import study as study_mod
 from microfab.experiments.seed002_reference.job import STAGE_REFERENCE_OPT
 from microfab.experiments.seed002_reference.study import (
@@ -45,7 +45,7 @@ def test_bad_job_files_refused(tmp_path, body, says):
 
 def test_example_and_registry():
     assert "reference-opt" in REPRODUCTIONS
-    assert STAGE_REFERENCE_OPT.example == "blackbox_stage_reference.toml"
+    assert KIND_ENTRIES[STAGE_REFERENCE_OPT.name].example == "blackbox_stage_reference.toml"
 
 
 @pytest.fixture(scope="module")

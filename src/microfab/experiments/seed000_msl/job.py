@@ -294,22 +294,16 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
 MSL_ILC = JobKind(
     name="msl-ilc",
-    description="Galvo MSL (seed 000): a square at N features/s, feedback vs frequency-domain "
-    "ILC on the calibrated twin",
-    seed="000",
     schema=SCHEMA,
     make_config=_make_config,
     run=_run,
     write_report=_write_report,
-    example="galvo_msl_default.toml",
     default_title="Galvo MSL: feedback vs ILC",
     data_files=("galvo_twin.toml",),
 )
 
 MSL_ILC_REPRODUCTION = Reproduction(
     name="msl-ilc",
-    description="Seed 000 Tables 1 and 2 and the loop margins at 100, 200, 400 features/s",
-    seed="000",
     run=_reproduce,
     options=(
         Key(name="iterations", type="int", default=30, low=2, high=MAX_ITERATIONS),

@@ -326,22 +326,16 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
 NANOMANIPULATOR_MSL = JobKind(
     name="nanomanipulator-msl",
-    description="Flexure nanomanipulator MSL (seed 001): RBF adaptive control + plug-in RC "
-    "on four circles, laser gate, warm-up compensation, cured lines",
-    seed="001",
     schema=SCHEMA,
     make_config=_checked_config,
     run=_run,
     write_report=_write_report,
-    example="nanomanipulator_msl.toml",
     default_title="Nanomanipulator MSL: RBF + plug-in RC, gated laser",
     data_files=("nanomanipulator_twin.toml",),
 )
 
 NANOMANIPULATOR_REPRODUCTION = Reproduction(
     name="nanomanipulator",
-    description="Seed 001 §4.2: axial and contour RMS, gate period, four circles on the twin",
-    seed="001",
     run=_reproduce,
     options=(Key(name="seed", type="int", default=0, low=0, help="twin seed"),),
     data_files=("nanomanipulator_twin.toml",),

@@ -204,24 +204,16 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
 STAGE_REFERENCE_OPT = JobKind(
     name="stage-reference-opt",
-    description="Black-box XY stage (seed 002 part 2): two-stage reference optimisation "
-    "(minimum-time contouring on the linear model, network refinement), Table III on the "
-    "letters and the airfoil, the precision-productivity trade-off",
-    seed="002",
     schema=SCHEMA,
     make_config=config_from_sections,
     run=_run,
     write_report=_write_report,
-    example="blackbox_stage_reference.toml",
     default_title="Black-box XY stage: optimised references",
     data_files=("xy_stage_twin.toml", "airfoils"),
 )
 
 REFERENCE_OPT_REPRODUCTION = Reproduction(
     name="reference-opt",
-    description="Seed 002 Table III, letter r and the airfoil, the trade-off (Figs. 16-17), "
-    "on the models of a stage-identify job",
-    seed="002",
     run=_reproduce,
     options=(
         Key(name="models", type="str", default="", path=True,

@@ -277,23 +277,16 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
 STAGE_IDENTIFY = JobKind(
     name="stage-identify",
-    description="Black-box XY stage (seed 002 part 1): excitation, 4-state subspace model, "
-    "per-axis networks, Table II on the letters, Fig. 9, coupling and PRBS/chirp studies",
-    seed="002",
     schema=SCHEMA,
     make_config=config_from_sections,
     run=_run,
     write_report=_write_report,
-    example="blackbox_stage_identify.toml",
     default_title="Black-box XY stage: linear and neural-network models",
     data_files=("xy_stage_twin.toml", "airfoils"),
 )
 
 STAGE_MODELS_REPRODUCTION = Reproduction(
     name="stage-models",
-    description="Seed 002 Table II: the linear and the network models on their data and on "
-    "the letters at 1 and 3 m/s², Fig. 9, the order check",
-    seed="002",
     run=_reproduce,
     options=(
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),

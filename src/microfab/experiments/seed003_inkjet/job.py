@@ -573,22 +573,16 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
 DROPLET_SWEEP = JobKind(
     name="droplet-sweep",
-    description="Inkjet (seed 003 part 1): breakup time over NaAlg concentration (Fig. 4) and "
-    "drive voltage, on worker processes or a Dask cluster",
-    seed="003",
     schema=SCHEMA,
     make_config=_make_config,
     run=_run,
     write_report=_write_report,
-    example="droplet_sweep.toml",
     default_title="Inkjet: breakup time over concentration and voltage",
     data_files=("naalg.toml",),
 )
 
 DROPLET_FIG4_REPRODUCTION = Reproduction(
     name="droplet-fig4",
-    description="Seed 003 Fig. 4 and Fig. 2: first breakup of six NaAlg solutions at 50 V",
-    seed="003",
     run=_reproduce,
     options=(_DURATION, _REPRO_MODELS, _WORKERS),
     data_files=("naalg.toml",),

@@ -344,23 +344,16 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
 SLM_SHAPING = JobKind(
     name="slm-shaping",
-    description="SLM galvo scanner (seed 003 part 2): chirp identification, model-inverse and "
-    "classic input shapers, jump validation, dynamics-aware layer and build scan time",
-    seed="003",
     schema=SCHEMA,
     make_config=_checked_config,
     run=_run,
     write_report=_write_report,
-    example="slm_shaping.toml",
     default_title="SLM galvo scanner: identification, input shaping and scan time",
     data_files=("galvo_slm.toml",),
 )
 
 SLM_SHAPER_REPRODUCTION = Reproduction(
     name="slm-shaper",
-    description="Seed 003 part 2: chirp fit, inverse shaper, lag/settling/speed, jump delay, "
-    "lattice scan time",
-    seed="003",
     run=_reproduce,
     options=(
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),

@@ -534,23 +534,16 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
 LASER_MICROMACHINING = JobKind(
     name="laser-micromachining",
-    description="Laser micromachining stage (seed 004): preview + DOB, contour compensator "
-    "and baselines on a linear-motor XY twin; tracking, contour error, speed sweep",
-    seed="004",
     schema=SCHEMA,
     make_config=_checked_config,
     run=_run,
     write_report=_write_report,
-    example="laser_micromachining.toml",
     default_title="Laser micromachining stage: preview + DOB with contour compensation",
     data_files=("lmw_stage.toml", "lmw_focus.toml"),
 )
 
 LASER_REPRODUCTION = Reproduction(
     name="laser-micromachining",
-    description="Seed 004: depth of focus, Fig. 3 tracking errors, Fig. 7 contour correction, "
-    "Fig. 6 autofocus",
-    seed="004",
     run=_reproduce,
     options=(Key(name="seed", type="int", default=0, low=0, help="twin noise seed"),),
     data_files=("lmw_stage.toml", "lmw_focus.toml"),
