@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from microfab.control.repetitive import RCConfig, rc_update
+from microfab.control.rc_law import RCConfig, rc_update
 from microfab.core.validate import check_int
 from microfab.io.atomic import atomic_save_npz
 
