@@ -72,14 +72,12 @@ import numpy as np
 from numba import njit
 
 import control
+from microfab.plants import friction as _f
 from microfab.plants.base import CompiledPlant, LTIPlant
+from microfab.plants.friction import friction_force
 from microfab.plants.lmw_stage_params import (
-    _ACOG,
     _BLOCK,
-    _FC,
-    _FS,
-    _H_CAB,
-    _H_COG,
+    _FRIC,
     _H_DT,
     _H_FRIC,
     _H_NMAX,
@@ -92,16 +90,8 @@ from microfab.plants.lmw_stage_params import (
     _HEADER,
     _IPK,
     _K,
-    _KCAB,
-    _KCOG,
     _M,
-    _PCOG,
-    _S0,
-    _S1,
-    _S2,
     _TAU,
-    _VS,
-    _XREST,
     AXES,
     SWITCHES,
     LMWStageParams,
@@ -142,17 +132,7 @@ def _motor_flow(
 @njit(cache=True, inline="always")
 def _rates(p: np.ndarray, b: int, x: float, v: float, z: float) -> tuple[float, float]:
     """``(ż, F_l)`` of the axis at block ``b``: bristle rate (m/s) and disturbance (N)."""
-    zd = 0.0
-    f = 0.0
-    if p[_H_FRIC] != 0.0:
-        dv = v / p[b + _VS]
-        g = p[b + _FC] + (p[b + _FS] - p[b + _FC]) * math.exp(-dv * dv)
-        zd = v - p[b + _S0] * abs(v) * z / g
-        f = p[b + _S0] * z + p[b + _S1] * zd + p[b + _S2] * v
-    if p[_H_COG] != 0.0:
-        f += p[b + _ACOG] * math.sin(p[b + _KCOG] * x + p[b + _PCOG])
-    if p[_H_CAB] != 0.0:
-        f += p[b + _KCAB] * (x - p[b + _XREST])
+    f, zd, _g = friction_force(p, b + _FRIC, x, v, z)
     return zd, p[_H_SCALE] * f
 
 
@@ -162,7 +142,7 @@ def _substeps(p: np.ndarray, b: int, v_bound: float) -> int:
     nmin = p[_H_NMIN]
     if p[_H_FRIC] == 0.0:
         return int(nmin)
-    nf = p[_H_DT] * p[b + _S0] * v_bound / (p[_H_RELAX] * p[b + _FC])
+    nf = p[_H_DT] * p[b + _FRIC + _f._S0] * v_bound / (p[_H_RELAX] * p[b + _FRIC + _f._FC])
     if nf <= nmin:
         return int(nmin)
     if not nf < p[_H_NMAX]:  # NaN too
@@ -317,22 +297,9 @@ class LMWStage(CompiledPlant):
     # --- Python reference of the kernels ----------------------------------------------------
 
     def _disturbance_force(self, a: int, x: float, v: float, z: float) -> tuple[float, float]:
-        """``(ż, F_l)`` of axis ``a`` at ``x``, ``v``, ``z`` from the config (m/s, N)."""
-        c = self.config
-        zdot, f = 0.0, 0.0
-        if c.friction:
-            fc, fs = c.coulomb_n[a], c.static_n[a]
-            g = fc + (fs - fc) * math.exp(-((v / c.stribeck_m_s[a]) ** 2))
-            s0 = c.bristle_stiffness_n_per_m[a]
-            zdot = v - s0 * abs(v) * z / g
-            f = s0 * z + c.bristle_damping_n_s_per_m[a] * zdot + c.viscous_n_s_per_m[a] * v
-        if c.cogging:
-            f += c.cogging_n[a] * math.sin(
-                2 * math.pi * x / c.cogging_pitch_m[a] + c.cogging_phase_rad[a]
-            )
-        if c.cable:
-            f += c.cable_stiffness_n_per_m[a] * (x - c.cable_rest_m[a])
-        return zdot, c.disturbance_scale * f
+        """``(ż, F_l)`` of axis ``a`` at ``x``, ``v``, ``z`` (m/s, N): scaled `StageFriction`."""
+        f, zdot, _g = self.config.friction_laws[a].force(x, v, z)
+        return zdot, self.config.disturbance_scale * f
 
     def _axis(self, a: int, xs: list[float], i_ref: float) -> tuple[list[float], float]:
         """``([x, v, i, z], mean F_l)`` of axis ``a`` one sample after ``xs``."""

@@ -13,19 +13,20 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 
 from microfab.core.validate import (
     check_axis_pair,
-    check_finite,
     check_in_range,
     check_int,
     check_nonnegative,
     check_positive,
     replace_known,
 )
+from microfab.plants.friction import FRICTION_FIELDS, N_FRICTION, StageFriction
 from microfab.plants.sourced_toml import read_sourced
 
 __all__ = ["AXES", "SWITCHES", "LMWStageParams", "StageNominal", "load_params"]
@@ -37,8 +38,9 @@ SWITCHES = ("friction", "cogging", "cable", "saturation", "quantisation")
 _H_DT, _H_NMIN, _H_NMAX, _H_RELAX, _H_SCALE = 0, 1, 2, 3, 4
 _H_FRIC, _H_COG, _H_CAB, _H_SAT, _H_QUANT, _H_RES = 5, 6, 7, 8, 9, 10
 _HEADER = 11
-_M, _K, _TAU, _IPK, _FC, _FS, _VS, _S0, _S1, _S2, _ACOG, _KCOG, _PCOG, _KCAB, _XREST = range(15)
-_BLOCK = 15
+_M, _K, _TAU, _IPK = range(4)
+_FRIC = 4  # the axis's `StageFriction` block (`microfab.plants.friction`)
+_BLOCK = _FRIC + N_FRICTION
 
 _PER_AXIS: dict[str, tuple[str, Any]] = {
     "nominal_mass_kg": ("kg", check_positive),
@@ -48,19 +50,12 @@ _PER_AXIS: dict[str, tuple[str, Any]] = {
     "amplifier_bandwidth_hz": ("Hz", check_positive),
     "peak_force_n": ("N", check_positive),
     "continuous_force_n": ("N", check_positive),
-    "coulomb_n": ("N", check_positive),
-    "static_n": ("N", check_positive),
-    "stribeck_m_s": ("m/s", check_positive),
-    "bristle_stiffness_n_per_m": ("N/m", check_positive),
-    "bristle_damping_n_s_per_m": ("N s/m", check_nonnegative),
-    "viscous_n_s_per_m": ("N s/m", check_nonnegative),
-    "cogging_n": ("N", check_nonnegative),
-    "cogging_pitch_m": ("m", check_positive),
-    "cogging_phase_rad": ("rad", check_finite),
-    "cable_stiffness_n_per_m": ("N/m", check_nonnegative),
-    "cable_rest_m": ("m", check_finite),
     "noise_rms_m": ("m", check_nonnegative),
 }
+# per-axis fields checked by the axis's `StageFriction` (`friction_laws`)
+_LAW_FIELDS = (*FRICTION_FIELDS, "cable_stiffness_n_per_m", "cable_rest_m")
+# the keys of each [axes.<name>] table of the data file
+_FILE_PER_AXIS = (*tuple(_PER_AXIS)[:-1], *_LAW_FIELDS, "noise_rms_m")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -125,7 +120,9 @@ class LMWStageParams:
         Table I force limits per axis, N; the amplifier limits the current to
         ``peak_force_n / force_constant_n_per_a``.
     coulomb_n, static_n, stribeck_m_s : tuple of float
-        LuGre ``F_c``, ``F_s`` (>= ``F_c``), ``v_s`` per axis: N, N, m/s.
+        LuGre ``F_c``, ``F_s`` (>= ``F_c``), ``v_s`` per axis: N, N, m/s. These
+        and the friction, cogging and cable values below make each axis's `StageFriction`
+        (`friction_laws`), which checks them: the law of `microfab.plants.friction`.
     bristle_stiffness_n_per_m, bristle_damping_n_s_per_m, viscous_n_s_per_m : tuple of float
         LuGre ``σ0``, ``σ1``, ``σ2`` per axis: N/m, N s/m, N s/m.
     cogging_n, cogging_pitch_m, cogging_phase_rad : tuple of float
@@ -193,13 +190,10 @@ class LMWStageParams:
                 )
         for name, (unit, check) in _PER_AXIS.items():
             object.__setattr__(self, name, check_axis_pair(name, getattr(self, name), unit, check))
+        laws = self.friction_laws  # checks the friction, cogging and cable values
+        for name in _LAW_FIELDS:
+            object.__setattr__(self, name, tuple(getattr(law, name) for law in laws))
         for i, ax in enumerate(AXES):
-            fc, fs_ = self.coulomb_n[i], self.static_n[i]
-            if fs_ < fc:
-                raise ValueError(
-                    f"static_n[{ax}] = {fs_} N is below coulomb_n[{ax}] = {fc} N; the "
-                    "break-away force F_s must be >= the Coulomb force F_c"
-                )
             fpk, fcont = self.peak_force_n[i], self.continuous_force_n[i]
             if fcont > fpk:
                 raise ValueError(
@@ -212,6 +206,20 @@ class LMWStageParams:
                     f"amplifier_bandwidth_hz[{ax}] = {fa} Hz must lie below the Nyquist "
                     f"frequency {fs / 2:g} Hz; lower it or raise sample_rate_hz"
                 )
+
+    @cached_property
+    def friction_laws(self) -> tuple[StageFriction, StageFriction]:
+        """The validated `StageFriction` of each axis ``(x, y)``: LuGre, cogging, cable.
+
+        Built from the per-axis fields and the ``friction``, ``cogging`` and ``cable``
+        switches (before ``disturbance_scale``, which the kernels apply to their sum).
+        """
+        return StageFriction.per_axis(
+            {name: getattr(self, name) for name in _LAW_FIELDS},
+            friction=self.friction,
+            cogging=self.cogging,
+            cable=self.cable,
+        )
 
     @property
     def dt(self) -> float:
@@ -251,24 +259,8 @@ class LMWStageParams:
         ]
         tau = self.amplifier_time_constant_s()
         ipk = self.peak_current_a()
-        for i in range(2):
-            out += [
-                self.mass_kg[i],
-                self.force_constant_n_per_a[i],
-                tau[i],
-                ipk[i],
-                self.coulomb_n[i],
-                self.static_n[i],
-                self.stribeck_m_s[i],
-                self.bristle_stiffness_n_per_m[i],
-                self.bristle_damping_n_s_per_m[i],
-                self.viscous_n_s_per_m[i],
-                self.cogging_n[i],
-                2 * math.pi / self.cogging_pitch_m[i],
-                self.cogging_phase_rad[i],
-                self.cable_stiffness_n_per_m[i],
-                self.cable_rest_m[i],
-            ]
+        for i, law in enumerate(self.friction_laws):
+            out += [self.mass_kg[i], self.force_constant_n_per_a[i], tau[i], ipk[i], *law.pack()]
         return np.array(out, dtype=np.float64)
 
     def with_(self, **changes: Any) -> LMWStageParams:
@@ -299,5 +291,5 @@ def load_params(path: str | os.PathLike[str] | None = None) -> LMWStageParams:
     ValueError
         Naming the file, the section and the key (layout), or the parameter (value).
     """
-    values = read_sourced(path, "lmw_stage.toml", _SECTIONS, tuple(_PER_AXIS), AXES)
+    values = read_sourced(path, "lmw_stage.toml", _SECTIONS, _FILE_PER_AXIS, AXES)
     return LMWStageParams(**values)

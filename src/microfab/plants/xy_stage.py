@@ -329,37 +329,11 @@ class XYStagePlant(CompiledPlant):
         s[o], s[o + 1], s[o + 2] = ii, dd, e
         return f
 
-    def _stribeck_py(self, a: int, v: float) -> float:
-        c = self.config
-        fc = c.coulomb_n[a]
-        return fc + (c.static_n[a] - fc) * math.exp(-((v / c.stribeck_m_s[a]) ** 2))
-
     def _disturbance_py(self, s: np.ndarray, a: int) -> tuple[float, float]:
-        c = self.config
-        x, v = float(s[MECH_POS[a]]), float(s[MECH_VEL[a]])
-        f, g = 0.0, 1.0
-        if c.friction:
-            z, s0 = float(s[_S_Z + a]), c.bristle_stiffness_n_per_m[a]
-            g = self._stribeck_py(a, v)
-            zd = v - s0 * abs(v) * z / g
-            f = s0 * z + c.bristle_damping_n_s_per_m[a] * zd + c.viscous_n_s_per_m[a] * v
-        if c.cogging:
-            f += c.cogging_n[a] * math.sin(
-                2 * math.pi / c.cogging_pitch_m[a] * x + c.cogging_phase_rad[a]
-            )
-        if a == 1 and c.cable:
-            f += c.cable_stiffness_n_per_m * (x - c.cable_rest_m)
-            f += c.cable_link_force_n * math.sin(
-                2 * math.pi / c.cable_link_pitch_m * x + c.cable_link_phase_rad
-            )
+        """``(F, g)`` of carriage ``a`` (N): its `StageFriction` at the state ``s``."""
+        law = self.config.friction_laws[a]
+        f, _zd, g = law.force(float(s[MECH_POS[a]]), float(s[MECH_VEL[a]]), float(s[_S_Z + a]))
         return f, g
-
-    def _bristle_py(self, a: int, z: float, dx: float, g: float) -> float:
-        if dx == 0.0:
-            return z
-        s0 = self.config.bristle_stiffness_n_per_m[a]
-        zss = math.copysign(g / s0, dx)
-        return zss + (z - zss) * math.exp(-s0 * abs(dx) / g)
 
     @staticmethod
     def _count_py(s: np.ndarray, flags: list[int]) -> None:
@@ -384,7 +358,8 @@ class XYStagePlant(CompiledPlant):
                 if c.friction:
                     for a in range(2):
                         dx = float(s[MECH_POS[a]] - before[a])
-                        s[_S_Z + a] = self._bristle_py(a, float(s[_S_Z + a]), dx, g[a])
+                        law = c.friction_laws[a]
+                        s[_S_Z + a] = law.bristle(float(s[_S_Z + a]), dx, g[a])
         else:
             phi, gu, _gd = self._zoh_dt
             s[:N_MECH] = phi @ s[:N_MECH] + gu @ f

@@ -12,6 +12,7 @@ import numpy as np
 from numba import njit
 
 from microfab.plants import xy_stage_params as _p
+from microfab.plants.friction import bristle_step, friction_force
 from microfab.plants.xy_stage_params import N_MECH
 
 __all__ = ["kernel_output", "kernel_update"]
@@ -24,6 +25,8 @@ _S_COUNT = _S_GUARD + 2 * _G  # samples: changed, input off workspace / speed / 
 _S_K = _S_COUNT + 4  # sample counter
 _S_SCR = _S_K + 1  # scratch of the mechanics step
 _N_STATE = _S_SCR + N_MECH
+_FRIC_X = _p._HEADER + _p._FRIC  # the axes' `StageFriction` blocks in the params
+_FRIC_Y = _p._HEADER + _p._BLOCK + _p._FRIC
 
 
 # --- kernels -------------------------------------------------------------------------------
@@ -132,39 +135,13 @@ def _control(
 def _disturbance(p: np.ndarray, s: np.ndarray, a: int) -> tuple[float, float]:
     """``(F, g)``: the force opposing carriage ``a`` now and the Stribeck level ``g(v)``.
 
-    ``F`` (N): friction, cogging, cable (y); ``g`` (N) is 1 with friction off.
+    ``F`` (N): friction, cogging, cable (y; `friction_force`); ``g`` (N) is 1 with
+    friction off.
     """
-    b = _p._HEADER + a * _p._BLOCK
-    x = s[3 * a]  # MECH_POS: 0, 3
-    v = s[3 * a + 1]  # MECH_VEL: 1, 4
-    f = 0.0
-    gv = 1.0
-    if p[_p._H_FRIC] != 0.0:
-        z = s[_S_Z + a]
-        dv = v / p[b + _p._VS]
-        gv = p[b + _p._FC] + (p[b + _p._FS] - p[b + _p._FC]) * math.exp(-dv * dv)
-        zd = v - p[b + _p._S0] * abs(v) * z / gv
-        f = p[b + _p._S0] * z + p[b + _p._S1] * zd + p[b + _p._S2] * v
-    if p[_p._H_COG] != 0.0:
-        f += p[b + _p._ACOG] * math.sin(p[b + _p._KCOG] * x + p[b + _p._PCOG])
-    if a == 1 and p[_p._H_CAB] != 0.0:
-        c = _p._CABLE
-        f += p[c + _p._CK] * (x - p[c + _p._CREST])
-        f += p[c + _p._CLINK] * math.sin(p[c + _p._CKLINK] * x + p[c + _p._CPLINK])
+    f, _zd, gv = friction_force(
+        p, _p._HEADER + a * _p._BLOCK + _p._FRIC, s[3 * a], s[3 * a + 1], s[_S_Z + a]
+    )  # MECH_POS: 0, 3; MECH_VEL: 1, 4
     return f, gv
-
-
-@njit(cache=True, inline="always")
-def _bristle(p: np.ndarray, a: int, z: float, dx: float, gv: float) -> float:
-    """LuGre bristle deflection after a sub-step that moved carriage ``a`` by ``dx`` (m).
-
-    Exact for a speed of constant sign at the Stribeck level ``gv`` of the sub-step's start.
-    """
-    if dx == 0.0:
-        return z
-    s0 = p[_p._HEADER + a * _p._BLOCK + _p._S0]
-    zss = math.copysign(gv / s0, dx)
-    return zss + (z - zss) * math.exp(-s0 * abs(dx) / gv)
 
 
 @njit(cache=True, inline="always")
@@ -211,8 +188,8 @@ def kernel_update(p: np.ndarray, s: np.ndarray, u: np.ndarray) -> None:
             y0 = s[3]
             _mech_step(p, s, _p._PHI_H, _p._GU_H, _p._GD_H, fx, fy, dxf, dyf)
             if p[_p._H_FRIC] != 0.0:
-                s[_S_Z] = _bristle(p, 0, s[_S_Z], s[0] - x0, gx_)
-                s[_S_Z + 1] = _bristle(p, 1, s[_S_Z + 1], s[3] - y0, gy_)
+                s[_S_Z] = bristle_step(p, _FRIC_X, s[_S_Z], s[0] - x0, gx_)
+                s[_S_Z + 1] = bristle_step(p, _FRIC_Y, s[_S_Z + 1], s[3] - y0, gy_)
     else:
         _mech_step(p, s, _p._PHI_DT, _p._GU_DT, -1, fx, fy, 0.0, 0.0)
     s[_S_GUARD] = gx

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,7 @@ from microfab.core.validate import (
     check_positive,
     replace_known,
 )
+from microfab.plants.friction import FRICTION_FIELDS, N_FRICTION, StageFriction
 from microfab.plants.sourced_toml import read_sourced
 
 __all__ = [
@@ -59,7 +61,8 @@ MECH_POS = (0, 3)  # carriage (encoder) position of each axis
 MECH_VEL = (1, 4)
 MECH_FORCE = (2, 7)
 
-# flat params of the kernels: a header, one block per axis, the cable, then the matrices
+# flat params of the kernels: a header, one block per axis (the built-in controller, then the
+# axis's `StageFriction` block, whose cable is y's), then the matrices
 (
     _H_DT,
     _H_NSUB,
@@ -78,28 +81,10 @@ MECH_FORCE = (2, 7)
     _H_RES,
 ) = range(15)
 _HEADER = 15
-(
-    _KP,
-    _KI_DT,
-    _KD_B,
-    _AD,
-    _MFF,
-    _CFF,
-    _FPK,
-    _FC,
-    _FS,
-    _VS,
-    _S0,
-    _S1,
-    _S2,
-    _ACOG,
-    _KCOG,
-    _PCOG,
-) = range(16)
-_BLOCK = 16
-_CABLE = _HEADER + 2 * _BLOCK
-_CK, _CREST, _CLINK, _CKLINK, _CPLINK = range(5)
-_PHI_DT = _CABLE + 5
+_KP, _KI_DT, _KD_B, _AD, _MFF, _CFF, _FPK = range(7)
+_FRIC = 7  # the axis's `StageFriction` block (`microfab.plants.friction`)
+_BLOCK = _FRIC + N_FRICTION
+_PHI_DT = _HEADER + 2 * _BLOCK
 _GU_DT = _PHI_DT + N_MECH * N_MECH
 _PHI_H = _GU_DT + N_MECH * 2
 _GU_H = _PHI_H + N_MECH * N_MECH
@@ -114,18 +99,19 @@ _PER_AXIS: dict[str, tuple[str, Any]] = {
     "mass_kg": ("kg", check_positive),
     "peak_force_n": ("N", check_positive),
     "current_bandwidth_hz": ("Hz", check_positive),
-    "coulomb_n": ("N", check_nonnegative),
-    "static_n": ("N", check_nonnegative),
-    "stribeck_m_s": ("m/s", check_positive),
-    "bristle_stiffness_n_per_m": ("N/m", check_positive),
-    "bristle_damping_n_s_per_m": ("N s/m", check_nonnegative),
-    "viscous_n_s_per_m": ("N s/m", check_nonnegative),
-    "cogging_n": ("N", check_nonnegative),
-    "cogging_pitch_m": ("m", check_positive),
-    "cogging_phase_rad": ("rad", check_finite),
     "feedforward_mass_kg": ("kg", check_nonnegative),
     "feedforward_viscous_n_s_per_m": ("N s/m", check_nonnegative),
 }
+# the y cable carrier's fields (scalars, y only), checked by y's `StageFriction`
+_CABLE_FIELDS = (
+    "cable_stiffness_n_per_m",
+    "cable_rest_m",
+    "cable_link_force_n",
+    "cable_link_pitch_m",
+    "cable_link_phase_rad",
+)
+# the keys of each [axes.<name>] table of the data file
+_FILE_PER_AXIS = (*tuple(_PER_AXIS)[:3], *FRICTION_FIELDS, *tuple(_PER_AXIS)[3:])
 
 
 @dataclass(frozen=True)
@@ -198,7 +184,9 @@ class XYStageParams:
     current_bandwidth_hz : tuple of float
         First-order lag of the motor force (current loop) per axis, Hz, below Nyquist.
     coulomb_n, static_n, stribeck_m_s : tuple of float
-        LuGre ``F_c``, ``F_s`` (>= ``F_c``), ``v_s`` per axis: N, N, m/s.
+        LuGre ``F_c``, ``F_s`` (>= ``F_c``), ``v_s`` per axis: N, N, m/s. These
+        and the friction, cogging and cable values below make each axis's `StageFriction`
+        (`friction_laws`), which checks them: the law of `microfab.plants.friction`.
     bristle_stiffness_n_per_m, bristle_damping_n_s_per_m, viscous_n_s_per_m : tuple
         LuGre ``σ0``, ``σ1``, ``σ2`` per axis: N/m, N s/m, N s/m.
     cogging_n, cogging_pitch_m, cogging_phase_rad : tuple of float
@@ -278,11 +266,6 @@ class XYStageParams:
             "resonance_damping", self.resonance_damping, 0.0, 1.0, low_closed=False,
             high_closed=False,
         )  # fmt: skip
-        check_nonnegative("cable_stiffness_n_per_m", self.cable_stiffness_n_per_m, "N/m")
-        check_finite("cable_rest_m", self.cable_rest_m, "m")
-        check_nonnegative("cable_link_force_n", self.cable_link_force_n, "N")
-        check_positive("cable_link_pitch_m", self.cable_link_pitch_m, "m")
-        check_finite("cable_link_phase_rad", self.cable_link_phase_rad, "rad")
         check_in_range("reaction_coupling", self.reaction_coupling, -0.1, 0.1)
         for name in SWITCHES:
             if not isinstance(getattr(self, name), bool):
@@ -291,17 +274,12 @@ class XYStageParams:
                 )
         for name, (unit, check) in _PER_AXIS.items():
             object.__setattr__(self, name, check_axis_pair(name, getattr(self, name), unit, check))
+        laws = self.friction_laws  # checks the friction, cogging and cable values
+        for name in FRICTION_FIELDS:
+            object.__setattr__(self, name, tuple(getattr(law, name) for law in laws))
+        for name in _CABLE_FIELDS:
+            object.__setattr__(self, name, getattr(laws[1], name))
         for i, ax in enumerate(AXES):
-            if self.static_n[i] < self.coulomb_n[i]:
-                raise ValueError(
-                    f"static_n[{ax}] = {self.static_n[i]} N is below coulomb_n[{ax}] = "
-                    f"{self.coulomb_n[i]} N; the break-away force F_s must be >= F_c"
-                )
-            if self.coulomb_n[i] == 0.0 and self.friction:
-                raise ValueError(
-                    f"coulomb_n[{ax}] = 0 N with friction on: the LuGre bristle law divides "
-                    "by g(v) >= F_c; give F_c > 0 or turn friction off"
-                )
             fa = self.current_bandwidth_hz[i]
             if fa >= nyq:
                 raise ValueError(
@@ -310,6 +288,23 @@ class XYStageParams:
                 )
 
     # --- derived values --------------------------------------------------------------------
+
+    @cached_property
+    def friction_laws(self) -> tuple[StageFriction, StageFriction]:
+        """The validated `StageFriction` of each axis ``(x, y)``: LuGre, cogging, cable (y).
+
+        Built from the per-axis fields, the cable carrier's (on y only) and the
+        ``friction``, ``cogging`` and ``cable`` switches.
+        """
+        return StageFriction.per_axis(
+            {name: getattr(self, name) for name in FRICTION_FIELDS},
+            each=(
+                {"cable": False},
+                {"cable": self.cable, **{name: getattr(self, name) for name in _CABLE_FIELDS}},
+            ),
+            friction=self.friction,
+            cogging=self.cogging,
+        )
 
     @property
     def dt(self) -> float:
@@ -506,23 +501,8 @@ class XYStageParams:
                 self.feedforward_mass_kg[i],
                 self.feedforward_viscous_n_s_per_m[i],
                 self.peak_force_n[i],
-                self.coulomb_n[i],
-                self.static_n[i],
-                self.stribeck_m_s[i],
-                self.bristle_stiffness_n_per_m[i],
-                self.bristle_damping_n_s_per_m[i],
-                self.viscous_n_s_per_m[i],
-                self.cogging_n[i],
-                2 * math.pi / self.cogging_pitch_m[i],
-                self.cogging_phase_rad[i],
+                *self.friction_laws[i].pack(),
             ]
-        p[_CABLE : _CABLE + 5] = [
-            self.cable_stiffness_n_per_m,
-            self.cable_rest_m,
-            self.cable_link_force_n,
-            2 * math.pi / self.cable_link_pitch_m,
-            self.cable_link_phase_rad,
-        ]
         phi, gu, _gd = self.discrete_mechanics(self.dt)
         p[_PHI_DT:_GU_DT] = phi.ravel()
         p[_GU_DT:_PHI_H] = gu.ravel()
@@ -571,5 +551,5 @@ def load_params(path: str | os.PathLike[str] | None = None) -> XYStageParams:
     ValueError
         Naming the file, the section and the key (layout), or the parameter (value).
     """
-    values = read_sourced(path, "xy_stage_twin.toml", _SECTIONS, tuple(_PER_AXIS), AXES)
+    values = read_sourced(path, "xy_stage_twin.toml", _SECTIONS, _FILE_PER_AXIS, AXES)
     return XYStageParams(**values)
