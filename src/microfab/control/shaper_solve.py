@@ -16,7 +16,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.optimize
 
-from microfab.control.shapers import (
+from microfab.control.shaper_forms import (
     DEFAULT_V_TOL,
     SHAPERS,
     ShaperForm,
