@@ -2,7 +2,7 @@
 
 What ``microfab identify ann`` and ``identify validate`` (`cli/identify_ann.py`,
 `cli/identify.py`) do with the networks, as a library, on `StageRecord` runs
-(`microfab.identify.stage_data`):
+(`microfab.identify.stage_runs`):
 
 * `split_records`: the seed's 80/20 split by whole runs (§III-C), seeded; one run, or a
   share that leaves either side empty, is refused.
@@ -41,7 +41,7 @@ import numpy as np
 from microfab.core.validate import check_int
 from microfab.identify.ann import AnnConfig, AnnModel
 from microfab.identify.ann_data import HISTORY, MODEL_RATE_HZ, WindowSpec
-from microfab.identify.stage_data import AXES, RunErrors, StageRecord
+from microfab.identify.stage_runs import AXES, RunErrors, StageRecord
 
 __all__ = [
     "StageAnnModel",
