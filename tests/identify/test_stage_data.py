@@ -9,6 +9,8 @@ sits near the twin's 20 ms only after decimation.
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -204,6 +206,21 @@ def test_model_file_round_trip_and_refusals(fitted, twin_records, tmp_path):
     (tmp_path / "broken.json").write_text("{")
     with pytest.raises(ValueError, match="cannot read"):
         read_stage_model(tmp_path / "broken.json")
+
+
+def test_reading_a_linear_model_imports_no_torch(fitted, tmp_path):
+    # the "ann" reader of MODEL_KINDS imports `stage_ann` (so PyTorch) only when it reads
+    path = tmp_path / "m.json"
+    write_stage_model(path, StageLinearModel(model=fitted, input_dt=DT, decimate=10))
+    code = (
+        "import sys\n"
+        "from microfab.identify.stage_data import read_stage_model\n"
+        f"assert read_stage_model({str(path)!r}).kind == 'linear'\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'torch'\n"
+        "             or m == 'microfab.identify.stage_ann'))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
 
 
 def test_default_decimation_brings_any_rate_to_about_1_khz():
