@@ -71,7 +71,7 @@ def main() -> None:
     traj = ref.trajectory
     pos = np.asarray(traj.position)
     n = pos.shape[0]
-    noise = np.random.default_rng(0).standard_normal((n, 2)) * stage.noise_rms_m()
+    noise = stage.noise(n, seed=0)
     der = (traj.velocity, traj.acceleration)
     s0 = LoopState(
         plant=stage.state_at((float(pos[0, 0]), float(pos[0, 1]))),

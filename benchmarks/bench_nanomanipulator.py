@@ -92,7 +92,7 @@ def build(periods: int, seed: int = 0) -> Setup:
     one = slice(s0, s0 + n)
     rbf = RBFAdaptive.for_reference(pos[one], vel[one], acc[one], dt, RBFConfig(n_nodes=N_NODES))
     rc = RCConfig(period_s=n * dt, dt=dt, windows=((s0, periods),), lead_samples=RC_LEAD)
-    noise = np.random.default_rng(seed).standard_normal(pos.shape) * plant.noise_rms_mm()
+    noise = plant.noise(pos.shape[0], seed)
     gate = GateConfig(period_samples=n, starts=tuple(s0 + k * n for k in range(periods)))
     return Setup(
         plant=plant,

@@ -29,7 +29,7 @@ def test_the_fit_of_the_twin_gives_back_the_seeds_model(noise, tol):
     ref = np.column_stack([chirp.input, np.zeros(n)])
     v = np.zeros((n, 2))
     if noise:
-        v = np.random.default_rng(3).standard_normal((n, 2)) * twin.noise_rms_bit()
+        v = np.random.default_rng(3).standard_normal((n, 2)) * twin.noise_level.array()
     res = simulate(twin, SetPoint(2), ref, v)
     fit = fit_tf(estimate_frf(chirp, res.measured[:, 0]), dt=twin.dt)
     got = np.array([fit.model.num[-1], *fit.model.den[1:]])

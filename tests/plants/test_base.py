@@ -6,7 +6,16 @@ import numpy as np
 import pytest
 
 from microfab.core.compiled import Compiled
-from microfab.plants.base import CompiledPlant, LTIPlant, Plant, lti_output, lti_update
+from microfab.plants.base import (
+    CompiledPlant,
+    LTIPlant,
+    NoiseLevel,
+    NoisyOutputs,
+    Plant,
+    lti_output,
+    lti_update,
+    white_noise,
+)
 from microfab.plants.lti import DiscreteLTI
 
 
@@ -88,3 +97,57 @@ def test_compiled_plant_missing_a_kernel_is_refused():
 
     with pytest.raises(TypeError, match="abstract"):
         NoInit()
+
+
+# ---------------------------------------------------------------- measurement noise
+
+
+def test_noise_level_draws_white_noise_per_output():
+    level = NoiseLevel((2e-6, 0.5), ("m", "V"))
+    assert (level.n_outputs, level.units) == (2, ("m", "V"))
+    v = level.draw(200_000, seed=7)
+    assert v.shape == (200_000, 2)
+    np.testing.assert_allclose(v.std(axis=0), [2e-6, 0.5], rtol=0.01)
+    # the same draw as white_noise with each column scaled by its rms, bit for bit
+    z = np.random.default_rng(7).standard_normal((200_000, 2))
+    np.testing.assert_array_equal(v, z * [2e-6, 0.5])
+    np.testing.assert_array_equal(v[:, :1], white_noise(200_000, 7, 2e-6)[:, :1])
+    assert NoiseLevel((1.0, 1.0), "bit").units == ("bit", "bit")
+    np.testing.assert_array_equal(NoiseLevel((0.0,), "m").draw(3, seed=1), np.zeros((3, 1)))
+
+
+@pytest.mark.parametrize(
+    ("rms", "unit", "match"),
+    [
+        ((1.0, -1.0), "m", r"noise rms\[1\] must be non-negative"),
+        ((float("nan"),), "m", r"noise rms\[0\]"),
+        ((), "m", "one value per output"),
+        ((1.0, 2.0), ("m",), "one value per output"),
+        ((1.0,), "m\n", "single-line string"),
+        (1.0, "m", "one value per output"),
+    ],
+)
+def test_noise_level_refuses(rms, unit, match):
+    with pytest.raises(ValueError, match=match):
+        NoiseLevel(rms, unit)
+
+
+def test_every_twin_has_one_noise_level():
+    from microfab.plants.galvo_slm import galvo_slm_twin
+    from microfab.plants.lmw_focus import lmw_focus_twin
+    from microfab.plants.lmw_stage import lmw_stage_twin
+    from microfab.plants.nanomanipulator import nanomanipulator_twin
+    from microfab.plants.xy_stage import xy_stage_twin
+
+    units = {
+        galvo_slm_twin: ("bit", "bit"),
+        lmw_focus_twin: ("V", "m"),
+        lmw_stage_twin: ("m", "m"),
+        nanomanipulator_twin: ("mm", "mm"),
+        xy_stage_twin: ("m", "m"),
+    }
+    for make, want in units.items():
+        twin = make()
+        assert isinstance(twin, NoisyOutputs)
+        assert twin.noise_level.units == want
+        np.testing.assert_array_equal(twin.noise(5, seed=3), twin.noise_level.draw(5, 3))

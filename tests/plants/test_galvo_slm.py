@@ -11,7 +11,7 @@ import control
 from microfab.control.setpoint import SetPoint
 from microfab.core.compiled import Compiled
 from microfab.core.limits import LimitViolation, MachineLimits, check_command
-from microfab.plants.base import CompiledPlant, LTIPlant, Plant
+from microfab.plants.base import CompiledPlant, LTIPlant, NoiseLevel, Plant
 from microfab.plants.galvo_slm import GalvoSLMPlant, continuous_axis, galvo_slm_twin, load_params
 from microfab.plants.lti import discretize
 from microfab.plants.sourced_toml import sources_of
@@ -105,7 +105,7 @@ def test_noise_is_seeded_and_has_the_assumed_rms(twin):
     assert not np.array_equal(a, twin.noise(200_000, seed=8))
     # std error of the rms estimate 0.3 / sqrt(2 n) = 4.7e-4 bit: 6 of them allowed
     np.testing.assert_allclose(a.std(axis=0), 0.3, atol=3e-3)
-    np.testing.assert_array_equal(twin.noise_rms_bit(), [0.3, 0.3])
+    assert twin.noise_level == NoiseLevel((0.3, 0.3), "bit")
 
 
 def test_mirror_mode_option():

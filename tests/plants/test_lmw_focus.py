@@ -211,7 +211,7 @@ def test_compiled_and_python_loops_agree():
     n = 500
     t = np.arange(n) * DT
     ref = np.column_stack([np.zeros(n), 5e-4 - 200e-6 * np.sin(2 * np.pi * 4 * t)])
-    noise = np.random.default_rng(5).normal(0.0, 1.0, (n, 2)) * [plant.noise_rms()[0], 0.0]
+    noise = np.random.default_rng(5).normal(0.0, 1.0, (n, 2)) * [plant.noise_level.rms[0], 0.0]
     ctrl = _z_loop(20.0)
     assert is_compiled(plant, ctrl)
     fast = simulate(plant, ctrl, ref, noise)
@@ -226,7 +226,8 @@ def test_compiled_and_python_loops_agree():
 
 
 def test_noise_is_exposed_not_added(twin):
-    np.testing.assert_array_equal(twin.noise_rms(), [twin.config.noise_rms_v, 0.0])
+    assert twin.noise_level.rms == (twin.config.noise_rms_v, 0.0)
+    assert twin.noise_level.units == ("V", "m")
     s = twin.init()
     np.testing.assert_array_equal(outputs(twin, s), outputs(twin, s))
 

@@ -116,7 +116,8 @@ def test_table_i_values_and_nominal_model(twin):
     )
     # Table I acceleration with the true mass stays below the peak force
     assert all(5.0 * m < 12.0 for m in cfg.mass_kg)
-    np.testing.assert_allclose(twin.noise_rms_m(), cfg.noise_rms_m)
+    np.testing.assert_allclose(twin.noise_level.array(), cfg.noise_rms_m)
+    assert twin.noise_level.unit == "m"
     assert all(1e-9 <= n <= 5e-9 for n in cfg.noise_rms_m)
 
 
@@ -180,7 +181,7 @@ def test_closed_loop_linear_limit_matches_lti_simulation():
 def test_compiled_and_python_loops_agree(twin):
     n = 400  # two laps of a 30 µm circle at 10 mm/s: velocity reversals on both axes
     pos, vel, acc = circle(30e-6, 0.01, n)
-    noise = np.random.default_rng(2).normal(0.0, 1.0, (n, 2)) * twin.noise_rms_m()
+    noise = np.random.default_rng(2).normal(0.0, 1.0, (n, 2)) * twin.noise_level.array()
     ctrl = pid_for(twin)
     assert is_compiled(twin, ctrl)
     fast = simulate(twin, ctrl, pos, noise, derivatives=(vel, acc))

@@ -216,7 +216,7 @@ def test_compiled_and_python_loops_agree(twin):
     n = 1500
     t = np.arange(n) * DT
     ref = 0.05 * np.column_stack([np.cos(2 * np.pi * 5 * t), np.sin(2 * np.pi * 5 * t)])
-    noise = np.random.default_rng(2).normal(0, 1, (n, 2)) * twin.noise_rms_mm()
+    noise = np.random.default_rng(2).normal(0, 1, (n, 2)) * twin.noise_level.array()
     ctrl = _integral_loop()
     assert is_compiled(twin, ctrl)
     fast = simulate(twin, ctrl, ref, noise)
@@ -334,7 +334,7 @@ def test_data_file_values_have_sources():
         assert data["axes"][ax]["numerator_mm_per_v_s2_source"].startswith("seed 001 eq. (9)")
     assert data["workspace"]["workspace_mm_source"].startswith("seed 001 §2")
     np.testing.assert_allclose(
-        nanomanipulator_twin().noise_rms_mm(), [data["axes"][a]["noise_rms_mm"] for a in "xy"]
+        nanomanipulator_twin().noise_level.array(), [data["axes"][a]["noise_rms_mm"] for a in "xy"]
     )
 
 

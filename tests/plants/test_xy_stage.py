@@ -12,7 +12,7 @@ import pytest
 from microfab.control.setpoint import SetPoint
 from microfab.core.compiled import Compiled
 from microfab.experiments.seed002_stage.calibration import FREE_FIELDS
-from microfab.plants.base import CompiledPlant, Plant
+from microfab.plants.base import CompiledPlant, NoiseLevel, Plant
 from microfab.plants.sourced_toml import sources_of
 from microfab.plants.xy_stage import (
     NONLINEAR,
@@ -301,7 +301,7 @@ def test_encoder_quantisation_and_noise(twin):
     np.testing.assert_allclose(np.std(noise, axis=0), 2e-6, rtol=0.01)  # seed 002 eq. (3)
     np.testing.assert_array_equal(noise[:10], twin.noise(10, seed=7))
     assert not np.array_equal(noise[:10], twin.noise(10, seed=8))
-    np.testing.assert_array_equal(twin.noise_rms_m(), [2e-6, 2e-6])
+    assert twin.noise_level == NoiseLevel((2e-6, 2e-6), "m")
 
 
 def test_rest_is_an_equilibrium(twin):

@@ -1,5 +1,8 @@
 """Plants as explicit state machines: the `Plant` protocol, `CompiledPlant`, `LTIPlant`.
 
+The twins' measurement noise is here too: `NoiseLevel` (rms per output and its unit),
+`NoisyOutputs` (a twin's ``noise_level`` and its seeded ``noise``) and `white_noise`.
+
 A plant is discrete in time (sample time ``dt`` in s) and strictly proper: its output at
 sample ``k`` depends on its state only, and the command of sample ``k`` moves the state to
 sample ``k + 1``. Any object with the attributes and methods of `Plant` runs in the Python
@@ -10,16 +13,27 @@ and the simulators recognise it as linear (the lifted path of `microfab.sim.lti_
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 from numba import njit
 
 from microfab.core.compiled import Compiled, lti_dims, pack_lti
-from microfab.core.validate import check_int
+from microfab.core.signals import check_unit
+from microfab.core.validate import check_int, check_nonnegative
 from microfab.plants.lti import DiscreteLTI
 
-__all__ = ["CompiledPlant", "LTIPlant", "Plant", "lti_output", "lti_update", "white_noise"]
+__all__ = [
+    "CompiledPlant",
+    "LTIPlant",
+    "NoiseLevel",
+    "NoisyOutputs",
+    "Plant",
+    "lti_output",
+    "lti_update",
+    "white_noise",
+]
 
 
 @runtime_checkable
@@ -146,11 +160,14 @@ class LTIPlant(CompiledPlant):
         return new
 
 
-def white_noise(n_samples: int, seed: int, rms: float, n_outputs: int = 2) -> np.ndarray:
+def white_noise(
+    n_samples: int, seed: int, rms: float | np.ndarray, n_outputs: int = 2
+) -> np.ndarray:
     """Seeded white Gaussian measurement noise, shape (n_samples, n_outputs).
 
     The twins draw their output noise here, outside the kernels, so that a run is
-    reproduced from its seed whatever simulator plays it.
+    reproduced from its seed whatever simulator plays it:
+    ``default_rng(seed).standard_normal((n_samples, n_outputs)) * rms``.
 
     Parameters
     ----------
@@ -158,11 +175,99 @@ def white_noise(n_samples: int, seed: int, rms: float, n_outputs: int = 2) -> np
         Number of samples (>= 0).
     seed : int
         Seed of ``numpy.random.default_rng`` (>= 0); the same seed gives the same noise.
-    rms : float
-        Standard deviation, in the output's unit.
+    rms : float or numpy.ndarray
+        Standard deviation, in the output's unit: one for all columns or one per column,
+        shape (n_outputs,).
     n_outputs : int
         Columns (default 2, an XY machine).
     """
     n = check_int("n_samples", n_samples, 0, "samples")
     rng = np.random.default_rng(check_int("seed", seed, 0))
     return rng.standard_normal((n, n_outputs)) * rms
+
+
+@dataclass(frozen=True)
+class NoiseLevel:
+    """White Gaussian measurement noise of a twin's outputs: its rms and unit per output.
+
+    The one spelling of a twin's noise level (`NoisyOutputs.noise_level`); the twins' data
+    files keep their own keys (``noise_rms_m``, ``noise_rms_bit``, ``noise_rms_mm``, ...).
+
+    Parameters
+    ----------
+    rms : tuple of float
+        Standard deviation per output, in its unit (>= 0), shape (n_outputs,).
+    unit : str or tuple of str
+        The outputs' unit (e.g. ``"m"``), or one per output (e.g. ``("V", "m")``).
+
+    Raises
+    ------
+    ValueError
+        On an empty, negative or non-finite rms, or units that are not single-line
+        strings, one or one per output.
+    """
+
+    rms: tuple[float, ...]
+    unit: str | tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        if isinstance(self.rms, (str, bytes)) or not hasattr(self.rms, "__len__"):
+            raise ValueError(f"rms needs one value per output, got {self.rms!r}")
+        units = (self.unit,) * len(self.rms) if isinstance(self.unit, str) else self.unit
+        if len(self.rms) == 0 or len(units) != len(self.rms):
+            raise ValueError(
+                f"rms needs one value per output and unit one string or one per output, got "
+                f"rms {self.rms!r}, unit {self.unit!r}"
+            )
+        rms = tuple(
+            check_nonnegative(f"noise rms[{i}]", r, check_unit(u))
+            for i, (r, u) in enumerate(zip(self.rms, units, strict=True))
+        )
+        object.__setattr__(self, "rms", rms)
+        if not isinstance(self.unit, str):
+            object.__setattr__(self, "unit", tuple(units))
+
+    @property
+    def n_outputs(self) -> int:
+        """Number of outputs."""
+        return len(self.rms)
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        """The unit of each output, shape (n_outputs,)."""
+        return (self.unit,) * self.n_outputs if isinstance(self.unit, str) else self.unit
+
+    def array(self) -> np.ndarray:
+        """The rms per output as an array, in their units, shape (n_outputs,)."""
+        return np.array(self.rms, dtype=np.float64)
+
+    def draw(self, n_samples: int, seed: int = 0) -> np.ndarray:
+        """Seeded noise (`white_noise`), in the outputs' units, shape (n_samples, n_outputs)."""
+        return white_noise(n_samples, seed, self.array(), self.n_outputs)
+
+
+class NoisyOutputs:
+    """A twin whose simulators add seeded white noise to its outputs (not the plant).
+
+    A subclass defines ``noise_level`` (a `NoiseLevel`, an attribute or a property);
+    ``noise`` draws it.
+    """
+
+    noise_level: NoiseLevel
+
+    def noise(self, n_samples: int, seed: int = 0) -> np.ndarray:
+        """Seeded white Gaussian output noise, in the outputs' units.
+
+        Parameters
+        ----------
+        n_samples : int
+            Number of samples (>= 0).
+        seed : int
+            Seed of ``numpy.random.default_rng`` (>= 0); the same seed gives the same noise.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (n_samples, n_outputs): ``noise_level.draw(n_samples, seed)``.
+        """
+        return self.noise_level.draw(n_samples, seed)

@@ -46,7 +46,7 @@ import numpy as np
 import control
 from microfab.core.limits import AxisLimits
 from microfab.core.validate import check_in_range, check_nonnegative, check_positive, replace_known
-from microfab.plants.base import LTIPlant, white_noise
+from microfab.plants.base import LTIPlant, NoiseLevel, NoisyOutputs
 from microfab.plants.lti import block_diag, discretize
 from microfab.plants.sourced_toml import read_sourced
 
@@ -232,7 +232,7 @@ def continuous_axis(config: GalvoSLMParams, mirror_mode: bool = False) -> contro
     return control.ss(A, B, C, np.zeros((1, 1)))
 
 
-class GalvoSLMPlant(LTIPlant):
+class GalvoSLMPlant(LTIPlant, NoisyOutputs):
     """The two-axis SLM galvo twin: set positions (bit) in, measured positions (bit) out.
 
     Parameters
@@ -254,6 +254,8 @@ class GalvoSLMPlant(LTIPlant):
         One axis, ZOH at ``T`` (SISO), bit -> bit.
     sys : DiscreteLTI
         Both axes, block-diagonal (the `LTIPlant` model).
+    noise_level : NoiseLevel
+        Measured-position noise per axis, bit (0.3, assumed); `noise` draws it, seeded.
 
     Notes
     -----
@@ -267,6 +269,7 @@ class GalvoSLMPlant(LTIPlant):
         self.config = config
         self.mirror_mode = mirror_mode
         self.axes = AXES
+        self.noise_level = NoiseLevel((config.noise_rms_bit,) * 2, "bit")
         self.axis_model = discretize(
             continuous_axis(config, mirror_mode), config.sample_time_s, "zoh"
         )
@@ -290,22 +293,6 @@ class GalvoSLMPlant(LTIPlant):
         if not self.mirror_mode:
             return control.tf([self.config.numerator], list(self.config.denominator))
         return control.tf(self.continuous_axis())
-
-    def noise_rms_bit(self) -> np.ndarray:
-        """Measured-position noise rms per axis ``(x, y)``, bit, shape (2,)."""
-        return np.full(2, self.config.noise_rms_bit)
-
-    def noise(self, n_samples: int, seed: int = 0) -> np.ndarray:
-        """Seeded white Gaussian measurement noise, bit, shape (n_samples, 2).
-
-        Parameters
-        ----------
-        n_samples : int
-            Number of samples (>= 0).
-        seed : int
-            Seed of ``numpy.random.default_rng`` (>= 0); the same seed gives the same noise.
-        """
-        return white_noise(n_samples, seed, self.config.noise_rms_bit)
 
     def to_bit(self, meters: float | np.ndarray) -> np.ndarray:
         """Work-plane positions or lengths in m as bit (``m / bit_size_m``)."""

@@ -56,7 +56,7 @@ from microfab.core.validate import (
     check_positive,
     replace_known,
 )
-from microfab.plants.base import CompiledPlant
+from microfab.plants.base import CompiledPlant, NoiseLevel, NoisyOutputs
 from microfab.plants.lti import DiscreteLTI, discretize
 from microfab.plants.sourced_toml import read_sourced
 
@@ -391,13 +391,19 @@ def kernel_update(p: np.ndarray, s: np.ndarray, u: np.ndarray) -> None:
     s[2] += 1.0
 
 
-class LMWFocus(CompiledPlant):
+class LMWFocus(CompiledPlant, NoisyOutputs):
     """The focus axis twin as a compiled plant (command z velocity m/s; outputs V, m).
 
     Parameters
     ----------
     config : LMWFocusParams
         The twin's parameters.
+
+    Attributes
+    ----------
+    noise_level : NoiseLevel
+        Output noise ``(detector V, encoder m)``: `LMWFocusParams.noise_rms_v` and
+        ``encoder_noise_rms_m``; drawn by the experiment.
 
     Notes
     -----
@@ -416,6 +422,7 @@ class LMWFocus(CompiledPlant):
         self.params = config.pack()
         self.params.setflags(write=False)
         self.dt = config.dt
+        self.noise_level = NoiseLevel((config.noise_rms_v, config.encoder_noise_rms_m), ("V", "m"))
 
     def init(self) -> np.ndarray:
         """At rest at ``start_position_m``, sample 0."""
@@ -459,10 +466,6 @@ class LMWFocus(CompiledPlant):
         decay = math.exp(-dt / tau)
         z_new = z + u * dt + (v - u) * tau * (1.0 - decay)
         return np.array([z_new, u + (v - u) * decay, float(state[2]) + 1.0])
-
-    def noise_rms(self) -> np.ndarray:
-        """Noise rms of the outputs ``(detector V, encoder m)``, shape (2,): for the simulators."""
-        return np.array([self.config.noise_rms_v, self.config.encoder_noise_rms_m])
 
     def depth_of_focus_m(self, growth: float = DOF_GROWTH) -> float:
         """Depth of focus of the twin's beam, m (`LMWFocusParams.depth_of_focus_m`)."""

@@ -73,7 +73,7 @@ from numba import njit
 
 import control
 from microfab.plants import friction as _f
-from microfab.plants.base import CompiledPlant, LTIPlant
+from microfab.plants.base import CompiledPlant, LTIPlant, NoiseLevel, NoisyOutputs
 from microfab.plants.friction import friction_force
 from microfab.plants.lmw_stage_params import (
     _BLOCK,
@@ -212,7 +212,7 @@ def kernel_update(p: np.ndarray, s: np.ndarray, u: np.ndarray) -> None:
     s[_I_K] += 1.0
 
 
-class LMWStage(CompiledPlant):
+class LMWStage(CompiledPlant, NoisyOutputs):
     """The two-axis stage twin as a compiled plant (commands i_ref in A, outputs in m).
 
     Parameters
@@ -220,12 +220,18 @@ class LMWStage(CompiledPlant):
     config : LMWStageParams
         The twin's parameters.
 
+    Attributes
+    ----------
+    noise_level : NoiseLevel
+        Encoder interpolation noise per axis, m (``noise_rms_m``); `noise` draws it, seeded.
+
     Notes
     -----
     State: ``[x, ẋ, i, z]`` per axis (x then y; m, m/s, A, m), the mean ``F_l`` of the last
     sample per axis (N), the sample counter: shape (11,). ``output`` and ``update`` are plain
     Python written from ``config`` (not from the packed kernels), for the Python loop and as
-    an independent check of the kernels; both agree to rounding.
+    a check of the kernels (the disturbance through the same `StageFriction` kernel); both
+    agree to rounding.
     """
 
     kernel_output: Any = kernel_output
@@ -238,6 +244,7 @@ class LMWStage(CompiledPlant):
         self.params = config.pack()
         self.params.setflags(write=False)
         self.dt = config.dt
+        self.noise_level = NoiseLevel(config.noise_rms_m, "m")
 
     # --- state ---------------------------------------------------------------------------
 
@@ -285,10 +292,6 @@ class LMWStage(CompiledPlant):
         """The states of `linear_model`, ``[x, ẋ, i]`` of x then y: shape (6,) or (n, 6)."""
         s = np.asarray(state)
         return np.concatenate([s[..., 0:3], s[..., _N_AXIS : _N_AXIS + 3]], axis=-1)
-
-    def noise_rms_m(self) -> np.ndarray:
-        """Encoder interpolation noise rms per axis (x, y), m, shape (2,): for the simulators."""
-        return np.array(self.config.noise_rms_m)
 
     def nominal(self) -> StageNominal:
         """The nominal model a controller is given (M_n, K_fn, amplifier, Table I)."""

@@ -73,7 +73,7 @@ import numpy as np
 
 from microfab.core.limits import MachineLimits
 from microfab.plants import xy_stage_params as _p
-from microfab.plants.base import CompiledPlant, white_noise
+from microfab.plants.base import CompiledPlant, NoiseLevel, NoisyOutputs
 from microfab.plants.lti import DiscreteLTI
 from microfab.plants.xy_stage_kernels import (
     _G,
@@ -140,7 +140,7 @@ class GuardCounts:
 # --- the plant -----------------------------------------------------------------------------
 
 
-class XYStagePlant(CompiledPlant):
+class XYStagePlant(CompiledPlant, NoisyOutputs):
     """The black-box XY stage twin as a compiled plant: set-points (m) in, positions (m) out.
 
     Parameters
@@ -154,6 +154,8 @@ class XYStagePlant(CompiledPlant):
         The parameters.
     axes : tuple of str
         ``("x", "y")``.
+    noise_level : NoiseLevel
+        Output noise ``v`` of eq. (3) per axis, m (2 µm); `noise` draws it, seeded.
 
     Notes
     -----
@@ -171,6 +173,7 @@ class XYStagePlant(CompiledPlant):
     def __init__(self, config: XYStageParams) -> None:
         self.config = config
         self.axes = AXES
+        self.noise_level = NoiseLevel((config.noise_rms_m,) * 2, "m")
         self.params = config.pack()
         self.params.setflags(write=False)
         self.dt = config.dt
@@ -221,22 +224,6 @@ class XYStagePlant(CompiledPlant):
         """What the set-point guard did since ``state``'s start (e.g. a run's final state)."""
         s = np.asarray(state)
         return GuardCounts(*(round(float(v)) for v in s[_S_COUNT : _S_K + 1]))
-
-    def noise_rms_m(self) -> np.ndarray:
-        """Output noise rms per axis ``(x, y)``, m, shape (2,) (seed 002 eq. (3): 2 µm)."""
-        return np.full(2, self.config.noise_rms_m)
-
-    def noise(self, n_samples: int, seed: int = 0) -> np.ndarray:
-        """Seeded white Gaussian output noise ``v`` of eq. (3), m, shape (n_samples, 2).
-
-        Parameters
-        ----------
-        n_samples : int
-            Number of samples (>= 0).
-        seed : int
-            Seed of ``numpy.random.default_rng`` (>= 0); the same seed gives the same noise.
-        """
-        return white_noise(n_samples, seed, self.config.noise_rms_m)
 
     def machine_limits(self) -> MachineLimits:
         """Table I as `microfab.core.limits.MachineLimits` (what the guard enforces)."""

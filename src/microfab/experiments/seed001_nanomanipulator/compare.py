@@ -132,10 +132,7 @@ def compare_controllers(config: ComparisonConfig | None = None) -> ComparisonRes
         ),
         "PID+RC": PluginRC(pid, RCConfig(period_s=period_s, dt=dt, windows=window)),
     }
-    noise = np.zeros_like(pos)
-    if cfg.noise:
-        rms = plant.noise_rms_mm()[None, :]
-        noise = np.random.default_rng(cfg.seed).standard_normal(pos.shape) * rms
+    noise = plant.noise(pos.shape[0], cfg.seed) if cfg.noise else np.zeros_like(pos)
     out: dict[str, np.ndarray] = {}
     for name in CONTROLLERS:  # the plant holds no state: each run starts from plant.init()
         res = simulate(plant, controllers[name], pos, noise, derivatives=(vel, acc))

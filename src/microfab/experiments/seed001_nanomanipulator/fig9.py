@@ -220,11 +220,8 @@ def _rms_per_period(err: np.ndarray, start: int, n: int, periods: int) -> np.nda
 def _noise(
     cfg: ComparisonConfig, plant: NanomanipulatorPlant, shape: tuple[int, ...]
 ) -> np.ndarray:
-    """Encoder noise as `compare.py` draws it (zeros when ``cfg.noise`` is off), mm."""
-    if not cfg.noise:
-        return np.zeros(shape)
-    rms = plant.noise_rms_mm()[None, :]
-    return np.random.default_rng(cfg.seed).standard_normal(shape) * rms
+    """Encoder noise as `compare.py` draws it (zeros when ``cfg.noise`` is off), mm, (n, 2)."""
+    return plant.noise(shape[0], cfg.seed) if cfg.noise else np.zeros(shape)
 
 
 def _circle_rbf(cfg: ComparisonConfig, plant: NanomanipulatorPlant) -> np.ndarray:

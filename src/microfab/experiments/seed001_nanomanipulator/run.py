@@ -384,7 +384,7 @@ class _Runner:
         self.segs = job_segments(self.ref, config.pattern)
         self.N = self.ref.period_samples
         self.chunks = _chunks(self.segs, self.N)
-        rms = self.plant.noise_rms_mm() if config.twin.noise else np.zeros(2)
+        rms = self.plant.noise_level.array() if config.twin.noise else np.zeros(2)
         self.noise_rms = np.asarray(rms, dtype=float)
         rng = np.random.default_rng(config.twin.seed)
         self.noise = rng.standard_normal(self.ref.position.shape) * self.noise_rms[None, :]

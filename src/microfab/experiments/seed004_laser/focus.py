@@ -151,7 +151,7 @@ def run_focus(job: FocusJob | None = None) -> FocusRun:
     rng = np.random.default_rng(job.seed)
     noise = np.zeros((n, 2))
     if job.noise:
-        noise[:, 0] = rng.standard_normal(n) * plant.noise_rms()[0]
+        noise[:, 0] = rng.standard_normal(n) * plant.noise_level.rms[0]
     res = simulate(plant, ctrl, np.zeros((n, 1)), noise)
     t = np.arange(n) * plant.dt
     focus = c.focus_position_m + c.surface_rate_m_s * t

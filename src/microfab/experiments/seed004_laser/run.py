@@ -302,10 +302,7 @@ def run_contour(job: ContourJob | None = None) -> ContourRun:
     traj = ref.trajectory
     pos = np.asarray(traj.position)
     n = pos.shape[0]
-    rng = np.random.default_rng(job.twin.seed)
-    noise = (
-        rng.standard_normal((n, 2)) * stage.noise_rms_m() if job.twin.noise else np.zeros((n, 2))
-    )
+    noise = stage.noise(n, job.twin.seed) if job.twin.noise else np.zeros((n, 2))
     ctrl = make_controller(job.control, stage, job.twin.mass_error)
     s0 = stage.state_at((float(pos[0, 0]), float(pos[0, 1])))
     start = LoopState(plant=s0, controller=ctrl.init(), observer=np.zeros(0), command=np.zeros(2))
