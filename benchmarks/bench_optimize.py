@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from _opti_plain import solve_plain
 
-from microfab.experiments.seed002_stage.cases import CaseSizes, case_paths
+from microfab.machines.xy_stage_cases import CaseSizes, case_paths
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Settings, solve_stage1
 

@@ -16,8 +16,8 @@ from microfab.experiments.seed002_reference.study import (
     ReferenceSettings,
     run_reference,
 )
-from microfab.experiments.seed002_stage.cases import CaseSizes
-from microfab.experiments.seed002_stage.run import TwinSettings
+from microfab.machines.xy_stage import TwinSettings
+from microfab.machines.xy_stage_cases import CaseSizes
 
 
 def job_file(tmp_path, body: str):

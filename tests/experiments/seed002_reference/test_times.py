@@ -16,7 +16,7 @@ import pytest
 pytest.importorskip("casadi")
 
 from microfab.experiments.seed002_reference import paper
-from microfab.experiments.seed002_stage.cases import CaseSizes, case_paths
+from microfab.machines.xy_stage_cases import CaseSizes, case_paths
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Settings, solve_stage1
 

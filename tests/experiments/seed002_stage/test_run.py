@@ -7,15 +7,11 @@ import pytest
 
 from microfab.control.setpoint import SetPoint
 from microfab.experiments.seed002_stage import paper
-from microfab.experiments.seed002_stage.run import (
-    LinearSettings,
-    TwinSettings,
-    fit_linear,
-    play_runs,
-)
+from microfab.experiments.seed002_stage.run import LinearSettings, fit_linear
 from microfab.identify.excitation import random_runs
 from microfab.identify.stage_data import decimate
 from microfab.identify.subspace import SubspaceConfig, identify_subspace
+from microfab.machines.xy_stage import TwinSettings, play_runs
 from microfab.plants.xy_stage import xy_stage_twin
 from microfab.plants.xy_stage_params import NONLINEAR
 from microfab.sim.loop import simulate

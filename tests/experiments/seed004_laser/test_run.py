@@ -14,6 +14,8 @@ from microfab.experiments.seed004_laser.run import (
     TwinSettings,
     contour_path,
     dob_estimate,
+    make_controller,
+    make_stage,
     run_contour,
 )
 
@@ -174,13 +176,18 @@ def test_a_dxf_circle_runs_as_the_shape_circle(tmp_path):
 def test_the_dob_estimate_follows_the_true_load_force():
     """The figure 'estimated vs true disturbance': the replayed DOB on the Fig. 3 run."""
     run = run_contour(ContourJob(control=ControlSettings(law="preview-dob")))
-    est = dob_estimate(run)  # its replayed currents equal the run's (checked inside)
-    assert est.shape == run.disturbance.shape
+    est = run.dob  # its replayed currents equal the run's (checked inside the run)
+    assert est is not None and est.shape == run.disturbance.shape
     for k in range(2):
         true = run.disturbance[:, k]
         gap = np.sqrt(np.mean((est[:, k] - true) ** 2))
         assert gap <= 0.25 * np.sqrt(np.mean(true**2))  # measured 12 %
         assert np.corrcoef(est[:, k], true)[0, 1] >= 0.95
     other = run_contour(ContourJob(control=ControlSettings(law="contour"), drawing=run.job.drawing))
-    with pytest.raises(ValueError, match="preview-dob"):
-        dob_estimate(other)
+    assert other.dob is None  # a run with an add-on: its currents are not the DOB's alone
+    # the replay refuses currents it does not reproduce
+    stage = make_stage(run.job.twin)
+    ctrl = make_controller(run.job.control, stage, run.job.twin.mass_error)
+    traj = run.reference.trajectory
+    with pytest.raises(ValueError, match="replayed currents differ"):
+        dob_estimate(ctrl, traj, run.measured, run.command + 1e-6)

@@ -20,7 +20,7 @@ from microfab.experiments.seed001_nanomanipulator.run import JobRun
 from microfab.report.canvas import new_figure
 
 if TYPE_CHECKING:
-    from microfab.experiments.seed001_nanomanipulator.job import NanomanipulatorResult
+    from microfab.experiments.seed001_nanomanipulator.results import NanomanipulatorResult
 
 __all__ = ["fig_cure", "fig_effort", "fig_learning", "write_report"]
 

@@ -30,10 +30,11 @@ from microfab.experiments.seed002_reference.study import (
     ReferenceStudy,
     run_reference,
 )
-from microfab.experiments.seed002_stage.cases import CASES, CaseSizes
-from microfab.experiments.seed002_stage.run import TwinSettings
+from microfab.experiments.seed002_reference.tables import comparison_tables
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines.xy_stage import TwinSettings
+from microfab.machines.xy_stage_cases import CASES, CaseSizes
 from microfab.report.tables import Table
 
 __all__ = [
@@ -145,7 +146,7 @@ class ReferenceResult:
 
     def comparison(self) -> tuple[Table, ...]:
         """Table III (twin and networks), times, trade-off, stages, every point."""
-        return _tables(self.study)
+        return comparison_tables(self.study)
 
     def failures(self) -> tuple[str, ...]:
         """Points whose optimisation failed, with the reason."""
@@ -157,16 +158,6 @@ class ReferenceResult:
         from microfab.experiments.seed002_reference.tables import study_summary
 
         return study_summary(self.study)
-
-
-def _tables(study: ReferenceStudy) -> tuple[Table, ...]:
-    from microfab.experiments.seed002_reference import tables as t
-
-    out = [t.table_iii(study), t.table_iii(study, "ann"), t.times_table(study)]
-    if study.tradeoff:
-        out.append(t.tradeoff_table(study))
-    out += [t.stages_table(study), t.points_table(study)]
-    return tuple(out)
 
 
 def _run(config: ReferenceSettings, out: Path, progress: Progress) -> ReferenceResult:
@@ -199,7 +190,9 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
         tradeoff_airfoil=(0.1, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0) if options["tradeoff"] else (),
     )
     study = run_reference(settings, Path(folder) if folder else None, progress)
-    return ReproductionResult(tables=_tables(study), notes=NOTES, data=study_summary(study))
+    return ReproductionResult(
+        tables=comparison_tables(study), notes=NOTES, data=study_summary(study)
+    )
 
 
 STAGE_REFERENCE_OPT = JobKind(

@@ -9,8 +9,8 @@ import numpy as np
 
 from microfab.experiments.seed002_reference import figures as f
 from microfab.experiments.seed002_reference.study import ReferenceStudy
-from microfab.experiments.seed002_reference.tables import NOTES
-from microfab.experiments.seed002_stage.cases import case_paths
+from microfab.experiments.seed002_reference.tables import NOTES, comparison_tables
+from microfab.machines.xy_stage_cases import case_paths
 
 __all__ = ["write_report"]
 
@@ -64,7 +64,6 @@ def _figures(study: ReferenceStudy, out: Path) -> list[tuple[str, Any, str]]:
 
 def write_report(study: ReferenceStudy, out: Path, title: str) -> Path:
     """Render the figures and write ``report.html`` into ``out``."""
-    from microfab.experiments.seed002_reference.job import _tables
     from microfab.report.canvas import render_png
     from microfab.report.page import Figure, page_html, write_page
 
@@ -85,6 +84,6 @@ def write_report(study: ReferenceStudy, out: Path, title: str) -> Path:
         "against the constant-progress baseline.",
         notes=notes,
         figures=figs,
-        tables=_tables(study),
+        tables=comparison_tables(study),
     )
     return write_page(out, text, figs)

@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from microfab.experiments.seed002_stage.run import Played, TwinSettings, play_runs
 from microfab.identify.subspace_model import ContinuousModel
+from microfab.machines.xy_stage import Played, TwinSettings, play_runs
 from microfab.optimize.command import LEAD
 from microfab.optimize.pipeline import (
     MODEL_RATE_HZ,

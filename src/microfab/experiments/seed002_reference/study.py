@@ -39,9 +39,9 @@ from microfab.experiments.seed002_reference.run import (
     run_point,
     write_point,
 )
-from microfab.experiments.seed002_stage.cases import CASES, CaseSizes, case_paths
-from microfab.experiments.seed002_stage.run import TwinSettings
 from microfab.geometry.text import SEED002_LETTERS
+from microfab.machines.xy_stage import TwinSettings
+from microfab.machines.xy_stage_cases import CASES, CaseSizes, case_paths
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 

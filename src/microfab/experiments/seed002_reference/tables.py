@@ -14,6 +14,7 @@ from microfab.report.tables import DASH, Table, versus
 
 __all__ = [
     "NOTES",
+    "comparison_tables",
     "points_table",
     "stages_table",
     "study_summary",
@@ -210,3 +211,12 @@ def study_summary(study: ReferenceStudy) -> dict[str, Any]:
         "tradeoff_reduction": {n: tradeoff_reduction(study, n, s.l2_m)
                                for n, s in paper.TRADEOFF.items() if n in study.tradeoff},
     }  # fmt: skip
+
+
+def comparison_tables(study: ReferenceStudy) -> tuple[Table, ...]:
+    """Every comparison table of a study, ours beside the seed's (terminal and report)."""
+    out = [table_iii(study), table_iii(study, "ann"), times_table(study)]
+    if study.tradeoff:
+        out.append(tradeoff_table(study))
+    out += [stages_table(study), points_table(study)]
+    return tuple(out)

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
-from microfab.experiments.seed002_stage.run import AnnSettings, LinearSettings, TwinSettings
+from microfab.experiments.seed002_stage.run import AnnSettings, LinearSettings
 from microfab.experiments.seed002_stage.study import (
     MODEL_FOLDERS,
     SWEEP_A_MAX,
@@ -37,8 +37,10 @@ from microfab.experiments.seed002_stage.study import (
     StudySettings,
     run_study,
 )
+from microfab.experiments.seed002_stage.tables import comparison_tables
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines.xy_stage import TwinSettings
 from microfab.report.tables import Table
 
 __all__ = [
@@ -202,7 +204,7 @@ class IdentifyResult:
 
     def comparison(self) -> tuple[Table, ...]:
         """Table II, the order check, the cases' lengths, Fig. 9, the studies."""
-        return _tables(self.study)
+        return comparison_tables(self.study)
 
     def failures(self) -> tuple[str, ...]:
         """Nothing is kept going past a failure here: a failed part raises."""
@@ -213,18 +215,6 @@ class IdentifyResult:
         from microfab.experiments.seed002_stage.tables import study_summary
 
         return study_summary(self.study)
-
-
-def _tables(study: IdentifyStudy) -> tuple[Table, ...]:
-    from microfab.experiments.seed002_stage import tables as t
-
-    out = [t.table_ii(study), t.cases_table(study)]
-    if study.orders:
-        out.append(t.order_table(study))
-    out.append(t.fig9_table(study))
-    if study.ann is not None:
-        out.append(t.studies_table(study))
-    return tuple(out)
 
 
 def _run(config: StudySettings, out: Path, progress: Progress) -> IdentifyResult:
@@ -272,7 +262,9 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
     folder = options["checkpoints"]
     study = run_study(reproduction_settings(options), Path(folder) if folder else None, progress)
-    return ReproductionResult(tables=_tables(study), notes=NOTES, data=study_summary(study))
+    return ReproductionResult(
+        tables=comparison_tables(study), notes=NOTES, data=study_summary(study)
+    )
 
 
 STAGE_IDENTIFY = JobKind(

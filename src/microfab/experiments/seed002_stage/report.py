@@ -8,7 +8,7 @@ import numpy as np
 
 from microfab.experiments.seed002_stage import figures as f
 from microfab.experiments.seed002_stage.study import IdentifyStudy
-from microfab.experiments.seed002_stage.tables import NOTES
+from microfab.experiments.seed002_stage.tables import NOTES, comparison_tables
 from microfab.identify.stage_data import AXES, decimate, rest_state
 
 __all__ = ["write_report"]
@@ -120,7 +120,6 @@ def _prediction(study: IdentifyStudy) -> object:
 
 def write_report(study: IdentifyStudy, out: Path, title: str) -> Path:
     """Render the figures and write ``report.html`` into ``out``."""
-    from microfab.experiments.seed002_stage.job import _tables
     from microfab.report.canvas import render_png
     from microfab.report.page import Figure, page_html, write_page
 
@@ -144,6 +143,6 @@ def write_report(study: IdentifyStudy, out: Path, title: str) -> Path:
         f"models ({', '.join(AXES)}).",
         notes=notes,
         figures=figs,
-        tables=_tables(study),
+        tables=comparison_tables(study),
     )
     return write_page(out, text, figs)

@@ -32,17 +32,14 @@ import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from microfab.control.setpoint import SetPoint
 from microfab.identify import stage_data
 from microfab.identify.excitation import ann_dataset, random_runs, split_runs
-from microfab.identify.stage_data import StageRecord
 from microfab.identify.subspace import SubspaceModel
-from microfab.plants.xy_stage import XYStagePlant, xy_stage_twin
-from microfab.sim.loop import LoopState, simulate
+from microfab.machines.xy_stage import CommandRun, Played, TwinSettings, play_runs
 
 if TYPE_CHECKING:
     from microfab.identify.ann import AnnModel, ErrorStats
@@ -50,103 +47,15 @@ if TYPE_CHECKING:
 __all__ = [
     "AnnSettings",
     "AnnStudy",
-    "CommandRun",
     "LinearFit",
     "LinearSettings",
-    "Played",
-    "TwinSettings",
     "ann_records",
     "ann_study",
     "fit_linear",
     "linear_study",
-    "play_runs",
     "play_split",
     "train_networks",
 ]
-
-
-@dataclass(frozen=True, kw_only=True)
-class TwinSettings:
-    """The twin a study runs on.
-
-    Parameters
-    ----------
-    seed : int
-        Noise seed (run ``k`` uses ``seed + k``).
-    noise : bool
-        The 2 µm output noise of eq. (3).
-    hold_s : float
-        Hold after each command, s (assumed 0.5 s: the calibrated twin's x axis, whose
-        friction integrator takes longer than 0.2 s, is then within 0.2 µm).
-    changes : tuple of (str, value)
-        `XYStageParams` fields to replace (e.g. the calibrated magnitudes).
-    """
-
-    seed: int = 0
-    noise: bool = True
-    hold_s: float = 0.5  # assumed, see above
-    changes: tuple[tuple[str, Any], ...] = ()
-
-    def __post_init__(self) -> None:
-        if not self.hold_s >= 0:
-            raise ValueError(f"hold_s must be >= 0 s, got {self.hold_s!r}")
-
-    def twin(self) -> XYStagePlant:
-        """The twin of these settings."""
-        return xy_stage_twin(**dict(self.changes))
-
-
-@dataclass(frozen=True, eq=False)
-class Played:
-    """Runs played on the twin.
-
-    Attributes
-    ----------
-    records : list of StageRecord
-        Command ``u`` and measured position ``y`` of each run, (n, 2), m, with the hold.
-    limited : tuple of int
-        Samples the twin's set-point guard changed in each run (0 within Table I).
-    dt : float
-        Sample time, s.
-    """
-
-    records: list[StageRecord]
-    limited: tuple[int, ...]
-    dt: float
-
-
-class CommandRun(Protocol):
-    """A command to play: an `ExcitationRun` or a case's command (`cases.CaseCommand`)."""
-
-    @property
-    def name(self) -> str: ...  # noqa: D102
-    @property
-    def dt(self) -> float: ...  # noqa: D102
-    @property
-    def command(self) -> np.ndarray: ...  # noqa: D102
-
-
-def play_runs(runs: Sequence[CommandRun], settings: TwinSettings | None = None) -> Played:
-    """Play each run on the twin from rest at its first sample, then hold (module doc)."""
-    s = TwinSettings() if settings is None else settings
-    twin = s.twin()
-    out = []
-    limited = []
-    for k, run in enumerate(runs):
-        u = np.asarray(run.command, dtype=float)
-        n_hold = round(s.hold_s / run.dt)
-        u = np.vstack([u, np.repeat(u[-1:], n_hold, axis=0)])
-        state = LoopState(
-            plant=twin.state_at((float(u[0, 0]), float(u[0, 1]))),
-            controller=np.zeros(0),
-            observer=np.zeros(0),
-            command=u[0].copy(),
-        )
-        v = twin.noise(u.shape[0], s.seed + k) if s.noise else None
-        res = simulate(twin, SetPoint(2), u, v, state=state, axes=("x", "y"))
-        limited.append(int(twin.guard_counts(res.final_state.plant).limited))
-        out.append(StageRecord(name=run.name, u=u, y=np.asarray(res.measured)))
-    return Played(records=out, limited=tuple(limited), dt=float(runs[0].dt) if runs else 1e-4)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -35,7 +35,23 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from microfab.experiments.kinds import Progress, no_progress
-from microfab.experiments.seed002_stage.cases import (
+from microfab.experiments.seed002_stage.run import (
+    AnnSettings,
+    AnnStudy,
+    LinearFit,
+    LinearSettings,
+    ann_records,
+    linear_study,
+    play_split,
+    train_networks,
+)
+from microfab.geometry.text import SEED002_LETTERS
+from microfab.identify import stage_data
+from microfab.identify.excitation import ANN_TOTAL_S, split_runs
+from microfab.identify.excitation_signals import chirp_runs, prbs_runs
+from microfab.identify.stage_data import RunErrors, StageRecord
+from microfab.machines.xy_stage import Played, TwinSettings, play_runs
+from microfab.machines.xy_stage_cases import (
     AIRFOIL_TIME_S,
     CASES,
     R_TIME_S,
@@ -45,24 +61,6 @@ from microfab.experiments.seed002_stage.cases import (
     case_paths,
     case_sizes,
 )
-from microfab.experiments.seed002_stage.run import (
-    AnnSettings,
-    AnnStudy,
-    LinearFit,
-    LinearSettings,
-    Played,
-    TwinSettings,
-    ann_records,
-    linear_study,
-    play_runs,
-    play_split,
-    train_networks,
-)
-from microfab.geometry.text import SEED002_LETTERS
-from microfab.identify import stage_data
-from microfab.identify.excitation import ANN_TOTAL_S, split_runs
-from microfab.identify.excitation_signals import chirp_runs, prbs_runs
-from microfab.identify.stage_data import RunErrors, StageRecord
 
 if TYPE_CHECKING:
     from microfab.identify.excitation import ExcitationRun

@@ -7,15 +7,16 @@ from typing import Any
 import numpy as np
 
 from microfab.experiments.seed002_stage import paper
-from microfab.experiments.seed002_stage.cases import CASES
 from microfab.experiments.seed002_stage.study import IdentifyStudy
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.identify.stage_data import AXES, RunErrors
+from microfab.machines.xy_stage_cases import CASES
 from microfab.report.tables import DASH, Table, versus
 
 __all__ = [
     "NOTES",
     "cases_table",
+    "comparison_tables",
     "fig9_table",
     "order_table",
     "studies_table",
@@ -268,3 +269,14 @@ def study_summary(study: IdentifyStudy) -> dict[str, Any]:
     }
     out["letters_in_table"] = list(SEED002_LETTERS)
     return out
+
+
+def comparison_tables(study: IdentifyStudy) -> tuple[Table, ...]:
+    """Every comparison table of a study, ours beside the seed's (terminal and report)."""
+    out = [table_ii(study), cases_table(study)]
+    if study.orders:
+        out.append(order_table(study))
+    out.append(fig9_table(study))
+    if study.ann is not None:
+        out.append(studies_table(study))
+    return tuple(out)

@@ -21,23 +21,22 @@ skips finished layers when the job runs again.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
-from microfab.experiments.seed003_slm.build import BuildResult, BuildSettings, run_build
+from microfab.experiments.seed003_slm.build import BuildSettings, run_build
 from microfab.experiments.seed003_slm.compare import (
     CompareSettings,
     ShaperComparison,
     compare_shapers,
 )
+from microfab.experiments.seed003_slm.results import ShapingJob, ShapingResult
 from microfab.experiments.seed003_slm.run import (
     DISCRETIZATIONS,
     IdentifySettings,
     LayerSettings,
     ShaperSettings,
-    ShapingRun,
     ShapingSettings,
     TwinSettings,
     run_shaping,
@@ -48,7 +47,6 @@ from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.process.slm.estimate import SettleTolerance
 from microfab.process.slm.timing import TICK_S, RTCDelays, RTCSettings, ScanSpeeds
-from microfab.report.tables import Table
 
 __all__ = [
     "SCHEMA",
@@ -139,17 +137,6 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="add the mirror mode (assumed 3 kHz, ζ 0.02) to the truth"),
     ),
 }  # fmt: skip
-
-
-@dataclass(frozen=True, kw_only=True)
-class ShapingJob:
-    """An ``slm-shaping`` job: the run, the comparison switch, the build (or none)."""
-
-    run: ShapingSettings
-    compare: bool = True
-    build: BuildSettings | None = None
-    workers: int = 2
-    scheduler: str | None = None
 
 
 def config_from_sections(sec: dict[str, dict[str, Any]]) -> ShapingJob:
@@ -256,37 +243,6 @@ def _checked_config(sec: dict[str, dict[str, Any]]) -> ShapingJob:
 
 
 # ---------------------------------------------------------------------------- result
-@dataclass(frozen=True, kw_only=True, eq=False)
-class ShapingResult:
-    """A finished job: the run, the shaper comparisons, the build (if any)."""
-
-    config: ShapingJob
-    run: ShapingRun
-    comparisons: tuple[ShaperComparison, ...] = ()
-    build: BuildResult | None = None
-    errors: tuple[str, ...] = ()
-
-    def comparison(self) -> tuple[Table, ...]:
-        """Seed beside ours, the layer's scan times, the shaper comparisons, the build."""
-        tables = [seed_table(self.run), scan_table(self.run)]
-        tables += [c.table() for c in self.comparisons]
-        if self.build is not None:
-            tables.append(self.build.table())
-        return tuple(tables)
-
-    def failures(self) -> tuple[str, ...]:
-        """Parts that failed (the rest ran): comparison or build errors, failed layers."""
-        failed = tuple(self.build.failed) if self.build is not None else ()
-        return self.errors + failed
-
-    def summary(self) -> dict[str, Any]:
-        """The numbers of the tables, JSON-ready."""
-        out = run_summary(self.run)
-        out["comparisons"] = [c.summary() for c in self.comparisons]
-        if self.build is not None:
-            out["build"] = self.build.summary()
-        out["failures"] = list(self.failures())
-        return out
 
 
 def _run(config: ShapingJob, out: Path, progress: Progress) -> ShapingResult:

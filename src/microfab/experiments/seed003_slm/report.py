@@ -18,7 +18,7 @@ from microfab.experiments.seed003_slm.figures import (
 from microfab.experiments.seed003_slm.tables import NOTES
 
 if TYPE_CHECKING:
-    from microfab.experiments.seed003_slm.job import ShapingResult
+    from microfab.experiments.seed003_slm.results import ShapingResult
 
 __all__ = ["write_report"]
 

@@ -205,7 +205,7 @@ def plot_disturbance(time: np.ndarray, true: np.ndarray, estimate: np.ndarray) -
 
 
 def fig_disturbance(run: ContourRun, estimate: np.ndarray) -> MplFigure:
-    """`plot_disturbance` of a run and its DOB estimate (`run.dob_estimate`)."""
+    """`plot_disturbance` of a run and its DOB estimate (``ContourRun.dob``)."""
     return plot_disturbance(run.time, run.disturbance, estimate)
 
 

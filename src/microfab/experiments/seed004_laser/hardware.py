@@ -31,8 +31,8 @@ from typing import Any
 import numpy as np
 
 from microfab.core.signals import Trace
-from microfab.experiments.seed004_laser.job import LaserJob
 from microfab.experiments.seed004_laser.reference import contour_reference
+from microfab.experiments.seed004_laser.results import LaserJob
 from microfab.experiments.seed004_laser.run import (
     ControlSettings,
     TwinSettings,

@@ -30,13 +30,18 @@ import numpy as np
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.focus import FocusStudy, focus_study
-from microfab.experiments.seed004_laser.margins import AxisMargins, axis_margins, margins_table
+from microfab.experiments.seed004_laser.focus import focus_study
+from microfab.experiments.seed004_laser.margins import axis_margins
 from microfab.experiments.seed004_laser.reference import ContourMotion
+from microfab.experiments.seed004_laser.results import (
+    FocusSettings,
+    LaserJob,
+    LaserResult,
+    focus_table,
+)
 from microfab.experiments.seed004_laser.run import (
     LAWS,
     ContourJob,
-    ContourRun,
     ControlSettings,
     TwinSettings,
     make_controller,
@@ -113,36 +118,6 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="speed of the tilted part under the beam"),
     ),
 }  # fmt: skip
-
-
-@dataclass(frozen=True, kw_only=True)
-class LaserJob:
-    """A ``laser-micromachining`` job: the main run, the comparison, the speed sweep."""
-
-    run: ContourJob
-    compare: bool = True
-    speeds_mm_s: tuple[float, ...] = (0.1, 1.0, 10.0)
-    focus: FocusSettings | None = None
-
-
-@dataclass(frozen=True, kw_only=True)
-class FocusSettings:
-    """The autofocus study of a job (`microfab.experiments.seed004_laser.focus.focus_study`)."""
-
-    duration_s: float = 3.0
-    tilt_mrad: float = 1.0
-    part_speed_mm_s: float = 10.0
-
-    def __post_init__(self) -> None:
-        if not self.duration_s > 1.0:
-            raise ValueError(
-                f"focus duration_s must exceed 1 s (the steady window), got {self.duration_s:g} s"
-            )
-        if self.tilt_mrad > 0 and not self.part_speed_mm_s > 0:
-            raise ValueError(
-                f"focus part_speed_mm_s must be positive for a tilted part, got "
-                f"{self.part_speed_mm_s:g} mm/s"
-            )
 
 
 def config_from_sections(sec: dict[str, dict[str, Any]]) -> LaserJob:
@@ -250,158 +225,9 @@ class _SpeedTask:
 
 
 # ---------------------------------------------------------------------------- focus
-def focus_table(study: FocusStudy) -> Table:
-    """The autofocus figures beside the project's targets (seed 004 gives no numbers)."""
-    s = study.summary()
-
-    def t(v: float | None) -> str:
-        return "never (for good)" if v is None else f"{v:.3f}"
-
-    rows = [
-        ("depth of focus [µm]", versus(s["depth_of_focus_um"], paper.DEPTH_OF_FOCUS_M * 1e6,
-                                       "{:.1f}".format)),
-        ("inside ±DOF/2 for good from, continuous / discontinuous [s]",
-         f"{t(s['continuous_entered_s'])} / {t(s['discontinuous_entered_s'])}"),
-        ("steady peak-to-peak z, continuous / discontinuous [µm]",
-         f"{s['continuous_steady_ptp_um']:.2f} / {s['discontinuous_steady_ptp_um']:.2f} "
-         "(target <= 5 / ratio >= 5)"),
-        ("ratio discontinuous / continuous", f"{s['ptp_ratio']:.2f} (target >= 5)"),
-    ]  # fmt: skip
-    if study.tilted is not None:
-        err = s["tilted_max_error_um"]
-        rows.append((
-            f"tilted part {s['tilt_mrad']:g} mrad at {s['part_speed_mm_s']:g} mm/s: max "
-            "|z − focus| (steady) [µm]",
-            f"{err:.2f}"
-            + f" (DOF/2 = {s['depth_of_focus_um'] / 2:.1f})",
-        ))  # fmt: skip
-    return Table(
-        title="Autofocus (seed 004 §III.B, eqs. 16-17) on the focus twin",
-        columns=("figure", "ours"),
-        rows=rows,
-        note=f"Start {s['start_um']:.0f} µm off focus (assumed); steady = last 1 s. The "
-        "seed shows Fig. 6 without numbers; the targets are the project's (issue).",
-    )
 
 
 # ---------------------------------------------------------------------------- result
-@dataclass(frozen=True, kw_only=True, eq=False)
-class LaserResult:
-    """A finished job: the main run, the uncorrected comparison, the sweep rows."""
-
-    config: LaserJob
-    main: ContourRun
-    baseline: ContourRun | None
-    sweep: tuple[dict[str, Any], ...]
-    sweep_failures: tuple[str, ...] = ()
-    margins: tuple[AxisMargins, ...] = ()
-    focus: FocusStudy | None = None
-
-    def comparison(self) -> tuple[Table, ...]:
-        """Tracking beside seed 004 §IV.A (Fig. 3) and the contour runs (Fig. 7)."""
-        m = self.main
-        rows = [
-            (
-                f"within ±0.5 µm, {ax} [%]",
-                versus(m.axis.fraction_below[k] * 100, 95.0, "{:.1f}".format),
-            )
-            for k, ax in enumerate("xy")
-        ]
-        rows += [
-            (f"peak |e_{ax}| [µm]", versus(m.axis.peak_m[k] * 1e6, 0.8, "{:.2f}".format))
-            for k, ax in enumerate("xy")
-        ]
-        t1 = Table(
-            title=f"Axis tracking ({m.job.control.law}), ours / seed 004 §IV.A",
-            columns=("figure", "ours / seed"),
-            rows=rows,
-            note="Seed: 'errors are generally lower than 0.5 µm, reaching 0.8 µm at the "
-            "peak points' (30 µm circle; speed not given). '95 %' is our reading of "
-            "'generally'.",
-        )
-        runs = [("main: " + m.job.control.law, m)]
-        if self.baseline is not None:
-            runs.append(("without correction", self.baseline))
-        t2 = Table(
-            title="Contour error against the exact drawing (true position)",
-            columns=(
-                "run",
-                "max after lap 1 (or of the only lap) [nm]",
-                "RMS [nm]",
-                "measured max [nm]",
-            ),
-            rows=[
-                (
-                    name,
-                    f"{r.contour.steady_max() * 1e9:.1f}",
-                    f"{np.sqrt(np.mean(r.contour.lap_rms_m**2)) * 1e9:.1f}",
-                    f"{r.contour_measured.lap_max_m.max() * 1e9:.1f}",
-                )
-                for name, r in runs
-            ],
-        )
-        tables = [t1, t2]
-        if self.margins:
-            tables.append(margins_table(self.margins))
-        if self.focus is not None:
-            tables.append(focus_table(self.focus))
-        if self.sweep:
-            tables.append(
-                Table(
-                    title="Contour error against speed (max after lap 1)",
-                    columns=("law", "speed [mm/s]", "max [nm]", "RMS [nm]", "force peak [N]"),
-                    rows=[
-                        (
-                            r["law"],
-                            f"{r['speed_mm_s']:g}",
-                            f"{r['contour_max_nm']:.1f}",
-                            f"{r['contour_rms_nm']:.1f}",
-                            f"{r['force_peak_n']:.3g}",
-                        )
-                        for r in self.sweep
-                    ],
-                )
-            )
-        return tuple(tables)
-
-    def failures(self) -> tuple[str, ...]:
-        """Sweep points that failed (the rest ran)."""
-        return self.sweep_failures
-
-    def summary(self) -> dict[str, Any]:
-        """The numbers of the tables, JSON-ready."""
-        m = self.main
-        out: dict[str, Any] = {
-            "law": m.job.control.law,
-            "axis": {
-                "fraction_below_0p5um": list(m.axis.fraction_below),
-                "peak_um": [v * 1e6 for v in m.axis.peak_m],
-                "rms_um": [v * 1e6 for v in m.axis.rms_m],
-            },
-            "contour_lap_max_nm": (m.contour.lap_max_m * 1e9).tolist(),
-            "force_peak_n": float(np.abs(m.force).max()),
-            "seed": {
-                "typical_error_um": paper.FIG3_TYPICAL_ERROR_M * 1e6,
-                "peak_error_um": paper.FIG3_PEAK_ERROR_M * 1e6,
-            },
-            "sweep": list(self.sweep),
-            "failures": list(self.failures()),
-        }
-        out["margins"] = [
-            {
-                "axis": m.axis,
-                "crossover_hz": m.margins.pm_freq_hz,
-                "phase_margin_deg": m.margins.pm_deg,
-                "gain_margin_db": m.margins.gm_db,
-                "sensitivity_peak_db": m.sensitivity_peak_db,
-            }
-            for m in self.margins
-        ]
-        if self.focus is not None:
-            out["focus"] = self.focus.summary()
-        if self.baseline is not None:
-            out["baseline_contour_lap_max_nm"] = (self.baseline.contour.lap_max_m * 1e9).tolist()
-        return out
 
 
 def _run(config: LaserJob, out: Path, progress: Progress) -> LaserResult:

@@ -14,10 +14,9 @@ from microfab.experiments.seed004_laser.figures import (
     fig_speed,
     plot_focus,
 )
-from microfab.experiments.seed004_laser.run import dob_estimate
 
 if TYPE_CHECKING:
-    from microfab.experiments.seed004_laser.job import LaserResult
+    from microfab.experiments.seed004_laser.results import LaserResult
 
 __all__ = ["write_report"]
 
@@ -65,12 +64,12 @@ def write_report(result: LaserResult, out: Path, title: str) -> Path:
         Figure(name="force.png", png=render_png(fig_force(m)),
                caption="Motor force against Table I's 12 N peak and 3 N continuous force."),
     ]  # fmt: skip
-    dob_run = m if m.job.control.law == "preview-dob" else result.baseline
-    if dob_run is not None:
+    dob_run = m if m.dob is not None else result.baseline
+    if dob_run is not None and dob_run.dob is not None:
         figs.append(
             Figure(
                 name="disturbance.png",
-                png=render_png(fig_disturbance(dob_run, dob_estimate(dob_run))),
+                png=render_png(fig_disturbance(dob_run, dob_run.dob)),
                 caption="The DOB's estimate of the load force (eq. 4) beside the twin's true "
                 "F_l (friction, cogging, cable, and the 10 % mass and force-constant "
                 "errors it also absorbs), preview-dob run.",

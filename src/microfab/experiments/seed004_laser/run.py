@@ -253,6 +253,9 @@ class ContourRun:
         Contour error of the true positions against the exact contour, per lap.
     contour_measured : ContourErrors
         The same of the measured positions (what a ballbar on the encoder shows).
+    dob : numpy.ndarray or None
+        For a ``preview-dob`` run, the DOB's estimate of ``F_l`` at each sample, N, shape
+        (n, 2) (`dob_estimate`; compare with ``disturbance``); ``None`` for other laws.
     """
 
     job: ContourJob
@@ -266,6 +269,7 @@ class ContourRun:
     axis: AxisErrors
     contour: ContourErrors
     contour_measured: ContourErrors
+    dob: np.ndarray | None = None
 
     @property
     def dt(self) -> float:
@@ -327,38 +331,45 @@ def run_contour(job: ContourJob | None = None) -> ContourRun:
         axis=axis_errors(pos[full], res.measured[full]),
         contour=contour_errors(path, true, laps),
         contour_measured=contour_errors(path, res.measured, laps),
+        dob=(
+            dob_estimate(ctrl, traj, res.measured, res.command)
+            if job.control.law == "preview-dob"
+            else None
+        ),
     )
 
 
-def dob_estimate(run: ContourRun) -> np.ndarray:
+def dob_estimate(
+    ctrl: PreviewDOB, traj: Any, measured: np.ndarray, command: np.ndarray
+) -> np.ndarray:
     """The DOB's estimate of ``F_l`` at each sample of a ``preview-dob`` run, N, shape (n, 2).
 
     The run's controller is replayed on its recorded measurements
     (`microfab.control.preview_dob.PreviewDOB.replay`); the replayed currents equal the
-    recorded ones (checked to 1e-9 A), so the estimate is the one the loop used. Compare
-    with ``run.disturbance``, the twin's true load force.
+    recorded ones (checked to 1e-9 A), so the estimate is the one the loop used.
+    `run_contour` calls it with the run's own controller and keeps it as ``ContourRun.dob``.
+
+    Parameters
+    ----------
+    ctrl : PreviewDOB
+        The run's controller.
+    traj : Trajectory
+        The run's reference (position, velocity, acceleration), m.
+    measured, command : numpy.ndarray
+        The run's measurements, m, and currents, A, shape (n, 2).
 
     Raises
     ------
     ValueError
-        For a run of another law (its currents carry an add-on this replay lacks), or
-        when the replay does not match the recorded currents.
+        When the replay does not match the recorded currents.
     """
-    if run.job.control.law != "preview-dob":
-        raise ValueError(
-            f"the DOB estimate is replayed for law 'preview-dob' only, not "
-            f"{run.job.control.law!r}: run the job with compare = true for a preview-dob run"
-        )
-    stage = make_stage(run.job.twin)
-    ctrl = make_controller(run.job.control, stage, run.job.twin.mass_error)
-    traj = run.reference.trajectory
     ref = reference_array(
         np.asarray(traj.position),
         (np.asarray(traj.velocity), np.asarray(traj.acceleration)),
         ctrl.preview,
     )
-    log = ctrl.replay(ref, run.measured)
-    gap = float(np.max(np.abs(log.command - run.command)))
+    log = ctrl.replay(ref, measured)
+    gap = float(np.max(np.abs(log.command - command)))
     if gap > 1e-9:
         raise ValueError(f"the replayed currents differ from the run's by {gap:.3g} A")
     return log.disturbance

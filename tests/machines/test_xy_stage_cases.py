@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from microfab.core.limits import MachineLimits, check_trajectory
-from microfab.experiments.seed002_stage.cases import (
+from microfab.machines.xy_stage_cases import (
     AIRFOIL_TIME_S,
     CASES,
     R_TIME_S,

@@ -1,4 +1,6 @@
-"""The test cases of seed 002 (letters "u", "r", "c", "h" and the e344 airfoil) as commands.
+"""The black-box XY stage's test cases (seed 002: letters u, r, c, h, airfoil) as commands.
+
+Used by the identification job, the reference optimisation and the benchmarks.
 
 Seed 002 evaluates its models (Table II columns 2-3, Fig. 9) on the letters *after
 optimisation* at ``a_max``; that optimisation (eqs. 8-14) is the companion part. Here the
