@@ -107,7 +107,7 @@ def test_write_twin_file_round_trip(tmp_path):
     assert text.count(SOURCE_PREFIX) == 2 * len(FREE_FIELDS)
     assert text.count("not reached") == len(FREE_FIELDS)
     bad = tmp_path / "bad.toml"
-    bad.write_text(text.replace("cogging_n = 24\n", "", 1), encoding="utf-8")
+    bad.write_text(text.replace("cogging_n = 24.0\n", "", 1), encoding="utf-8")
     with pytest.raises(ValueError, match=r"\[axes.x\] must hold cogging_n"):
         write_twin_file(cal, tmp_path / "never.toml", source=bad)
     assert not (tmp_path / "never.toml").exists()

@@ -18,16 +18,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 from microfab.core.validate import check_in_range, check_int
 from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.experiments.seed001_nanomanipulator.run import JobConfig, make_twin, run_job
 from microfab.io.atomic import atomic_write_text
+from microfab.plants.sourced_toml import update_sourced
 
 __all__ = ["NoiseFit", "fit_noise", "write_noise"]
 
@@ -155,10 +154,6 @@ def fit_noise(
     )
 
 
-_LINE = re.compile(r"^noise_rms_mm\s*=.*$", re.MULTILINE)
-_SOURCE = re.compile(r"^noise_rms_mm_source\s*=.*$", re.MULTILINE)
-
-
 def write_noise(fit: NoiseFit, path: str | Path, *, source: str | Path | None = None) -> Path:
     """Write a twin data file with the fitted noise (atomically).
 
@@ -175,21 +170,23 @@ def write_noise(fit: NoiseFit, path: str | Path, *, source: str | Path | None = 
     -------
     pathlib.Path
         ``path``.
+
+    Raises
+    ------
+    ValueError
+        If the file does not hold ``noise_rms_mm`` and its source in ``[axes.x]`` and
+        ``[axes.y]`` (`microfab.plants.sourced_toml.update_sourced`); nothing is written.
     """
-    if source is None:
-        text = resources.files("microfab.data").joinpath("nanomanipulator_twin.toml").read_text()
-    else:
-        text = Path(source).read_text(encoding="utf-8")
-    if len(_LINE.findall(text)) != 2 or len(_SOURCE.findall(text)) != 2:
-        raise ValueError("the twin data file must hold noise_rms_mm for [axes.x] and [axes.y]")
-    values = iter(f"noise_rms_mm = {v * 1e-6:.4e}" for v in fit.noise_rms_nm)  # x, then y
-    sources = iter(
-        f'noise_rms_mm_source = "calibrated: `microfab calibrate nanomanipulator` fits the '
-        f"sensor noise so that the four-circle job's axial RMS is seed 001 §4.2's "
-        f'{_TARGET[a]} nm ({"xy"[a]}); got {fit.axial_rms_nm[a]:.1f} nm in {fit.runs} runs"'
-        for a in range(2)
-    )
-    out = _SOURCE.sub(lambda _: next(sources), _LINE.sub(lambda _: next(values), text))
+    updates = {
+        (f"axes.{ax}", "noise_rms_mm"): (
+            float(f"{fit.noise_rms_nm[a] * 1e-6:.4e}"),
+            "calibrated: `microfab calibrate nanomanipulator` fits the sensor noise so that "
+            f"the four-circle job's axial RMS is seed 001 §4.2's {_TARGET[a]} nm ({ax}); got "
+            f"{fit.axial_rms_nm[a]:.1f} nm in {fit.runs} runs",
+        )
+        for a, ax in enumerate("xy")
+    }
+    out = update_sourced(source, "nanomanipulator_twin.toml", updates)
     p = Path(path)
     atomic_write_text(p, out)
     return p

@@ -66,11 +66,9 @@ atomically.
 from __future__ import annotations
 
 import math
-import re
 import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -88,6 +86,7 @@ from microfab.identify.excitation import random_runs
 from microfab.identify.stage_data import decimate
 from microfab.identify.subspace import SubspaceConfig, order_scan
 from microfab.io.atomic import atomic_write_json, atomic_write_text
+from microfab.plants.sourced_toml import update_sourced
 from microfab.plants.xy_stage_params import AXES, XYStageParams, load_params
 
 __all__ = [
@@ -548,8 +547,6 @@ def linear_checks(
 
 # --- writing -------------------------------------------------------------------------------
 
-_SECTION = re.compile(r"^\[([^\]]+)\][ \t]*$", re.MULTILINE)
-
 
 def _fmt(v: float) -> str:
     return f"{v:.6g}" if abs(v) < 1e5 else f"{v:.6e}".replace("e+0", "e")
@@ -572,51 +569,28 @@ def write_twin_file(
     Raises
     ------
     ValueError
-        If the file does not hold each free field and its source once per axis section.
+        If the file does not hold each free field and its source once per axis section
+        (`microfab.plants.sourced_toml.update_sourced`), or the result is no twin file;
+        nothing is written then.
     """
-    if source is None:
-        text = resources.files("microfab.data").joinpath("xy_stage_twin.toml").read_text()
-    else:
-        text = Path(source).read_text(encoding="utf-8")
     mags = cal.magnitudes()
-    parts = _SECTION.split(text)  # [head, name, body, name, body, ...]
-    done = set()
-    for k in range(1, len(parts), 2):
-        name = parts[k].strip()
-        if name not in ("axes.x", "axes.y"):
-            continue
-        i = AXES.index(name.removeprefix("axes."))
-        body = parts[k + 1]
+    updates: dict[tuple[str, str], tuple[float, str]] = {}
+    for i, ax in enumerate(AXES):
         for key in FREE_FIELDS:
-            line = re.compile(rf"^{key}\s*=.*$", re.MULTILINE)
-            src = re.compile(rf"^{key}_source\s*=.*$", re.MULTILINE)
-            if len(line.findall(body)) != 1 or len(src.findall(body)) != 1:
-                raise ValueError(
-                    f"the twin data file's [{name}] must hold {key} and {key}_source once"
-                )
-            ref = REFERENCE[key][i]
-            s_text = (
-                f'{key}_source = "{SOURCE_PREFIX}: {cal.scales[i]:.4g} x the assumed '
-                f"{_fmt(ref)} {_UNITS[key]} (friction and cogging of {AXES[i]} scaled "
-                "together); the "
-                f"4-state model's sigma on {cal.total_s:g} s of seeded random data (a <= 5 "
-                f"m/s^2, seed {cal.seed}) is {cal.sigma_m[i] * 1e6:.1f} um, seed "
+            src = (
+                f"{SOURCE_PREFIX}: {cal.scales[i]:.4g} x the assumed {_fmt(REFERENCE[key][i])} "
+                f"{_UNITS[key]} (friction and cogging of {ax} scaled together); the 4-state "
+                f"model's sigma on {cal.total_s:g} s of seeded random data (a <= 5 m/s^2, seed "
+                f"{cal.seed}) is {cal.sigma_m[i] * 1e6:.1f} um, seed "
                 f"{TARGET_SIGMA_M[i] * 1e6:.1f} um"
-                + (
-                    " (not reached: held at the plausible cap, PLAUSIBLE_CAP; beyond it the "
-                    'carriage hunts at rest)"'
-                    if cal.capped[i]
-                    else '"'
-                )
             )
-            v_text = f"{key} = {_fmt(mags[key][i])}"
-            body = src.sub(lambda _, t=s_text: t, body)
-            body = line.sub(lambda _, t=v_text: t, body)
-            done.add((name, key))
-        parts[k + 1] = body
-    if len(done) != 2 * len(FREE_FIELDS):
-        raise ValueError("the twin data file must have [axes.x] and [axes.y] sections")
-    out = "".join(p if j % 2 == 0 else f"[{p}]" for j, p in enumerate(parts))
+            if cal.capped[i]:
+                src += (
+                    " (not reached: held at the plausible cap, PLAUSIBLE_CAP; beyond it the "
+                    "carriage hunts at rest)"
+                )
+            updates[(f"axes.{ax}", key)] = (float(_fmt(mags[key][i])), src)
+    out = update_sourced(source, "xy_stage_twin.toml", updates)
     p = Path(path)
     _check_text(out)
     atomic_write_text(p, out)

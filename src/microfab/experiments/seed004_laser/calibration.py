@@ -16,10 +16,8 @@ one) with a source line naming this command.
 from __future__ import annotations
 
 import dataclasses
-import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 from microfab.core.validate import check_in_range, check_int
@@ -31,6 +29,7 @@ from microfab.experiments.seed004_laser.run import (
     run_contour,
 )
 from microfab.io.atomic import atomic_write_text
+from microfab.plants.sourced_toml import update_sourced
 
 __all__ = ["FIG3_JOB", "DisturbanceFit", "fit_disturbance_scale", "write_scale"]
 
@@ -136,10 +135,6 @@ def fit_disturbance_scale(
     )
 
 
-_LINE = re.compile(r"^disturbance_scale\s*=.*$", re.MULTILINE)
-_SOURCE = re.compile(r"^disturbance_scale_source\s*=.*$", re.MULTILINE)
-
-
 def write_scale(fit: DisturbanceFit, path: str | Path, *, source: str | Path | None = None) -> Path:
     """Write a twin data file with the fitted ``disturbance_scale`` (atomically).
 
@@ -151,22 +146,23 @@ def write_scale(fit: DisturbanceFit, path: str | Path, *, source: str | Path | N
         Where to write (may be ``source`` itself).
     source : path-like, optional
         The data file to copy (default the packaged ``lmw_stage.toml``).
+
+    Raises
+    ------
+    ValueError
+        If the file does not hold ``[disturbance] disturbance_scale`` and its source
+        (`microfab.plants.sourced_toml.update_sourced`); nothing is written then.
     """
-    if source is None:
-        text = resources.files("microfab.data").joinpath("lmw_stage.toml").read_text()
-    else:
-        text = Path(source).read_text(encoding="utf-8")
-    if len(_LINE.findall(text)) != 1 or len(_SOURCE.findall(text)) != 1:
-        raise ValueError("the twin data file must hold one disturbance_scale and its source")
     frac = " / ".join(f"{v * 100:.1f}" for v in fit.fraction_below)
     src = (
-        f'disturbance_scale_source = "calibrated: `microfab calibrate laser` fits it so that '
-        f"the larger axis peak error of seed 004 Fig. 3's run (30 um circle, 1 mm/s, preview "
-        f"+ DOB) is the seed's 0.8 um; got {max(fit.peak_um):.3f} um in {fit.runs} runs "
-        f'(check, not fitted: {frac} % of samples within 0.5 um, x / y)"'
+        "calibrated: `microfab calibrate laser` fits it so that the larger axis peak error "
+        "of seed 004 Fig. 3's run (30 um circle, 1 mm/s, preview + DOB) is the seed's 0.8 um; "
+        f"got {max(fit.peak_um):.3f} um in {fit.runs} runs (check, not fitted: {frac} % of "
+        "samples within 0.5 um, x / y)"
     )
-    out = _SOURCE.sub(
-        lambda _: src, _LINE.sub(lambda _: f"disturbance_scale = {fit.scale:.4g}", text)
+    scale = float(f"{fit.scale:.4g}")
+    out = update_sourced(
+        source, "lmw_stage.toml", {("disturbance", "disturbance_scale"): (scale, src)}
     )
     p = Path(path)
     atomic_write_text(p, out)
