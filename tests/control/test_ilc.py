@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -346,6 +347,48 @@ def test_save_load_continue_is_bit_identical(ref_1k, tmp_path):
         assert np.array_equal(nxt_full, nxt_res)
         u_full = nxt_full
     np.testing.assert_array_equal(resumed.rms_history, full.rms_history)
+
+
+def test_arrays_in_meta_are_saved_as_arrays_bit_for_bit(ref_1k, tmp_path):
+    """Signals kept in meta are archive members (not JSON lists) and come back exact."""
+    ilc = FrequencyILC(ref_1k, DT, AXES)
+    ilc.update(trial(ref_1k, ilc.initial_input(), periodic_output(ref_1k)))
+    signal = np.random.default_rng(3).standard_normal((ref_1k.shape[0], 2))
+    extra = {"rec": {"signal": signal, "none": None, "list": [1, signal[:3, 0]], "n": 2}}
+    ilc.save(tmp_path, extra=extra)
+    with np.load(tmp_path / STATE_FILE) as z:
+        meta_json = str(z["meta"])
+    assert len(meta_json) < 4000  # placeholders, not 2000 floats as text
+    got = FrequencyILC.load(tmp_path).meta["rec"]
+    assert got["signal"].tobytes() == signal.tobytes()
+    assert got["none"] is None and got["n"] == 2 and got["list"][0] == 1
+    assert got["list"][1].tobytes() == signal[:3, 0].tobytes()
+
+
+def test_a_state_of_format_3_loads(ref_1k, tmp_path):
+    """Format 3 kept meta as JSON only: such a file is read as before."""
+    ilc = FrequencyILC(ref_1k, DT, AXES)
+    ilc.update(trial(ref_1k, ilc.initial_input(), periodic_output(ref_1k)))
+    ilc.save(tmp_path, extra={"rec": {"signal": [[0.5, 0.25]]}})
+    with np.load(tmp_path / STATE_FILE) as z:
+        data = {k: z[k] for k in z.files}
+    meta = json.loads(str(data["meta"]))
+    meta["version"] = 3
+    data["meta"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / STATE_FILE, **data)
+    got = FrequencyILC.load(tmp_path)
+    assert got.iteration == 1 and got.meta["rec"] == {"signal": [[0.5, 0.25]]}
+    np.testing.assert_array_equal(got.current_input(), ilc.current_input())
+
+
+def test_a_meta_array_missing_from_the_file_is_refused(ref_1k, tmp_path):
+    ilc = FrequencyILC(ref_1k, DT, AXES)
+    ilc.save(tmp_path, extra={"signal": np.zeros(3)})
+    with np.load(tmp_path / STATE_FILE) as z:
+        data = {k: z[k] for k in z.files if not k.startswith("meta_array_")}
+    np.savez(tmp_path / STATE_FILE, **data)
+    with pytest.raises(ValueError, match=r"cannot read.*lacks"):
+        FrequencyILC.load(tmp_path)
 
 
 def test_load_errors(tmp_path):

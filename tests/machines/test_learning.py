@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import threading
 import time
 from pathlib import Path
@@ -9,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from microfab.control.ilc import FrequencyILC
+from microfab.control.ilc import STATE_FILE, FrequencyILC, Trial
 from microfab.control.learning import Learner
 from microfab.core.limits import AxisLimits, LimitViolation
 from microfab.io.trace import read_columns, write_columns
 from microfab.machines.files import FileMachine
 from microfab.machines.galvo import galvo_twin
-from microfab.machines.learning import LearnRecord, TrialError, learn
+from microfab.machines.learning import RECORD_KEY, LearnRecord, TrialError, learn, trial_digest
 from microfab.trajectory.periodic import square_scan
 
 DT = 1e-6
@@ -52,6 +53,33 @@ def test_learn_on_the_twin_converges_and_keeps_its_record(ref, tmp_path):
     again = FrequencyILC.load(tmp_path)
     rec2 = learn(galvo_twin(seed=1), again, iterations=6, state_dir=tmp_path)
     assert again.iteration == 6 and rec2.digests == rec.digests
+
+
+def test_the_digest_from_the_hashed_reference_is_the_full_digest(ref):
+    """The loop hashes its reference once per call: the digests are those of format 3."""
+    meas = galvo_twin(seed=3).run(ref)
+    tr = Trial(dt=DT, reference=ref, input=meas.command, output=meas.output, axes=("x", "y"))
+    h = hashlib.sha256()
+    h.update(ref.data)
+    full = trial_digest(tr)
+    assert trial_digest(tr, h) == full
+    assert trial_digest(tr, h) == full  # the hash given is copied, not fed
+    whole = hashlib.sha256(b"".join(a.tobytes() for a in (ref, meas.command, meas.output)))
+    assert full == whole.hexdigest()
+
+
+def test_the_record_keeps_its_signals_as_arrays(ref, tmp_path):
+    """Saved after each trial as archive members, not JSON lists; the same without a state."""
+    learn(galvo_twin(seed=1), FrequencyILC(ref, DT, ("x", "y")), iterations=2, state_dir=tmp_path)
+    with np.load(tmp_path / STATE_FILE) as z:
+        assert len(str(z["meta"])) < 10_000  # a JSON list of one signal alone: ~80 kB
+    saved = LearnRecord.from_meta(FrequencyILC.load(tmp_path).meta)
+    ilc = FrequencyILC(ref, DT, ("x", "y"))
+    rec = learn(galvo_twin(seed=1), ilc, iterations=2)
+    assert isinstance(ilc.meta[RECORD_KEY]["last_output"], np.ndarray)
+    for name in ("first_output", "last_output", "last_input"):
+        assert getattr(saved, name).tobytes() == getattr(rec, name).tobytes()
+    assert saved.digests == rec.digests and saved.machine == rec.machine
 
 
 def test_the_same_trial_twice_is_refused(ref):

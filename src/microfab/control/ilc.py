@@ -53,8 +53,12 @@ from microfab.io.atomic import atomic_save_npz
 __all__ = ["ConvergenceError", "FrequencyILC", "ILCConfig", "Trial"]
 
 STATE_FILE = "ilc_state.npz"
-#: Format of the saved state; `FrequencyILC.load` refuses another.
-STATE_VERSION = 3
+#: Format of the saved state; `FrequencyILC.load` reads this one and the earlier ones.
+#: Format 4: arrays in ``meta`` (the learning loop's signals) are archive members, not
+#: JSON lists.
+STATE_VERSION = 4
+#: Key of the placeholder that stands for an array of ``meta`` in the saved JSON.
+_ARRAY_KEY = "__array__"
 
 
 class ConvergenceError(ValueError):
@@ -269,7 +273,11 @@ class FrequencyILC:
 
     @property
     def meta(self) -> dict[str, object]:
-        """JSON-ready data saved with the state (the learning loop's record)."""
+        """Data saved with the state (the learning loop's record).
+
+        JSON-ready values and NumPy arrays, in dicts and lists; the arrays are saved as
+        members of the archive, bit for bit.
+        """
         return self.state.meta
 
     @property
@@ -539,11 +547,14 @@ class FrequencyILC:
         directory : str or Path
             State directory (created if missing).
         extra : dict, optional
-            JSON-serialisable metadata kept with the state (e.g. machine limits).
+            Metadata kept with the state (e.g. machine limits), merged into `meta`:
+            JSON-serialisable values and NumPy arrays (saved as archive members, so a
+            signal costs its bytes rather than a JSON list of floats).
         """
         st = self.state
         if extra is not None:
             st.meta.update(extra)
+        meta_arrays: dict[str, np.ndarray] = {}
         meta = {
             "version": STATE_VERSION,
             "iteration": st.iteration,
@@ -552,7 +563,7 @@ class FrequencyILC:
             "config": asdict(self.config),
             "model": st.model_frf is not None,
             "events": st.events,
-            "meta": st.meta,
+            "meta": _arrays_out(st.meta, meta_arrays),
         }
         arrays: dict[str, np.ndarray] = {
             "reference": st.reference,
@@ -570,6 +581,7 @@ class FrequencyILC:
         }
         if st.model_frf is not None:
             arrays["model_frf"] = st.model_frf
+        arrays.update(meta_arrays)
         path = Path(directory) / STATE_FILE
         atomic_save_npz(path, meta=np.array(json.dumps(meta)), **arrays)
         return path
@@ -597,10 +609,11 @@ class FrequencyILC:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
                 data = {k: z[k] for k in z.files if k != "meta"}
+            user_meta = _arrays_in(meta.get("meta", {}), data)
         except (OSError, ValueError, KeyError) as exc:
             raise ValueError(f"cannot read ILC state {path}: {exc}") from exc
         version = meta.get("version", 1)
-        if version not in (1, 2, STATE_VERSION):
+        if version not in (1, 2, 3, STATE_VERSION):
             raise ValueError(
                 f"ILC state {path} has format version {version}; this microfab reads "
                 f"{STATE_VERSION}: finish that run with the microfab that wrote it, or start "
@@ -620,7 +633,7 @@ class FrequencyILC:
         st.mask = data["mask"]
         st.rms = data["rms"].tolist()
         st.pp = data["pp"].tolist()
-        st.meta = dict(meta.get("meta", {}))
+        st.meta = dict(user_meta)
         st.events = list(meta.get("events", []))
         st.model_frf = data.get("model_frf")
         if "gain" in data:  # format 3
@@ -636,6 +649,43 @@ class FrequencyILC:
             best = rms.argmin(axis=0)
             st.best_input = np.column_stack([st.inputs[b][:, a] for a, b in enumerate(best)])
         return obj
+
+
+def _arrays_out(obj: object, arrays: dict[str, np.ndarray]) -> object:
+    """``obj`` with each NumPy array replaced by a placeholder naming it in ``arrays``.
+
+    Dicts and lists are walked; an array is added to ``arrays`` (not copied) under the
+    name ``meta_array_<k>``, and ``{"__array__": name}`` takes its place.
+    """
+    if isinstance(obj, np.ndarray):
+        name = f"meta_array_{len(arrays)}"
+        arrays[name] = obj
+        return {_ARRAY_KEY: name}
+    if isinstance(obj, Mapping):
+        return {k: _arrays_out(v, arrays) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_arrays_out(v, arrays) for v in obj]
+    return obj
+
+
+def _arrays_in(obj: object, data: Mapping[str, np.ndarray]) -> object:
+    """Inverse of `_arrays_out`: placeholders replaced by the members they name.
+
+    Raises
+    ------
+    KeyError
+        A placeholder names no member of ``data``.
+    """
+    if isinstance(obj, dict):
+        if set(obj) == {_ARRAY_KEY} and isinstance(obj[_ARRAY_KEY], str):
+            name = obj[_ARRAY_KEY]
+            if name not in data:
+                raise KeyError(f"meta names the array {name!r}, which the file lacks")
+            return data[name]
+        return {k: _arrays_in(v, data) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_arrays_in(v, data) for v in obj]
+    return obj
 
 
 def _lag_s(u: np.ndarray, Y: np.ndarray, dt: float) -> float:

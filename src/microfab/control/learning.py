@@ -34,7 +34,8 @@ class Learner(Protocol):
     iteration : int
         Trials learned from so far.
     meta : dict
-        JSON-ready data saved with the state (the learning loop keeps its record here).
+        Data saved with the state (the learning loop keeps its record here): JSON-ready
+        values and NumPy arrays, which ``save`` keeps bit for bit.
     """
 
     reference: np.ndarray
@@ -48,7 +49,7 @@ class Learner(Protocol):
 
     @property
     def meta(self) -> dict[str, Any]:
-        """JSON-ready data kept with the state."""
+        """Data kept with the state (JSON-ready values and NumPy arrays)."""
         ...
 
     @property

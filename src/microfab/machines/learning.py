@@ -37,11 +37,28 @@ class TrialError(ValueError):
     """A measured trial cannot be learned from (other reference, length, or seen before)."""
 
 
-def trial_digest(trial: Trial) -> str:
-    """SHA-256 of a trial's reference, input and output (to refuse the same trial twice)."""
-    h = hashlib.sha256()
-    for arr in (trial.reference, trial.input, trial.output):
-        h.update(np.ascontiguousarray(arr, dtype=float).data)  # the bytes, without a copy
+def _hash_update(h: Any, arr: np.ndarray) -> None:
+    h.update(np.ascontiguousarray(arr, dtype=float).data)  # the bytes, without a copy
+
+
+def trial_digest(trial: Trial, reference_hash: Any = None) -> str:
+    """SHA-256 of a trial's reference, input and output (to refuse the same trial twice).
+
+    Parameters
+    ----------
+    trial : Trial
+        The trial.
+    reference_hash : hashlib hash, optional
+        A SHA-256 object that has already been fed ``trial.reference`` (it is copied, not
+        changed): the loop hashes its reference, which does not change, once per call.
+    """
+    if reference_hash is None:
+        h = hashlib.sha256()
+        _hash_update(h, trial.reference)
+    else:
+        h = reference_hash.copy()
+    _hash_update(h, trial.input)
+    _hash_update(h, trial.output)
     return h.hexdigest()
 
 
@@ -82,6 +99,22 @@ class LearnRecord:
     last_output: np.ndarray | None = None
     last_input: np.ndarray | None = None
     machine: dict[str, Any] | None = None
+
+    def to_meta(self) -> dict[str, Any]:
+        """The form kept in a learner's ``meta``: `to_json` with the signals as arrays.
+
+        The arrays are the record's own (not copied); a learner saves them as arrays
+        (`microfab.control.ilc.FrequencyILC.save`), which costs their bytes, where the
+        lists of `to_json` cost a Python float each.
+        """
+        return {
+            "digests": list(self.digests),
+            "limits": None if self.limits is None else _limits_to_json(self.limits),
+            "first_output": self.first_output,
+            "last_output": self.last_output,
+            "last_input": self.last_input,
+            "machine": self.machine,
+        }
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready form."""
@@ -124,8 +157,19 @@ class LearnRecord:
         )
 
 
-def _check_trial(learner: Learner, trial: Trial, record: LearnRecord) -> str:
-    ref = learner.reference
+def _check_trial(
+    learner: Learner,
+    trial: Trial,
+    record: LearnRecord,
+    ref: np.ndarray,
+    ref_hash: Any,
+) -> str:
+    """Refuse a trial the learner cannot learn from; return its `trial_digest`.
+
+    ``ref`` is the learner's reference and ``ref_hash`` a SHA-256 fed with it: a trial
+    that carries ``ref`` itself (a twin reports none) needs no comparison, and its
+    digest starts from ``ref_hash``.
+    """
     if trial.axes != learner.axes:
         raise TrialError(f"axes {list(trial.axes)} differ from the learner's {list(learner.axes)}")
     if abs(trial.dt - learner.dt) > 1e-6 * learner.dt:
@@ -139,14 +183,15 @@ def _check_trial(learner: Learner, trial: Trial, record: LearnRecord) -> str:
             f"{n} samples ({n * trial.dt:.6g} s), but the period being learned is "
             f"{ref.shape[0]} samples ({ref.shape[0] * learner.dt:.6g} s)"
         )
-    tol = 1e-9 * max(1.0, float(np.max(np.abs(ref))))
-    diff = float(np.max(np.abs(trial.reference - ref)))
-    if diff > tol:
-        raise TrialError(
-            f"the reference changed since the first trial (max difference {diff:.3g}); "
-            "start a new state directory for a new reference"
-        )
-    digest = trial_digest(trial)
+    if trial.reference is not ref:
+        tol = 1e-9 * max(1.0, float(np.max(np.abs(ref))))
+        diff = float(np.max(np.abs(trial.reference - ref)))
+        if diff > tol:
+            raise TrialError(
+                f"the reference changed since the first trial (max difference {diff:.3g}); "
+                "start a new state directory for a new reference"
+            )
+    digest = trial_digest(trial, ref_hash if trial.reference is ref else None)
     if digest in record.digests:
         raise TrialError("this trial was already learned from")
     return digest
@@ -206,9 +251,14 @@ def learn(
         record.limits = dict(limits)
     if record.machine is not None and isinstance(machine, Resumable):
         machine.restore(record.machine)  # where the machine stood after the last trial
-    # Without a state directory the record reaches the learner's meta once, when the loop
-    # ends (also by an exception): its JSON form holds every signal as lists, too costly to
-    # rebuild after each trial of a fast twin.
+    # Once per call, not per trial: the reference (the learner's copy, which trials from a
+    # machine that reports none carry as is) and the SHA-256 of its bytes.
+    ref = learner.reference
+    ref_hash = hashlib.sha256()
+    _hash_update(ref_hash, ref)
+    # The record reaches the learner's meta with its signals as arrays (`to_meta`): saved
+    # as archive members after each trial with a state directory, else once, when the
+    # loop ends (also by an exception).
     learned = False
     try:
         while learner.iteration < iterations:
@@ -218,12 +268,12 @@ def learn(
                 measured(learner.iteration + 1, meas)
             trial = Trial(
                 dt=meas.dt,
-                reference=learner.reference if meas.reference is None else meas.reference,
+                reference=ref if meas.reference is None else meas.reference,
                 input=meas.command,
                 output=meas.output,
                 axes=meas.axes,
             )
-            digest = _check_trial(learner, trial, record)
+            digest = _check_trial(learner, trial, record, ref, ref_hash)
             u_next = learner.update(trial)
             if record.limits is not None:
                 check_command(u_next, trial.dt, record.limits, trial.axes, periodic=True)
@@ -238,12 +288,12 @@ def learn(
             if state_dir is not None:
                 if isinstance(machine, Resumable):
                     record.machine = machine.snapshot()
-                learner.save(state_dir, {RECORD_KEY: record.to_json()})
+                learner.save(state_dir, {RECORD_KEY: record.to_meta()})
             if progress is not None:
                 progress(learner.iteration, iterations)
     finally:
         if learned and state_dir is None:
             if isinstance(machine, Resumable):
                 record.machine = machine.snapshot()
-            learner.meta[RECORD_KEY] = record.to_json()
+            learner.meta[RECORD_KEY] = record.to_meta()
     return record
