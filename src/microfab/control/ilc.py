@@ -442,10 +442,10 @@ class FrequencyILC:
         r = np.array(st.rms[-3:])
         grow = 1.0 + cfg.monitor_growth
         fallen: list[int] = []
-        f = self.harmonic_freq_hz
         for a, name in enumerate(st.axes):
             if not (r[2, a] > grow * r[1, a] and r[1, a] > grow * r[0, a]):
                 continue
+            f = self.harmonic_freq_hz
             m = st.mask[:, a]
             e0, e1, e2 = (x[:, a] for x in st.recent_errors)
             worse = m & (e2 > e1) & (e1 > e0)
@@ -498,19 +498,22 @@ class FrequencyILC:
             )
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             raise ValueError("trial holds NaN or inf")
+        first = st.iteration == 0
         # signals of absurd magnitude overflow below: refused, as not finite, before the
-        # state changes
+        # state changes. The output's own spectrum is needed on the first trial only (to
+        # choose and invert the harmonics); later trials need E and U alone.
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             U = np.fft.rfft(u, axis=0)
-            Y = np.fft.rfft(y, axis=0)
+            Y = np.fft.rfft(y, axis=0) if first else None
             E = np.fft.rfft(st.reference - y, axis=0)  # E_i = Y_d - Y_i (see module doc)
             err = np.ascontiguousarray((y - st.reference).T)  # one row per axis: fast
             rms = np.sqrt(np.mean(err**2, axis=1))
             pp = err.max(axis=1) - err.min(axis=1)
-            finite = all(np.all(np.isfinite(a)) for a in (U, Y, E, rms, pp))
+            spectra = (U, E, rms, pp) if Y is None else (U, Y, E, rms, pp)
+            finite = all(np.all(np.isfinite(a)) for a in spectra)
         if not finite:
             raise ValueError(_overflow_message(u, y))
-        if st.iteration == 0:
+        if Y is not None:
             pinv, mask = self._select_and_invert(U, Y)
             gain = np.array([self.config.gain_of(a) for a in st.axes])
             st.pinv, st.mask = pinv, mask
@@ -519,11 +522,16 @@ class FrequencyILC:
             st.best_input = u.copy()
             st.best_rms = np.full(len(st.axes), np.inf)
         # eq. (2) on the learned harmonics, 0 on the others (the seed's Q filter), except
-        # the mean: when not learned it keeps the input as applied (u_1 = y_d, the user's)
+        # the mean: when not learned it keeps the input as applied (u_1 = y_d, the user's).
+        # Worked out up to the highest learned bin only (below the cutoff): above it
+        # every bin is 0.
+        learned = np.flatnonzero(st.mask.any(axis=1))
+        hi = int(learned[-1]) + 1 if learned.size else 1
         with np.errstate(over="ignore", invalid="ignore"):
-            kept = np.zeros_like(U)
-            kept[0] = U[0]
-            U_next = np.where(st.mask, U + st.gain * st.pinv * E, kept)
+            U_next = np.zeros_like(U)
+            U_next[0] = U[0]
+            step = U[:hi] + st.gain[:hi] * st.pinv[:hi] * E[:hi]
+            U_next[:hi] = np.where(st.mask[:hi], step, U_next[:hi])
             u_next = np.fft.irfft(U_next, n=self.n_samples, axis=0)  # eq. (6), +j sign
         if not np.all(np.isfinite(u_next)):
             raise ValueError(_overflow_message(u, y))
