@@ -35,6 +35,7 @@ from numba import njit
 
 from microfab.control.base import CompiledController, ReferenceWindow
 from microfab.control.rbf import RBFConfig
+from microfab.control.replay import replay_steps
 from microfab.control.velocity import N_ESTIMATOR_PARAMS, N_ESTIMATOR_STATES, estimator_step
 from microfab.core.validate import check_nonnegative, check_positive
 
@@ -369,22 +370,18 @@ class CertaintyEquivalence(CompiledController):
             raise ValueError(f"measured must be finite and shaped (n, 2), got {ym.shape}")
         n = ym.shape[0]
         R = _stack_reference(reference, velocity, acceleration, n)
-        out = {k: np.empty((n, 2)) for k in ("u_star", "s", "v", "alpha", "beta", "beta_dot")}
-        _replay(self.kernels()[0], self.params, self.init(), R, ym, out["u_star"],
-                np.empty((n, 10)), out)  # fmt: skip
+        u, logs = replay_steps(self.kernels()[0], self.params, self.init(), R, ym, 2, _record, 10)
+        out = {"u_star": u}
+        for i, name in enumerate(("s", "v", "alpha", "beta", "beta_dot")):
+            out[name] = np.ascontiguousarray(logs[:, 2 * i : 2 * i + 2])
         return out
 
 
-def _replay(
-    kernel: Any, p: np.ndarray, x: np.ndarray, R: np.ndarray, ym: np.ndarray,
-    u: np.ndarray, logs: np.ndarray, out: dict[str, np.ndarray],
-) -> None:  # fmt: skip
-    """Loop the kernel over recorded samples (Python loop over a compiled step)."""
-    for k in range(ym.shape[0]):
-        kernel(p, x, R, k, ym[k], u[k])
-        logs[k] = x[_ILOG : _ILOG + 10]
-    for i, name in enumerate(("s", "v", "alpha", "beta", "beta_dot")):
-        out[name][:] = logs[:, 2 * i : 2 * i + 2]
+@njit(cache=True)
+def _record(p: np.ndarray, x: np.ndarray, row: np.ndarray) -> None:
+    """`replay_steps` log: the state's ``(s, v, α, β, β̇)`` per axis, interleaved x, y."""
+    for i in range(10):
+        row[i] = x[_ILOG + i]
 
 
 @functools.cache

@@ -93,6 +93,7 @@ from microfab.control.preview_dob_model import (
     check_stable,
     nominal_closed_loop_poles,
 )
+from microfab.control.replay import replay_steps
 from microfab.control.velocity import estimator_step
 from microfab.plants.lti import DiscreteLTI
 
@@ -182,23 +183,14 @@ def preview_dob_step(
 
 
 @njit(cache=True)
-def _replay(
-    p: np.ndarray,
-    x: np.ndarray,
-    ref: np.ndarray,
-    ym: np.ndarray,
-    u: np.ndarray,
-    dist: np.ndarray,
-    vel: np.ndarray,
-) -> None:
+def _record(p: np.ndarray, x: np.ndarray, row: np.ndarray) -> None:
+    """`replay_steps` log of the state: ``K_fn î_d`` (N), then ``ẋ_fb`` (m/s), per axis."""
     na = int(p[0])
-    for k in range(ym.shape[0]):
-        preview_dob_step(p, x, ref, k, ym[k], u[k])
-        for a in range(na):
-            o = _HEAD + a * _NB
-            s = a * _NS
-            dist[k, a] = p[o + 1] * x[s + _S_DHAT]
-            vel[k, a] = x[s + _S_V]
+    for a in range(na):
+        o = _HEAD + a * _NB
+        s = a * _NS
+        row[a] = p[o + 1] * x[s + _S_DHAT]
+        row[na + a] = x[s + _S_V]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -391,10 +383,13 @@ class PreviewDOB(CompiledController):
                 f"reference must be shaped (n >= {ym.shape[0]}, n_orders >= 3, {na}), got {R.shape}"
             )
         x = self.init() if state is None else np.array(state, dtype=np.float64)
-        n = ym.shape[0]
-        u, d, v = (np.empty((n, na)) for _ in range(3))
-        _replay(self.params, x, R, ym, u, d, v)
-        return PreviewDOBLog(command=u, disturbance=d, velocity=v, final_state=x)
+        u, log = replay_steps(preview_dob_step, self.params, x, R, ym, na, _record, 2 * na)
+        return PreviewDOBLog(
+            command=u,
+            disturbance=np.ascontiguousarray(log[:, :na]),
+            velocity=np.ascontiguousarray(log[:, na:]),
+            final_state=x,
+        )
 
 
 class PreviewDOBAddOn(CompiledController):

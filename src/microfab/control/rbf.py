@@ -47,6 +47,7 @@ from microfab.control.rbf_network import (
     _stack_reference,
     networks_for_reference,
 )
+from microfab.control.replay import replay_steps
 from microfab.control.velocity import (
     N_ESTIMATOR_PARAMS,
     N_ESTIMATOR_STATES,
@@ -151,35 +152,22 @@ def rbf_step(
 
 
 @njit(cache=True)
-def _rbf_replay(
-    p: np.ndarray,
-    x: np.ndarray,
-    ref: np.ndarray,
-    ym: np.ndarray,
-    u: np.ndarray,
-    s: np.ndarray,
-    v: np.ndarray,
-    wn: np.ndarray,
-    H: np.ndarray,
-) -> None:
-    """`rbf_core` over recorded measurements, logging u, s, v, ‖Ŵ‖ (before update), h."""
+def _rbf_record(p: np.ndarray, x: np.ndarray, row: np.ndarray) -> None:
+    """`replay_steps` log of the state ``x``: s, v, ‖Ŵ‖ per axis, then ``h`` if ``row`` has room."""
     nl = int(p[0])
     ih = N_AXES * nl + N_AXES * N_ESTIMATOR_STATES
     isv = ih + N_AXES * nl + N_Z
-    keep_h = H.shape[0] > 0
-    for k in range(ym.shape[0]):
+    for a in range(N_AXES):
+        row[a] = x[isv + a]
+        row[N_AXES + a] = x[isv + N_AXES + a]
+        acc = 0.0
+        for j in range(nl):
+            acc += x[a * nl + j] * x[a * nl + j]
+        row[2 * N_AXES + a] = math.sqrt(acc)
+    if row.shape[0] > 3 * N_AXES:
         for a in range(N_AXES):
-            acc = 0.0
             for j in range(nl):
-                acc += x[a * nl + j] * x[a * nl + j]
-            wn[k, a] = math.sqrt(acc)
-        rbf_core(p, x, ref[k], ym[k], u[k])
-        for a in range(N_AXES):
-            s[k, a] = x[isv + a]
-            v[k, a] = x[isv + N_AXES + a]
-            if keep_h:
-                for j in range(nl):
-                    H[k, a, j] = x[ih + a * nl + j]
+                row[3 * N_AXES + a * nl + j] = x[ih + a * nl + j]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -381,11 +369,20 @@ class RBFAdaptive(CompiledController):
         n = ym.shape[0]
         R = _stack_reference(reference, velocity, acceleration, n)
         x = self.init() if state is None else np.array(state, dtype=float)
-        u, s, v, wn = (np.empty((n, N_AXES)) for _ in range(4))
-        H = np.empty((n if hidden else 0, N_AXES, self.n_nodes))
-        _rbf_replay(self.params, x, R, ym, u, s, v, wn, H)
+        na, nl = N_AXES, self.n_nodes
+        width = 3 * na + (na * nl if hidden else 0)
+        start = np.empty(width)
+        _rbf_record(self.params, x, start)  # ‖Ŵ‖ before the first update
+        u, log = replay_steps(rbf_step, self.params, x, R, ym, na, _rbf_record, width)
+        # ‖Ŵ‖ used at sample k is the norm after the update of sample k - 1
+        wn = np.concatenate([start[None, 2 * na : 3 * na], log[:-1, 2 * na : 3 * na]])[:n]
         return RBFLog(
-            command=u, s=s, v=v, weight_norm=wn, hidden=H if hidden else None, final_state=x
+            command=u,
+            s=np.ascontiguousarray(log[:, :na]),
+            v=np.ascontiguousarray(log[:, na : 2 * na]),
+            weight_norm=wn,
+            hidden=log[:, 3 * na :].reshape(n, na, nl) if hidden else None,
+            final_state=x,
         )
 
     @classmethod

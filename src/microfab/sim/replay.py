@@ -7,7 +7,8 @@ current against ours), and a way to read its internal signals on hardware data. 
 is deterministic given its commands, so running it over the commands of a run gives its
 state after every sample (`replay_plant`: true positions, forces, disturbances that the
 simulator does not return). Each kernel runs in a numba loop compiled once per kernel
-(as `microfab.sim.kernels`).
+(as `microfab.sim.kernels`); the controller's is `microfab.control.replay.replay_steps`,
+the loop the controllers' own ``replay`` methods run too.
 """
 
 from __future__ import annotations
@@ -20,25 +21,11 @@ import numpy as np
 from numba import njit
 
 from microfab.control.base import CompiledController
+from microfab.control.replay import replay_steps
 from microfab.plants.base import CompiledPlant
 from microfab.sim.loop import reference_array
 
 __all__ = ["replay_controller", "replay_plant"]
-
-
-@functools.cache
-def _replay_loop(step: Any) -> Callable[..., None]:
-    """The replay loop with ``step`` bound in (compiled once per kernel)."""
-
-    @njit(nogil=True)
-    def loop(p: np.ndarray, x: np.ndarray, ref: np.ndarray, ym: np.ndarray, u: np.ndarray) -> None:
-        uk = np.empty(u.shape[1])
-        for k in range(ym.shape[0]):
-            step(p, x, ref, k, ym[k], uk)
-            for i in range(uk.shape[0]):
-                u[k, i] = uk[i]
-
-    return loop
 
 
 def replay_controller(
@@ -88,9 +75,8 @@ def replay_controller(
         )
     x = controller.init() if state is None else np.array(state, dtype=np.float64)
     n_out = int(getattr(controller, "n_outputs", getattr(controller, "n_inputs", 1)))
-    u = np.empty((ym.shape[0], n_out))
     (step,) = controller.kernels()
-    _replay_loop(step)(controller.packed_params(), x, R, ym, u)
+    u, _log = replay_steps(step, controller.packed_params(), x, R, ym, n_out)
     return u, x
 
 
