@@ -256,18 +256,9 @@ class NoisyOutputs:
     noise_level: NoiseLevel
 
     def noise(self, n_samples: int, seed: int = 0) -> np.ndarray:
-        """Seeded white Gaussian output noise, in the outputs' units.
+        """Seeded white Gaussian output noise in the outputs' units, (n_samples, n_outputs).
 
-        Parameters
-        ----------
-        n_samples : int
-            Number of samples (>= 0).
-        seed : int
-            Seed of ``numpy.random.default_rng`` (>= 0); the same seed gives the same noise.
-
-        Returns
-        -------
-        numpy.ndarray
-            Shape (n_samples, n_outputs): ``noise_level.draw(n_samples, seed)``.
+        ``noise_level.draw(n_samples, seed)``: `white_noise` with the rms of each output
+        (the same seed gives the same noise).
         """
         return self.noise_level.draw(n_samples, seed)
