@@ -10,8 +10,11 @@ uninterrupted run, bit for bit.
 
 from __future__ import annotations
 
+import importlib
 import json
+import sys
 import threading
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +23,7 @@ import pytest
 from typer.testing import CliRunner
 
 from microfab.cli import app
+from microfab.experiments.catalog import JOB_KINDS
 from microfab.io.atomic import watch_writes
 
 runner = CliRunner()
@@ -168,3 +172,64 @@ def test_an_interrupted_run_resumes_bit_identical(
     code, text = _run(job, out)
     assert code == 0, text
     assert _summary(out) == _summary(tmp_path / "whole")
+
+
+# --------------------------------------------------------------- the twin built once
+_DATA = str(Path(__file__).parents[2] / "src" / "microfab" / "data")
+_opened: list[str] | None = None
+
+
+def _audit(event: str, args: tuple) -> None:  # an audit hook cannot be removed: gated
+    if _opened is not None and event == "open" and isinstance(args[0], str):
+        if args[0].startswith(_DATA) and args[0].endswith((".toml", ".json", ".dat")):
+            _opened.append(Path(args[0]).name)
+
+
+sys.addaudithook(_audit)
+
+#: The twins' classes: a construction is counted per class and configuration.
+_TWINS = (
+    ("microfab.plants.galvo", "GalvoAxis"),
+    ("microfab.plants.base", "LTIPlant"),
+    ("microfab.plants.nanomanipulator", "NanomanipulatorPlant"),
+    ("microfab.plants.xy_stage", "XYStagePlant"),
+    ("microfab.plants.lmw_stage", "LMWStage"),
+    ("microfab.plants.lmw_focus", "LMWFocus"),
+    ("microfab.plants.printhead", "Printhead"),
+)
+
+
+def test_each_twin_is_built_once_per_configuration(
+    case: Case, tmp_path: Path, request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Per run: each data file parsed at most once, each twin built once per configuration."""
+    global _opened
+    models = request.getfixturevalue("tiny_models")[0] if "{models}" in case.body else None
+    job = _job(tmp_path, case, case.body, models)
+    builds: Counter[tuple[str, str]] = Counter()
+    for module, name in _TWINS:
+        cls = getattr(importlib.import_module(module), name)
+        init = cls.__init__
+
+        def counted(self: Any, *a: Any, _init: Any = init, _name: str = name, **k: Any) -> None:
+            builds[(_name, repr((a, sorted(k.items()))))] += 1
+            _init(self, *a, **k)
+
+        monkeypatch.setattr(cls, "__init__", counted)
+    _opened = []
+    try:
+        code, text = _run(job, tmp_path / "out")
+    finally:
+        opened, _opened = _opened, None
+    assert code == 0, text
+    # every data file read is in the run's fingerprint (read once for its digest) and is
+    # parsed once at most
+    declared = set()
+    for name in JOB_KINDS[case.kind].data_files:
+        p = Path(_DATA) / name
+        declared |= {f.name for f in p.rglob("*")} if p.is_dir() else {name}
+    opens = Counter(opened)
+    assert set(opens) <= declared, f"read but not fingerprinted: {set(opens) - declared}"
+    assert all(n <= 2 for n in opens.values()), opens
+    twice = {k[0]: n for k, n in builds.items() if n > 1}
+    assert not twice, twice

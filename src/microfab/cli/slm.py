@@ -101,7 +101,7 @@ def scan_time_cmd(
     the fixed estimate uses --shaped-jump-delay-us.
     """
     from microfab.control.shaper_io import read_shaper, shaper_lti, shaper_to_dict
-    from microfab.plants.galvo_slm import galvo_slm_twin
+    from microfab.machines import slm_galvo
     from microfab.process.slm.estimate import SettleTolerance, estimate_scan_time, series
     from microfab.process.slm.source import parse_lattice_source, scan_program
     from microfab.process.slm.timing import (
@@ -155,7 +155,7 @@ def scan_time_cmd(
             prefilter = shaper_lti(the_shaper, TICK_S)
         except (OSError, ValueError) as exc:
             fail(str(exc) if str(shaper) in str(exc) else f"{shaper}: {exc}")
-    twin = galvo_slm_twin(mirror_mode=mirror_mode)
+    twin = slm_galvo.twin(mirror_mode=mirror_mode)
     bit_m = twin.config.bit_size_m
     field_m = twin.config.field_bit * bit_m
     if hatch_um * 1e-6 < bit_m:

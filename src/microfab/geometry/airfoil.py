@@ -28,6 +28,7 @@ Each spline piece is a cubic, converted exactly to a
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from importlib import resources
@@ -172,6 +173,12 @@ def read_selig(path_or_text: str | os.PathLike[str]) -> tuple[str, np.ndarray]:
 
 
 def _builtin(name: str) -> np.ndarray:
+    return _builtin_read(name).copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _builtin_read(name: str) -> np.ndarray:
+    """A packaged airfoil's points, read once per process (`_builtin` hands out copies)."""
     res = resources.files("microfab.data").joinpath("airfoils", f"{name}.dat")
     return read_selig(res.read_text(encoding="utf-8"))[1]
 

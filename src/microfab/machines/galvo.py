@@ -18,12 +18,15 @@ from microfab.control.base import LTIController
 from microfab.control.leadlag import lead_lag
 from microfab.core.limits import AxisLimits
 from microfab.machines.simulated import EncoderNoise, SimPath, SimulatedMachine
+from microfab.machines.twins import TwinCache
 from microfab.plants.base import LTIPlant
 from microfab.plants.galvo import GalvoAxis, default_galvo_axes
 from microfab.plants.lti import DiscreteLTI, discretize
 
 __all__ = [
+    "DATA_FILES",
     "GALVO_LIMITS",
+    "calibrated_axes",
     "complementary_sensitivity",
     "controller_tf",
     "discrete_controller",
@@ -41,6 +44,31 @@ GALVO_LIMITS = {
     name: AxisLimits(position=10.0, velocity=5e4, acceleration=2e10, unit="V")
     for name in ("x", "y")
 }
+
+
+#: The packaged data file the calibrated axes are read from.
+DATA_FILES = ("galvo_twin.toml",)
+
+_AXES: TwinCache[dict[str, GalvoAxis], dict[str, GalvoAxis]] = TwinCache(
+    lambda path: default_galvo_axes(), lambda axes: axes, DATA_FILES[0]
+)
+
+
+def calibrated_axes() -> dict[str, GalvoAxis]:
+    """The calibrated axes (`default_galvo_axes`), read once per version of the data file.
+
+    Returns a new dict of the shared, immutable axes.
+    """
+    return dict(_AXES())
+
+
+@functools.lru_cache(maxsize=64)
+def _loop(axes: tuple[GalvoAxis, ...]) -> tuple[tuple[LTIPlant, ...], tuple[LTIController, ...]]:
+    """Plant and controller of each axis' loop, built once per distinct axes (immutable)."""
+    return (
+        tuple(LTIPlant(a.discrete_plant()) for a in axes),
+        tuple(LTIController(discrete_controller(a)) for a in axes),
+    )
 
 
 def galvo_twin(
@@ -69,10 +97,11 @@ def galvo_twin(
     path : SimPath, optional
         Force a simulator (``compiled`` or ``python`` give the same numbers, slower).
     """
-    ax = dict(axes) if axes is not None else default_galvo_axes()
+    ax = dict(axes) if axes is not None else calibrated_axes()
+    plants, controllers = _loop(tuple(ax.values()))
     return SimulatedMachine(
-        [LTIPlant(a.discrete_plant()) for a in ax.values()],
-        [LTIController(discrete_controller(a)) for a in ax.values()],
+        list(plants),
+        list(controllers),
         EncoderNoise(rms=tuple(a.noise_rms_v for a in ax.values()), seed=seed),
         axes=tuple(ax),
         limits=limits if limits is not None else GALVO_LIMITS,

@@ -15,7 +15,6 @@ shared (`twin`): the plant is immutable configuration, its state lives in the lo
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -25,7 +24,9 @@ import numpy as np
 from microfab.control.setpoint import SetPoint
 from microfab.core.limits import MachineLimits
 from microfab.identify.stage_data import StageRecord
-from microfab.plants.xy_stage import XYStagePlant, xy_stage_twin
+from microfab.machines.twins import TwinCache
+from microfab.plants.xy_stage import XYStagePlant
+from microfab.plants.xy_stage_params import XYStageParams, load_params
 from microfab.sim.loop import LoopState, simulate
 
 __all__ = [
@@ -47,16 +48,22 @@ def limits() -> MachineLimits:
     return MachineLimits.seed002_stage()
 
 
-@functools.lru_cache(maxsize=16)
+def _build(cfg: XYStageParams, **changes: Any) -> XYStagePlant:
+    return XYStagePlant(cfg.with_(**changes) if changes else cfg)
+
+
+_TWINS: TwinCache[XYStageParams, XYStagePlant] = TwinCache(load_params, _build, DATA_FILES[0])
+
+
 def twin(changes: tuple[tuple[str, Any], ...] = ()) -> XYStagePlant:
     """The twin with these `XYStageParams` fields replaced, built once per distinct set.
 
     Parameters
     ----------
     changes : tuple of (str, value)
-        Fields to replace (e.g. the calibrated friction magnitudes); hashable.
+        Fields to replace (e.g. the calibrated friction magnitudes).
     """
-    return xy_stage_twin(**dict(changes))
+    return _TWINS(None, **dict(changes))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -36,6 +36,7 @@ from microfab.experiments.kinds import (
 from microfab.experiments.seed000_msl import paper
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines import galvo as galvo_machine
 from microfab.report.tables import Table, versus
 
 __all__ = ["MSL_ILC", "MSL_ILC_REPRODUCTION", "MSLConfig", "MSLJobResult", "comparison_tables"]
@@ -162,9 +163,8 @@ class MSLJobResult:
 
 def _run(config: MSLConfig, out: Path, progress: Progress) -> MSLJobResult:
     from microfab.experiments.seed000_msl.run import run_msl_ilc, tables_from_runs
-    from microfab.plants.galvo import default_galvo_axes
 
-    axes = default_galvo_axes()
+    axes = galvo_machine.calibrated_axes()
     runs = {}
     for r in config.rates:
         label = f"ILC at {r} features/s"

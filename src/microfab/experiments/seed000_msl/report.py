@@ -24,7 +24,8 @@ from typing import Any
 from microfab.experiments.seed000_msl import figures, loop_figures
 from microfab.experiments.seed000_msl import paper as seed000
 from microfab.experiments.seed000_msl.run import MSLRunResult
-from microfab.plants.galvo import GalvoAxis, default_galvo_axes
+from microfab.machines import galvo as galvo_machine
+from microfab.plants.galvo import GalvoAxis
 from microfab.report.canvas import render_svg
 from microfab.report.page import Figure, page_html, write_page
 
@@ -379,7 +380,8 @@ def write_report(
     main = next((r for k, r in runs.items() if float(k) == float(main_rate)), None)
     if main is None:
         raise ValueError(f"main_rate {main_rate} is not among the runs' rates {sorted(runs)}")
-    rendered = _render_figures(runs, main, galvo_axes or default_galvo_axes())  # draw first
+    axes = galvo_axes or galvo_machine.calibrated_axes()
+    rendered = _render_figures(runs, main, axes)  # draw first
     captions = _captions(main, runs)
     figs = [
         Figure(name=name, png=png, svg=svg, caption=captions[name]) for name, png, svg in rendered

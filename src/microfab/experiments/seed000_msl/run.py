@@ -18,10 +18,11 @@ import numpy as np
 from microfab.control.ilc import FrequencyILC, ILCConfig
 from microfab.control.margins import loop_margins
 from microfab.experiments.seed000_msl import paper as seed000
+from microfab.machines import galvo as galvo_machine
 from microfab.machines.base import Machine
 from microfab.machines.galvo import complementary_sensitivity, galvo_twin, open_loop
 from microfab.machines.learning import learn
-from microfab.plants.galvo import GalvoAxis, default_galvo_axes
+from microfab.plants.galvo import GalvoAxis
 from microfab.process.velocity import BeamVelocityParams, beam_velocity
 from microfab.trajectory.periodic import square_scan
 
@@ -173,7 +174,7 @@ def run_msl_ilc(
     """
     if iterations < 2:
         raise ValueError(f"iterations must be >= 2 (trial 1 is feedback only), got {iterations}")
-    axes = axes or default_galvo_axes()
+    axes = axes or galvo_machine.calibrated_axes()
     names = tuple(axes)
     machine = machine or galvo_twin(axes, seed=seed)
     ref = _square_reference(axes, features_per_s)
@@ -238,7 +239,7 @@ def reproduce_tables(
     runs : dict of int to MSLRunResult
         The runs by rate.
     """
-    axes = default_galvo_axes()
+    axes = galvo_machine.calibrated_axes()
     runs: dict[int, MSLRunResult] = {}
     for r in rates:
         if progress is not None:

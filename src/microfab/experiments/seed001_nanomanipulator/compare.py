@@ -19,7 +19,7 @@ from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.core.validate import check_finite, check_int, check_positive
 from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig, pattern_reference
-from microfab.plants.nanomanipulator import nanomanipulator_twin
+from microfab.machines import nanomanipulator
 from microfab.sim.loop import simulate
 
 __all__ = ["CONTROLLERS", "ComparisonConfig", "ComparisonResult", "compare_controllers"]
@@ -112,7 +112,7 @@ def compare_controllers(config: ComparisonConfig | None = None) -> ComparisonRes
         Per-period RMS of each controller.
     """
     cfg = config or ComparisonConfig()
-    plant = nanomanipulator_twin(seed=cfg.seed)
+    plant = nanomanipulator.twin(seed=cfg.seed)
     dt = plant.dt
     ref = pattern_reference(cfg.pattern, dt)
     pos = ref.position + cfg.offset_mm

@@ -42,7 +42,8 @@ from microfab.control.repetitive import period_samples
 from microfab.core.validate import check_positive
 from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
 from microfab.experiments.seed001_nanomanipulator.pattern import pattern_reference
-from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
+from microfab.machines import nanomanipulator
+from microfab.plants.nanomanipulator import NanomanipulatorPlant
 from microfab.sim.loop import simulate
 
 __all__ = ["Fig9Config", "Fig9Reference", "Fig9Result", "fig9_rbf", "fig9_reference"]
@@ -253,7 +254,7 @@ def fig9_rbf(config: Fig9Config | None = None) -> Fig9Result:
     """
     cfg = config or Fig9Config()
     circle = cfg.circle
-    plant = nanomanipulator_twin(seed=circle.seed)
+    plant = nanomanipulator.twin(seed=circle.seed)
     dt = plant.dt
     ref = fig9_reference(cfg, dt)
     n_fit = max(round(cfg.fit_s / dt), circle.rbf.n_nodes)

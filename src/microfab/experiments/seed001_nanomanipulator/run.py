@@ -64,7 +64,8 @@ from microfab.experiments.seed001_nanomanipulator.pattern import (
     pattern_reference,
 )
 from microfab.io.background import BackgroundWriter
-from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
+from microfab.machines import nanomanipulator
+from microfab.plants.nanomanipulator import NanomanipulatorPlant
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
 from microfab.sim.loop import LoopState, LoopStepper
@@ -229,13 +230,13 @@ def make_twin(settings: TwinSettings) -> NanomanipulatorPlant:
         over["noise_rms_mm"] = settings.noise_rms_mm
     if settings.disturbance_mm_s2 is not None:
         over["disturbance_mm_s2"] = settings.disturbance_mm_s2
-    return nanomanipulator_twin(
+    return nanomanipulator.twin(
+        settings.params_file,
         seed=settings.seed,
         nonlinear=settings.nonlinear,
         disturbance=settings.disturbance,
-        path=settings.params_file,
         **over,
-    )
+    )  # built once per distinct settings (machines.nanomanipulator)
 
 
 @dataclass(frozen=True)

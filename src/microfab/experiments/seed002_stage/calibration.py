@@ -76,16 +76,12 @@ import numpy as np
 
 from microfab.core.validate import check_in_range, check_int, check_positive
 from microfab.experiments.seed002_stage import paper
-from microfab.experiments.seed002_stage.run import (
-    LinearSettings,
-    TwinSettings,
-    fit_linear,
-    play_runs,
-)
+from microfab.experiments.seed002_stage.run import LinearSettings, fit_linear
 from microfab.identify.excitation import random_runs
 from microfab.identify.stage_data import decimate
 from microfab.identify.subspace import SubspaceConfig, order_scan
 from microfab.io.atomic import atomic_write_json, atomic_write_text
+from microfab.machines.xy_stage import TwinSettings, play_runs
 from microfab.plants.sourced_toml import update_sourced
 from microfab.plants.xy_stage_params import AXES, XYStageParams, load_params
 

@@ -43,7 +43,7 @@ import numpy as np
 from microfab.control.shaping import InverseShaperConfig, design_inverse_shaper
 from microfab.core.validate import check_finite, check_int, check_positive
 from microfab.experiments.sweep import run_sweep
-from microfab.plants.galvo_slm import galvo_slm_twin
+from microfab.machines import slm_galvo
 from microfab.plants.lti import DiscreteLTI
 from microfab.process.slm.estimate import (
     SEED_JUMP_DELAY_SHAPED_S,
@@ -209,7 +209,7 @@ def _lti_dict(lti: DiscreteLTI) -> dict[str, Any]:
 @functools.lru_cache(maxsize=8)
 def _models(mirror_mode: bool, shaper_json: str) -> tuple[DiscreteLTI, DiscreteLTI]:
     """The twin's axis and the shaped axis, built once per process (JSON of the filter)."""
-    axis = galvo_slm_twin(mirror_mode=mirror_mode).axis_model
+    axis = slm_galvo.twin(mirror_mode=mirror_mode).axis_model
     f = json.loads(shaper_json)
     if f is None:
         return axis, axis
@@ -412,7 +412,7 @@ class BuildResult:
 
 # ----------------------------------------------------------------------- the runner
 def _check_twin(settings: BuildSettings) -> None:
-    c = galvo_slm_twin().config
+    c = slm_galvo.twin().config
     field_m = c.field_bit * c.bit_size_m
     if settings.outline_radius_m > field_m:
         raise ValueError(
@@ -431,12 +431,12 @@ def _check_twin(settings: BuildSettings) -> None:
 
 def _task_settings(settings: BuildSettings) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(sweep settings, task settings)``: the shaper designed and jump delays derived once."""
-    twin = galvo_slm_twin(mirror_mode=settings.mirror_mode)
+    twin = slm_galvo.twin(mirror_mode=settings.mirror_mode)
     axis = twin.axis_model
     shaper_filter = None
     shaped_axis = axis
     if settings.shaper != "none":
-        nominal = galvo_slm_twin().transfer_function()  # the seed's G: what was identified
+        nominal = slm_galvo.twin().transfer_function()  # the seed's G: what was identified
         design = design_inverse_shaper(nominal, InverseShaperConfig(discretization=settings.shaper))
         lti = design.to_lti()
         shaper_filter = _lti_dict(lti)

@@ -98,7 +98,8 @@ from microfab.experiments.seed003_slm import paper
 from microfab.identify.chirp import ChirpDesign
 from microfab.identify.fit import fit_tf
 from microfab.identify.frf import FRF, estimate_frf
-from microfab.plants.galvo_slm import GalvoSLMPlant, galvo_slm_twin
+from microfab.machines import slm_galvo
+from microfab.plants.galvo_slm import GalvoSLMPlant
 from microfab.report.tables import DASH, Table
 from microfab.sim.loop import simulate
 
@@ -390,7 +391,7 @@ def _twin(name: str) -> GalvoSLMPlant:
             f"twin must be 'seed' (the seed's 3rd-order model) or 'mirror' (with the 3 kHz "
             f"mirror mode), got {name!r}"
         )
-    return galvo_slm_twin(mirror_mode=name == "mirror")
+    return slm_galvo.twin(mirror_mode=name == "mirror")
 
 
 def _true_mode(twin: GalvoSLMPlant) -> tuple[float, float]:
@@ -413,7 +414,7 @@ def _identified_mode(twin: GalvoSLMPlant, name: str, seed: int) -> tuple[float, 
         mode = fit_tf(frf, dt=twin.dt).model.complex_modes[0]  # ZOH-aware, 3 poles (seed §1)
         return mode.frequency_hz, mode.damping
     # the mode over the seed's G (ZOH at dt): the model the inverse already cancels
-    base = galvo_slm_twin().axis_model.frequency_response(frf.freq_hz)[:, 0, 0]
+    base = slm_galvo.twin().axis_model.frequency_response(frf.freq_hz)[:, 0, 0]
     ratio = frf.response / base
     f_peak = float(frf.freq_hz[np.argmax(np.abs(ratio))])
     over = FRF(

@@ -35,7 +35,8 @@ from microfab.experiments.seed003_slm import paper
 from microfab.identify.chirp import Chirp, ChirpDesign
 from microfab.identify.fit import FitResult, fit_tf
 from microfab.identify.frf import FRF, estimate_frf
-from microfab.plants.galvo_slm import GalvoSLMPlant, galvo_slm_twin
+from microfab.machines import slm_galvo
+from microfab.plants.galvo_slm import GalvoSLMPlant
 from microfab.process.slm.estimate import (
     ScanTimeComparison,
     SettleTolerance,
@@ -94,7 +95,7 @@ class TwinSettings:
 
     def twin(self) -> GalvoSLMPlant:
         """The twin of these settings."""
-        return galvo_slm_twin(mirror_mode=self.mirror_mode)
+        return slm_galvo.twin(mirror_mode=self.mirror_mode)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -27,7 +27,8 @@ import numpy as np
 
 from microfab.control.focus import SlidingModeFocus, SlidingModeFocusConfig
 from microfab.core.validate import check_int, check_positive
-from microfab.plants.lmw_focus import LMWFocus, lmw_focus_twin
+from microfab.machines import laser_stage
+from microfab.plants.lmw_focus import LMWFocus
 from microfab.sim.loop import simulate
 
 __all__ = ["FocusJob", "FocusRun", "FocusStudy", "focus_law", "focus_study", "run_focus"]
@@ -144,7 +145,7 @@ def focus_law(
 def run_focus(job: FocusJob | None = None) -> FocusRun:
     """Run the sliding-mode focus search on the focus twin (module notes)."""
     job = job or FocusJob()
-    plant = lmw_focus_twin(surface_rate_m_s=job.surface_rate_m_s)
+    plant = laser_stage.focus(surface_rate_m_s=job.surface_rate_m_s)
     c = plant.config
     ctrl = SlidingModeFocus(focus_law(plant, continuous=job.continuous, speed_m_s=job.speed_m_s))
     n = round(job.duration_s / plant.dt)

@@ -54,7 +54,8 @@ from microfab.experiments.seed004_laser.reference import (
     contour_reference,
 )
 from microfab.geometry.path import Path
-from microfab.plants.lmw_stage import LMWStage, lmw_stage_twin
+from microfab.machines import laser_stage
+from microfab.plants.lmw_stage import LMWStage
 from microfab.sim.loop import LoopState, reference_array, simulate
 from microfab.sim.replay import replay_plant
 
@@ -203,7 +204,7 @@ def make_stage(tw: TwinSettings) -> LMWStage:
     over: dict[str, Any] = {}
     if tw.disturbance_scale is not None:
         over["disturbance_scale"] = tw.disturbance_scale
-    return lmw_stage_twin(tw.params_file, ideal=not tw.nonlinear, **over)
+    return laser_stage.stage(tw.params_file, ideal=not tw.nonlinear, **over)
 
 
 def make_controller(cs: ControlSettings, stage: LMWStage, mass_error: float = 0.0) -> Any:
