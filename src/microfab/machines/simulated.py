@@ -26,6 +26,7 @@ import numpy as np
 
 from microfab.control.base import Controller, Loop, LTIController, as_loop
 from microfab.core.limits import AxisLimits, check_command
+from microfab.core.threads import one_blas_thread
 from microfab.core.validate import check_int, check_nonnegative, check_positive
 from microfab.machines.base import Measurement
 from microfab.plants.base import LTIPlant, Plant
@@ -191,6 +192,7 @@ class SimulatedMachine:
                 )
         self.plants = plants
         self.loops = tuple(as_loop(c) for c in ctrls)
+        self._plain = all(lp.feedforward is None for lp in self.loops)  # no feedforward
         # what the per-sample simulators run: the feedforward is applied before them
         self._bare = tuple(
             lp if lp.feedforward is None else Loop(controller=lp.controller, observer=lp.observer)
@@ -340,12 +342,14 @@ class SimulatedMachine:
         refs = self._references(cmd, periodic=True)
         self._check_filtered(refs, None)
         n = cmd.shape[0]
-        for _ in range(self.settle_periods):
-            if self.lifted is not None:  # no output needed: the state alone, to the bit
-                self.lifted.advance(np.column_stack([pos for pos, _ in refs]), self._noise(n))
-            else:
+        if self.lifted is not None:
+            ym, u = self._run_lifted(cmd, refs, with_actuator)
+        else:
+            for _ in range(self.settle_periods):
                 self._advance(refs, self._noise(n), periodic=True, with_command=False)
-        _, ym, u = self._advance(refs, self._noise(n), periodic=True, with_command=with_actuator)
+            _, ym, u = self._advance(
+                refs, self._noise(n), periodic=True, with_command=with_actuator
+            )
         self.samples_simulated += n * (self.settle_periods + 1)
         return Measurement(
             dt=self.dt,
@@ -436,6 +440,25 @@ class SimulatedMachine:
         )
 
     # ----------------------------------------------------------------- internals
+    def _run_lifted(
+        self, cmd: np.ndarray, refs: list[Reference], with_command: bool
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """`run` on the lifted path: ``(measured, command)`` of the last period.
+
+        The settling periods advance the state only (no output: the same state, to the
+        bit). Without feedforward the loops' references are the command's columns in
+        order, so the command is passed as it is; BLAS is limited to one thread once for
+        the whole run rather than per product.
+        """
+        assert self.lifted is not None
+        ref = cmd if self._plain else np.column_stack([pos for pos, _ in refs])
+        n = cmd.shape[0]
+        with one_blas_thread():
+            for _ in range(self.settle_periods):
+                self.lifted.advance(ref, self._noise(n))
+            res = self.lifted.run(ref, self._noise(n), with_command=with_command)
+        return res.measured, res.command
+
     def _command(self, command: np.ndarray) -> np.ndarray:
         cmd = np.asarray(command, dtype=float)
         if cmd.ndim == 1:
