@@ -496,7 +496,7 @@ class FrequencyILC:
                 f"trial signals must be shaped {st.reference.shape}, "
                 f"got input {u.shape} and output {y.shape}"
             )
-        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+        if not (np.isfinite(u).all() and np.isfinite(y).all()):
             raise ValueError("trial holds NaN or inf")
         first = st.iteration == 0
         # signals of absurd magnitude overflow below: refused, as not finite, before the
@@ -510,7 +510,7 @@ class FrequencyILC:
             rms = np.sqrt(np.mean(err**2, axis=1))
             pp = err.max(axis=1) - err.min(axis=1)
             spectra = (U, E, rms, pp) if Y is None else (U, Y, E, rms, pp)
-            finite = all(np.all(np.isfinite(a)) for a in spectra)
+            finite = all(np.isfinite(a).all() for a in spectra)
         if not finite:
             raise ValueError(_overflow_message(u, y))
         if Y is not None:
@@ -525,15 +525,15 @@ class FrequencyILC:
         # the mean: when not learned it keeps the input as applied (u_1 = y_d, the user's).
         # Worked out up to the highest learned bin only (below the cutoff): above it
         # every bin is 0.
-        learned = np.flatnonzero(st.mask.any(axis=1))
-        hi = int(learned[-1]) + 1 if learned.size else 1
+        learned = np.flatnonzero(st.mask)  # flat C-order indices: bin * n_axes + axis
+        hi = int(learned[-1]) // st.mask.shape[1] + 1 if learned.size else 1
         with np.errstate(over="ignore", invalid="ignore"):
             U_next = np.zeros_like(U)
             U_next[0] = U[0]
             step = U[:hi] + st.gain[:hi] * st.pinv[:hi] * E[:hi]
             U_next[:hi] = np.where(st.mask[:hi], step, U_next[:hi])
             u_next = np.fft.irfft(U_next, n=self.n_samples, axis=0)  # eq. (6), +j sign
-        if not np.all(np.isfinite(u_next)):
+        if not np.isfinite(u_next).all():
             raise ValueError(_overflow_message(u, y))
         st.rms.append([float(v) for v in rms])
         st.pp.append([float(v) for v in pp])

@@ -96,8 +96,9 @@ def check_command(
     X = np.ascontiguousarray(cmd.T)
     XE = np.concatenate([X[:, -2:], X, X[:, :2]], axis=1) if periodic else X
     with np.errstate(over="ignore"):  # an absurd dt gives inf, refused as beyond the limit
-        V = np.diff(XE, axis=1) / dt
-        ACC = np.diff(XE, 2, axis=1) / _power(dt, 2)
+        D = np.diff(XE, axis=1)
+        V = D / dt
+        ACC = np.diff(D, axis=1) / _power(dt, 2)  # np.diff(XE, 2) is this second difference
     peaks = [np.argmax(np.abs(sig), axis=1) if sig.shape[1] else None for sig in (X, V, ACC)]
     for a, name in enumerate(axes):
         if name not in limits:
