@@ -12,7 +12,7 @@ from typing import Any
 
 from microfab.core.limits import MachineLimits
 from microfab.machines.twins import TwinCache
-from microfab.plants.nanomanipulator import NanomanipulatorPlant
+from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
 from microfab.plants.nanomanipulator_params import NanomanipulatorParams, load_params
 
 __all__ = ["DATA_FILES", "limits", "twin"]
@@ -21,19 +21,8 @@ __all__ = ["DATA_FILES", "limits", "twin"]
 DATA_FILES = ("nanomanipulator_twin.toml",)
 
 
-def _build(
-    cfg: NanomanipulatorParams, seed: int, nonlinear: bool, disturbance: bool, **overrides: Any
-) -> NanomanipulatorPlant:
-    cfg = cfg.with_(disturbance_seed=seed, **overrides)
-    if not nonlinear:
-        cfg = cfg.linear()
-    if not disturbance:
-        cfg = cfg.with_(disturbance_mm_s2=(0.0, 0.0))
-    return NanomanipulatorPlant(cfg)
-
-
 _TWINS: TwinCache[NanomanipulatorParams, NanomanipulatorPlant] = TwinCache(
-    load_params, _build, DATA_FILES[0]
+    load_params, lambda cfg, **s: nanomanipulator_twin(params=cfg, **s), DATA_FILES[0]
 )
 
 
@@ -45,19 +34,7 @@ def twin(
     disturbance: bool = True,
     **overrides: Any,
 ) -> NanomanipulatorPlant:
-    """The twin (as `microfab.plants.nanomanipulator.nanomanipulator_twin`), built once.
-
-    Parameters
-    ----------
-    path : path-like, optional
-        Another parameter file (default ``data/nanomanipulator_twin.toml``).
-    seed : int
-        Disturbance phase seed.
-    nonlinear, disturbance : bool
-        The §4.1 terms; ``d(t)``.
-    **overrides
-        `NanomanipulatorParams` fields to replace (before ``nonlinear``, ``disturbance``).
-    """
+    """`nanomanipulator_twin` (same arguments), parsed and built once per distinct settings."""
     return _TWINS(path, seed=seed, nonlinear=nonlinear, disturbance=disturbance, **overrides)
 
 

@@ -25,7 +25,7 @@ from microfab.control.setpoint import SetPoint
 from microfab.core.limits import MachineLimits
 from microfab.identify.stage_data import StageRecord
 from microfab.machines.twins import TwinCache
-from microfab.plants.xy_stage import XYStagePlant
+from microfab.plants.xy_stage import XYStagePlant, xy_stage_twin
 from microfab.plants.xy_stage_params import XYStageParams, load_params
 from microfab.sim.loop import LoopState, simulate
 
@@ -48,11 +48,9 @@ def limits() -> MachineLimits:
     return MachineLimits.seed002_stage()
 
 
-def _build(cfg: XYStageParams, **changes: Any) -> XYStagePlant:
-    return XYStagePlant(cfg.with_(**changes) if changes else cfg)
-
-
-_TWINS: TwinCache[XYStageParams, XYStagePlant] = TwinCache(load_params, _build, DATA_FILES[0])
+_TWINS: TwinCache[XYStageParams, XYStagePlant] = TwinCache(
+    load_params, lambda cfg, **s: xy_stage_twin(params=cfg, **s), DATA_FILES[0]
+)
 
 
 def twin(changes: tuple[tuple[str, Any], ...] = ()) -> XYStagePlant:

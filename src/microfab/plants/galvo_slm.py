@@ -315,7 +315,11 @@ class GalvoSLMPlant(LTIPlant, NoisyOutputs):
 
 
 def galvo_slm_twin(
-    path: str | os.PathLike[str] | None = None, *, mirror_mode: bool = False, **overrides: Any
+    path: str | os.PathLike[str] | None = None,
+    *,
+    params: GalvoSLMParams | None = None,
+    mirror_mode: bool = False,
+    **overrides: Any,
 ) -> GalvoSLMPlant:
     """The SLM galvo twin from the data file (default ``data/galvo_slm.toml``).
 
@@ -323,10 +327,13 @@ def galvo_slm_twin(
     ----------
     path : path-like, optional
         Another parameter file.
+    params : GalvoSLMParams, optional
+        Parameters already read (then ``path`` is not read); the machine modules pass
+        the ones they parsed once (`microfab.machines.twins`).
     mirror_mode : bool
         Add the lightly damped mirror mode (assumed 3 kHz, ζ 0.02).
     **overrides
         `GalvoSLMParams` fields to replace (validated; unknown names refused).
     """
-    cfg = load_params(path)
+    cfg = load_params(path) if params is None else params
     return GalvoSLMPlant(cfg.with_(**overrides) if overrides else cfg, mirror_mode=mirror_mode)

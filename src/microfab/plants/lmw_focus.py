@@ -478,7 +478,12 @@ class LMWFocus(CompiledPlant, NoisyOutputs):
         return discretize(sys, self.dt, "zoh")
 
 
-def lmw_focus_twin(path: str | os.PathLike[str] | None = None, **overrides: Any) -> LMWFocus:
+def lmw_focus_twin(
+    path: str | os.PathLike[str] | None = None,
+    *,
+    params: LMWFocusParams | None = None,
+    **overrides: Any,
+) -> LMWFocus:
     """The focus twin from the data file (default ``data/lmw_focus.toml``), with overrides."""
-    cfg = load_params(path)
+    cfg = load_params(path) if params is None else params
     return LMWFocus(cfg.with_(**overrides) if overrides else cfg)

@@ -396,7 +396,11 @@ class LMWStage(CompiledPlant, NoisyOutputs):
 
 
 def lmw_stage_twin(
-    path: str | os.PathLike[str] | None = None, *, ideal: bool = False, **overrides: Any
+    path: str | os.PathLike[str] | None = None,
+    *,
+    params: LMWStageParams | None = None,
+    ideal: bool = False,
+    **overrides: Any,
 ) -> LMWStage:
     """The stage twin from the data file, with validated ``overrides``.
 
@@ -404,6 +408,9 @@ def lmw_stage_twin(
     ----------
     path : path-like, optional
         Another parameter file (default ``data/lmw_stage.toml``).
+    params : LMWStageParams, optional
+        Parameters already read (then ``path`` is not read); the machine modules pass
+        the ones they parsed once (`microfab.machines.twins`).
     ideal : bool
         True turns every nonlinear part off (friction, cogging, cable, saturation,
         quantisation): the twin is then `LMWStage.linear_model` (to rounding).
@@ -411,7 +418,7 @@ def lmw_stage_twin(
         `LMWStageParams` fields to replace (after ``ideal``, so a switch may be turned on
         again).
     """
-    cfg = load_params(path)
+    cfg = load_params(path) if params is None else params
     if ideal:
         cfg = cfg.linear()
     return LMWStage(cfg.with_(**overrides) if overrides else cfg)

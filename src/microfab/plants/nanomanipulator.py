@@ -326,6 +326,7 @@ def nanomanipulator_twin(
     nonlinear: bool = True,
     disturbance: bool = True,
     path: str | os.PathLike[str] | None = None,
+    params: NanomanipulatorParams | None = None,
     **overrides: Any,
 ) -> NanomanipulatorPlant:
     """The twin from the data file, with validated ``overrides``.
@@ -340,10 +341,15 @@ def nanomanipulator_twin(
         False sets ``d(t) = 0``.
     path : path-like, optional
         Another parameter file (default ``data/nanomanipulator_twin.toml``).
+    params : NanomanipulatorParams, optional
+        Parameters already read (then ``path`` is not read); the machine module passes
+        the ones it parsed once (`microfab.machines.twins`).
     **overrides
         `NanomanipulatorParams` fields to replace (before ``nonlinear``, ``disturbance``).
     """
-    cfg = load_params(path).with_(disturbance_seed=seed, **overrides)
+    cfg = (load_params(path) if params is None else params).with_(
+        disturbance_seed=seed, **overrides
+    )
     if not nonlinear:
         cfg = cfg.linear()
     if not disturbance:

@@ -413,16 +413,24 @@ class XYStagePlant(CompiledPlant, NoisyOutputs):
         return s[np.argsort(np.abs(s))]
 
 
-def xy_stage_twin(path: str | os.PathLike[str] | None = None, **changes: Any) -> XYStagePlant:
+def xy_stage_twin(
+    path: str | os.PathLike[str] | None = None,
+    *,
+    params: XYStageParams | None = None,
+    **changes: Any,
+) -> XYStagePlant:
     """The XY stage twin from the data file, with validated ``changes``.
 
     Parameters
     ----------
     path : path-like, optional
         Another parameter file (default ``data/xy_stage_twin.toml``).
+    params : XYStageParams, optional
+        Parameters already read (then ``path`` is not read); the machine modules pass
+        the ones they parsed once (`microfab.machines.twins`).
     **changes
         `XYStageParams` fields to replace (unknown names refused), e.g.
         ``**dict.fromkeys(NONLINEAR, False)`` for the linear twin.
     """
-    cfg = load_params(path)
+    cfg = load_params(path) if params is None else params
     return XYStagePlant(cfg.with_(**changes) if changes else cfg)
