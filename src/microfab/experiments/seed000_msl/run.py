@@ -216,11 +216,12 @@ def run_msl_ilc(
 def _eq5(ilc: FrequencyILC, true_frf: Callable[[np.ndarray], np.ndarray]) -> list[np.ndarray]:
     """``|1 - rho P P^-1|`` at each learned harmonic, per axis (seed 000 eq. 5)."""
     f = ilc.harmonic_freq_hz
-    p = np.asarray(true_frf(f), dtype=complex).reshape(f.size, -1)
     st = ilc.state
-    return [
-        np.abs(1.0 - st.gain[h, a] * p[h, a] * st.pinv[h, a]) for a, h in enumerate(ilc.harmonics)
-    ]
+    out = []
+    for a, h in enumerate(ilc.harmonics):  # the learned bins only (not all N/2 + 1)
+        p = np.asarray(true_frf(f[h]), dtype=complex).reshape(h.size, -1)[:, a]
+        out.append(np.abs(1.0 - st.gain[h, a] * p * st.pinv[h, a]))
+    return out
 
 
 def reproduce_tables(
