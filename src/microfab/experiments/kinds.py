@@ -25,7 +25,6 @@ __all__ = [
     "Progress",
     "Reproduction",
     "ReproductionResult",
-    "data_file",
     "fingerprint_settings",
 ]
 
@@ -64,13 +63,6 @@ class KindResult(Protocol):
         ...
 
 
-def data_file(name: str) -> Path:
-    """The path of a packaged data file (``microfab/data/<name>``)."""
-    from importlib import resources
-
-    return Path(str(resources.files("microfab.data").joinpath(name)))
-
-
 def fingerprint_settings(
     kind: str,
     version: str,
@@ -80,6 +72,7 @@ def fingerprint_settings(
 ) -> dict[str, Any]:
     """Resolved settings, input and data-file digests of a run (see `JobKind.fingerprint`)."""
     from microfab.io.runstore import content_digest
+    from microfab.machines.twins import data_path
 
     out: dict[str, Any] = {"kind": kind, "version": version}
     for sec, body in sections.items():
@@ -91,7 +84,7 @@ def fingerprint_settings(
             if key.path and isinstance(value, str) and value and Path(value).exists():
                 out[f"input:{sec}.{key.name}"] = content_digest(value)
     for name in data_files:
-        out[f"data:{name}"] = content_digest(data_file(name))
+        out[f"data:{name}"] = content_digest(data_path(name))
     return out
 
 

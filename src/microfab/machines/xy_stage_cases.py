@@ -41,6 +41,7 @@ from microfab.trajectory.optimal import time_optimal
 __all__ = [
     "AIRFOIL_TIME_S",
     "CASES",
+    "DATA_FILES",
     "R_TIME_S",
     "CaseCommand",
     "CaseSizes",
@@ -54,6 +55,8 @@ AIRFOIL_TIME_S = 1.322  # seed 002 Table III: airfoil at a_max = 1 m/s² takes 1
 SIZE_A_MAX = 1.0  # seed 002 Table III: the a_max of both times above, m/s²
 #: The cases: the four letters (seed 002 §II-C) and the airfoil.
 CASES = (*SEED002_LETTERS, "airfoil")
+#: The packaged data the cases read (the airfoil coordinates).
+DATA_FILES = ("airfoils",)
 _N_GRID = 1000  # time_optimal grid nodes (issue 18: N = 1000 for a letter)
 
 

@@ -299,7 +299,7 @@ MSL_ILC = JobKind(
     run=_run,
     write_report=_write_report,
     default_title="Galvo MSL: feedback vs ILC",
-    data_files=("galvo_twin.toml",),
+    data_files=galvo_machine.DATA_FILES,
 )
 
 MSL_ILC_REPRODUCTION = Reproduction(
@@ -309,5 +309,5 @@ MSL_ILC_REPRODUCTION = Reproduction(
         Key(name="iterations", type="int", default=30, low=2, high=MAX_ITERATIONS),
         Key(name="seed", type="int", default=0, low=0, high=2**32 - 1),
     ),
-    data_files=("galvo_twin.toml",),
+    data_files=galvo_machine.DATA_FILES,
 )

@@ -45,6 +45,7 @@ from microfab.experiments.seed001_nanomanipulator.run import (
 )
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines import nanomanipulator
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
 
@@ -233,12 +234,12 @@ NANOMANIPULATOR_MSL = JobKind(
     run=_run,
     write_report=_write_report,
     default_title="Nanomanipulator MSL: RBF + plug-in RC, gated laser",
-    data_files=("nanomanipulator_twin.toml",),
+    data_files=nanomanipulator.DATA_FILES,
 )
 
 NANOMANIPULATOR_REPRODUCTION = Reproduction(
     name="nanomanipulator",
     run=_reproduce,
     options=(Key(name="seed", type="int", default=0, low=0, help="twin seed"),),
-    data_files=("nanomanipulator_twin.toml",),
+    data_files=nanomanipulator.DATA_FILES,
 )

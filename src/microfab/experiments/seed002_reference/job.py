@@ -33,6 +33,7 @@ from microfab.experiments.seed002_reference.study import (
 from microfab.experiments.seed002_reference.tables import comparison_tables
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines import xy_stage, xy_stage_cases
 from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_cases import CASES, CaseSizes
 from microfab.report.tables import Table
@@ -202,7 +203,7 @@ STAGE_REFERENCE_OPT = JobKind(
     run=_run,
     write_report=_write_report,
     default_title="Black-box XY stage: optimised references",
-    data_files=("xy_stage_twin.toml", "airfoils"),
+    data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES,
 )
 
 REFERENCE_OPT_REPRODUCTION = Reproduction(
@@ -218,6 +219,6 @@ REFERENCE_OPT_REPRODUCTION = Reproduction(
         Key(name="checkpoints", type="str", default="",
             help="folder for the points and stage-2 checkpoints, so a rerun resumes"),
     ),
-    data_files=("xy_stage_twin.toml", "airfoils"),
+    data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES,
     run_folder_option="checkpoints",
 )  # fmt: skip

@@ -40,6 +40,7 @@ from microfab.experiments.seed002_stage.study import (
 from microfab.experiments.seed002_stage.tables import comparison_tables
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines import xy_stage, xy_stage_cases
 from microfab.machines.xy_stage import TwinSettings
 from microfab.report.tables import Table
 
@@ -274,7 +275,7 @@ STAGE_IDENTIFY = JobKind(
     run=_run,
     write_report=_write_report,
     default_title="Black-box XY stage: linear and neural-network models",
-    data_files=("xy_stage_twin.toml", "airfoils"),
+    data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES,
 )
 
 STAGE_MODELS_REPRODUCTION = Reproduction(
@@ -292,6 +293,6 @@ STAGE_MODELS_REPRODUCTION = Reproduction(
         Key(name="checkpoints", type="str", default="",
             help="folder for training checkpoints, so a rerun resumes (default: none)"),
     ),
-    data_files=("xy_stage_twin.toml", "airfoils"),
+    data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES,
     run_folder_option="checkpoints",
 )  # fmt: skip

@@ -45,6 +45,7 @@ from microfab.experiments.seed003_slm.tables import NOTES, run_summary, scan_tab
 from microfab.identify.chirp import ChirpDesign
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines import slm_galvo
 from microfab.process.slm.estimate import SettleTolerance
 from microfab.process.slm.timing import TICK_S, RTCDelays, RTCSettings, ScanSpeeds
 
@@ -305,7 +306,7 @@ SLM_SHAPING = JobKind(
     run=_run,
     write_report=_write_report,
     default_title="SLM galvo scanner: identification, input shaping and scan time",
-    data_files=("galvo_slm.toml",),
+    data_files=slm_galvo.DATA_FILES,
 )
 
 SLM_SHAPER_REPRODUCTION = Reproduction(
@@ -315,5 +316,5 @@ SLM_SHAPER_REPRODUCTION = Reproduction(
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),
         Key(name="noise", type="bool", default=True, help="0.3 bit output noise on"),
     ),
-    data_files=("galvo_slm.toml",),
+    data_files=slm_galvo.DATA_FILES,
 )

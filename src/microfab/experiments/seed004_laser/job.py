@@ -51,6 +51,7 @@ from microfab.experiments.seed004_laser.run import (
 from microfab.experiments.sweep import run_sweep
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines import laser_stage
 from microfab.report.tables import Table, versus
 
 __all__ = [
@@ -365,12 +366,12 @@ LASER_MICROMACHINING = JobKind(
     run=_run,
     write_report=_write_report,
     default_title="Laser micromachining stage: preview + DOB with contour compensation",
-    data_files=("lmw_stage.toml", "lmw_focus.toml"),
+    data_files=laser_stage.DATA_FILES,
 )
 
 LASER_REPRODUCTION = Reproduction(
     name="laser-micromachining",
     run=_reproduce,
     options=(Key(name="seed", type="int", default=0, low=0, help="twin noise seed"),),
-    data_files=("lmw_stage.toml", "lmw_focus.toml"),
+    data_files=laser_stage.DATA_FILES,
 )
