@@ -19,7 +19,7 @@ from typing import Any
 
 from _timing import timed
 
-from microfab.experiments.sweep import grid, run_sweep
+from microfab.io.sweep import grid, run_sweep
 
 WORKERS = 2
 

@@ -14,7 +14,7 @@ from microfab.experiments.seed003_inkjet.job import (
     breakup_tables,
 )
 from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint
-from microfab.experiments.sweep import SweepResult
+from microfab.io.sweep import SweepResult
 from microfab.io.job import JobFileError
 
 EXAMPLES = Path(__file__).parents[3] / "examples"

@@ -13,7 +13,7 @@ from microfab.experiments.seed003_inkjet.sweep import (
     droplet_sweep,
     sweep_points,
 )
-from microfab.experiments.sweep import SweepError, load_results
+from microfab.io.sweep import SweepError, load_results
 
 cloudpickle = pytest.importorskip("cloudpickle")
 # The stand-in simulation below travels to the worker processes by value (this test

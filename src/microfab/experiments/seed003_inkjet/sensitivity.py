@@ -16,7 +16,7 @@ assumption:
 * density ρ (×0.99, ×1.01: a partial specific volume between 0.5 and 0.7 mL/g);
 * FENE-P extensibility L² (×0.5, ×1.5: 50 to 150, the estimate's range).
 
-Each run is one point of the project's sweep runner (:func:`microfab.experiments.sweep.run_sweep`),
+Each run is one point of the project's sweep runner (:func:`microfab.io.sweep.run_sweep`),
 saved atomically as it finishes, so an interrupted study resumes.
 """
 
@@ -30,7 +30,7 @@ from typing import Any
 
 from microfab.experiments.seed003_inkjet.paper import FIG4_VOLTAGE_V
 from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
-from microfab.experiments.sweep import SweepResult, run_sweep
+from microfab.io.sweep import SweepResult, run_sweep
 
 __all__ = [
     "FACTORS",
@@ -147,7 +147,7 @@ def sensitivity_study(
     workers : int, optional
         Local Dask worker processes (1: in this process).
     raise_on_failure : bool, optional
-        Raise `microfab.experiments.sweep.SweepError` if a point failed (default), or
+        Raise `microfab.io.sweep.SweepError` if a point failed (default), or
         return the failures in the result.
 
     Returns

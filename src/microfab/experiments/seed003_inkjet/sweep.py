@@ -4,7 +4,7 @@ A sweep runs :func:`microfab.process.inkjet.droplet.simulate_droplet` once per p
 the six NaAlg concentrations of seed 003 part 1
 (``../shared/seeds/003_4915b267b12a78d4.txt``, "Materials") at 50 V (its Fig. 4), and the
 Table 1 voltages 40-70 V at one concentration (numbers in :mod:`.paper`). The points run
-on the project's generic runner, :func:`microfab.experiments.sweep.run_sweep`: in this
+on the project's generic runner, :func:`microfab.io.sweep.run_sweep`: in this
 process, on a local Dask cluster of worker processes, or on a running Dask scheduler.
 Every finished point is saved at once (atomically) in the results directory, and a sweep
 started again with the same directory and settings skips the points already there, so
@@ -27,7 +27,7 @@ from microfab.experiments.seed003_inkjet.paper import (
     SEED_CONCENTRATIONS_PCT,
     SEED_VOLTAGES_V,
 )
-from microfab.experiments.sweep import SweepResult, run_sweep
+from microfab.io.sweep import SweepResult, run_sweep
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -237,7 +237,7 @@ def droplet_sweep(
     settings : DropletSettings, optional
         Shared by every point; default ``DropletSettings()``.
     results_dir : str or Path, optional
-        Folder of the saved points (:mod:`microfab.experiments.sweep`); a rerun with the
+        Folder of the saved points (:mod:`microfab.io.sweep`); a rerun with the
         same settings skips the points found there, one with other settings is refused.
     simulate : callable, optional
         ``(point, settings) -> summary dict``; default :func:`simulate_point`. Off the
@@ -251,7 +251,7 @@ def droplet_sweep(
     client : distributed.Client, optional
         A Dask client to run on (left open).
     raise_on_failure : bool, optional
-        Raise `microfab.experiments.sweep.SweepError` if a point failed (default), or
+        Raise `microfab.io.sweep.SweepError` if a point failed (default), or
         return the failures in the result.
 
     Returns
@@ -263,7 +263,7 @@ def droplet_sweep(
     ------
     ValueError
         ``workers < 1``, or ``results_dir`` holds a sweep with other settings.
-    microfab.experiments.sweep.SweepError
+    microfab.io.sweep.SweepError
         A point failed (the others are saved; a rerun retries it).
     """
     settings = settings or DropletSettings()

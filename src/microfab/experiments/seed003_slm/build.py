@@ -6,7 +6,7 @@ of `microfab.process.slm.lattice` (simple cubic, strut 250 µm, 5 % volume fract
 disc of `reproduce`'s lattice layer, each layer's section at its own height and its hatch
 turned by a fixed angle per layer (`BuildSettings`).
 
-Each layer is one point (`BuildLayer`) of `microfab.experiments.sweep.run_sweep`: in this
+Each layer is one point (`BuildLayer`) of `microfab.io.sweep.run_sweep`: in this
 process (``workers=1``), on a local Dask cluster of ``workers`` processes, or on a running
 cluster (``scheduler``); each layer's row is saved as it finishes under ``results_dir`` and
 a rerun skips the finished layers (`run_build`). Per layer (`layer_task`), on the SLM galvo
@@ -42,7 +42,7 @@ import numpy as np
 
 from microfab.control.shaping import InverseShaperConfig, design_inverse_shaper
 from microfab.core.validate import check_finite, check_int, check_positive
-from microfab.experiments.sweep import run_sweep
+from microfab.io.sweep import run_sweep
 from microfab.machines import slm_galvo
 from microfab.plants.lti import DiscreteLTI
 from microfab.process.slm.estimate import (
@@ -476,7 +476,7 @@ def run_build(
     settings : BuildSettings
         The build.
     results_dir : Path, optional
-        Where each layer's row is saved and resumed from (`microfab.experiments.sweep`):
+        Where each layer's row is saved and resumed from (`microfab.io.sweep`):
         a rerun skips the finished layers, and may add layers (``n_layers`` is not part of
         the saved settings); a directory holding a build with other settings is refused.
     workers : int

@@ -18,7 +18,7 @@ One run is the seed's procedure, end to end, on the twin (`microfab.plants.galvo
 
 The side-by-side comparison of shapers (`compare`) and the whole build (`build`) are
 optional parts, run by the job (`job.py`). Every part is seconds long; only the build is
-long, and it is resumable (`microfab.experiments.sweep.run_sweep`).
+long, and it is resumable (`microfab.io.sweep.run_sweep`).
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ Job file (``examples/laser_micromachining.toml``)::
 
 Every key, its unit and its range is in `SCHEMA`; unknown keys are refused. The speed
 sweep saves each point atomically under ``OUT/sweep/`` and skips finished points when the
-job runs again (`microfab.experiments.sweep.run_sweep`); the single runs are seconds long
+job runs again (`microfab.io.sweep.run_sweep`); the single runs are seconds long
 and are simply repeated.
 """
 
@@ -48,7 +48,7 @@ from microfab.experiments.seed004_laser.run import (
     make_stage,
     run_contour,
 )
-from microfab.experiments.sweep import run_sweep
+from microfab.io.sweep import run_sweep
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import laser_stage

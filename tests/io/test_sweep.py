@@ -17,7 +17,7 @@ import cloudpickle
 import numpy as np
 import pytest
 
-from microfab.experiments.sweep import (
+from microfab.io.sweep import (
     SweepError,
     SweepResult,
     grid,
