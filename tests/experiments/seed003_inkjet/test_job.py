@@ -14,8 +14,8 @@ from microfab.experiments.seed003_inkjet.job import (
     breakup_tables,
 )
 from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint
-from microfab.io.sweep import SweepResult
 from microfab.io.job import JobFileError
+from microfab.io.sweep import SweepResult
 
 EXAMPLES = Path(__file__).parents[3] / "examples"
 

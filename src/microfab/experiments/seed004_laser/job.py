@@ -48,9 +48,9 @@ from microfab.experiments.seed004_laser.run import (
     make_stage,
     run_contour,
 )
-from microfab.io.sweep import run_sweep
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.io.sweep import run_sweep
 from microfab.machines import laser_stage
 from microfab.report.tables import Table, versus
 
