@@ -207,7 +207,7 @@ def test_refusals_are_one_line_and_write_nothing(tmp_path: Path) -> None:
     _refused(tmp_path, trial, says=("differs from the first trial's contour", "uncorrected"))
     (tmp_path / "state" / STATE_FILE).write_bytes(b"not an npz")
     _write_trial(trial, pos, y2)
-    _refused(tmp_path, trial, says=("cannot read RC state",))
+    _refused(tmp_path, trial, says=("not a readable RC state",))
 
 
 def test_mid_period_simulated_state_is_refused(tmp_path: Path) -> None:

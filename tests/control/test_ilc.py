@@ -387,7 +387,7 @@ def test_a_meta_array_missing_from_the_file_is_refused(ref_1k, tmp_path):
     with np.load(tmp_path / STATE_FILE) as z:
         data = {k: z[k] for k in z.files if not k.startswith("meta_array_")}
     np.savez(tmp_path / STATE_FILE, **data)
-    with pytest.raises(ValueError, match=r"cannot read.*lacks"):
+    with pytest.raises(ValueError, match=r"ILC state without member"):
         FrequencyILC.load(tmp_path)
 
 
@@ -396,7 +396,10 @@ def test_load_errors(tmp_path):
     with pytest.raises(FileNotFoundError):
         FrequencyILC.load(tmp_path)
     (tmp_path / STATE_FILE).write_bytes(b"not an npz file")
-    with pytest.raises(ValueError, match="cannot read"):
+    with pytest.raises(ValueError, match="not a readable ILC state file"):
+        FrequencyILC.load(tmp_path)
+    (tmp_path / STATE_FILE).write_bytes(b"")
+    with pytest.raises(ValueError, match="ILC state file is empty"):
         FrequencyILC.load(tmp_path)
 
 

@@ -234,7 +234,7 @@ def test_saved_state_is_checked(tmp_path):
         PluginRC(lti, cfg, n_axes=2).load_state(path)
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"not an npz")
-    with pytest.raises(ValueError, match="cannot read RC state"):
+    with pytest.raises(ValueError, match="not a readable RC state"):
         RCMemory.load(bad)
     with pytest.raises(FileNotFoundError, match="no RC state"):
         RCMemory.load(tmp_path / "missing.npz")

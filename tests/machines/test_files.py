@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import microfab.control.ilc as ilc_mod
+import microfab.io.checkpoint as checkpoint_mod
 from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
 from microfab.core.limits import AxisLimits, LimitViolation
 from microfab.io.trace import read_columns, write_columns
@@ -268,7 +268,7 @@ def test_interrupted_state_write_is_recoverable(tmp_path, ref, monkeypatch):
         raise OSError("disk full (simulated)")
 
     with monkeypatch.context() as mp:
-        mp.setattr(ilc_mod, "atomic_save_npz", broken)
+        mp.setattr(checkpoint_mod, "atomic_save_npz", broken)
         with pytest.raises(OSError, match="disk full"):
             ilc_step(t2, b_state, b_next)
     assert calls, "the patched writer was not used"

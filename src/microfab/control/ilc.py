@@ -39,7 +39,6 @@ to 4 % at 100 features/s).
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -48,7 +47,7 @@ from typing import Literal
 import numpy as np
 
 from microfab.core.validate import check_in_range, check_nonnegative, check_positive
-from microfab.io.atomic import atomic_save_npz
+from microfab.io.checkpoint import StateFileError, read_state, save_state
 
 __all__ = ["ConvergenceError", "FrequencyILC", "ILCConfig", "Trial"]
 
@@ -57,6 +56,8 @@ STATE_FILE = "ilc_state.npz"
 #: Format 4: arrays in ``meta`` (the learning loop's signals) are archive members, not
 #: JSON lists.
 STATE_VERSION = 4
+#: What `microfab.io.checkpoint` calls an ILC state file.
+STATE_KIND = "ILC state"
 #: Key of the placeholder that stands for an array of ``meta`` in the saved JSON.
 _ARRAY_KEY = "__array__"
 
@@ -564,7 +565,6 @@ class FrequencyILC:
             st.meta.update(extra)
         meta_arrays: dict[str, np.ndarray] = {}
         meta = {
-            "version": STATE_VERSION,
             "iteration": st.iteration,
             "dt": st.dt,
             "axes": list(st.axes),
@@ -590,9 +590,13 @@ class FrequencyILC:
         if st.model_frf is not None:
             arrays["model_frf"] = st.model_frf
         arrays.update(meta_arrays)
-        path = Path(directory) / STATE_FILE
-        atomic_save_npz(path, meta=np.array(json.dumps(meta)), **arrays)
-        return path
+        return save_state(
+            Path(directory) / STATE_FILE,
+            kind=STATE_KIND,
+            version=STATE_VERSION,
+            arrays=arrays,
+            meta=meta,
+        )
 
     @classmethod
     def exists(cls, directory: str | Path) -> bool:
@@ -611,22 +615,25 @@ class FrequencyILC:
             The state file is unreadable.
         """
         path = Path(directory) / STATE_FILE
-        if not path.is_file():
+        saved = read_state(
+            path,
+            kind=STATE_KIND,
+            versions=(1, 2, 3, STATE_VERSION),
+            fix="finish that run with the microfab that wrote it, or start a new state "
+            "directory (--fresh)",
+        )
+        if saved is None:
             raise FileNotFoundError(f"no ILC state in {directory} (expected {STATE_FILE})")
+        meta, data = saved.meta, saved.arrays
+        missing = [k for k in ("dt", "axes", "config", "iteration") if k not in meta]
+        needed = ("reference", "inputs", "pinv", "mask", "rms", "pp")
+        missing += [k for k in needed if k not in data]
+        if missing:
+            raise StateFileError(f"{path}: an ILC state without {missing}; remove it")
         try:
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                data = {k: z[k] for k in z.files if k != "meta"}
             user_meta = _arrays_in(meta.get("meta", {}), data)
-        except (OSError, ValueError, KeyError) as exc:
-            raise ValueError(f"cannot read ILC state {path}: {exc}") from exc
-        version = meta.get("version", 1)
-        if version not in (1, 2, 3, STATE_VERSION):
-            raise ValueError(
-                f"ILC state {path} has format version {version}; this microfab reads "
-                f"{STATE_VERSION}: finish that run with the microfab that wrote it, or start "
-                "a new state directory"
-            )
+        except KeyError as exc:
+            raise StateFileError(f"{path}: an ILC state without member {exc}; remove it") from None
         obj = cls(
             data["reference"],
             meta["dt"],

@@ -6,7 +6,6 @@ and the file-based step on hardware.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,13 +13,16 @@ import numpy as np
 
 from microfab.control.rc_law import RCConfig, rc_update
 from microfab.core.validate import check_int
-from microfab.io.atomic import atomic_save_npz
+from microfab.io.checkpoint import read_state, save_state
 
-__all__ = ["RC_FORMAT", "RC_VERSION", "RCMemory"]
+__all__ = ["RC_FORMAT", "RC_KIND", "RC_VERSION", "RCMemory"]
 
 RC_FORMAT = "microfab-plugin-rc"
 #: Version of the saved RC state (`RCMemory.save`); `RCMemory.load` refuses another.
 RC_VERSION = 1
+#: What `microfab.io.checkpoint` calls the file (files of version 1 written before the
+#: run store have no kind, only ``"format": RC_FORMAT`` in their metadata).
+RC_KIND = "RC state"
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -111,22 +113,18 @@ class RCMemory:
 
     def save(self, path: str | Path) -> Path:
         """Write to ``path`` (an ``.npz``) atomically; returns the path."""
-        meta = {
-            "format": RC_FORMAT,
-            "version": RC_VERSION,
-            "config": self.config.to_json(),
-            "samples": self.samples,
-        }
-        target = Path(path)
-        atomic_save_npz(
-            target,
-            meta=np.array(json.dumps(meta)),
-            memory=self.memory,
-            error=self.error,
-            error_current=self.error_current,
-            inner=self.inner,
+        return save_state(
+            path,
+            kind=RC_KIND,
+            version=RC_VERSION,
+            arrays={
+                "memory": self.memory,
+                "error": self.error,
+                "error_current": self.error_current,
+                "inner": self.inner,
+            },
+            meta={"config": self.config.to_json(), "samples": self.samples},
         )
-        return target
 
     @classmethod
     def load(cls, path: str | Path) -> RCMemory:
@@ -137,26 +135,16 @@ class RCMemory:
         FileNotFoundError
             No file at ``path``.
         ValueError
-            Unreadable, of another format or version, or inconsistent.
+            Unreadable (`microfab.io.checkpoint.StateFileError`), of another kind or
+            version (`microfab.io.runstore.RunRefusedError`), or inconsistent.
         """
         p = Path(path)
-        if not p.is_file():
+        saved = read_state(p, kind=RC_KIND, versions=(RC_VERSION,), fix="start a new state")
+        if saved is None:
             raise FileNotFoundError(f"no RC state at {p}")
         try:
-            with np.load(p, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                arrays = {k: np.array(z[k]) for k in ("memory", "error", "error_current", "inner")}
-        except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
-            raise ValueError(f"cannot read RC state {p}: {exc}") from exc
-        if not isinstance(meta, dict) or meta.get("format") != RC_FORMAT:
-            raise ValueError(f"{p} is not a microfab RC state (format {RC_FORMAT!r})")
-        if meta.get("version") != RC_VERSION:
-            raise ValueError(
-                f"RC state {p} has format version {meta.get('version')}; this microfab "
-                f"reads {RC_VERSION}: start a new state"
-            )
-        try:
-            config = RCConfig.from_json(meta["config"])
-            return cls(config=config, samples=int(meta["samples"]), **arrays)
+            arrays = {k: saved.arrays[k] for k in ("memory", "error", "error_current", "inner")}
+            config = RCConfig.from_json(saved.meta["config"])
+            return cls(config=config, samples=int(saved.meta["samples"]), **arrays)
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"RC state {p} is inconsistent: {exc}") from exc

@@ -49,6 +49,7 @@ __all__ = [
     "STORE_FORMAT",
     "RunRefusedError",
     "RunStore",
+    "canonical_settings",
     "check_run",
     "content_digest",
     "open_run",
@@ -127,6 +128,18 @@ def _canonical(value: Any) -> Any:
     if value is None or isinstance(value, bool | int | float | str):
         return value
     return repr(value)
+
+
+def canonical_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """Settings as they compare after a JSON write and read (paths as text, NaN as text).
+
+    Parameters
+    ----------
+    settings : mapping of str to value
+        Setting name -> value (JSON values, paths, NumPy scalars; anything else is
+        compared by its ``repr``).
+    """
+    return {str(k): _canonical(v) for k, v in settings.items()}
 
 
 def _shown(value: Any) -> str:
