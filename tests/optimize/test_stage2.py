@@ -69,8 +69,12 @@ def test_checkpoint_resumes_to_the_same_result(case, tmp_path):
 def test_checkpoint_of_other_inputs_refused(case, tmp_path):
     ck = str(tmp_path / "s2.npz")
     run(case, settings=Stage2Settings(max_iter=1), checkpoint=ck)
-    with pytest.raises(ValueError, match="other inputs or settings"):
+    with pytest.raises(ValueError, match=r"stage-2 iterate of other settings: penalty \S+ -> 500"):
         run(case, settings=Stage2Settings(max_iter=1, penalty=500.0), checkpoint=ck)
+    data = (tmp_path / "s2.npz").read_bytes()
+    (tmp_path / "s2.npz").write_bytes(data[: len(data) // 2])  # cut short by a full disk
+    with pytest.raises(ValueError, match="not a readable stage-2 iterate file"):
+        run(case, settings=Stage2Settings(max_iter=1), checkpoint=ck)
 
 
 def test_axis_norm_runs(case):

@@ -43,13 +43,13 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from microfab.core.limits import MachineLimits
+from microfab.io.checkpoint import read_state, save_state
 from microfab.optimize.ann_torch import NetworkMap
 from microfab.optimize.command import input_bounds
 
@@ -336,11 +336,11 @@ def solve_stage2(
     from microfab.optimize.stage2_qp import Subproblem
 
     qp = Subproblem(pb, st, _diff_ops(pb.m), [_rest_terms(pb.m, float(x)) for x in pb.rest])
-    key = fingerprint(target, r_init, np.asarray(rest, dtype=float),
-                      {**{k: v for k, v in asdict(st).items() if k not in _NOT_FINGERPRINTED},
-                       "mu": tolerance_m, "v": v_max, "a": a_max,
-                       "ws": limits.workspace, "acc": limits.acceleration,
-                       "vel": limits.velocity})  # fmt: skip
+    key = {"inputs": fingerprint(target, r_init, np.asarray(rest, dtype=float), {}),
+           **{k: v for k, v in asdict(st).items() if k not in _NOT_FINGERPRINTED},
+           "tolerance_m": tolerance_m, "v_max": v_max, "a_max": a_max,
+           "limits.workspace": limits.workspace, "limits.acceleration": limits.acceleration,
+           "limits.velocity": limits.velocity}  # fmt: skip
     state = _load(checkpoint, key)
     if state is None:
         r = qp.project(r_init.T.ravel() * _UM)  # the nearest input within the command bounds
@@ -436,33 +436,36 @@ def jacobian_band(jac: sp.spmatrix, m: int, mass: float) -> int:
     return int(np.searchsorted(cum, mass) + 1)
 
 
-def _load(path: str | None, key: str) -> tuple[np.ndarray, float, int, list, int | None] | None:
-    if path is None or not Path(path).is_file():
+#: The stage-2 checkpoint as `microfab.io.checkpoint` knows it (format 2: the run store's
+#: state file, every setting named; format 1 kept one digest of everything).
+_KIND, _VERSION = "stage-2 iterate", 2
+
+
+def _load(
+    path: str | None, key: dict[str, Any]
+) -> tuple[np.ndarray, float, int, list, int | None] | None:
+    if path is None:
         return None
+    saved = read_state(path, kind=_KIND, versions=(_VERSION,), settings=key,
+                       fix="remove it, or rerun with --fresh, to start afresh")  # fmt: skip
+    if saved is None:
+        return None
+    z, meta = saved.arrays, saved.meta
     try:
-        with np.load(path) as z:
-            saved = str(z["fingerprint"])
-            if saved != key:
-                raise ValueError(
-                    f"{path}: a stage-2 checkpoint of other inputs or settings; remove it to "
-                    "start afresh"
-                )
-            hist = [tuple(row) for row in z["history"].tolist()]
-            band = int(z["band"])
-            return (np.array(z["r"]), float(z["trust"]), int(z["iteration"]), hist,
-                    None if band < 0 else band)  # fmt: skip
-    except (OSError, KeyError) as exc:
-        raise ValueError(f"{path}: unreadable stage-2 checkpoint ({exc}); remove it") from None
+        hist = [tuple(row) for row in z["history"].tolist()]
+        band = meta["band"]
+        return (np.array(z["r"]), float(meta["trust"]), int(meta["iteration"]), hist,
+                None if band is None else int(band))  # fmt: skip
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: an incomplete stage-2 checkpoint ({exc}); remove it") from None
 
 
 def _save(
-    path: str | None, key: str, r: np.ndarray, trust: float, it: int, hist: list,
+    path: str | None, key: dict[str, Any], r: np.ndarray, trust: float, it: int, hist: list,
     band: int | None,
 ) -> None:  # fmt: skip
     if path is None:
         return
-    from microfab.io.atomic import atomic_save_npz
-
-    atomic_save_npz(path, fingerprint=np.array(key), r=r, trust=np.array(trust),
-                    iteration=np.array(it), history=np.array(hist, dtype=float),
-                    band=np.array(-1 if band is None else band))  # fmt: skip
+    save_state(path, kind=_KIND, version=_VERSION, settings=key,
+               arrays={"r": r, "history": np.array(hist, dtype=float)},
+               meta={"trust": float(trust), "iteration": int(it), "band": band})  # fmt: skip
