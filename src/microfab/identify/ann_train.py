@@ -17,7 +17,6 @@ imports them (the model module does not import this one).
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -38,12 +37,13 @@ from microfab.identify.ann import (
     build_network,
 )
 from microfab.identify.ann_data import AXES, Run, Scaling, WindowSet, data_digest
-from microfab.io.atomic import atomic_save_npz
+from microfab.io.checkpoint import read_state, save_state
+from microfab.io.runstore import RunRefusedError
 
 __all__ = ["CheckpointMismatchError", "EpochRecord", "train_ann"]
 
 
-class CheckpointMismatchError(ValueError):
+class CheckpointMismatchError(RunRefusedError):
     """A checkpoint was written for another configuration, data set or format version."""
 
 
@@ -87,37 +87,44 @@ def _state_arrays(prefix: str, state: dict[str, torch.Tensor]) -> dict[str, np.n
     return {f"{prefix}.{k}": v.detach().cpu().numpy().copy() for k, v in state.items()}
 
 
-def _save_checkpoint(path: Path, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-    blob = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-    atomic_save_npz(path, meta=blob, **arrays)
+#: What `microfab.io.checkpoint` calls a network's training checkpoint.
+_KIND = "network checkpoint"
+_FIX = "pass restart=True or use another checkpoint directory"
 
 
-def _load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k].copy() for k in z.files}
-    meta = json.loads(arrays.pop("meta").tobytes().decode())
-    return meta, arrays
-
-
-def _differences(there: dict[str, Any], here: dict[str, Any], prefix: str = "") -> list[str]:
-    out = []
-    for k in sorted(set(there) | set(here)):
-        a, b = there.get(k), here.get(k)
-        if isinstance(a, dict) and isinstance(b, dict):
-            out += _differences(a, b, f"{prefix}{k}.")
-        elif a != b:
-            out.append(f"{prefix}{k} {a!r} there, {b!r} here")
+def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested settings as dotted names (``config.window.h``), so a refusal names the leaf."""
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
     return out
 
 
-def _check_checkpoint(path: Path, meta: dict[str, Any], expect: dict[str, Any]) -> None:
-    diffs = _differences({k: meta.get(k) for k in expect}, {k: expect[k] for k in expect})
-    if diffs:
-        shown = "; ".join(d if len(d) < 200 else d[:200] + "..." for d in diffs)
-        raise CheckpointMismatchError(
-            f"{path}: checkpoint of another training: {shown}; pass restart=True or use "
-            f"another checkpoint directory"
-        )
+def _settings(expect: dict[str, Any]) -> dict[str, Any]:
+    return _flat({k: v for k, v in expect.items() if k != "format_version"})
+
+
+def _save_checkpoint(
+    path: Path, expect: dict[str, Any], meta: dict[str, Any], arrays: dict[str, np.ndarray]
+) -> None:
+    save_state(path, kind=_KIND, version=FORMAT_VERSION, settings=_settings(expect),
+               arrays=arrays, meta=meta)  # fmt: skip
+
+
+def _load_checkpoint(
+    path: Path, expect: dict[str, Any]
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    try:
+        saved = read_state(path, kind=_KIND, versions=(FORMAT_VERSION,),
+                           settings=_settings(expect), fix=_FIX)  # fmt: skip
+    except RunRefusedError as exc:
+        raise CheckpointMismatchError(str(exc)) from None
+    if saved is None:
+        raise FileNotFoundError(path)
+    return saved.meta, saved.arrays
 
 
 # --- training ----------------------------------------------------------------------------
@@ -216,8 +223,7 @@ def _train_axis(
     }
     best_state: dict[str, torch.Tensor] | None = None
     if path is not None and path.exists() and not restart:
-        meta, arrays = _load_checkpoint(path)
-        _check_checkpoint(path, meta, expect)
+        meta, arrays = _load_checkpoint(path, expect)
         scaling = Scaling.from_dict(meta["scaling"])
         net.load_state_dict(_tensors(arrays, "w", device))
         best_state = _tensors(arrays, "best", device)
@@ -404,11 +410,10 @@ def _write_checkpoint(
     for i, s in osd["state"].items():
         arrays.update(_state_arrays(f"adam.{i}", s))
     arrays["torch_rng"] = torch.get_rng_state().numpy().copy()
-    meta = dict(expect)
-    meta.update(
+    meta = dict(
         state=st,
         scaling=scaling.as_dict(),
         adam_groups=osd["param_groups"],
         scheduler=sched.state_dict(),
     )
-    _save_checkpoint(path, meta, arrays)
+    _save_checkpoint(path, expect, meta, arrays)

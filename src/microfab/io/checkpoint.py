@@ -49,6 +49,8 @@ __all__ = ["StateFile", "StateFileError", "read_state", "save_state"]
 #: The archive member holding the JSON metadata.
 META = "meta"
 _RESERVED = ("kind", "version", "settings")
+#: How many differing settings a refusal names (the first one first).
+_SHOWN = 3
 #: What a state file that cannot be read may raise while it is read (a truncated archive
 #: raises `zipfile.BadZipFile` or `EOFError`, a damaged member `zlib.error`).
 _UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
@@ -217,5 +219,8 @@ def read_state(
     if settings is not None:
         diff = settings_difference(saved_settings or {}, canonical_settings(settings))
         if diff:
-            raise RunRefusedError(f"{p}: a {kind} of other settings: {diff[0]}; {fix}")
+            shown = ", ".join(diff[:_SHOWN]) + (
+                f" (and {len(diff) - _SHOWN} more)" if len(diff) > _SHOWN else ""
+            )
+            raise RunRefusedError(f"{p}: a {kind} of other settings: {shown}; {fix}")
     return StateFile(path=p, kind=kind, version=int(version), meta=doc, arrays=arrays)
