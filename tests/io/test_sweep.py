@@ -154,12 +154,16 @@ def test_other_settings_refused_naming_the_difference(tmp_path: Path) -> None:
     with pytest.raises(ValueError) as err:
         run_sweep(task, pts(1), results_dir=tmp_path, settings={"duration_s": 2e-4, "n": 2})
     msg = str(err.value)
-    assert "duration_s: saved 0.0001, now 0.0002" in msg
-    assert "n:" not in msg
+    assert "holds a sweep of other settings: duration_s 0.0001 -> 0.0002;" in msg
+    assert " n " not in msg
     assert "another results directory" in msg and f"remove {tmp_path}" in msg
     assert task.ran == []
-    with pytest.raises(ValueError, match=r"n: saved 2, now '\(not set\)'"):
+    with pytest.raises(ValueError, match=r"n 2 -> \(absent\)"):
         run_sweep(task, pts(1), results_dir=tmp_path, settings={"duration_s": 1e-4})
+    (tmp_path / "settings.json").write_text('{"format": 1, "sett')  # cut short
+    with pytest.raises(ValueError, match="not a readable sweep settings file"):
+        run_sweep(task, pts(1), results_dir=tmp_path, settings={"duration_s": 1e-4})
+    assert task.ran == []
 
 
 def test_failing_point_isolated_others_saved_then_retried(tmp_path: Path) -> None:

@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 from microfab.io.atomic import atomic_write_json
+from microfab.io.runstore import RunRefusedError, canonical_settings, settings_difference
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -203,18 +204,20 @@ def _open_dir(path: Path, settings: dict[str, Any], fields: list[dict[str, Any]]
     meta = path / "settings.json"
     known: list[dict[str, Any]] = []
     if meta.exists():
-        saved = json.loads(meta.read_text(encoding="utf-8"))
+        try:
+            saved = json.loads(meta.read_text(encoding="utf-8"))
+            saved["points"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise RunRefusedError(
+                f"{meta}: not a readable sweep settings file ({exc}); use another results "
+                f"directory, or remove {path} to start over"
+            ) from None
         old = {"(file format)": saved.get("format"), **saved.get("settings", {})}
-        new = {"(file format)": _FORMAT, **settings}
-        if old != new:
-            unset = "(not set)"
-            diff = "; ".join(
-                f"{k}: saved {old.get(k, unset)!r}, now {new.get(k, unset)!r}"
-                for k in dict.fromkeys([*old, *new])
-                if old.get(k, unset) != new.get(k, unset)
-            )
-            raise ValueError(
-                f"{path} holds a sweep with other settings ({diff}); "
+        new = canonical_settings({"(file format)": _FORMAT, **settings})
+        diff = settings_difference(old, new)
+        if diff:
+            raise RunRefusedError(
+                f"{path} holds a sweep of other settings: {', '.join(diff[:3])}; "
                 f"use another results directory, or remove {path} to start over"
             )
         known = saved["points"]

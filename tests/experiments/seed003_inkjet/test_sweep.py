@@ -63,7 +63,7 @@ def test_sweep_saves_each_point_and_resumes(tmp_path: Path) -> None:
 
 def test_sweep_refuses_a_folder_with_other_settings(tmp_path: Path) -> None:
     droplet_sweep([SweepPoint(1.0, 50.0)], results_dir=tmp_path, simulate=_fake([]))
-    with pytest.raises(ValueError, match=r"duration_s: saved 0.0004, now 0.0001"):
+    with pytest.raises(ValueError, match=r"duration_s 0.0004 -> 0.0001"):
         droplet_sweep(
             [SweepPoint(1.0, 50.0)],
             settings=DropletSettings(duration_s=1e-4),
