@@ -34,9 +34,9 @@ from microfab.control.gate import GateConfig, LaserGate, run_gate
 from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.repetitive import PluginRC, RCConfig
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig, pattern_reference
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
 from microfab.sim.loop import LoopState, simulate, simulate_python
+from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 
 #: Centres per axis of the benchmark's RBF networks (the issue's benchmark size; also the
 #: `RBFConfig` default, passed explicitly so that a change of the default does not change
@@ -213,8 +213,8 @@ def job_real_time_factor() -> tuple[float, float, float]:
     import tempfile
 
     from microfab.experiments.seed001_nanomanipulator.cure import cure_circles
-    from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig
     from microfab.experiments.seed001_nanomanipulator.run import JobConfig, run_job
+    from microfab.trajectory.circle_pattern import PatternConfig
 
     cfg = JobConfig(pattern=PatternConfig(n_circles=4, periods=5))
     run_job(JobConfig(pattern=PatternConfig(n_circles=1, periods=1)))  # compile

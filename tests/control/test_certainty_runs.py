@@ -27,13 +27,13 @@ from microfab.control.certainty import (
 )
 from microfab.control.rbf import RBFAdaptive
 from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
-from microfab.experiments.seed001_nanomanipulator.pattern import pattern_reference
 from microfab.plants.nanomanipulator import (
     NanomanipulatorPlant,
     drift_and_gain,
     nanomanipulator_twin,
 )
 from microfab.sim.loop import simulate
+from microfab.trajectory.circle_pattern import pattern_reference
 
 # Trapezoid rule over one sample (command and d held): the residual of ṡ is
 # dt²/12 · s''' somewhere in the sample. On the linear part of eq. 1 (α = −a0 x1 − a1 x2)

@@ -63,8 +63,8 @@ def analyze_cmd(
         pattern_from_job,
         write_analysis,
     )
-    from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig
     from microfab.io.atomic import atomic_write_json
+    from microfab.trajectory.circle_pattern import PatternConfig
 
     fields = {
         "period_s": ("--period", period, "s"),

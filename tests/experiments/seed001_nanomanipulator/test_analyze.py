@@ -11,8 +11,8 @@ from typer.testing import CliRunner
 
 from microfab.cli import app
 from microfab.experiments.seed001_nanomanipulator.analyze import analyze_trace, pattern_from_job
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig, pattern_reference
 from microfab.io.trace import write_columns
+from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 
 runner = CliRunner()
 DT = 1e-4  # the twin's 10 kHz (data/nanomanipulator_twin.toml)

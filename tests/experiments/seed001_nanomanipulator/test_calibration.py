@@ -6,9 +6,9 @@ import pytest
 
 from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.experiments.seed001_nanomanipulator.calibration import fit_noise, write_noise
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig
 from microfab.experiments.seed001_nanomanipulator.run import JobConfig, TwinSettings, run_job
 from microfab.plants.nanomanipulator import load_params
+from microfab.trajectory.circle_pattern import PatternConfig
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from microfab.experiments.seed001_nanomanipulator.fig9 import (
     fig9_rbf,
     fig9_reference,
 )
-from microfab.experiments.seed001_nanomanipulator.pattern import pattern_reference
+from microfab.trajectory.circle_pattern import pattern_reference
 
 DT = 1e-4  # s: the twin's 10 kHz (data/nanomanipulator_twin.toml)
 

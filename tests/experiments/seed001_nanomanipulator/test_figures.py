@@ -7,8 +7,8 @@ import pytest
 
 from microfab.experiments.seed001_nanomanipulator import figures as figs
 from microfab.experiments.seed001_nanomanipulator.metrics import tracking_metrics
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig, pattern_reference
 from microfab.report.canvas import render_png
+from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 
 CFG = PatternConfig(n_circles=2, period_s=0.02, periods=3, pause_s=0.01, move_s=0.01, ramp_s=0.01)
 

@@ -15,7 +15,7 @@ from microfab.experiments.seed001_nanomanipulator.metrics import (
     phase_of,
     tracking_metrics,
 )
-from microfab.experiments.seed001_nanomanipulator.pattern import (
+from microfab.trajectory.circle_pattern import (
     PatternConfig,
     PatternReference,
     pattern_reference,

@@ -6,8 +6,8 @@ import json
 
 from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS
 from microfab.experiments.kinds import no_progress
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig
 from microfab.experiments.seed001_nanomanipulator.run import JobConfig
+from microfab.trajectory.circle_pattern import PatternConfig
 
 
 def test_job_writes_summary_and_report(tmp_path):

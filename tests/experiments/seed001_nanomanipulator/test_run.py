@@ -10,7 +10,6 @@ import pytest
 
 from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.experiments.seed001_nanomanipulator.cure import cure_circles
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig
 from microfab.experiments.seed001_nanomanipulator.run import (
     JobConfig,
     RCSettings,
@@ -18,6 +17,7 @@ from microfab.experiments.seed001_nanomanipulator.run import (
     job_segments,
     run_job,
 )
+from microfab.trajectory.circle_pattern import PatternConfig
 
 
 @pytest.fixture(scope="module")

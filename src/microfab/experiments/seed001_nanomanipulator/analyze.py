@@ -30,15 +30,15 @@ from microfab.experiments.seed001_nanomanipulator.metrics import (
     TrackingMetrics,
     pattern_metrics,
 )
-from microfab.experiments.seed001_nanomanipulator.pattern import (
-    PatternConfig,
-    PatternReference,
-    pattern_reference,
-)
 from microfab.io.job import JobFileError, Key, parse_section, read_job
 from microfab.report.canvas import render_png
 from microfab.report.page import Figure, page_html, write_page
 from microfab.report.tables import Table
+from microfab.trajectory.circle_pattern import (
+    PatternConfig,
+    PatternReference,
+    pattern_reference,
+)
 
 __all__ = [
     "PATTERN_KEYS",

@@ -18,9 +18,9 @@ from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.core.validate import check_finite, check_int, check_positive
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig, pattern_reference
 from microfab.machines import nanomanipulator
 from microfab.sim.loop import simulate
+from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 
 __all__ = ["CONTROLLERS", "ComparisonConfig", "ComparisonResult", "compare_controllers"]
 

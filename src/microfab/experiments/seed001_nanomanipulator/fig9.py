@@ -41,10 +41,10 @@ from microfab.control.rbf import RBFAdaptive
 from microfab.control.repetitive import period_samples
 from microfab.core.validate import check_positive
 from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
-from microfab.experiments.seed001_nanomanipulator.pattern import pattern_reference
 from microfab.machines import nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant
 from microfab.sim.loop import simulate
+from microfab.trajectory.circle_pattern import pattern_reference
 
 __all__ = ["Fig9Config", "Fig9Reference", "Fig9Result", "fig9_rbf", "fig9_reference"]
 

@@ -33,7 +33,6 @@ from microfab.control.rbf import RBFConfig
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.experiments.seed001_nanomanipulator.cure import cure_circles
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternConfig
 from microfab.experiments.seed001_nanomanipulator.results import (
     NanomanipulatorResult,
 )
@@ -48,6 +47,7 @@ from microfab.io.job import Key
 from microfab.machines import nanomanipulator
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
+from microfab.trajectory.circle_pattern import PatternConfig
 
 __all__ = [
     "NANOMANIPULATOR_MSL",
@@ -185,8 +185,8 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> JobConfig:
 def _checked_config(sec: dict[str, dict[str, Any]]) -> JobConfig:
     """`config_from_sections`, then the checks that need the twin (β, period, travel)."""
     from microfab.core.limits import MachineLimits, check_trajectory
-    from microfab.experiments.seed001_nanomanipulator.pattern import pattern_reference
     from microfab.experiments.seed001_nanomanipulator.run import make_twin
+    from microfab.trajectory.circle_pattern import pattern_reference
 
     cfg = config_from_sections(sec)
     plant = make_twin(cfg.twin)  # refuses β <= β_min in the workspace

@@ -38,8 +38,8 @@ import numpy as np
 
 from microfab.core.validate import check_int, check_positive
 from microfab.experiments.seed001_nanomanipulator import paper
-from microfab.experiments.seed001_nanomanipulator.pattern import PatternReference
 from microfab.report.tables import DASH, Table, ratio, versus
+from microfab.trajectory.circle_pattern import PatternReference
 
 __all__ = [
     "TrackingMetrics",

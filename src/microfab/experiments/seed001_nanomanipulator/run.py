@@ -58,17 +58,17 @@ from microfab.experiments.seed001_nanomanipulator.metrics import (
     TrackingMetrics,
     pattern_metrics,
 )
-from microfab.experiments.seed001_nanomanipulator.pattern import (
-    PatternConfig,
-    PatternReference,
-    pattern_reference,
-)
 from microfab.io.background import BackgroundWriter
 from microfab.machines import nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
 from microfab.sim.loop import LoopState, LoopStepper
+from microfab.trajectory.circle_pattern import (
+    PatternConfig,
+    PatternReference,
+    pattern_reference,
+)
 
 __all__ = [
     "CircleRun",

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
-from microfab.experiments.seed001_nanomanipulator.pattern import (
+from microfab.trajectory.circle_pattern import (
     PatternConfig,
     circle_centres,
     pattern_reference,

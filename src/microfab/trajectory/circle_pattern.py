@@ -1,4 +1,8 @@
-"""The seed 001 §4.2 pattern as a reference: circles in a field, each after a move and a pause.
+"""The circle-field pattern as a reference: circles in a field, each after a move and a pause.
+
+The job of the seed 001 nanomanipulator (§4.2): `microfab nanomanipulator analyze` checks
+a measured trace against it, and the nanomanipulator job, its controller comparisons and
+its calibration run it on the twin.
 
 The stage starts at rest at the field centre. For each circle it moves to the circle's start
 point (a minimum-jerk move, assumed: the seed shows no transfer), pauses (seed 001 §4.2:
@@ -6,7 +10,8 @@ point (a minimum-jerk move, assumed: the seed shows no transfer), pauses (seed 0
 then spins up, runs the circle for a number of periods (counter-clockwise, angle 0 at the
 first period's first sample) and spins down. Positions are
 in mm (the twin's unit); `PatternReference.trajectory` gives the same in m for the limit
-check of `microfab.core.limits.check_trajectory`.
+check of `microfab.core.limits.check_trajectory`. The seed's numbers are those of seed 001
+(``shared/seeds/001_44fdd8e8f587fd7f.txt``), each with its section.
 """
 
 from __future__ import annotations
@@ -16,12 +21,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from microfab.control.repetitive import period_samples
 from microfab.core.validate import check_in_range, check_int, check_positive
-from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.trajectory.base import Trajectory
 
 __all__ = ["PatternConfig", "PatternReference", "circle_centres", "pattern_reference"]
+
+N_CIRCLES = 4  # seed 001 §4.2: four circle patterns in one operation
+CIRCLE_DIAMETER_MM = 0.15  # seed 001 §4.2: circular contour of diameter 0.15 mm
+FIELD_MM = 0.5  # seed 001 §4.2: working range of the manipulator about 0.5 mm
+TRAVEL_MM = 1.5  # seed 001 §2: working range up to ±1.5 mm per axis
+
+
+def _period_samples(period_s: float, dt: float) -> int:
+    """Samples in one period, refusing one that is not a whole number (>= 2) of samples.
+
+    The check of `microfab.control.rc_law.period_samples` (the repetitive controller's
+    memory needs whole samples), with its message; this layer lies below control.
+    """
+    check_positive("period_s", period_s, "s")
+    check_positive("dt", dt, "s")
+    n_float = period_s / dt
+    n = round(n_float)
+    if n < 2 or abs(n - n_float) > 1e-9 * n_float:
+        raise ValueError(
+            f"period_s must be a whole number (>= 2) of samples: {period_s:g} s / {dt:g} s = "
+            f"{n_float:.9g} samples; choose a period that is a multiple of dt"
+        )
+    return n
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -51,9 +77,9 @@ class PatternConfig:
         finite).
     """
 
-    n_circles: int = paper.N_CIRCLES
-    diameter_mm: float = paper.CIRCLE_DIAMETER_MM
-    field_mm: float = paper.FIELD_MM
+    n_circles: int = N_CIRCLES
+    diameter_mm: float = CIRCLE_DIAMETER_MM
+    field_mm: float = FIELD_MM
     period_s: float = 1.0
     periods: int = 6
     pause_s: float = 0.2
@@ -63,7 +89,7 @@ class PatternConfig:
     def __post_init__(self) -> None:
         check_int("n_circles", self.n_circles, 1, "circles")
         check_positive("diameter_mm", self.diameter_mm, "mm")
-        check_in_range("field_mm", self.field_mm, self.diameter_mm, 2 * paper.TRAVEL_MM, "mm")
+        check_in_range("field_mm", self.field_mm, self.diameter_mm, 2 * TRAVEL_MM, "mm")
         check_positive("period_s", self.period_s, "s")
         check_int("periods", self.periods, 1, "periods")
         check_positive("pause_s", self.pause_s, "s")
@@ -197,7 +223,7 @@ def pattern_reference(config: PatternConfig, dt: float) -> PatternReference:
         memory needs one), or a duration is shorter than a sample.
     """
     check_positive("dt", dt, "s")
-    n_period = period_samples(config.period_s, dt)  # the RC's memory needs whole samples
+    n_period = _period_samples(config.period_s, dt)  # the RC's memory needs whole samples
     n_move = max(round(config.move_s / dt), 1)
     n_pause = max(round(config.pause_s / dt), 1)
     n_ramp = max(round(config.ramp_s / dt), 1)
