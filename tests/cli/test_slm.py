@@ -105,3 +105,34 @@ def test_scan_time_refusals(
     res = runner.invoke(app, ["slm", "scan-time", source, *argv, "--json", str(out)])
     one_error_line(res, says)
     assert not out.exists()
+
+
+def test_build_command_gives_the_library_build(tmp_path: Path):
+    from microfab.process.slm.build import BuildSettings, run_build
+
+    out = tmp_path / "build.json"
+    args = ["slm", "build", "--layers", "2", "--outline-radius-mm", "1.5", "--json", str(out),
+            "--results-dir", str(tmp_path / "rows")]  # fmt: skip
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert "Whole build, 2 lattice layers" in res.output
+    got = json.loads(out.read_text())
+    want = run_build(BuildSettings(n_layers=2, outline_radius_m=1.5e-3))
+    assert got["totals_s"] == pytest.approx(want.totals(), rel=1e-12)
+    again = runner.invoke(app, args)  # resumed: both layers skipped
+    assert again.exit_code == 0, again.output
+    assert json.loads(out.read_text())["n_skipped"] == 2
+
+
+@pytest.mark.parametrize(
+    "extra, says",
+    [
+        (["--layers", "0"], "--layers must be at least 1"),
+        (["--shaper", "ei"], "shaper must be 'none'"),
+        (["--outline-radius-mm", "60"], "outside the scanner field"),
+        (["--jump-speed", "12"], "exceeds the twin's velocity limit"),
+    ],
+)
+def test_build_command_refusals(extra: list[str], says: str):
+    res = runner.invoke(app, ["slm", "build", *extra])
+    assert res.exit_code == 2 and says in res.output, res.output

@@ -1,9 +1,11 @@
-"""``microfab slm scan-time``: scan time of an SLM layer on the galvo twin.
+"""``microfab slm scan-time|build``: scan time of an SLM layer, or a whole part, on the twin.
 
 Seed 003 part 2 (Buls et al.): ``slm scan-time SOURCE`` turns a lattice layer or a
 drawing into a scan program (`microfab.process.slm.source`) and prints its naive,
 fixed-delay and dynamics-aware scan times on the twin, with and without a shaper
-(``shaper design``, `cli/shaper.py`) (`microfab.process.slm.estimate`).
+(``shaper design``, `cli/shaper.py`) (`microfab.process.slm.estimate`). ``slm build``
+times a whole lattice part layer by layer (`microfab.process.slm.build`), in this process
+or on Dask, saving each layer as it finishes so that a rerun resumes.
 
 Every refusal is one ``error:`` line, exit code 2, and nothing is written.
 """
@@ -268,3 +270,94 @@ def _print_scan_summary(path: Any, runs: dict[str, ScanTimeComparison]) -> None:
 
 def _cut(before: float, after: float) -> str:
     return f"{before:.5g} → {after:.5g} s ({100 * (after / before - 1):+.1f} %)"
+
+
+@slm_app.command("build")
+def build_cmd(
+    layers: Annotated[int, typer.Option(help="Layers of the part.")] = 500,
+    layer_um: Annotated[float, typer.Option(help="Layer thickness [µm].")] = 30.0,
+    outline_radius_mm: Annotated[
+        float, typer.Option(help="Radius of the disc the lattice fills [mm].")
+    ] = 8.0,
+    hatch_um: Annotated[float, typer.Option(help="Hatch spacing [µm].")] = 100.0,
+    hatch_rotation_deg: Annotated[
+        float, typer.Option(help="Hatch turn from one layer to the next [deg].")
+    ] = 67.0,
+    mark_speed: Annotated[float, typer.Option(help="Mark speed [m/s].")] = 0.6,
+    jump_speed: Annotated[float, typer.Option(help="Jump speed [m/s].")] = 5.0,
+    shaper: Annotated[
+        str, typer.Option(help="Shaper of the shaped estimates: none, zoh (the seed's), zpetc.")
+    ] = "zpetc",
+    mirror_mode: Annotated[
+        bool, typer.Option(help="Twin with the extra mirror mode (3 kHz, ζ 0.02, assumed).")
+    ] = False,
+    results_dir: Annotated[
+        Path | None,
+        typer.Option(help="Save each layer here; a rerun skips the finished layers."),
+    ] = None,
+    workers: Annotated[
+        int, typer.Option(help="1: in this process; more: a local Dask cluster.")
+    ] = 1,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Address of a running Dask scheduler.")
+    ] = None,
+    json_path: Annotated[
+        Path | None, typer.Option("--json", help="Write the build's summary (JSON) here.")
+    ] = None,
+) -> None:
+    """Scan time of a whole lattice part, layer by layer, five ways (seed 003 part 2 §4).
+
+    Each layer is a section of the seed's strut lattice in a disc, hatched at its own
+    angle, timed naive (Σ L/v), with fixed RTC delays (the seed's 750 µs jump delay) and
+    dynamics-aware on the twin, without and with the model-inverse shaper (its derived
+    jump delay for the fixed estimate).
+    """
+    from microfab.cli._kit import progress as progress_bar
+    from microfab.machines import slm_galvo
+    from microfab.process.slm.build import BuildSettings, run_build
+    from microfab.report.slm_tables import build_table
+
+    if layers < 1:
+        fail(f"--layers must be at least 1, got {layers}")
+    if workers < 1:
+        fail(f"--workers must be at least 1, got {workers}")
+    for option, value, unit in (
+        ("--layer-um", layer_um, "µm"),
+        ("--outline-radius-mm", outline_radius_mm, "mm"),
+        ("--hatch-um", hatch_um, "µm"),
+        ("--mark-speed", mark_speed, "m/s"),
+        ("--jump-speed", jump_speed, "m/s"),
+    ):
+        check_option(option, value, unit)
+    try:
+        settings = BuildSettings(
+            n_layers=layers,
+            layer_m=layer_um * 1e-6,
+            outline_radius_m=outline_radius_mm * 1e-3,
+            hatch_spacing_m=hatch_um * 1e-6,
+            hatch_angle_deg_per_layer=hatch_rotation_deg,
+            mark_speed_m_s=mark_speed,
+            jump_speed_m_s=jump_speed,
+            shaper=shaper,  # type: ignore[arg-type]  # checked by BuildSettings
+            mirror_mode=mirror_mode,
+        )
+        with progress_bar() as bar:
+            task = bar.add_task("whole build", total=layers)
+            result = run_build(
+                settings,
+                results_dir,
+                workers=workers,
+                scheduler=scheduler,
+                progress=lambda done, total: bar.update(task, completed=done, total=total),
+                twin=slm_galvo.twin,
+            )
+    except (OSError, ValueError) as exc:
+        fail(str(exc))
+    print_table(build_table(result))
+    for line in result.failed:
+        console.print(f"failed: {line}", highlight=False)
+    if json_path is not None:
+        from microfab.io.atomic import atomic_write_json
+
+        atomic_write_json(json_path, result.summary())
+        console.print(f"wrote {json_path}", highlight=False)

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
-from microfab.experiments.seed003_slm.build import BuildSettings, run_build
 from microfab.experiments.seed003_slm.compare import (
     CompareSettings,
     ShaperComparison,
@@ -46,6 +45,7 @@ from microfab.identify.chirp import ChirpDesign
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import slm_galvo
+from microfab.process.slm.build import BuildSettings, run_build
 from microfab.process.slm.estimate import SettleTolerance
 from microfab.process.slm.timing import TICK_S, RTCDelays, RTCSettings, ScanSpeeds
 
@@ -270,6 +270,7 @@ def _run(config: ShapingJob, out: Path, progress: Progress) -> ShapingResult:
             workers=config.workers,
             scheduler=config.scheduler,
             progress=lambda done, total: progress("whole build", done, total),
+            twin=slm_galvo.twin,
         )
     result = ShapingResult(
         config=config,

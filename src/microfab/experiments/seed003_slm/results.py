@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from microfab.experiments.seed003_slm.build import BuildResult, BuildSettings
 from microfab.experiments.seed003_slm.compare import (
     ShaperComparison,
 )
@@ -18,6 +17,8 @@ from microfab.experiments.seed003_slm.run import (
     ShapingSettings,
 )
 from microfab.experiments.seed003_slm.tables import run_summary, scan_table, seed_table
+from microfab.process.slm.build import BuildResult, BuildSettings
+from microfab.report.slm_tables import build_table
 from microfab.report.tables import Table
 
 __all__ = ["ShapingJob", "ShapingResult"]
@@ -49,7 +50,7 @@ class ShapingResult:
         tables = [seed_table(self.run), scan_table(self.run)]
         tables += [c.table() for c in self.comparisons]
         if self.build is not None:
-            tables.append(self.build.table())
+            tables.append(build_table(self.build))
         return tuple(tables)
 
     def failures(self) -> tuple[str, ...]:

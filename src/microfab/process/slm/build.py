@@ -3,8 +3,8 @@
 The seed times a whole lattice "Stanford Bunny", 4686 s without its input shaper and 4219 s
 with it (§4). No bunny mesh is shipped, so the build here is a stack of the lattice layers
 of `microfab.process.slm.lattice` (simple cubic, strut 250 µm, 5 % volume fraction) in the
-disc of `reproduce`'s lattice layer, each layer's section at its own height and its hatch
-turned by a fixed angle per layer (`BuildSettings`).
+disc of the ``slm-shaping`` reproduction's lattice layer, each layer's section at its own
+height and its hatch turned by a fixed angle per layer (`BuildSettings`).
 
 Each layer is one point (`BuildLayer`) of `microfab.io.sweep.run_sweep`: in this
 process (``workers=1``), on a local Dask cluster of ``workers`` processes, or on a running
@@ -24,6 +24,13 @@ The shaper is designed once in `run_build` from the twin's model (the seed's ``G
 travels to the workers as coefficients with the settings; the derived jump delays are
 computed once there too. Workers are spawned processes: `layer_task` rebuilds the twin
 and the shaped axis from the settings alone (cached per process).
+
+**The twin.** ``run_build(..., twin=factory)`` takes the twin as a factory
+``factory(mirror_mode=bool) -> GalvoSLMPlant``: ``microfab.machines.slm_galvo.twin`` (the
+cached machine twin; what ``microfab slm build`` and the ``slm-shaping`` job pass) or, by
+default, `microfab.plants.galvo_slm.galvo_slm_twin` (the same packaged data file, built
+here). The factory must be a module-level function: it travels to the workers by name.
+The report of a build (its table) is `microfab.report.slm_tables.build_table`.
 """
 
 from __future__ import annotations
@@ -43,10 +50,9 @@ import numpy as np
 from microfab.control.shaping import InverseShaperConfig, design_inverse_shaper
 from microfab.core.validate import check_finite, check_int, check_positive
 from microfab.io.sweep import run_sweep
-from microfab.machines import slm_galvo
+from microfab.plants.galvo_slm import GalvoSLMPlant, galvo_slm_twin
 from microfab.plants.lti import DiscreteLTI
 from microfab.process.slm.estimate import (
-    SEED_JUMP_DELAY_SHAPED_S,
     SEED_JUMP_DELAY_UNSHAPED_S,
     SEED_TOTAL_SHAPED_S,
     SEED_TOTAL_UNSHAPED_S,
@@ -60,13 +66,14 @@ from microfab.process.slm.estimate import (
 )
 from microfab.process.slm.lattice import LatticeSpec, lattice_layer
 from microfab.process.slm.timing import CATEGORIES, TICK_S, RTCSettings, ScanSpeeds
-from microfab.report.tables import Table
 
 __all__ = [
     "ESTIMATES",
+    "LABELS",
     "BuildLayer",
     "BuildResult",
     "BuildSettings",
+    "TwinFactory",
     "build_layers",
     "layer_task",
     "run_build",
@@ -74,7 +81,8 @@ __all__ = [
 
 #: The per-layer estimates (module doc), in report order.
 ESTIMATES = ("naive", "fixed", "dynamics", "shaped_fixed", "shaped")
-_LABELS = {
+#: How a table names each estimate.
+LABELS = {
     "naive": "naive Σ L/v",
     "fixed": "fixed delays (seed's jump delay)",
     "dynamics": "dynamics-aware",
@@ -83,6 +91,8 @@ _LABELS = {
 }
 _FORMAT = 1  # of the rows: a change of what a row holds must not resume old rows
 Shaper = Literal["none", "zoh", "zpetc"]
+#: ``factory(mirror_mode=bool) -> GalvoSLMPlant``: where the build's twin comes from.
+TwinFactory = Callable[..., GalvoSLMPlant]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -97,7 +107,7 @@ class BuildSettings:
         Layer thickness, m (30 µm: seed 003 part 2 §1 "in SLM typically 20 to 40 µm", the
         middle; the seed gives no value for its bunny).
     outline_radius_m : float
-        Radius of the disc the lattice is clipped to, m (8 mm, as `reproduce`'s layer;
+        Radius of the disc the lattice is clipped to, m (8 mm, as the ``slm-shaping`` layer;
         assumed: no bunny mesh is shipped).
     hatch_spacing_m : float
         Hatch distance, m (100 µm, assumed as `microfab.process.slm.lattice.LatticeSpec`).
@@ -111,7 +121,7 @@ class BuildSettings:
     shaper : {"none", "zoh", "zpetc"}
         The input shaper of the shaped estimates: none (the shaped estimates then equal the
         unshaped ones), the seed's model inverse discretised by ZOH (the seed's), or by
-        ZPETC (an inverse of the sampled axis, default: `reproduce` shows it keeps the
+        ZPETC (an inverse of the sampled axis, default: the ``slm-shaping`` run shows it keeps the
         continuous design's gain on the 10 µs axis where ZOH loses it).
     mirror_mode : bool
         Give the twin its optional 3 kHz mirror mode (assumed, `microfab.plants.galvo_slm`);
@@ -120,7 +130,7 @@ class BuildSettings:
 
     n_layers: int = 500
     layer_m: float = 30e-6  # seed 003 part 2 §1: "typically 20 to 40 µm"; the middle
-    outline_radius_m: float = 8e-3  # assumed, as reproduce.py's lattice layer
+    outline_radius_m: float = 8e-3  # assumed, as the slm-shaping run's lattice layer
     hatch_spacing_m: float = 100e-6  # assumed, as LatticeSpec
     hatch_angle_deg_per_layer: float = 67.0  # assumed: a common SLM rotation per layer
     mark_speed_m_s: float = 0.6  # assumed, as ScanSpeeds
@@ -207,9 +217,11 @@ def _lti_dict(lti: DiscreteLTI) -> dict[str, Any]:
 
 
 @functools.lru_cache(maxsize=8)
-def _models(mirror_mode: bool, shaper_json: str) -> tuple[DiscreteLTI, DiscreteLTI]:
+def _models(
+    twin: TwinFactory, mirror_mode: bool, shaper_json: str
+) -> tuple[DiscreteLTI, DiscreteLTI]:
     """The twin's axis and the shaped axis, built once per process (JSON of the filter)."""
-    axis = slm_galvo.twin(mirror_mode=mirror_mode).axis_model
+    axis = twin(mirror_mode=mirror_mode).axis_model
     f = json.loads(shaper_json)
     if f is None:
         return axis, axis
@@ -229,7 +241,9 @@ def _laser_error(est: ScanTimeEstimate) -> float:
     return max((float(np.hypot(*e.T).max()) for e in errs), default=0.0)
 
 
-def layer_task(point: BuildLayer, settings_dict: Mapping[str, Any]) -> dict[str, Any]:
+def layer_task(
+    point: BuildLayer, settings_dict: Mapping[str, Any], twin: TwinFactory = galvo_slm_twin
+) -> dict[str, Any]:
     """Estimate one layer of a build five ways (module doc); a row of JSON values.
 
     Parameters
@@ -240,6 +254,8 @@ def layer_task(point: BuildLayer, settings_dict: Mapping[str, Any]) -> dict[str,
         What `run_build` hands the task: the `BuildSettings` fields (``n_layers`` may be
         missing), ``jump_delay_ticks`` (``{"unshaped": n, "shaped": n}``, derived once per
         build) and ``shaper_filter`` (the discrete shaper as ``A, B, C, D, dt``, or None).
+    twin : callable
+        The twin factory (module doc).
 
     Returns
     -------
@@ -254,7 +270,7 @@ def layer_task(point: BuildLayer, settings_dict: Mapping[str, Any]) -> dict[str,
     t0 = time.perf_counter()
     s = BuildSettings.from_dict(settings_dict)
     jd = settings_dict["jump_delay_ticks"]
-    axis, shaped_axis = _models(s.mirror_mode, json.dumps(settings_dict["shaper_filter"]))
+    axis, shaped_axis = _models(twin, s.mirror_mode, json.dumps(settings_dict["shaper_filter"]))
     path = lattice_layer(point.z_m, s.lattice_spec(point.angle_deg))
     rtc = s.rtc_settings()  # the seed's 750 µs jump delay (fixed estimate)
     rtc_shaped = s.rtc_settings(int(jd["shaped"]) * TICK_S)
@@ -346,38 +362,6 @@ class BuildResult:
         """Dynamics-aware build time per category, ``{"unshaped": {...}, "shaped": {...}}``."""
         return {"unshaped": self.breakdown("dynamics"), "shaped": self.breakdown("shaped")}
 
-    def table(self) -> Table:
-        """Build time per category and estimate, the total and its spread over layers."""
-        cats = {e: self.breakdown(e) for e in ESTIMATES}
-        tot = self.totals()
-        rows = [[c.replace("_", " "), *(f"{cats[e][c]:.2f}" for e in ESTIMATES)]
-                for c in CATEGORIES]  # fmt: skip
-        rows.append(["total", *(f"{tot[f'{e}_s']:.2f}" for e in ESTIMATES)])
-        per = {e: self.per_layer(f"{e}_s") for e in ESTIMATES}
-        if self.layers:
-            rows.append(["per layer, mean", *(f"{per[e].mean():.3f}" for e in ESTIMATES)])
-            spread = (f"{per[e].min():.3f} – {per[e].max():.3f}" for e in ESTIMATES)
-            rows.append(["per layer, min – max", *spread])
-        jd = self.jump_delay_s
-        done = len(self.layers)
-        note = (
-            f"{done} of {self.settings.n_layers} layers; shaper {self.settings.shaper}; jump "
-            f"delays derived for one cell: {jd.get('unshaped', math.nan) * 1e6:.0f} µs "
-            f"unshaped, {jd.get('shaped', math.nan) * 1e6:.0f} µs shaped (seed: "
-            f"{SEED_JUMP_DELAY_UNSHAPED_S * 1e6:.0f} -> {SEED_JUMP_DELAY_SHAPED_S * 1e6:.0f} "
-            f"µs); cut {100 * tot['cut_fraction']:.1f} % dynamics-aware, "
-            f"{100 * tot['cut_fraction_fixed']:.1f} % fixed delays (seed: "
-            f"{100 * (1 - SEED_TOTAL_SHAPED_S / SEED_TOTAL_UNSHAPED_S):.2f} % on its bunny)"
-        )
-        if self.failed:
-            note += f"; {len(self.failed)} layer(s) failed"
-        return Table(
-            title=f"Whole build, {done} lattice layers: scan time [s]",
-            columns=("category", *(_LABELS[e] for e in ESTIMATES)),
-            rows=rows,
-            note=note,
-        )
-
     def summary(self) -> dict[str, Any]:
         """JSON-ready: settings, totals, categories, per-layer spread, failures, times."""
         spread = {}
@@ -411,8 +395,8 @@ class BuildResult:
 
 
 # ----------------------------------------------------------------------- the runner
-def _check_twin(settings: BuildSettings) -> None:
-    c = slm_galvo.twin().config
+def _check_twin(settings: BuildSettings, twin: TwinFactory) -> None:
+    c = twin(mirror_mode=False).config
     field_m = c.field_bit * c.bit_size_m
     if settings.outline_radius_m > field_m:
         raise ValueError(
@@ -429,14 +413,16 @@ def _check_twin(settings: BuildSettings) -> None:
             )
 
 
-def _task_settings(settings: BuildSettings) -> tuple[dict[str, Any], dict[str, Any]]:
+def _task_settings(
+    settings: BuildSettings, twin: TwinFactory = galvo_slm_twin
+) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(sweep settings, task settings)``: the shaper designed and jump delays derived once."""
-    twin = slm_galvo.twin(mirror_mode=settings.mirror_mode)
-    axis = twin.axis_model
+    axis = twin(mirror_mode=settings.mirror_mode).axis_model
     shaper_filter = None
     shaped_axis = axis
     if settings.shaper != "none":
-        nominal = slm_galvo.twin().transfer_function()  # the seed's G: what was identified
+        # the seed's G: what was identified
+        nominal = twin(mirror_mode=False).transfer_function()
         design = design_inverse_shaper(nominal, InverseShaperConfig(discretization=settings.shaper))
         lti = design.to_lti()
         shaper_filter = _lti_dict(lti)
@@ -468,6 +454,7 @@ def run_build(
     workers: int = 1,
     scheduler: str | None = None,
     progress: Callable[[int, int], None] | None = None,
+    twin: TwinFactory = galvo_slm_twin,
 ) -> BuildResult:
     """Estimate every layer of a build, saving each as it finishes (module doc).
 
@@ -486,6 +473,8 @@ def run_build(
         must import ``microfab``).
     progress : callable, optional
         ``progress(done, total)`` after each layer that ran (``done`` counts the skipped).
+    twin : callable
+        The twin factory, ``twin(mirror_mode=bool)`` (module doc); a module-level function.
 
     Returns
     -------
@@ -499,10 +488,10 @@ def run_build(
         or a speed above the twin's limit; ``workers < 1``.
     """
     t0 = time.perf_counter()
-    _check_twin(settings)
-    sweep_settings, task_settings = _task_settings(settings)
+    _check_twin(settings, twin)
+    sweep_settings, task_settings = _task_settings(settings, twin)
     res = run_sweep(
-        functools.partial(layer_task, settings_dict=task_settings),
+        functools.partial(layer_task, settings_dict=task_settings, twin=twin),
         build_layers(settings),
         results_dir=results_dir,
         settings=sweep_settings,

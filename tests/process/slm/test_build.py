@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 
 from microfab.control.shaping import InverseShaperConfig, design_inverse_shaper
-from microfab.experiments.seed003_slm import build
-from microfab.experiments.seed003_slm.build import (
+from microfab.plants.galvo_slm import galvo_slm_twin
+from microfab.process.slm import build
+from microfab.process.slm.build import (
     ESTIMATES,
     BuildLayer,
     BuildSettings,
     build_layers,
     run_build,
 )
-from microfab.plants.galvo_slm import galvo_slm_twin
 from microfab.process.slm.estimate import (
     dynamics_estimate,
     fixed_delay_estimate,
@@ -28,6 +28,7 @@ from microfab.process.slm.estimate import (
 )
 from microfab.process.slm.lattice import LatticeSpec, lattice_layer
 from microfab.process.slm.timing import CATEGORIES, RTCSettings
+from microfab.report.slm_tables import build_table
 
 SMALL = BuildSettings(n_layers=3, outline_radius_m=2e-3)  # a 4 mm disc: fast layers
 
@@ -138,7 +139,7 @@ def test_totals_and_categories_add_up_over_layers(small):
 
 
 def test_table_and_summary(small):
-    table = small.table()
+    table = build_table(small)
     assert len(table.columns) == 1 + len(ESTIMATES)
     assert [r[0] for r in table.rows][: len(CATEGORIES) + 1] == [
         *(c.replace("_", " ") for c in CATEGORIES),
@@ -185,10 +186,10 @@ def test_resume_runs_only_the_missing_layer_and_refuses_other_settings(tmp_path)
     more = run_build(BuildSettings(n_layers=5, outline_radius_m=1.5e-3), tmp_path,
                      progress=lambda d, t: calls.append((d, t)))  # fmt: skip
     assert calls == [(5, 5)] and more.skipped == 4 and len(more.layers) == 5
-    with pytest.raises(ValueError, match=r"other settings \(hatch_spacing_m: saved 0.0001, now"):
+    with pytest.raises(ValueError, match=r"other settings: hatch_spacing_m 0.0001 -> 0.0002"):
         run_build(BuildSettings(n_layers=4, outline_radius_m=1.5e-3, hatch_spacing_m=2e-4),
                   tmp_path)  # fmt: skip
-    with pytest.raises(ValueError, match=r"shaper: saved 'zpetc', now 'zoh'"):
+    with pytest.raises(ValueError, match=r'shaper "zpetc" -> "zoh"'):
         run_build(BuildSettings(n_layers=4, outline_radius_m=1.5e-3, shaper="zoh"), tmp_path)
 
 
