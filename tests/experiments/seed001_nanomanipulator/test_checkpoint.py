@@ -67,10 +67,14 @@ def test_reading_stops_at_the_first_missing_file(tmp_path):
 def test_foreign_or_old_runs_are_refused(tmp_path):
     rng = np.random.default_rng(2)
     save_chunks(tmp_path, 0, [_chunk(rng, 3), _chunk(rng, 3)], "fp")
-    with pytest.raises(ValueError, match="another job configuration"):
+    with pytest.raises(ValueError, match="job checkpoint of other settings: job"):
         load_chunks(tmp_path, "other", total=5)
     with pytest.raises(ValueError, match="more chunks than this job"):
         load_chunks(tmp_path, "fp", total=1)
+    data = chunk_path(tmp_path, 0).read_bytes()
+    chunk_path(tmp_path, 0).write_bytes(data[: len(data) // 3])  # cut short
+    with pytest.raises(ValueError, match="not a readable nanomanipulator job checkpoint"):
+        load_chunks(tmp_path, "fp", total=5)
     (tmp_path / "state.npz").write_bytes(b"")
     with pytest.raises(ValueError, match="format 1"):
         load_chunks(tmp_path, "fp", total=5)

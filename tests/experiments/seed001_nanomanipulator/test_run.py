@@ -113,7 +113,7 @@ def test_another_config_refuses_the_saved_run(tmp_path):
     run_job(JobConfig(pattern=PatternConfig(n_circles=1, periods=1)), tmp_path)
     before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
     other = JobConfig(pattern=PatternConfig(n_circles=1, periods=1), twin=TwinSettings(seed=1))
-    with pytest.raises(ValueError, match="another job configuration"):
+    with pytest.raises(ValueError, match="job checkpoint of other settings"):
         run_job(other, tmp_path)
     assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
 

@@ -3,10 +3,11 @@
 A checkpoint file ``run/chunks/NNNNN.npz`` (``NNNNN`` its first chunk) holds one or more
 consecutive chunks: their signals and log points, concatenated, the circles they end
 (with those circles' final controller states), and the loop state after its last chunk
-(plant, controller with its RBF weights and RC memory, last command, gate state), stamped
-with the format version and the job's fingerprint. It is written atomically
-(`atomic_save_npz`): complete or absent. The run resumes after the last chunk of the
-last file in the unbroken sequence from chunk 0.
+(plant, controller with its RBF weights and RC memory, last command, gate state). Each
+file is a run-store state file (`microfab.io.checkpoint`): written atomically, complete or
+absent, stamped with its kind, format version and the job's fingerprint, and refused on
+one line when cut short, damaged or of another job. The run resumes after the last chunk
+of the last file in the unbroken sequence from chunk 0.
 
 How many chunks a file holds is the writer's choice (`run.run_job` saves at most once
 per ``checkpoint_s`` of wall time, and always when interrupted); reading does not care.
@@ -21,14 +22,17 @@ from typing import Any
 
 import numpy as np
 
-from microfab.io.atomic import atomic_save_npz
+from microfab.io.checkpoint import read_state, save_state
 from microfab.sim.loop import LoopState
 
 __all__ = ["FORMAT_VERSION", "Chunk", "chunk_path", "load_chunks", "save_chunks"]
 
-#: Format of the checkpoint files (3: several chunks per file; 2 had one chunk per file;
-#: 1 kept a separate ``run/state.npz``).
-FORMAT_VERSION = 3
+#: Format of the checkpoint files (4: a run-store state file; 3: several chunks per file;
+#: 2 had one chunk per file; 1 kept a separate ``run/state.npz``).
+FORMAT_VERSION = 4
+#: What `microfab.io.checkpoint` calls these files.
+KIND = "nanomanipulator job checkpoint"
+_FIX = "rerun with --fresh, or use another output folder"
 _OLD_STATE = "state.npz"  # format 1
 
 
@@ -96,8 +100,6 @@ def save_chunks(run_dir: Path, first: int, chunks: Sequence[Chunk], fingerprint:
         raise ValueError("the last chunk of a checkpoint must carry its loop state")
     ends = [c for c in chunks if c.final_circle is not None]
     arrays: dict[str, Any] = {
-        "version": np.int64(FORMAT_VERSION),
-        "fingerprint": np.array(fingerprint),
         "sizes": np.array([c.laser.shape[0] for c in chunks], dtype=np.int64),
         "log_sizes": np.array([c.log_index.shape[0] for c in chunks], dtype=np.int64),
         "output": np.concatenate([c.output for c in chunks]),
@@ -117,7 +119,8 @@ def save_chunks(run_dir: Path, first: int, chunks: Sequence[Chunk], fingerprint:
         arrays["final_controllers"] = np.stack([c.final_controller for c in ends])
     if last.gate is not None:
         arrays["gate"] = last.gate
-    atomic_save_npz(chunk_path(run_dir, first), **arrays)
+    save_state(chunk_path(run_dir, first), kind=KIND, version=FORMAT_VERSION,
+               settings={"job": fingerprint}, arrays=arrays)  # fmt: skip
 
 
 def _split(a: np.ndarray, sizes: np.ndarray) -> list[np.ndarray]:
@@ -125,33 +128,26 @@ def _split(a: np.ndarray, sizes: np.ndarray) -> list[np.ndarray]:
 
 
 def _load(path: Path, fingerprint: str) -> list[Chunk]:
-    with np.load(path, allow_pickle=False) as z:
-        version = int(z["version"]) if "version" in z else 1
-        if version != FORMAT_VERSION:
-            raise ValueError(
-                f"{path}: saved run format {version}, this microfab reads "
-                f"{FORMAT_VERSION}; remove {path.parent.parent} to start again"
-            )
-        if str(z["fingerprint"]) != fingerprint:
-            raise ValueError(
-                f"{path.parent.parent} holds a run of another job configuration; use "
-                "another output folder, or remove it to start again"
-            )
-        sizes, log_sizes = z["sizes"], z["log_sizes"]
-        sig = {k: _split(z[k], sizes) for k in ("output", "measured", "command", "laser")}
-        logs = {k: _split(z[k], log_sizes) for k in ("log_index", "log_w", "log_s")}
-        # chunk (within the file) -> (circle it ends, that circle's final controller state)
-        ends = {
-            int(i): (int(c), z["final_controllers"][j])
-            for j, (i, c) in enumerate(zip(z["ends_at"], z["final_circles"], strict=True))
-        }
-        loop = LoopState(
-            plant=z["plant"],
-            controller=z["controller"],
-            observer=np.zeros(0),
-            command=z["last_command"],
-        )
-        gate = z["gate"] if "gate" in z else None
+    saved = read_state(path, kind=KIND, versions=(FORMAT_VERSION,),
+                       settings={"job": fingerprint}, fix=_FIX)  # fmt: skip
+    if saved is None:
+        return []
+    z = saved.arrays
+    sizes, log_sizes = z["sizes"], z["log_sizes"]
+    sig = {k: _split(z[k], sizes) for k in ("output", "measured", "command", "laser")}
+    logs = {k: _split(z[k], log_sizes) for k in ("log_index", "log_w", "log_s")}
+    # chunk (within the file) -> (circle it ends, that circle's final controller state)
+    ends = {
+        int(i): (int(c), z["final_controllers"][j])
+        for j, (i, c) in enumerate(zip(z["ends_at"], z["final_circles"], strict=True))
+    }
+    loop = LoopState(
+        plant=z["plant"],
+        controller=z["controller"],
+        observer=np.zeros(0),
+        command=z["last_command"],
+    )
+    gate = z["gate"] if "gate" in z else None
     out = []
     n = sizes.shape[0]
     for i in range(n):
@@ -182,7 +178,7 @@ def load_chunks(run_dir: Path, fingerprint: str, total: int) -> list[Chunk]:
     if (run_dir / _OLD_STATE).exists():
         raise ValueError(
             f"{run_dir} holds a run saved in format 1 ({_OLD_STATE}); this microfab reads "
-            f"format {FORMAT_VERSION}; remove {run_dir} to start again"
+            f"format {FORMAT_VERSION}; {_FIX}"
         )
     out: list[Chunk] = []
     while len(out) < total:
@@ -191,5 +187,5 @@ def load_chunks(run_dir: Path, fingerprint: str, total: int) -> list[Chunk]:
             break
         out += _load(path, fingerprint)
     if len(out) > total:
-        raise ValueError(f"{run_dir} holds more chunks than this job; remove it to start again")
+        raise ValueError(f"{run_dir} holds more chunks than this job; {_FIX}")
     return out
