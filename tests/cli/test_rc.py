@@ -18,8 +18,8 @@ from microfab.cli import app
 from microfab.control.pid import PID
 from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import PluginRC, RCConfig
-from microfab.experiments.seed001_nanomanipulator.hardware import CONTOUR_FILE, STATE_FILE
 from microfab.io.trace import read_columns, write_columns
+from microfab.machines.nanomanipulator_files import CONTOUR_FILE, STATE_FILE
 from microfab.plants.base import LTIPlant
 from microfab.plants.lti import block_diag, discretize
 from microfab.sim.loop import simulate

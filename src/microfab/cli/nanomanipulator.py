@@ -58,12 +58,9 @@ def analyze_cmd(
     The trace must follow the pattern's reference sample by sample (four 0.15 mm circles
     in a 0.5 mm field by default); give the pattern the job ran with the options or --job.
     """
-    from microfab.experiments.seed001_nanomanipulator.analyze import (
-        analyze_trace,
-        pattern_from_job,
-        write_analysis,
-    )
     from microfab.io.atomic import atomic_write_json
+    from microfab.measure.circle_trace import analyze_trace, pattern_from_job
+    from microfab.report.circle_tracking import tracking_table, write_analysis
     from microfab.trajectory.circle_pattern import PatternConfig
 
     fields = {
@@ -97,7 +94,7 @@ def analyze_cmd(
             atomic_write_json(json_path, analysis.summary())
     except (OSError, ValueError) as exc:
         fail(str(exc))
-    print_table(analysis.metrics.table())
+    print_table(tracking_table(analysis.metrics))
     if report is not None:
         console.print(f"report: {report}", highlight=False)
     if json_path is not None:

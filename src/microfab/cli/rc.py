@@ -47,7 +47,7 @@ def rc_step_cmd(
     The first call creates the state (the trial must have run on the plain contour); the
     state is the simulated RC's (PluginRC.save_state), so a twin run can be continued.
     """
-    from microfab.experiments.seed001_nanomanipulator.hardware import rc_file_step
+    from microfab.machines.nanomanipulator_files import rc_file_step
 
     check_option("--tau-ms", tau_ms, "ms")
     check_option("--gain", gain, "", high=2.0)

@@ -213,11 +213,13 @@ def _write_report(result: NanomanipulatorResult, out: Path, title: str) -> Path:
 
 
 def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
+    from microfab.report.circle_tracking import tracking_table  # draws: loaded on use
+
     cfg = JobConfig(twin=TwinSettings(seed=options["seed"]))
     run = run_job(cfg, None, progress)
     m = run.metrics()
     return ReproductionResult(
-        tables=(m.table(),),
+        tables=(tracking_table(m),),
         notes=(
             "Twin of seed 001 eq. 9 with the §4.1 terms, assumed noise and disturbance "
             "(microfab/data/nanomanipulator_twin.toml); `microfab calibrate nanomanipulator` "

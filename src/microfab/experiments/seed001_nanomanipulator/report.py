@@ -132,13 +132,13 @@ def _notes(result: NanomanipulatorResult) -> list[str]:
 
 def write_report(result: NanomanipulatorResult, out: Path, title: str) -> Path:
     """Render the figures and write ``report.html`` into ``out``."""
-    from microfab.experiments.seed001_nanomanipulator.figures import (
+    from microfab.report.canvas import render_png
+    from microfab.report.circle_tracking import (
         fig_contour_phase,
         fig_error_time,
         fig_period_rms,
         fig_xy,
     )
-    from microfab.report.canvas import render_png
     from microfab.report.page import Figure, page_html, write_page
 
     run, m = result.run, result.metrics

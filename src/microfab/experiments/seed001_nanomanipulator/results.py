@@ -14,11 +14,11 @@ import numpy as np
 
 from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.experiments.seed001_nanomanipulator.cure import CircleCure
-from microfab.experiments.seed001_nanomanipulator.metrics import TrackingMetrics
 from microfab.experiments.seed001_nanomanipulator.run import (
     JobConfig,
     JobRun,
 )
+from microfab.measure.circle_tracking import TrackingMetrics
 from microfab.report.tables import DASH, Table, versus
 
 __all__ = ["NanomanipulatorResult", "cure_table"]
@@ -82,7 +82,9 @@ class NanomanipulatorResult:
 
     def comparison(self) -> tuple[Table, ...]:
         """Tracking beside seed 001 §4.2, and the cured lines."""
-        return (self.metrics.table(), cure_table(self.cures, self.run.config))
+        from microfab.report.circle_tracking import tracking_table  # draws: loaded on use
+
+        return (tracking_table(self.metrics), cure_table(self.cures, self.run.config))
 
     def failures(self) -> tuple[str, ...]:
         """Circles whose gate never opened."""

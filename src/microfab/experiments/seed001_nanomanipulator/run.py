@@ -54,12 +54,12 @@ from microfab.experiments.seed001_nanomanipulator.checkpoint import (
     load_chunks,
     save_chunks,
 )
-from microfab.experiments.seed001_nanomanipulator.metrics import (
+from microfab.io.background import BackgroundWriter
+from microfab.machines import nanomanipulator
+from microfab.measure.circle_tracking import (
     TrackingMetrics,
     pattern_metrics,
 )
-from microfab.io.background import BackgroundWriter
-from microfab.machines import nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode

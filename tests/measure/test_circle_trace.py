@@ -10,8 +10,8 @@ import pytest
 from typer.testing import CliRunner
 
 from microfab.cli import app
-from microfab.experiments.seed001_nanomanipulator.analyze import analyze_trace, pattern_from_job
 from microfab.io.trace import write_columns
+from microfab.measure.circle_trace import analyze_trace, pattern_from_job
 from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 
 runner = CliRunner()

@@ -1,14 +1,16 @@
-"""Tracking metrics of the seed 001 §4.2 job (Figs. 12-13), for the twin and for hardware.
+"""Tracking metrics of a circle-field job (seed 001 §4.2, Figs. 12-13), twin and hardware.
 
-The same numbers come from a twin run and from a measured trace.
+The same numbers come from a twin run (the nanomanipulator job) and from a measured
+trace (``microfab nanomanipulator analyze``, `microfab.measure.circle_trace`); the table
+that sets them beside the seed's is `microfab.report.circle_tracking.tracking_table`.
 
 Definitions (ours; the seed states none):
 
 * **Error**: the error the sensor shows, ``e = r − y`` (reference minus measured output),
   mm, per axis.
 * **Circle run**: the ``periods`` whole periods of a circle from its first full-rate
-  sample (`pattern.PatternReference.starts`); the moves, pauses, spin-up and spin-down
-  between circles are left out of every metric.
+  sample (`microfab.trajectory.circle_pattern.PatternReference.starts`); the moves,
+  pauses, spin-up and spin-down between circles are left out of every metric.
 * **Axial RMS** (seed 001 §4.2, Fig. 13a: x 485.8 nm, y 885.8 nm): RMS of ``e`` per axis
   over the runs of every circle.
 * **Contour error**: the signed radial error of the output, ``‖y − c‖ − R`` (positive
@@ -37,11 +39,12 @@ from typing import Any
 import numpy as np
 
 from microfab.core.validate import check_int, check_positive
-from microfab.experiments.seed001_nanomanipulator import paper
-from microfab.report.tables import DASH, Table, ratio, versus
 from microfab.trajectory.circle_pattern import PatternReference
 
 __all__ = [
+    "SEED_AXIAL_RMS_NM",
+    "SEED_CONTOUR_RMS_NM",
+    "SEED_GATE_PERIODS",
     "TrackingMetrics",
     "contour_error",
     "pattern_metrics",
@@ -51,6 +54,11 @@ __all__ = [
 ]
 
 NM_PER_MM = 1e6
+#: seed 001 §4.2 / Fig. 13a (``shared/seeds/001_44fdd8e8f587fd7f.txt``): axial tracking
+#: errors, read as RMS (the contour RMS agrees: sqrt((485.8² + 885.8²)/2) = 714 nm).
+SEED_AXIAL_RMS_NM = {"x": 485.8, "y": 885.8}
+SEED_CONTOUR_RMS_NM = 769.5  # seed 001 §4.2 / Fig. 13b: contour error, RMS over phase
+SEED_GATE_PERIODS = (3, 4)  # seed 001 §4.2: error reaches submicrons in 3-4 periods
 #: Phase bins per period of the Fig. 13b curve (1°, assumed: finer than the seed's plot).
 BINS_PER_PERIOD = 360
 
@@ -177,10 +185,6 @@ def _mean_over_circles(curves: np.ndarray) -> np.ndarray:
     return out
 
 
-def _opt(v: float | None, fmt: str = "{:.1f}") -> str:
-    return DASH if v is None else fmt.format(v)
-
-
 @dataclass(frozen=True, kw_only=True, eq=False)
 class TrackingMetrics:
     """The seed 001 §4.2 metrics of one job (definitions: module docstring).
@@ -246,45 +250,11 @@ class TrackingMetrics:
             "period_samples": self.period_samples,
             "dt_s": self.dt,
             "seed": {
-                "axial_rms_nm": dict(paper.AXIAL_RMS_NM),
-                "contour_rms_nm": paper.CONTOUR_RMS_NM,
-                "gate_periods": list(paper.GATE_PERIODS),
+                "axial_rms_nm": dict(SEED_AXIAL_RMS_NM),
+                "contour_rms_nm": SEED_CONTOUR_RMS_NM,
+                "gate_periods": list(SEED_GATE_PERIODS),
             },
         }
-
-    def table(self) -> Table:
-        """Ours beside seed 001 §4.2 (axial and contour RMS, gate periods, exposed RMS)."""
-        f0 = "{:.1f}".format
-        rows = [
-            (
-                f"axial RMS {a} [nm]",
-                versus(self.axial_rms_nm[i], paper.AXIAL_RMS_NM[a], f0),
-                ratio(self.axial_rms_nm[i], paper.AXIAL_RMS_NM[a]),
-            )
-            for i, a in enumerate("xy")
-        ]
-        rows.append(
-            (
-                "contour RMS [nm]",
-                versus(self.contour_rms_nm, paper.CONTOUR_RMS_NM, f0),
-                ratio(self.contour_rms_nm, paper.CONTOUR_RMS_NM),
-            )
-        )
-        lo, hi = paper.GATE_PERIODS
-        for i in range(self.n_circles):
-            g = self.gate_period[i]
-            rows.append((f"circle {i + 1}: gate period", f"{_opt(g, '{}')} / {lo}-{hi}", DASH))
-            rows.append(
-                (f"circle {i + 1}: exposed RMS [nm]", f"{_opt(self.exposed_rms_nm[i])}", DASH)
-            )
-        return Table(
-            title="Seed 001 §4.2 tracking, ours / seed",
-            columns=("quantity", "ours / seed", "ratio"),
-            rows=rows,
-            note="Error r − y as the sensor shows it, over every period of every circle "
-            "(moves and pauses left out); seed 001 §4.2, Fig. 13: axial 485.8 / 885.8 nm, "
-            "contour 769.5 nm RMS, laser on after 3-4 periods.",
-        )
 
 
 def tracking_metrics(

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.experiments.seed001_nanomanipulator import figures as figs
-from microfab.experiments.seed001_nanomanipulator.metrics import tracking_metrics
+from microfab.measure.circle_tracking import tracking_metrics
+from microfab.report import circle_tracking as figs
 from microfab.report.canvas import render_png
 from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 

@@ -1,12 +1,13 @@
-"""Seed 001 metrics and figures from a measured trace (``microfab nanomanipulator analyze``).
+"""Seed 001 metrics of a measured trace (``microfab nanomanipulator analyze``).
 
 A trace is a file with the columns ``time, ref_x, ref_y, x, y, laser`` (s, mm, mm, 0/1;
-`microfab.experiments.seed001_nanomanipulator.hardware`) recorded over a whole job of the
-§4.2 pattern: from the stage at rest at the field centre, through every circle, to the
-end of the last pause. Where the circles lie in it comes from the pattern
-(`pattern.PatternConfig`), whose reference the trace must follow sample by sample
-(`check_reference`); the metrics are `metrics.tracking_metrics`, the figures those of
-`figures`, the report the twin's (`microfab.report.page`).
+`microfab.io.xy_trace`) recorded over a whole job of the circle-field pattern (seed 001
+§4.2): from the stage at rest at the field centre, through every circle, to the end of
+the last pause. Where the circles lie in it comes from the pattern
+(`microfab.trajectory.circle_pattern.PatternConfig`), whose reference the trace must
+follow sample by sample (`check_reference`); the metrics are
+`microfab.measure.circle_tracking.tracking_metrics`; the figures and the page are
+`microfab.report.circle_tracking` (`write_analysis`).
 """
 
 from __future__ import annotations
@@ -19,21 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from microfab.experiments.seed001_nanomanipulator import figures as figs
-from microfab.experiments.seed001_nanomanipulator.hardware import (
+from microfab.io.job import JobFileError, Key, parse_section, read_job
+from microfab.io.xy_trace import (
     REF_TOL_MM,
     MeasuredTrace,
     largest_deviation,
     read_measured,
 )
-from microfab.experiments.seed001_nanomanipulator.metrics import (
-    TrackingMetrics,
-    pattern_metrics,
-)
-from microfab.io.job import JobFileError, Key, parse_section, read_job
-from microfab.report.canvas import render_png
-from microfab.report.page import Figure, page_html, write_page
-from microfab.report.tables import Table
+from microfab.measure.circle_tracking import TrackingMetrics, pattern_metrics
 from microfab.trajectory.circle_pattern import (
     PatternConfig,
     PatternReference,
@@ -43,13 +37,10 @@ from microfab.trajectory.circle_pattern import (
 __all__ = [
     "PATTERN_KEYS",
     "Analysis",
-    "analysis_figures",
-    "analysis_page",
     "analyze_trace",
     "check_reference",
     "pattern_from_job",
     "twin_sample_rate_hz",
-    "write_analysis",
 ]
 
 #: The ``[pattern]`` section of a job file as `pattern_from_job` reads it (the keys of
@@ -184,9 +175,9 @@ def analyze_trace(
     FileNotFoundError
         No such file.
     ValueError
-        A bad trace (`hardware.read_measured`), a sample rate other than the pattern's, a
-        period that is not a whole number of samples, or a reference that does not follow
-        the pattern (`check_reference`).
+        A bad trace (`microfab.io.xy_trace.read_measured`), a sample rate other than the
+        pattern's, a period that is not a whole number of samples, or a reference that does
+        not follow the pattern (`check_reference`).
     """
     cfg = PatternConfig() if config is None else config
     fs = twin_sample_rate_hz() if sample_rate_hz is None else float(sample_rate_hz)
@@ -203,82 +194,3 @@ def analyze_trace(
     assert trace.laser is not None
     metrics = pattern_metrics(pattern, trace.output, trace.laser, reference=trace.reference)
     return Analysis(trace=trace, config=cfg, pattern=pattern, metrics=metrics)
-
-
-def analysis_figures(analysis: Analysis) -> list[Figure]:
-    """The report's figures, rendered to PNG (nothing is written)."""
-    tr, m = analysis.trace, analysis.metrics
-    drawn = (
-        (
-            "xy.png",
-            figs.fig_xy(tr.reference, tr.output, analysis.laser),
-            "Reference and output in the plane, laser-on part in red (seed 001 Fig. 12).",
-        ),
-        (
-            "error_time.png",
-            figs.fig_error_time(tr.time, tr.reference, tr.output, m),
-            "x and y tracking error r − y against time; grey: circle runs, dashed: laser "
-            "switched on (seed 001 Fig. 13a). The error range is set by the circle runs.",
-        ),
-        (
-            "contour_phase.png",
-            figs.fig_contour_phase(m),
-            "Contour error against the phase from each run's start, mean over the circles, "
-            "with our RMS and the seed's 769.5 nm (seed 001 Fig. 13b).",
-        ),
-        (
-            "period_rms.png",
-            figs.fig_period_rms(m),
-            "RMS error norm per period and circle (RC convergence), the 1 µm gate "
-            "threshold and the seed's 3-4 periods.",
-        ),
-    )
-    return [Figure(name=n, png=render_png(f), caption=c) for n, f, c in drawn]
-
-
-def _period_table(m: TrackingMetrics) -> Table:
-    rows = [
-        (f"circle {i + 1}", *(f"{v:.1f}" for v in m.period_rms_nm[i])) for i in range(m.n_circles)
-    ]
-    return Table(
-        title="RMS of ‖r − y‖ per period [nm]",
-        columns=("circle", *(str(k + 1) for k in range(m.periods))),
-        rows=rows,
-    )
-
-
-def analysis_page(analysis: Analysis, figures: list[Figure]) -> str:
-    """The report's HTML text."""
-    tr, cfg = analysis.trace, analysis.config
-    notes = [
-        f"Trace {tr.path}: {tr.n_samples} samples at {1.0 / tr.dt:g} Hz; columns time, "
-        "ref_x, ref_y, x, y (mm), laser (0/1).",
-        f"Pattern: {cfg.n_circles} circle(s) of {cfg.diameter_mm:g} mm in a "
-        f"{cfg.field_mm:g} mm field, {cfg.periods} periods of {cfg.period_s:g} s each, "
-        f"pause {cfg.pause_s:g} s, move {cfg.move_s:g} s, spin-up/down {cfg.ramp_s:g} s.",
-        "Error r − y as the sensor shows it; axial and contour RMS over every period of "
-        "every circle, moves and pauses left out (definitions: "
-        "microfab.experiments.seed001_nanomanipulator.metrics).",
-        "Contour error ‖y − c‖ − R; Fig. 13b bins it on the reference's phase from each "
-        "run's start and averages over the circles (seed 001 §4.2).",
-    ]
-    return page_html(
-        "Seed 001 nanomanipulator: measured trace",
-        intro="Tracking metrics and figures of seed 001 §4.2 from a measured trace, "
-        "ours beside the seed's.",
-        notes=notes,
-        figures=figures,
-        tables=[analysis.metrics.table(), _period_table(analysis.metrics)],
-    )
-
-
-def write_analysis(analysis: Analysis, out_dir: str | Path) -> Path:
-    """Render every figure, then write them and ``report.html`` into ``out_dir``.
-
-    Returns
-    -------
-    Path
-        The path of ``report.html``.
-    """
-    figures = analysis_figures(analysis)  # drawn before anything is written
-    return write_page(out_dir, analysis_page(analysis, figures), figures)

@@ -8,13 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from microfab.experiments.seed001_nanomanipulator.metrics import (
+from microfab.measure.circle_tracking import (
     contour_error,
     pattern_metrics,
     period_rms,
     phase_of,
     tracking_metrics,
 )
+from microfab.report.circle_tracking import tracking_table
 from microfab.trajectory.circle_pattern import (
     PatternConfig,
     PatternReference,
@@ -111,7 +112,7 @@ def test_summary_is_json_and_the_table_stands_beside_the_seed() -> None:
     assert s["gate_period"] == [4, None, None, None]
     assert s["gate_time_s"][0] == pytest.approx((ref.starts[0] + 3 * ref.period_samples) * DT)
     assert s["seed"]["axial_rms_nm"] == {"x": 485.8, "y": 885.8}
-    text = m.table().to_text()
+    text = tracking_table(m).to_text()
     assert "500.0 / 769.5" in text and "353.6 / 485.8" in text and "353.6 / 885.8" in text
     assert "4 / 3-4" in text and "— / 3-4" in text and "0.65" in text
 

@@ -1,7 +1,9 @@
-"""Figures of seed 001 §4.2 (Figs. 12-13) and the RC's convergence, from a trace.
+"""Seed 001 §4.2 tracking drawn: Figs. 12-13, the RC's convergence, the table, the page.
 
-Each draws a trace and its
-`~microfab.experiments.seed001_nanomanipulator.metrics.TrackingMetrics`.
+The figures draw a trace and its `~microfab.measure.circle_tracking.TrackingMetrics`
+(a twin run of the nanomanipulator job, or a measured trace); `tracking_table` sets the
+metrics beside the seed's; `write_analysis` writes the page of
+``microfab nanomanipulator analyze`` (`microfab.measure.circle_trace.Analysis`).
 
 Every function returns a :class:`matplotlib.figure.Figure` on an Agg canvas
 (`microfab.report.canvas.new_figure`, no pyplot) and writes nothing; the report renders
@@ -16,14 +18,34 @@ against time), Fig. 13b (contour error against phase, averaged over the four cir
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from matplotlib.figure import Figure
 
-from microfab.experiments.seed001_nanomanipulator import paper
-from microfab.experiments.seed001_nanomanipulator.metrics import NM_PER_MM, TrackingMetrics
-from microfab.report.canvas import new_figure
+from microfab.measure.circle_trace import Analysis
+from microfab.measure.circle_tracking import (
+    NM_PER_MM,
+    SEED_AXIAL_RMS_NM,
+    SEED_CONTOUR_RMS_NM,
+    SEED_GATE_PERIODS,
+    TrackingMetrics,
+)
+from microfab.report.canvas import new_figure, render_png
+from microfab.report.page import Figure as PageFigure
+from microfab.report.page import page_html, write_page
+from microfab.report.tables import DASH, Table, ratio, versus
 
-__all__ = ["fig_contour_phase", "fig_error_time", "fig_period_rms", "fig_xy"]
+__all__ = [
+    "analysis_figures",
+    "analysis_page",
+    "fig_contour_phase",
+    "fig_error_time",
+    "fig_period_rms",
+    "fig_xy",
+    "tracking_table",
+    "write_analysis",
+]
 
 _REF = {"color": "0.45", "linestyle": "--", "linewidth": 0.9}
 _OUT = {"color": "tab:blue", "linestyle": "-", "linewidth": 0.8}
@@ -135,7 +157,7 @@ def fig_error_time(
                 linewidth=1.0,
                 label="laser on" if j == 0 else None,
             )
-        seed = paper.AXIAL_RMS_NM[name]
+        seed = SEED_AXIAL_RMS_NM[name]
         ax.set_ylim(-max(lim, 1.2 * seed), max(lim, 1.2 * seed))
         ax.set_ylabel(f"{name} error (nm)")
         ax.set_title(
@@ -187,9 +209,9 @@ def fig_contour_phase(metrics: TrackingMetrics) -> Figure:
             label=f"± our RMS {ours:.1f} nm" if sign > 0 else None,
         )
         ax.axhline(
-            sign * paper.CONTOUR_RMS_NM,
+            sign * SEED_CONTOUR_RMS_NM,
             **_SEED,
-            label=f"± seed RMS {paper.CONTOUR_RMS_NM:g} nm" if sign > 0 else None,
+            label=f"± seed RMS {SEED_CONTOUR_RMS_NM:g} nm" if sign > 0 else None,
         )
     ax.set_xlabel("phase from the run's start (turns)")
     ax.set_ylabel("contour error ‖y − c‖ − R (nm)")
@@ -221,7 +243,7 @@ def fig_period_rms(metrics: TrackingMetrics, *, threshold_nm: float = THRESHOLD_
     k = np.arange(1, metrics.periods + 1)
     fig = new_figure(6.4, 4.0)
     ax = fig.add_subplot()
-    lo, hi = paper.GATE_PERIODS
+    lo, hi = SEED_GATE_PERIODS
     ax.axvspan(lo - 0.5, hi + 0.5, color="0.9", zorder=0, label=f"seed: gate in {lo}-{hi} periods")
     for i in range(metrics.n_circles):
         line = ax.semilogy(
@@ -256,3 +278,121 @@ def fig_period_rms(metrics: TrackingMetrics, *, threshold_nm: float = THRESHOLD_
     ax.grid(True, which="both", alpha=0.25)
     ax.legend(loc="upper right", fontsize="small", framealpha=0.9)
     return fig
+
+
+def _opt(v: float | None, fmt: str = "{:.1f}") -> str:
+    return DASH if v is None else fmt.format(v)
+
+
+def tracking_table(metrics: TrackingMetrics) -> Table:
+    """Ours beside seed 001 §4.2 (axial and contour RMS, gate periods, exposed RMS)."""
+    f0 = "{:.1f}".format
+    rows = [
+        (
+            f"axial RMS {a} [nm]",
+            versus(metrics.axial_rms_nm[i], SEED_AXIAL_RMS_NM[a], f0),
+            ratio(metrics.axial_rms_nm[i], SEED_AXIAL_RMS_NM[a]),
+        )
+        for i, a in enumerate("xy")
+    ]
+    rows.append(
+        (
+            "contour RMS [nm]",
+            versus(metrics.contour_rms_nm, SEED_CONTOUR_RMS_NM, f0),
+            ratio(metrics.contour_rms_nm, SEED_CONTOUR_RMS_NM),
+        )
+    )
+    lo, hi = SEED_GATE_PERIODS
+    for i in range(metrics.n_circles):
+        g = metrics.gate_period[i]
+        rows.append((f"circle {i + 1}: gate period", f"{_opt(g, '{}')} / {lo}-{hi}", DASH))
+        rows.append(
+            (f"circle {i + 1}: exposed RMS [nm]", f"{_opt(metrics.exposed_rms_nm[i])}", DASH)
+        )
+    return Table(
+        title="Seed 001 §4.2 tracking, ours / seed",
+        columns=("quantity", "ours / seed", "ratio"),
+        rows=rows,
+        note="Error r − y as the sensor shows it, over every period of every circle "
+        "(moves and pauses left out); seed 001 §4.2, Fig. 13: axial 485.8 / 885.8 nm, "
+        "contour 769.5 nm RMS, laser on after 3-4 periods.",
+    )
+
+
+def analysis_figures(analysis: Analysis) -> list[PageFigure]:
+    """The report's figures, rendered to PNG (nothing is written)."""
+    tr, m = analysis.trace, analysis.metrics
+    drawn = (
+        (
+            "xy.png",
+            fig_xy(tr.reference, tr.output, analysis.laser),
+            "Reference and output in the plane, laser-on part in red (seed 001 Fig. 12).",
+        ),
+        (
+            "error_time.png",
+            fig_error_time(tr.time, tr.reference, tr.output, m),
+            "x and y tracking error r − y against time; grey: circle runs, dashed: laser "
+            "switched on (seed 001 Fig. 13a). The error range is set by the circle runs.",
+        ),
+        (
+            "contour_phase.png",
+            fig_contour_phase(m),
+            "Contour error against the phase from each run's start, mean over the circles, "
+            "with our RMS and the seed's 769.5 nm (seed 001 Fig. 13b).",
+        ),
+        (
+            "period_rms.png",
+            fig_period_rms(m),
+            "RMS error norm per period and circle (RC convergence), the 1 µm gate "
+            "threshold and the seed's 3-4 periods.",
+        ),
+    )
+    return [PageFigure(name=n, png=render_png(f), caption=c) for n, f, c in drawn]
+
+
+def _period_table(m: TrackingMetrics) -> Table:
+    rows = [
+        (f"circle {i + 1}", *(f"{v:.1f}" for v in m.period_rms_nm[i])) for i in range(m.n_circles)
+    ]
+    return Table(
+        title="RMS of ‖r − y‖ per period [nm]",
+        columns=("circle", *(str(k + 1) for k in range(m.periods))),
+        rows=rows,
+    )
+
+
+def analysis_page(analysis: Analysis, figures: list[PageFigure]) -> str:
+    """The report's HTML text."""
+    tr, cfg = analysis.trace, analysis.config
+    notes = [
+        f"Trace {tr.path}: {tr.n_samples} samples at {1.0 / tr.dt:g} Hz; columns time, "
+        "ref_x, ref_y, x, y (mm), laser (0/1).",
+        f"Pattern: {cfg.n_circles} circle(s) of {cfg.diameter_mm:g} mm in a "
+        f"{cfg.field_mm:g} mm field, {cfg.periods} periods of {cfg.period_s:g} s each, "
+        f"pause {cfg.pause_s:g} s, move {cfg.move_s:g} s, spin-up/down {cfg.ramp_s:g} s.",
+        "Error r − y as the sensor shows it; axial and contour RMS over every period of "
+        "every circle, moves and pauses left out (definitions: "
+        "microfab.measure.circle_tracking).",
+        "Contour error ‖y − c‖ − R; Fig. 13b bins it on the reference's phase from each "
+        "run's start and averages over the circles (seed 001 §4.2).",
+    ]
+    return page_html(
+        "Seed 001 nanomanipulator: measured trace",
+        intro="Tracking metrics and figures of seed 001 §4.2 from a measured trace, "
+        "ours beside the seed's.",
+        notes=notes,
+        figures=figures,
+        tables=[tracking_table(analysis.metrics), _period_table(analysis.metrics)],
+    )
+
+
+def write_analysis(analysis: Analysis, out_dir: str | Path) -> Path:
+    """Render every figure, then write them and ``report.html`` into ``out_dir``.
+
+    Returns
+    -------
+    Path
+        The path of ``report.html``.
+    """
+    figures = analysis_figures(analysis)  # drawn before anything is written
+    return write_page(out_dir, analysis_page(analysis, figures), figures)
