@@ -16,7 +16,7 @@ import sys
 import numpy as np
 from _timing import timed
 
-from microfab.experiments.seed003_inkjet.sweep import droplet_sweep, sweep_points
+from microfab.machines.printhead import droplet_sweep, sweep_points
 from microfab.process.inkjet.droplet import simulate_droplet
 from microfab.process.inkjet.fluids import naalg
 from microfab.process.inkjet.jet import JetModel, Numerics, run_jet, thread_body

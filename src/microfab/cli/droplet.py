@@ -52,10 +52,11 @@ def simulate_cmd(
 ) -> None:
     """Predict breakup time, position, mode, satellites and head speed; write a report.
 
-    Runs the same path as a sweep point (`microfab.experiments.seed003_inkjet.sweep.run_point`)
-    with the same defaults, so both give the same answer for the same point.
+    Runs the same path as a sweep point (`microfab.machines.printhead.run_point`, which plays
+    the printhead machine) with the same defaults, so both give the same answer for the
+    same point.
     """
-    from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.process.inkjet.fluids import naalg
 
     _check_voltage("--voltage", voltage)
@@ -102,10 +103,13 @@ def _model(name: str) -> str:
 
 def _check_voltage(name: str, volts: float) -> None:
     """Refuse a drive amplitude outside the calibrated 40-70 V (seed 003 Table 1)."""
-    if not 40.0 <= volts <= 70.0:
+    from microfab.machines.printhead import limits
+
+    low, high = limits().voltage_v
+    if not low <= volts <= high:
         fail(
-            f"{name} {volts:g} V is outside what the model is calibrated for (40 to 70 V, "
-            "seed 003 Table 1)"
+            f"{name} {volts:g} V is outside what the model is calibrated for ({low:g} to "
+            f"{high:g} V, seed 003 Table 1)"
         )
 
 
@@ -122,9 +126,9 @@ def _camera(silhouettes: list[Any], pixel_size_m: float = 2e-6) -> Any:
 
 
 def _write_report(res: Any, out: Path) -> None:
-    from microfab.experiments.seed003_inkjet.figures import fig_montage, fig_nozzle_flow
     from microfab.measure.shadowgraph import render_sequence
     from microfab.report.canvas import save_figure
+    from microfab.report.inkjet import fig_montage, fig_nozzle_flow
 
     out.mkdir(parents=True, exist_ok=True)
     save_figure(fig_nozzle_flow(res.flow, res.waveform), out / "nozzle_flow.png")
@@ -149,7 +153,7 @@ def render_cmd(
     model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
 ) -> None:
     """Simulate a droplet and write shadowgraph frames that droplet analyze can read."""
-    from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.measure.shadowgraph import render_sequence, write_frames
     from microfab.process.inkjet.fluids import naalg
 
@@ -207,7 +211,6 @@ def analyze_cmd(
     json_out: Annotated[Path | None, typer.Option("--json", help="Write JSON here.")] = None,
 ) -> None:
     """Measure head speed, breakup frame and mode, satellites and drop volume from frames."""
-    from microfab.experiments.seed003_inkjet.figures import fig_analysis
     from microfab.measure.imaging import (
         SIDECAR_NAME,
         MissingSettingError,
@@ -215,6 +218,7 @@ def analyze_cmd(
         load_frames,
     )
     from microfab.report.canvas import save_figure
+    from microfab.report.inkjet import fig_analysis
 
     options = {
         "pixel_size_m": ("--pixel-size", "µm"),
@@ -290,15 +294,11 @@ def sweep_cmd(
     again resumes. microfab run examples/droplet_sweep.toml runs the same sweep as a
     job and writes a report with the seed's numbers beside ours.
     """
-    from microfab.experiments.seed003_inkjet.figures import fig_sweep
     from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
-    from microfab.experiments.seed003_inkjet.sweep import (
-        DropletSettings,
-        droplet_sweep,
-        sweep_points,
-    )
+    from microfab.machines.printhead import DropletSettings, droplet_sweep, sweep_points
     from microfab.process.inkjet.fluids import naalg
     from microfab.report.canvas import save_figure
+    from microfab.report.inkjet import fig_sweep
 
     cs = _floats(concentrations, "concentrations")
     vs = _floats(voltages, "voltages") if voltages.strip() else []
@@ -367,7 +367,7 @@ def calibrate_cmd(
     about 15 s with the Eulerian one). A law belongs to the jet model it was fitted with:
     --write stores it as that model's law ([relaxation] or [relaxation_<model>]).
     """
-    from microfab.experiments.seed003_inkjet.calibration import (
+    from microfab.machines.printhead_calibration import (
         calibrate_relaxation,
         model_breakup,
         write_relaxation,
@@ -417,13 +417,13 @@ def sensitivity_cmd(
     measurement of this alginate was found); this shows which of them the breakup times
     hang on. Points are kept in OUT/points/ as they finish; a rerun resumes.
     """
-    from microfab.experiments.seed003_inkjet.sensitivity import (
+    from microfab.machines.printhead import DropletSettings
+    from microfab.machines.printhead_sensitivity import (
         markdown,
         sensitivity_points,
         sensitivity_study,
         sensitivity_table,
     )
-    from microfab.experiments.seed003_inkjet.sweep import DropletSettings
     from microfab.process.inkjet.fluids import naalg
 
     cs = _floats(concentrations, "concentrations")

@@ -13,9 +13,9 @@ from microfab.experiments.seed003_inkjet.job import (
     DropletSweepConfig,
     breakup_tables,
 )
-from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint
 from microfab.io.job import JobFileError
 from microfab.io.sweep import SweepResult
+from microfab.machines.printhead import DropletSettings, SweepPoint
 
 EXAMPLES = Path(__file__).parents[3] / "examples"
 

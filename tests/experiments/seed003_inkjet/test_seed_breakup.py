@@ -16,8 +16,8 @@ import itertools
 import pytest
 
 from microfab.core.threads import blas_kernels
-from microfab.experiments.seed003_inkjet.calibration import simulated_breakup
 from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP, SEED_CONCENTRATIONS_PCT
+from microfab.machines.printhead_calibration import simulated_breakup
 from microfab.process.inkjet.fluids import load_table
 
 Runs = dict[float, tuple[float | None, str | None]]
@@ -146,8 +146,8 @@ def test_eulerian_two_percent_needs_a_lower_viscosity_to_break_after_one_and_a_h
     eulerian: Runs,
 ) -> None:
     # what would have to change for the six to rise (the closing note of issue 19)
-    from microfab.experiments.seed003_inkjet.sensitivity import SensitivityPoint, perturbed_fluid
-    from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead_sensitivity import SensitivityPoint, perturbed_fluid
 
     def at(factor: float) -> float | None:
         fluid = perturbed_fluid(SensitivityPoint(2.0, "zero_shear_viscosity", factor), "eulerian")

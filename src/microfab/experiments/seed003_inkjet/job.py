@@ -41,14 +41,10 @@ from microfab.experiments.seed003_inkjet.paper import (
     SEED_CONCENTRATIONS_PCT,
     SEED_VOLTAGES_V,
 )
-from microfab.experiments.seed003_inkjet.sweep import (
-    DropletSettings,
-    SweepPoint,
-    droplet_sweep,
-    sweep_points,
-)
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
+from microfab.machines import printhead
+from microfab.machines.printhead import DropletSettings, SweepPoint, droplet_sweep, sweep_points
 from microfab.report.tables import DASH, Table, versus
 
 __all__ = [
@@ -62,7 +58,7 @@ __all__ = [
 #: Highest concentration of the property table, % w/v (seed 003 "Materials": 2 %).
 MAX_CONCENTRATION_PCT = max(SEED_CONCENTRATIONS_PCT)
 #: Voltage range the printhead model is calibrated for, V (seed 003 Table 1).
-VOLTAGE_RANGE_V = (min(SEED_VOLTAGES_V), max(SEED_VOLTAGES_V))
+VOLTAGE_RANGE_V = printhead.limits().voltage_v
 #: Assumed bounds of the simulated time per point, µs: the seed's slowest breakup is
 #: 230 µs (1 % at 50 V); 5 ms is far past any drop-on-demand event at 50 Hz drive.
 DURATION_RANGE_US = (10.0, 5000.0)
@@ -522,8 +518,8 @@ def _notes(result: DropletSweepResult) -> list[str]:
 
 
 def _write_report(result: DropletSweepResult, out: Path, title: str) -> Path:
-    from microfab.experiments.seed003_inkjet.figures import fig_sweep
     from microfab.report.canvas import render_png
+    from microfab.report.inkjet import fig_sweep
     from microfab.report.page import Figure, page_html, write_page
 
     figures = []
@@ -578,12 +574,12 @@ DROPLET_SWEEP = JobKind(
     run=_run,
     write_report=_write_report,
     default_title="Inkjet: breakup time over concentration and voltage",
-    data_files=("naalg.toml",),
+    data_files=printhead.DATA_FILES,
 )
 
 DROPLET_FIG4_REPRODUCTION = Reproduction(
     name="droplet-fig4",
     run=_reproduce,
     options=(_DURATION, _REPRO_MODELS, _WORKERS),
-    data_files=("naalg.toml",),
+    data_files=printhead.DATA_FILES,
 )

@@ -6,11 +6,13 @@ part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``, Table 1; 50 V is the volta
 Fig. 2) gives a reference peak orifice velocity with a water-like liquid. The plant knows
 nothing about waveforms, so this calibration, which needs the seed's waveform
 (:mod:`microfab.trajectory.waveform`), lives in the process layer.
+
+`default_printhead` builds a new calibrated head at each call (about 25 ms): the machine,
+:mod:`microfab.machines.printhead`, builds it once per configuration
+(`microfab.machines.printhead.twin`) and hands it to every run it plays.
 """
 
 from __future__ import annotations
-
-import functools
 
 from microfab.plants.printhead import Printhead, calibrate_gain
 from microfab.trajectory.waveform import seed003_waveform
@@ -39,14 +41,14 @@ REFERENCE_SURFACE_TENSION_N_M = 0.072
 REFERENCE_VOLTAGE_V = 50.0  # seed 003 part 1, Table 1 and Fig. 2
 
 
-@functools.lru_cache(maxsize=1)
 def default_printhead() -> Printhead:
     """The default `Printhead`, calibrated with the seed's waveform and water.
 
     The gain is set so that the seed's 50 V bipolar waveform (seed 003 part 1, Table 1)
     gives `REFERENCE_PEAK_VELOCITY_M_S` with the water-like reference liquid
     (`REFERENCE_DENSITY_KG_M3`, `REFERENCE_VISCOSITY_PA_S`,
-    `REFERENCE_SURFACE_TENSION_N_M`, all assumptions). Cached.
+    `REFERENCE_SURFACE_TENSION_N_M`, all assumptions). Built anew at each call; the
+    machine's `microfab.machines.printhead.twin` is the one built once and shared.
 
     Returns
     -------

@@ -9,14 +9,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from microfab.experiments.seed003_inkjet.figures import (
-    fig_analysis,
-    fig_montage,
-    fig_nozzle_flow,
-    fig_regime_map,
-    fig_sweep,
-)
-from microfab.experiments.seed003_inkjet.sweep import (
+from microfab.machines.printhead import (
     DropletSettings,
     SweepPoint,
     droplet_sweep,
@@ -28,6 +21,13 @@ from microfab.plants.printhead import nozzle_flow
 from microfab.process.inkjet.dimensionless import regime_map
 from microfab.process.inkjet.dispenser import default_printhead
 from microfab.process.inkjet.silhouette import Silhouette
+from microfab.report.inkjet import (
+    fig_analysis,
+    fig_montage,
+    fig_nozzle_flow,
+    fig_regime_map,
+    fig_sweep,
+)
 from microfab.trajectory.waveform import seed003_waveform
 
 US = 1e-6

@@ -7,13 +7,22 @@ from typing import Any
 
 import pytest
 
-from microfab.experiments.seed003_inkjet.sweep import (
+from microfab.io.sweep import SweepError, load_results
+from microfab.machines.printhead import (
+    DATA_FILES,
     DropletSettings,
     SweepPoint,
     droplet_sweep,
+    limits,
+    play,
+    run_point,
     sweep_points,
+    twin,
 )
-from microfab.io.sweep import SweepError, load_results
+from microfab.plants.printhead import Printhead, nozzle_flow
+from microfab.process.inkjet.dispenser import REFERENCE_PEAK_VELOCITY_M_S, default_printhead
+from microfab.process.inkjet.fluids import naalg
+from microfab.trajectory.waveform import seed003_waveform
 
 cloudpickle = pytest.importorskip("cloudpickle")
 # The stand-in simulation below travels to the worker processes by value (this test
@@ -106,3 +115,32 @@ def test_sweep_on_worker_processes_keeps_order_and_isolates_a_failure(tmp_path: 
     assert sum(not ok for _, ok in seen) == 1
     saved = [json.loads(f.read_text())["point"] for f in (tmp_path / "points").glob("*.json")]
     assert len(saved) == 4 and {"concentration_pct": 1.0, "voltage_v": 65.0} not in saved
+
+
+# ------------------------------------------------------- the machine: twin, limits, play
+WATER = {"density_kg_m3": 1000.0, "viscosity_pa_s": 1e-3, "surface_tension_n_m": 0.072}
+
+
+def test_default_printhead_is_calibrated_and_cached() -> None:
+    # moved from tests/process/inkjet/test_dispenser.py: the cache is now the machine's twin
+    head = twin()
+    assert twin() is head
+    peak = nozzle_flow(head, seed003_waveform(50.0), **WATER).peak_velocity_m_s
+    assert peak == pytest.approx(REFERENCE_PEAK_VELOCITY_M_S, rel=1e-9)
+    # the class default is the same gain, rounded to three digits
+    assert Printhead().gain_m3_per_v == pytest.approx(head.gain_m3_per_v, rel=5e-3)
+    # the process layer's default (a new head per call) is the same head
+    assert default_printhead() == head and default_printhead() is not head
+
+
+def test_limits_are_the_calibrated_voltages_of_table_1() -> None:
+    assert limits().voltage_v == (40.0, 70.0)
+    assert DATA_FILES == ("naalg.toml",)
+
+
+def test_play_a_voltage_or_its_waveform_is_one_run_on_the_twin() -> None:
+    settings = DropletSettings(duration_s=30e-6, after_breakup_s=5e-6)
+    by_volts = run_point(SweepPoint(0.15, 50.0), settings)
+    by_wave = play(seed003_waveform(50.0), naalg(0.15), settings)
+    assert by_volts.printhead is twin() and by_wave.printhead is twin()
+    assert by_wave.to_dict() == by_volts.to_dict()

@@ -6,7 +6,7 @@ import pytest
 from typer.testing import CliRunner
 
 from microfab.cli import app
-from microfab.experiments.seed003_inkjet.sensitivity import (
+from microfab.machines.printhead_sensitivity import (
     FACTORS,
     SensitivityPoint,
     markdown,
@@ -69,7 +69,7 @@ def test_cli_refuses_an_unknown_model_on_one_line(tmp_path) -> None:
 
 
 def test_cli_reports_a_failed_point_and_keeps_the_rest(tmp_path, monkeypatch) -> None:
-    import microfab.experiments.seed003_inkjet.sensitivity as sens
+    import microfab.machines.printhead_sensitivity as sens
 
     def fake(point: SensitivityPoint, settings: object) -> dict:
         if point.prop == "density" and point.factor > 1:

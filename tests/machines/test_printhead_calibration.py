@@ -6,11 +6,11 @@ from pathlib import Path
 
 import pytest
 
-from microfab.experiments.seed003_inkjet.calibration import (
+from microfab.machines.printhead_calibration import (
+    SEED_BREAKUP,
     calibrate_relaxation,
     write_relaxation,
 )
-from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
 from microfab.process.inkjet.fluids import load_table
 
 

@@ -1,15 +1,24 @@
-"""Breakup time over concentration and voltage: the seed's Fig. 4 and its voltage trend.
+"""The piezo drop-on-demand printhead of seed 003 part 1 as a machine: a drive in, a droplet out.
 
-A sweep runs :func:`microfab.process.inkjet.droplet.simulate_droplet` once per point:
-the six NaAlg concentrations of seed 003 part 1
-(``../shared/seeds/003_4915b267b12a78d4.txt``, "Materials") at 50 V (its Fig. 4), and the
-Table 1 voltages 40-70 V at one concentration (numbers in :mod:`.paper`). The points run
-on the project's generic runner, :func:`microfab.io.sweep.run_sweep`: in this
-process, on a local Dask cluster of worker processes, or on a running Dask scheduler.
-Every finished point is saved at once (atomically) in the results directory, and a sweep
-started again with the same directory and settings skips the points already there, so
-an interrupted sweep loses at most the points in progress. The figure is
-:func:`microfab.experiments.seed003_inkjet.figures.fig_sweep`.
+The machine is a MicroFab 120 µm squeeze-tube dispenser jetting sodium alginate (NaAlg)
+(seed 003 part 1, ``../shared/seeds/003_4915b267b12a78d4.txt``, Xu et al.). Its twin is
+the acoustic printhead (`microfab.plants.printhead.Printhead`) with the gain calibrated
+to the seed's drive and water (`microfab.process.inkjet.dispenser.default_printhead`),
+built once per process (`twin`, a `microfab.machines.twins.TwinCache`); the inks are the
+NaAlg property table ``naalg.toml`` (`microfab.process.inkjet.fluids.naalg`).
+
+`play` is the machine: a drive (a waveform, or a voltage for the seed's bipolar waveform
+of Table 1) and a fluid in, what the camera would film out: the droplet simulation
+(`microfab.process.inkjet.droplet.simulate_droplet`), with its frames (silhouettes) and
+its first breakup (time, position, mode). `run_point` is the one path from a
+(concentration, voltage) point to a droplet: the Fig. 4 sweep (`droplet_sweep`, on the
+project's runner `microfab.io.sweep.run_sweep`), the ``droplet-sweep`` job, the
+calibration, the sensitivity study and ``microfab droplet simulate|render|sweep`` all run
+it, so one point gives one answer whichever command runs it.
+
+A sweep saves every finished point at once (atomically) in its results directory; one
+started again with the same directory and settings skips the points already there, so an
+interrupted sweep loses at most the points in progress.
 """
 
 from __future__ import annotations
@@ -22,29 +31,43 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from microfab.core.validate import check_positive
-from microfab.experiments.seed003_inkjet.paper import (
-    FIG4_VOLTAGE_V,
-    SEED_CONCENTRATIONS_PCT,
-    SEED_VOLTAGES_V,
-)
 from microfab.io.sweep import SweepResult, run_sweep
+from microfab.machines.twins import TwinCache
+from microfab.process.inkjet.fluids import SEED_CONCENTRATIONS_PCT
+from microfab.trajectory.waveform import SEED003_VOLTAGES_V
 
 if TYPE_CHECKING:
     from distributed import Client
 
+    from microfab.plants.printhead import Printhead
     from microfab.process.inkjet.droplet import DropletResult
     from microfab.process.inkjet.fluids import Fluid
+    from microfab.trajectory.waveform import Waveform
 
 __all__ = [
+    "DATA_FILES",
     "EULER_SWEEP_MAX_STEPS",
+    "FIG4_VOLTAGE_V",
     "SWEEP_MAX_STEPS",
     "DropletSettings",
+    "PrintheadLimits",
     "SweepPoint",
     "droplet_sweep",
+    "limits",
+    "play",
     "run_point",
     "simulate_point",
     "sweep_points",
+    "twin",
 ]
+
+#: The packaged data file the machine reads: the NaAlg property table (every value with
+#: its source). The printhead itself reads none: its geometry is `Printhead`'s defaults
+#: and its gain is calibrated from the seed's drive (`default_printhead`).
+DATA_FILES = ("naalg.toml",)
+
+#: Voltage of the concentration series, V.
+FIG4_VOLTAGE_V = 50.0  # seed 003 part 1, Fig. 4
 
 #: Step budget per sweep point, a safeguard: the seed's points take 1 200 to 11 600 steps
 #: each (1 % at 65 V the most). Before a cut removed the thin thread beside the neck
@@ -58,6 +81,46 @@ SWEEP_MAX_STEPS = 60_000
 EULER_SWEEP_MAX_STEPS = 400_000
 
 
+def _build(_: None) -> Printhead:
+    from microfab.process.inkjet.dispenser import default_printhead
+
+    return default_printhead()
+
+
+# Keyed, like every twin, on the machine's data file: a rewritten naalg.toml (a
+# calibration) builds the same head again (about 25 ms).
+_TWINS: TwinCache[None, Printhead] = TwinCache(lambda path: None, _build, DATA_FILES[0])
+
+
+def twin() -> Printhead:
+    """The calibrated printhead (`default_printhead`), built once and shared.
+
+    Returns
+    -------
+    microfab.plants.printhead.Printhead
+        Immutable: every run of a process plays on the same object.
+    """
+    return _TWINS()
+
+
+@dataclass(frozen=True)
+class PrintheadLimits:
+    """What the printhead model is calibrated for.
+
+    Attributes
+    ----------
+    voltage_v : (float, float)
+        Lowest and highest drive amplitude, V.
+    """
+
+    voltage_v: tuple[float, float]
+
+
+def limits() -> PrintheadLimits:
+    """The drive amplitudes the model is calibrated for: 40 to 70 V (seed 003 Table 1)."""
+    return PrintheadLimits(voltage_v=(min(SEED003_VOLTAGES_V), max(SEED003_VOLTAGES_V)))
+
+
 @dataclass(frozen=True)
 class SweepPoint:
     """One simulation of a sweep: NaAlg concentration (% w/v) and drive amplitude (V)."""
@@ -68,7 +131,7 @@ class SweepPoint:
 
 @dataclass(frozen=True, kw_only=True)
 class DropletSettings:
-    """What every point of a sweep shares; a saved sweep is resumed only with the same.
+    """What every run of a study shares; a saved sweep is resumed only with the same.
 
     Parameters
     ----------
@@ -110,20 +173,135 @@ class DropletSettings:
         return dataclasses.asdict(self)
 
 
+def _numerics(settings: DropletSettings) -> Any:
+    """The chosen model's drop-on-demand settings with the settings' step budget."""
+    from microfab.process.inkjet.droplet import DOD_NUMERICS, EULER_DOD_NUMERICS
+
+    base = DOD_NUMERICS if settings.model == "lagrangian" else EULER_DOD_NUMERICS
+    return dataclasses.replace(base, max_steps=settings.step_budget)
+
+
+def play(
+    drive: Waveform | float,
+    fluid: Fluid,
+    settings: DropletSettings | None = None,
+    *,
+    frame_interval_s: float = 10e-6,
+    progress: Callable[[float], None] | None = None,
+) -> DropletResult:
+    """Drive the printhead (`twin`) with ``drive`` and ``fluid``: the droplet it ejects.
+
+    Parameters
+    ----------
+    drive : Waveform or float
+        Drive voltage against time, or an amplitude in V for the seed's bipolar waveform
+        (`microfab.trajectory.waveform.seed003_waveform`, seed 003 part 1, Table 1). Not
+        checked against `limits`: the job and the commands that take a voltage do that.
+    fluid : Fluid
+        The ink (e.g. `microfab.process.inkjet.fluids.naalg`).
+    settings : DropletSettings, optional
+        Simulated time, time after the first breakup, step budget and jet model.
+    frame_interval_s : float, optional
+        Spacing of the stored silhouettes, s. Pictures do not steer the run: the
+        Lagrangian model does not cut its steps to them, and the Eulerian breakup times
+        agree to 0.01 µs with 10, 5 and 2 µs frames.
+    progress : callable, optional
+        Called with the simulated time in s.
+
+    Returns
+    -------
+    microfab.process.inkjet.droplet.DropletResult
+        What the machine measures: the silhouettes (frames every ``frame_interval_s``),
+        the first breakup (time, position, mode), satellites, head speed, drop volume.
+    """
+    from microfab.process.inkjet.droplet import simulate_droplet
+    from microfab.trajectory.waveform import seed003_waveform
+
+    settings = settings or DropletSettings()
+    waveform = seed003_waveform(drive) if isinstance(drive, int | float) else drive
+    return simulate_droplet(
+        fluid,
+        waveform,
+        printhead=twin(),
+        duration_s=settings.duration_s,
+        after_breakup_s=settings.after_breakup_s,
+        frame_interval_s=frame_interval_s,
+        numerics=_numerics(settings),
+        model=settings.model,  # type: ignore[arg-type]
+        progress=progress,
+    )
+
+
+def run_point(
+    point: SweepPoint,
+    settings: DropletSettings | None = None,
+    *,
+    fluid: Fluid | None = None,
+    frame_interval_s: float = 10e-6,
+    progress: Callable[[float], None] | None = None,
+) -> DropletResult:
+    """Simulate one point with the seed's bipolar waveform (Table 1): `play` it.
+
+    The one path from a (concentration, voltage) point to a droplet: the sweep, the job and
+    ``microfab droplet simulate`` all run it, so one point gives one answer whichever
+    command runs it (and a shorter run is the prefix of a longer one,
+    `microfab.process.inkjet.droplet.FLOW_RECORD_S`).
+
+    Parameters
+    ----------
+    point : SweepPoint
+        Concentration (% w/v) and drive amplitude (V).
+    settings : DropletSettings, optional
+        Simulated time, time after the first breakup, step budget (defaults: the sweep's).
+    fluid : Fluid, optional
+        The ink, if not the table's NaAlg at the point's concentration with the relaxation
+        law calibrated for the chosen jet model (a sensitivity run).
+    frame_interval_s : float, optional
+        Spacing of the stored silhouettes, s (`play`).
+    progress : callable, optional
+        Called with the simulated time in s.
+
+    Returns
+    -------
+    microfab.process.inkjet.droplet.DropletResult
+    """
+    from microfab.process.inkjet.fluids import naalg
+
+    settings = settings or DropletSettings()
+    return play(
+        point.voltage_v,
+        fluid if fluid is not None else naalg(point.concentration_pct, model=settings.model),
+        settings,
+        frame_interval_s=frame_interval_s,
+        progress=progress,
+    )
+
+
+def simulate_point(point: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
+    """Simulate one point (:func:`run_point`); the summary row.
+
+    Returns
+    -------
+    dict
+        :meth:`microfab.process.inkjet.droplet.DropletResult.to_dict`.
+    """
+    return run_point(point, settings).to_dict()
+
+
 def sweep_points(
     concentrations_pct: Sequence[float] = SEED_CONCENTRATIONS_PCT,
-    voltages_v: Sequence[float] = SEED_VOLTAGES_V,
+    voltages_v: Sequence[float] = SEED003_VOLTAGES_V,
     *,
     voltage_concentration_pct: float = 1.0,
 ) -> list[SweepPoint]:
-    """The concentration series at 50 V, then the voltage series at one concentration.
+    """The concentration series at 50 V (Fig. 4), then the voltage series at one concentration.
 
     Parameters
     ----------
     concentrations_pct : sequence of float
-        Concentrations of the 50 V series, % w/v.
+        Concentrations of the 50 V series, % w/v (default: the seed's six, "Materials").
     voltages_v : sequence of float
-        Voltages of the voltage series, V (may be empty).
+        Voltages of the voltage series, V (may be empty; default: Table 1's 40-70 V).
     voltage_concentration_pct : float, optional
         Concentration of the voltage series, % w/v.
 
@@ -143,77 +321,6 @@ def sweep_points(
     for v in voltages_v:
         out.append(SweepPoint(float(voltage_concentration_pct), float(v)))
     return list(dict.fromkeys(out))
-
-
-def run_point(
-    point: SweepPoint,
-    settings: DropletSettings | None = None,
-    *,
-    fluid: Fluid | None = None,
-    frame_interval_s: float = 10e-6,
-    progress: Callable[[float], None] | None = None,
-) -> DropletResult:
-    """Simulate one point with the seed's bipolar waveform (Table 1).
-
-    The one path from a (concentration, voltage) point to a droplet: the sweep, the job and
-    ``microfab droplet simulate`` all run it, so one point gives one answer whichever
-    command runs it (and a shorter run is the prefix of a longer one,
-    `microfab.process.inkjet.droplet.FLOW_RECORD_S`).
-
-    Parameters
-    ----------
-    point : SweepPoint
-        Concentration (% w/v) and drive amplitude (V).
-    settings : DropletSettings, optional
-        Simulated time, time after the first breakup, step budget (defaults: the sweep's).
-    fluid : Fluid, optional
-        The ink, if not the table's NaAlg at the point's concentration with the relaxation
-        law calibrated for the chosen jet model (a sensitivity run).
-    frame_interval_s : float, optional
-        Spacing of the stored silhouettes, s. Pictures do not steer the run: the
-        Lagrangian model does not cut its steps to them, and the Eulerian breakup times
-        agree to 0.01 µs with 10, 5 and 2 µs frames.
-    progress : callable, optional
-        Called with the simulated time in s.
-
-    Returns
-    -------
-    microfab.process.inkjet.droplet.DropletResult
-    """
-    from microfab.process.inkjet.droplet import simulate_droplet
-    from microfab.process.inkjet.fluids import naalg
-    from microfab.trajectory.waveform import seed003_waveform
-
-    settings = settings or DropletSettings()
-    return simulate_droplet(
-        fluid if fluid is not None else naalg(point.concentration_pct, model=settings.model),
-        seed003_waveform(point.voltage_v),
-        duration_s=settings.duration_s,
-        after_breakup_s=settings.after_breakup_s,
-        frame_interval_s=frame_interval_s,
-        numerics=_numerics(settings),
-        model=settings.model,  # type: ignore[arg-type]
-        progress=progress,
-    )
-
-
-def _numerics(settings: DropletSettings) -> Any:
-    """The chosen model's drop-on-demand settings with the sweep's step budget."""
-    from microfab.process.inkjet.droplet import DOD_NUMERICS, EULER_DOD_NUMERICS
-
-    base = DOD_NUMERICS if settings.model == "lagrangian" else EULER_DOD_NUMERICS
-    return dataclasses.replace(base, max_steps=settings.step_budget)
-
-
-def simulate_point(point: SweepPoint, settings: DropletSettings) -> dict[str, Any]:
-    """Simulate one point (:func:`run_point`); the summary row.
-
-    Returns
-    -------
-    dict
-        :meth:`microfab.process.inkjet.droplet.DropletResult.to_dict`.
-    """
-    return run_point(point, settings).to_dict()
 
 
 def droplet_sweep(

@@ -1,15 +1,18 @@
 """Calibration of the NaAlg relaxation law from the seed's two breakup times.
 
+Serves ``microfab droplet calibrate``: the fit is written into the printhead machine's
+data file, ``naalg.toml`` (`microfab.machines.printhead.DATA_FILES`).
+
 The relaxation time is the one fluid property that nothing measured pins down, so the law
 ``λ(c) = λ_ref · (c / 1 %)^m`` (:mod:`microfab.process.inkjet.fluids`) is inferred from the
 only two numbers the seed quotes (seed 003 part 1,
 ``../shared/seeds/003_4915b267b12a78d4.txt``, "Typical droplet formation process", Fig. 2,
-50 V; :data:`.paper.SEED_BREAKUP`): the first breakup of 0.15 % NaAlg at 95 µs and of 1 %
+50 V; `SEED_BREAKUP`): the first breakup of 0.15 % NaAlg at 95 µs and of 1 %
 NaAlg at 230 µs. Everything else the model predicts (pinch-off modes, the other
 four concentrations, the voltage trend) is then checked, not fitted.
 
 The procedure is deterministic and runs the full drop-on-demand model
-(:func:`microfab.process.inkjet.droplet.simulate_droplet`):
+(`microfab.machines.printhead.run_point`, the one path every droplet command takes):
 
 1. ``λ_ref`` from the 1 % time alone (at 1 % the law gives ``λ = λ_ref`` whatever ``m``).
    The breakup time is not monotone in λ: a larger λ means a smaller polymer modulus
@@ -39,12 +42,14 @@ from pathlib import Path
 from scipy import optimize
 
 from microfab.core.validate import check_in_range
-from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP, SEED_VOLTAGE_V
 from microfab.io.atomic import atomic_write_text
+from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
 from microfab.process.inkjet.breakup import BreakupMode
 from microfab.process.inkjet.fluids import NaAlgTable, _parse_table, load_table, naalg
 
 __all__ = [
+    "SEED_BREAKUP",
+    "SEED_VOLTAGE_V",
     "Evaluation",
     "RelaxationFit",
     "calibrate_relaxation",
@@ -52,6 +57,17 @@ __all__ = [
     "simulated_breakup",
     "write_relaxation",
 ]
+
+#: Drive voltage of the seed's quoted breakup times, V.
+SEED_VOLTAGE_V = 50.0  # seed 003 part 1, Fig. 2 and 4
+
+#: First breakup at 50 V: concentration % w/v → (time s, mode). Seed 003 part 1,
+#: "Typical droplet formation process" and Fig. 2: 0.15 % at 95 µs by front-pinching,
+#: 1 % at 230 µs by exit-pinching. The calibration's targets.
+SEED_BREAKUP: dict[float, tuple[float, BreakupMode]] = {
+    0.15: (95e-6, "front"),
+    1.0: (230e-6, "exit"),
+}
 
 #: Simulated time per calibration run, s: long enough for a breakup 70 % later than the
 #: latest target.
@@ -79,8 +95,6 @@ def simulated_breakup(
     (float or None, str or None)
         Breakup time in s and mode; ``(None, None)`` without breakup in 400 µs.
     """
-    from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
-
     res = run_point(
         SweepPoint(concentration_pct, SEED_VOLTAGE_V),
         DropletSettings(duration_s=_DURATION_S, after_breakup_s=2e-6, model=model),
@@ -318,7 +332,7 @@ def write_relaxation(
         f"reference_pct = {fit.reference_pct:g}\n"
         f"exponent = {fit.exponent!r}\n"
         'status = "calibrated"\n'
-        f'note = """fitted by `{command}` (microfab.experiments.seed003_inkjet.calibration) '
+        f'note = """fitted by `{command}` (microfab.machines.printhead_calibration) '
         f"with the {model} jet model to the seed's first-breakup times at 50 V (seed 003 "
         f"part 1, Fig. 2: {seed}). Model with the fit: "
         f'{result}.{bound}"""\n\n'

@@ -4,8 +4,8 @@ Seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``) gives no fluid pr
 and no published measurement of this alginate at its six concentrations could be found
 (``data/naalg.toml``, header). Every property of :func:`microfab.process.inkjet.fluids.naalg`
 is therefore assumed or calibrated. This study changes one at a time by a factor around
-its table value and reruns the 50 V drop (:func:`.sweep.run_point`, the one path every
-droplet command takes), so that the breakup time and mode can be read against each
+its table value and reruns the 50 V drop (`microfab.machines.printhead.run_point`, the
+one path every droplet command takes), so that the breakup time and mode can be read against each
 assumption:
 
 * zero-shear viscosity η0 (×0.5, ×2: the grade is unknown; the polymer part takes the
@@ -17,7 +17,8 @@ assumption:
 * FENE-P extensibility L² (×0.5, ×1.5: 50 to 150, the estimate's range).
 
 Each run is one point of the project's sweep runner (:func:`microfab.io.sweep.run_sweep`),
-saved atomically as it finishes, so an interrupted study resumes.
+saved atomically as it finishes, so an interrupted study resumes. The study serves
+``microfab droplet sensitivity``.
 """
 
 from __future__ import annotations
@@ -28,9 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from microfab.experiments.seed003_inkjet.paper import FIG4_VOLTAGE_V
-from microfab.experiments.seed003_inkjet.sweep import DropletSettings, SweepPoint, run_point
 from microfab.io.sweep import SweepResult, run_sweep
+from microfab.machines.printhead import FIG4_VOLTAGE_V, DropletSettings, SweepPoint, run_point
 
 __all__ = [
     "FACTORS",

@@ -1,4 +1,6 @@
-"""Figures of seed 003 part 1 (drop-on-demand inkjetting of sodium alginate).
+"""Figures of the drop-on-demand printhead (seed 003 part 1: inkjetting of sodium alginate).
+
+They serve ``microfab droplet simulate|sweep|analyze`` and the ``droplet-sweep`` report.
 
 Every function returns a :class:`matplotlib.figure.Figure` on an Agg canvas
 (:func:`microfab.report.canvas.new_figure`, no pyplot state); save it with
@@ -6,7 +8,7 @@ Every function returns a :class:`matplotlib.figure.Figure` on an Agg canvas
 the orifice flow by :mod:`microfab.plants.printhead`, the printability window by
 :mod:`microfab.process.inkjet.dimensionless`, the frames by
 :mod:`microfab.measure.shadowgraph`, their analysis by :mod:`microfab.measure.imaging` and
-the sweep by :mod:`.sweep`.
+the sweep by :mod:`microfab.machines.printhead`.
 
 References
 ----------
@@ -26,7 +28,7 @@ from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from microfab.experiments.seed003_inkjet.paper import FIG4_VOLTAGE_V, SEED_CONCENTRATIONS_PCT
+from microfab.machines.printhead import FIG4_VOLTAGE_V
 from microfab.measure.imaging import DropletAnalysis, as_frames
 from microfab.measure.shadowgraph import Camera
 from microfab.plants.printhead import NozzleFlow
@@ -39,7 +41,7 @@ from microfab.process.inkjet.dimensionless import (
     RegimeMap,
     numbers,
 )
-from microfab.process.inkjet.fluids import naalg
+from microfab.process.inkjet.fluids import SEED_CONCENTRATIONS_PCT, naalg
 from microfab.report.canvas import new_figure
 from microfab.trajectory.waveform import Waveform
 
@@ -450,7 +452,7 @@ def fig_sweep(
     Parameters
     ----------
     rows : sequence of dict
-        From :func:`.sweep.run_sweep`.
+        From `microfab.machines.printhead.droplet_sweep`.
     seed_points : dict, optional
         Concentration → (breakup time s, mode) quoted by the seed, drawn as open markers.
 
