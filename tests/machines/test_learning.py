@@ -177,3 +177,56 @@ def test_file_machine_times_out_with_a_clear_message(ref, tmp_path):
     os.utime(trial, (old - 60, old - 60))
     with pytest.raises(TimeoutError, match="no measured trial"):
         fm.run(ref)
+
+
+class _Interrupting:
+    """A twin that raises KeyboardInterrupt in its ``n``-th run (a Ctrl-C mid-trial)."""
+
+    def __init__(self, machine, n: int) -> None:
+        self.machine, self.n, self.runs = machine, n, 0
+        self.axes, self.dt = machine.axes, machine.dt
+
+    def run(self, command):
+        self.runs += 1
+        if self.runs == self.n:
+            raise KeyboardInterrupt
+        return self.machine.run(command)
+
+    def snapshot(self):
+        return self.machine.snapshot()
+
+    def restore(self, snap):
+        self.machine.restore(snap)
+
+
+def test_saving_every_few_seconds_resumes_bit_identical(ref, tmp_path, monkeypatch):
+    """Saves spaced in time: only some trials write the state; an interruption between
+    trials keeps every learned one; a resumed run gives the uninterrupted run's bits."""
+    import microfab.machines.learning as learning_mod
+
+    whole = FrequencyILC(ref, DT, ("x", "y"))
+    learn(galvo_twin(seed=1), whole, iterations=7, state_dir=tmp_path / "whole")
+    clock = iter(np.arange(0.0, 1000.0, 0.4))  # each reading 0.4 s later
+    monkeypatch.setattr(learning_mod.time, "monotonic", lambda: float(next(clock)))
+    saves = []
+    real_save = FrequencyILC.save
+    monkeypatch.setattr(
+        FrequencyILC,
+        "save",
+        lambda self, d, extra=None: saves.append(self.iteration) or real_save(self, d, extra),
+    )
+    part = FrequencyILC(ref, DT, ("x", "y"))
+    with pytest.raises(KeyboardInterrupt):
+        learn(_Interrupting(galvo_twin(seed=1), 6), part, iterations=7,
+              state_dir=tmp_path / "part", save_every_s=1.0)  # fmt: skip
+    assert saves[-1] == 5 and len(saves) < 5, saves  # spaced saves, then the 5 learned kept
+    again = FrequencyILC.load(tmp_path / "part")
+    assert again.iteration == 5
+    learn(
+        galvo_twin(seed=99), again, iterations=7, state_dir=tmp_path / "part", save_every_s=1.0
+    )  # fmt: skip  (the twin is restored from the saved snapshot)
+    np.testing.assert_array_equal(np.stack(again.state.inputs), np.stack(whole.state.inputs))
+    np.testing.assert_array_equal(again.rms_history, whole.rms_history)
+    with pytest.raises(ValueError, match="save_every_s"):
+        learn(galvo_twin(seed=1), FrequencyILC(ref, DT, ("x", "y")), iterations=1,
+              save_every_s=-1.0)  # fmt: skip

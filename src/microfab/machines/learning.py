@@ -15,6 +15,7 @@ therefore leaves the saved state as it was, and repeating the call is safe.
 from __future__ import annotations
 
 import hashlib
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -207,6 +208,7 @@ def learn(
     publish: Callable[[np.ndarray], None] | None = None,
     progress: Callable[[int, int], None] | None = None,
     measured: Callable[[int, Measurement], None] | None = None,
+    save_every_s: float = 0.0,
 ) -> LearnRecord:
     """Run trials until the learner has learned from ``iterations`` of them.
 
@@ -220,7 +222,8 @@ def learn(
     iterations : int
         Total number of trials to have learned from when the call returns.
     state_dir : str or Path, optional
-        Where the learner and the loop record are saved after every trial.
+        Where the learner and the loop record are saved: after every trial, or as
+        ``save_every_s`` says.
     limits : mapping of str to AxisLimits, optional
         Declared limits every published command must respect; the saved ones are used
         when omitted. Stored with the state.
@@ -231,6 +234,13 @@ def learn(
         ``progress(done, total)`` after each trial.
     measured : callable, optional
         ``measured(iteration, measurement)`` with each raw measurement (1-based).
+    save_every_s : float
+        With ``state_dir``: the least wall time, s, between two saves (0: after every
+        trial, what hardware through files needs). The last trial is always saved, and so
+        are the trials learned before an interruption that comes between trials
+        (Ctrl-C in a machine run); a killed process loses at most the trials of the last
+        ``save_every_s``, which a resumed run plays again with the same bits (the
+        machine's snapshot is taken at every trial's end).
 
     Returns
     -------
@@ -246,6 +256,8 @@ def learn(
     """
     if iterations < 1:
         raise ValueError(f"iterations must be >= 1, got {iterations}")
+    if not save_every_s >= 0:
+        raise ValueError(f"save_every_s must be >= 0 s, got {save_every_s}")
     record = LearnRecord.from_meta(learner.meta)
     if limits is not None:
         record.limits = dict(limits)
@@ -260,6 +272,15 @@ def learn(
     # as archive members after each trial with a state directory, else once, when the
     # loop ends (also by an exception).
     learned = False
+    pending = False  # trials learned since the last save
+    updating = False  # between the learner's update and the record's: not a boundary
+    last_save = time.monotonic()
+
+    def save() -> None:
+        nonlocal pending, last_save
+        learner.save(state_dir, {RECORD_KEY: record.to_meta()})  # type: ignore[arg-type]
+        pending, last_save = False, time.monotonic()
+
     try:
         while learner.iteration < iterations:
             u = learner.current_input()
@@ -274,6 +295,7 @@ def learn(
                 axes=meas.axes,
             )
             digest = _check_trial(learner, trial, record, ref, ref_hash)
+            updating = True
             u_next = learner.update(trial)
             if record.limits is not None:
                 check_command(u_next, trial.dt, record.limits, trial.axes, periodic=True)
@@ -288,10 +310,15 @@ def learn(
             if state_dir is not None:
                 if isinstance(machine, Resumable):
                     record.machine = machine.snapshot()
-                learner.save(state_dir, {RECORD_KEY: record.to_meta()})
+                pending = True
+                if learner.iteration >= iterations or time.monotonic() - last_save >= save_every_s:
+                    save()
+            updating = False
             if progress is not None:
                 progress(learner.iteration, iterations)
     finally:
+        if state_dir is not None and pending and not updating:
+            save()  # interrupted between trials: keep what was learned
         if learned and state_dir is None:
             if isinstance(machine, Resumable):
                 record.machine = machine.snapshot()

@@ -28,6 +28,11 @@ from microfab.trajectory.periodic import square_scan
 
 __all__ = ["MSLRunResult", "reproduce_tables", "run_msl_ilc"]
 
+#: Least wall time between two saves of the learning state on the twin, s. Assumed: a
+#: killed run then replays at most 2 s of trials (bit-identical), and the state file,
+#: which grows with the trials, is not rewritten after each ~1-10 ms trial.
+SAVE_EVERY_S = 2.0
+
 Progress = Callable[[int, int], None]
 
 
@@ -192,7 +197,10 @@ def run_msl_ilc(
             raise ValueError(f"the state in {state_dir} belongs to another reference")
     else:
         ilc = FrequencyILC(ref, dt, names, config, true_frf=frf)
-    record = learn(machine, ilc, iterations=iterations, state_dir=state_dir, progress=progress)
+    record = learn(
+        machine, ilc, iterations=iterations, state_dir=state_dir, progress=progress,
+        save_every_s=SAVE_EVERY_S,
+    )  # fmt: skip
     fb_output, last_output = record.first_output, record.last_output
     last_input = record.last_input if record.last_input is not None else ilc.state.inputs[-2]
     assert fb_output is not None and last_output is not None
