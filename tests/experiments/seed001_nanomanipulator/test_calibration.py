@@ -5,8 +5,9 @@ from __future__ import annotations
 import pytest
 
 from microfab.experiments.seed001_nanomanipulator import paper
-from microfab.experiments.seed001_nanomanipulator.calibration import fit_noise, write_noise
+from microfab.experiments.seed001_nanomanipulator.calibration import fit_noise
 from microfab.experiments.seed001_nanomanipulator.run import JobConfig, TwinSettings, run_job
+from microfab.machines.nanomanipulator_calibration import write_noise
 from microfab.plants.nanomanipulator import load_params
 from microfab.trajectory.circle_pattern import PatternConfig
 

@@ -19,7 +19,6 @@ from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.core.validate import check_finite, check_int, check_positive
 from microfab.machines import nanomanipulator
-from microfab.sim.loop import simulate
 from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 
 __all__ = ["CONTROLLERS", "ComparisonConfig", "ComparisonResult", "compare_controllers"]
@@ -132,10 +131,11 @@ def compare_controllers(config: ComparisonConfig | None = None) -> ComparisonRes
         ),
         "PID+RC": PluginRC(pid, RCConfig(period_s=period_s, dt=dt, windows=window)),
     }
-    noise = plant.noise(pos.shape[0], cfg.seed) if cfg.noise else np.zeros_like(pos)
     out: dict[str, np.ndarray] = {}
     for name in CONTROLLERS:  # the plant holds no state: each run starts from plant.init()
-        res = simulate(plant, controllers[name], pos, noise, derivatives=(vel, acc))
+        res = nanomanipulator.play(
+            controllers[name], pos, derivatives=(vel, acc), seed=cfg.seed, noise=cfg.noise
+        )
         e = (pos - res.output)[s0 : s0 + periods * n].reshape(periods, n, 2)
         out[name] = np.sqrt(np.mean(e**2, axis=(1, 2))) * 1e6  # mm -> nm
     return ComparisonResult(config=cfg, rms_nm=out)

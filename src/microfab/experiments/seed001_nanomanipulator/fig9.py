@@ -43,7 +43,6 @@ from microfab.core.validate import check_positive
 from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
 from microfab.machines import nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant
-from microfab.sim.loop import simulate
 from microfab.trajectory.circle_pattern import pattern_reference
 
 __all__ = ["Fig9Config", "Fig9Reference", "Fig9Result", "fig9_rbf", "fig9_reference"]
@@ -218,13 +217,6 @@ def _rms_per_period(err: np.ndarray, start: int, n: int, periods: int) -> np.nda
     return np.sqrt(np.mean(e**2, axis=1)) * 1e6
 
 
-def _noise(
-    cfg: ComparisonConfig, plant: NanomanipulatorPlant, shape: tuple[int, ...]
-) -> np.ndarray:
-    """Encoder noise as `compare.py` draws it (zeros when ``cfg.noise`` is off), mm, (n, 2)."""
-    return plant.noise(shape[0], cfg.seed) if cfg.noise else np.zeros(shape)
-
-
 def _circle_rbf(cfg: ComparisonConfig, plant: NanomanipulatorPlant) -> np.ndarray:
     """`compare.py`'s RBF run on its circle: RMS over both axes per period, nm."""
     dt = plant.dt
@@ -234,7 +226,7 @@ def _circle_rbf(cfg: ComparisonConfig, plant: NanomanipulatorPlant) -> np.ndarra
     n, s0 = ref.period_samples, ref.starts[0]
     one = slice(s0, s0 + n)
     rbf = RBFAdaptive.for_reference(pos[one], vel[one], acc[one], dt, cfg.rbf)
-    res = simulate(plant, rbf, pos, _noise(cfg, plant, pos.shape), derivatives=(vel, acc))
+    res = nanomanipulator.play(rbf, pos, derivatives=(vel, acc), seed=cfg.seed, noise=cfg.noise)
     per_axis = _rms_per_period(pos - res.output, s0, n, ref.periods)
     return np.sqrt(np.mean(per_axis**2, axis=1))
 
@@ -265,8 +257,13 @@ def fig9_rbf(config: Fig9Config | None = None) -> Fig9Result:
     rbf = RBFAdaptive.for_reference(
         fit.position[one], fit.velocity[one], fit.acceleration[one], dt, circle.rbf, closed=False
     )
-    noise = _noise(circle, plant, ref.position.shape)
-    res = simulate(plant, rbf, ref.position, noise, derivatives=(ref.velocity, ref.acceleration))
+    res = nanomanipulator.play(
+        rbf,
+        ref.position,
+        derivatives=(ref.velocity, ref.acceleration),
+        seed=circle.seed,
+        noise=circle.noise,
+    )
     per_axis = _rms_per_period(
         ref.position - res.output, ref.start, ref.period_samples, ref.periods
     )

@@ -1,0 +1,55 @@
+"""The machine's sensor-noise fit on a synthetic job: RMS² = c + g σ² per axis."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from microfab.machines.nanomanipulator_calibration import (
+    SEED_AXIAL_RMS_NM,
+    fit_sensor_noise,
+    write_noise,
+)
+from microfab.plants.nanomanipulator import load_params
+
+
+def _job(c: tuple[float, float], g: tuple[float, float]):
+    def run(s: tuple[float, float]) -> tuple[tuple[float, float], float]:
+        ax = tuple(math.sqrt(c[a] + g[a] * s[a] ** 2) for a in range(2))
+        return ax, math.sqrt((ax[0] ** 2 + ax[1] ** 2) / 2)  # type: ignore[return-value]
+
+    return run
+
+
+def test_the_secant_meets_the_seed_axial_rms() -> None:
+    seen = []
+    fit = fit_sensor_noise(
+        _job((200.0**2, 300.0**2), (0.8, 1.3)),
+        (100.0, 100.0),
+        rtol=1e-4,
+        progress=lambda k, s, a: seen.append(k),
+    )
+    for a in range(2):
+        assert fit.axial_rms_nm[a] == pytest.approx(SEED_AXIAL_RMS_NM[a], rel=1e-4)
+    assert all(abs(e) <= 1e-2 for e in fit.axial_error_pct)
+    assert fit.runs == len(fit.history) == len(seen) and fit.runs <= 5
+    assert fit.history[0][:2] == (100.0, 100.0)
+
+
+def test_refusals() -> None:
+    with pytest.raises(ValueError, match="already exceeds"):
+        fit_sensor_noise(_job((600.0**2, 0.0), (1.0, 1.0)), (100.0, 100.0))
+    with pytest.raises(ValueError, match="did not converge in 2 runs"):
+        fit_sensor_noise(_job((4e4, 9e4), (1.0, 1.0)), (1.0, 1.0), rtol=1e-9, max_runs=2)
+    with pytest.raises(ValueError, match="rtol"):
+        fit_sensor_noise(_job((0.0, 0.0), (1.0, 1.0)), (1.0, 1.0), rtol=0.5)
+
+
+def test_write_noise_keeps_the_source(tmp_path) -> None:
+    fit = fit_sensor_noise(_job((0.0, 0.0), (1.0, 1.0)), (400.0, 800.0), rtol=0.2)
+    p = write_noise(fit, tmp_path / "twin.toml")
+    assert load_params(p).noise_rms_mm == pytest.approx(
+        (fit.noise_rms_nm[0] * 1e-6, fit.noise_rms_nm[1] * 1e-6), rel=1e-4
+    )
+    assert "microfab calibrate nanomanipulator" in p.read_text(encoding="utf-8")
