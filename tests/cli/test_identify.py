@@ -164,8 +164,8 @@ def stage_runs(tmp_path_factory) -> list[Path]:
     """``stage excite`` 20 s of random runs, played on the twin from rest, as trace files."""
     from microfab.control.base import as_loop
     from microfab.control.setpoint import SetPoint
-    from microfab.experiments.seed002_stage.calibration import scaled_changes
     from microfab.identify.excitation import read_runs
+    from microfab.machines.xy_stage_calibration import scaled_changes
     from microfab.plants.xy_stage import xy_stage_twin
     from microfab.sim.loop import simulate
 

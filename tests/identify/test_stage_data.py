@@ -18,7 +18,6 @@ import scipy.signal
 
 from microfab.control.setpoint import SetPoint
 from microfab.core.signals import Trace
-from microfab.experiments.seed002_stage.calibration import scaled_changes
 from microfab.identify.excitation import random_runs
 from microfab.identify.excitation_random import RandomDesign
 from microfab.identify.stage_data import (
@@ -35,6 +34,7 @@ from microfab.identify.stage_data import (
     stage_record,
     write_stage_model,
 )
+from microfab.machines.xy_stage_calibration import scaled_changes
 from microfab.plants.xy_stage import xy_stage_twin
 from microfab.sim.loop import simulate
 

@@ -90,7 +90,7 @@ def calibrate_laser_cmd(
 ) -> None:
     """Fit the seed 004 stage twin's disturbance scale to Fig. 3's 0.8 µm peak error."""
     from microfab.cli._kit import fail
-    from microfab.experiments.seed004_laser.calibration import fit_disturbance_scale, write_scale
+    from microfab.machines.laser_stage_calibration import fit_disturbance_scale, write_scale
 
     try:
         fit = fit_disturbance_scale(
@@ -129,15 +129,15 @@ def calibrate_xy_stage_cmd(
 ) -> None:
     """Fit the XY stage twin's friction + cogging per axis to seed 002 Table II column 1."""
     from microfab.cli._kit import fail
-    from microfab.experiments.seed002_stage.calibration import (
+    from microfab.machines.xy_stage_calibration import (
         CalibrationSettings,
         fit_scales,
         force_budget,
-        linear_checks,
         scaled_changes,
         write_calibration_json,
         write_twin_file,
     )
+    from microfab.machines.xy_stage_identify import linear_checks
     from microfab.plants.xy_stage_params import load_params
 
     try:

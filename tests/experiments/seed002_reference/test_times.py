@@ -26,7 +26,7 @@ N = 1000  # coarser than the rule for the larger shapes (T within 0.5 % of N = 1
 
 @pytest.fixture(scope="module")
 def linear():
-    from microfab.experiments.seed002_stage.run import linear_study
+    from microfab.machines.xy_stage_identify import linear_study
 
     _, fit = linear_study()
     return fit.model.to_continuous()

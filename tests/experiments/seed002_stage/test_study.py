@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from microfab.experiments.seed002_stage import paper
-from microfab.experiments.seed002_stage.run import LinearSettings
 from microfab.experiments.seed002_stage.study import CaseSettings, StudySettings, run_study
+from microfab.machines.xy_stage_identify import LinearSettings
 
 
 @pytest.fixture(scope="module")

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
-from microfab.experiments.seed002_stage.run import AnnSettings, LinearSettings
+from microfab.experiments.seed002_stage.run import AnnSettings
 from microfab.experiments.seed002_stage.study import (
     MODEL_FOLDERS,
     SWEEP_A_MAX,
@@ -42,6 +42,7 @@ from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import xy_stage, xy_stage_cases
 from microfab.machines.xy_stage import TwinSettings
+from microfab.machines.xy_stage_identify import LinearSettings
 from microfab.report.tables import Table
 
 __all__ = [
@@ -128,7 +129,7 @@ MAGNITUDES = ("calibrated", "assumed")
 
 def _magnitudes(tw: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
     """Twin changes of the ``magnitudes`` choice (``"assumed"``: scale 1 of the reference)."""
-    from microfab.experiments.seed002_stage.calibration import scaled_changes
+    from microfab.machines.xy_stage_calibration import scaled_changes
 
     if tw["magnitudes"] not in MAGNITUDES:
         raise ValueError(

@@ -1,29 +1,11 @@
-"""Seed 002 part 1 on the XY stage twin: excite, record, fit the linear model, evaluate.
+"""Seed 002 part 1's networks on the XY stage twin: their data played, trained, scored.
 
-The twin (`microfab.plants.xy_stage`) stands in for the ETEL stage: a command record at
-10 kHz (`microfab.identify.excitation.ExcitationRun`) is played from rest at its first
-sample through the compiled loop (`microfab.sim.loop.simulate` with
-`microfab.control.setpoint.SetPoint`: the black box's input is the set-point ρ), then held
-for ``hold_s`` so that the stage settles; the measured position gets the twin's 2 µm
-noise (seed 002 eq. 3) drawn from a seed per run. What comes back is a `StageRecord` per
-run, the same shape as a measured run read from a file.
-
-The linear model (eq. 6) is fitted by `microfab.identify.stage_data.fit_linear`, the same
-function ``microfab identify linear`` runs on measured files:
-
-* **Decimation.** At 10 kHz the slowest modes (≈20 ms, §III-B) sit at ``z ≈ 0.995`` and a
-  four-state subspace fit is ill-conditioned on this data (its ``A`` came out unstable).
-  Input and output are both decimated by ``decimate`` (default 10, to 1 kHz) with the
-  same zero-phase FIR anti-alias filter (`scipy.signal.decimate`, ``ftype="fir"``); the
-  same linear filter on both sides keeps the input-output relation of an LTI model.
-* **Feedthrough.** Eq. (6b) writes ``γ = C z + D ρ``. On the twin, whose built-in loop
-  tracks within microns, ``D = 0`` (MATLAB ``n4sid``'s default) gave σ ≈ 210 µm per axis
-  at order 4, while ``D`` free gives σ near the nonlinear floor; so ``D`` is estimated.
-
-Prediction errors are the measured output minus the model's, on the decimated records,
-each run simulated from the model's rest state under its first input
-(`stage_data.run_errors`); μ and σ are their mean and standard deviation per axis
-(Table II).
+The networks' data (§III-C.2: about 60 % random runs, the rest regular shapes at constant
+speeds, `microfab.identify.excitation.ann_dataset`) is split 80/20 by whole runs and
+played on the twin (`microfab.machines.xy_stage.play_runs`); one network per axis is
+trained (`microfab.identify.ann_train.train_ann`) and scored on the validation runs
+(Table II column 1 of the non-linear model). The linear model's runs and fit are the
+machine's (`microfab.machines.xy_stage_identify`).
 """
 
 from __future__ import annotations
@@ -34,11 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from microfab.identify import stage_data
-from microfab.identify.excitation import ann_dataset, random_runs, split_runs
-from microfab.identify.subspace import SubspaceModel
+from microfab.identify.excitation import ann_dataset, split_runs
 from microfab.machines.xy_stage import CommandRun, Played, TwinSettings, play_runs
 
 if TYPE_CHECKING:
@@ -47,115 +26,13 @@ if TYPE_CHECKING:
 __all__ = [
     "AnnSettings",
     "AnnStudy",
-    "LinearFit",
-    "LinearSettings",
     "ann_records",
     "ann_study",
-    "fit_linear",
-    "linear_study",
     "play_split",
     "train_networks",
 ]
 
 
-@dataclass(frozen=True, kw_only=True)
-class LinearSettings:
-    """The linear model's data and fit (seed 002 §III-A, §III-C.1).
-
-    Parameters
-    ----------
-    total_s : float
-        Random-run data, s (seed §III-C.1: 6×10⁶ samples, 600 s at 10 kHz).
-    a_max : float
-        Largest acceleration of the runs, m/s² (seed §III-D: up to 5).
-    order : int
-        States (seed §III-A: 4).
-    decimate : int
-        Decimation before the fit (module doc; 10: to 1 kHz).
-    feedthrough : bool
-        Estimate ``D`` (module doc).
-    block_rows : int, optional
-        Hankel block rows (default `SubspaceConfig`'s).
-    seed : int
-        Seed of the random runs.
-    """
-
-    total_s: float = 600.0  # seed 002 §III-C.1
-    a_max: float = 5.0  # seed 002 §III-D
-    order: int = 4  # seed 002 §III-A
-    decimate: int = 10  # assumed, module doc
-    feedthrough: bool = True  # module doc
-    block_rows: int | None = None
-    seed: int = 0
-    twin: TwinSettings = field(default_factory=TwinSettings)
-
-    def __post_init__(self) -> None:
-        if not self.total_s > 0:
-            raise ValueError(f"total_s must be positive, got {self.total_s!r} s")
-        if not isinstance(self.decimate, int) or self.decimate < 1:
-            raise ValueError(f"decimate must be an integer >= 1, got {self.decimate!r}")
-
-
-@dataclass(frozen=True, eq=False)
-class LinearFit:
-    """The linear model and its errors on its own training data.
-
-    Attributes
-    ----------
-    model : SubspaceModel
-        At the decimated rate.
-    mu_m, sigma_m : numpy.ndarray
-        Mean and standard deviation of the prediction error per axis (x, y), m.
-    n_samples : int
-        Samples of training data at 10 kHz.
-    decimate : int
-        Decimation factor used.
-    """
-
-    model: SubspaceModel
-    mu_m: np.ndarray
-    sigma_m: np.ndarray
-    n_samples: int
-    decimate: int
-
-
-def fit_linear(played: Played, settings: LinearSettings | None = None) -> LinearFit:
-    """Fit eq. (6) to the played runs and measure it on them (module doc).
-
-    Raises
-    ------
-    ValueError
-        From the subspace fit: too little excitation, an order above the block rows, an
-        unstable ``A``.
-    """
-    s = LinearSettings() if settings is None else settings
-    model = stage_data.fit_linear(
-        played.records,
-        played.dt,
-        order=s.order,
-        decimate=s.decimate,
-        feedthrough=s.feedthrough,
-        block_rows=s.block_rows,
-    )
-    err = stage_data.run_errors(model, played.records, s.decimate)
-    return LinearFit(
-        model=model,
-        mu_m=err.mean,
-        sigma_m=err.std,
-        n_samples=int(sum(r.n_samples for r in played.records)),
-        decimate=s.decimate,
-    )
-
-
-def linear_study(settings: LinearSettings | None = None) -> tuple[Played, LinearFit]:
-    """Random runs (§III-C.1), played on the twin, and the linear model fitted to them."""
-    s = LinearSettings() if settings is None else settings
-    runs = random_runs(s.total_s, a_max=s.a_max, seed=s.seed)
-    played = play_runs(runs, s.twin)
-    return played, fit_linear(played, s)
-
-
-# ---------------------------------------------------------------------------- ANN
 @dataclass(frozen=True, kw_only=True)
 class AnnSettings:
     """The per-axis networks' data and training (seed 002 §III-B, §III-C.2).

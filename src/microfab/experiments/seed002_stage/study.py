@@ -4,9 +4,10 @@
 run. In order:
 
 1. **Linear model** (§III-A, §III-C.1): random runs (600 s), played on the twin, eq. (6)
-   fitted (`run.fit_linear`); its error on its own training data is Table II column 1.
-   The order check (n = 2…8, one R factor, `microfab.identify.subspace.order_scan`)
-   scores each order the same way, from rest.
+   fitted (`microfab.machines.xy_stage_identify.fit_linear`); its error on its own
+   training data is Table II column 1. The order check (n = 2…8, one R factor,
+   `microfab.machines.xy_stage_identify.linear_order_scan`) scores each order the same
+   way, from rest.
 2. **Networks** (§III-B, §III-C.2): about 60 % random runs and the rest regular shapes,
    80/20 split by whole runs, one network per axis (`run.train_networks`); the error on
    the validation runs is Table II column 1 of the non-linear model.
@@ -38,10 +39,7 @@ from microfab.experiments.kinds import Progress, no_progress
 from microfab.experiments.seed002_stage.run import (
     AnnSettings,
     AnnStudy,
-    LinearFit,
-    LinearSettings,
     ann_records,
-    linear_study,
     play_split,
     train_networks,
 )
@@ -60,6 +58,12 @@ from microfab.machines.xy_stage_cases import (
     case_command,
     case_paths,
     case_sizes,
+)
+from microfab.machines.xy_stage_identify import (
+    LinearFit,
+    LinearSettings,
+    linear_order_scan,
+    linear_study,
 )
 
 if TYPE_CHECKING:
@@ -397,12 +401,9 @@ def _order_check(
 ) -> tuple[tuple[OrderRow, ...], np.ndarray]:
     if not orders:
         return (), np.zeros(0)
-    from microfab.identify.subspace import SubspaceConfig, order_scan
-
     progress("linear model: order check", 0, None)
     q = s.decimate
-    data = [(stage_data.decimate(r.u, q), stage_data.decimate(r.y, q)) for r in played.records]
-    scan = order_scan(data, played.dt * q, orders, SubspaceConfig(feedthrough=s.feedthrough))
+    scan = linear_order_scan(played, s, orders)
     rows = []
     for n, model, (_, ratio, _) in zip(scan.orders, scan.models, scan.rows(), strict=True):
         err = stage_data.run_errors(model, played.records, q)

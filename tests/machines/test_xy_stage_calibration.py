@@ -9,7 +9,7 @@ from importlib import resources
 
 import pytest
 
-from microfab.experiments.seed002_stage.calibration import (
+from microfab.machines.xy_stage_calibration import (
     FREE_FIELDS,
     PLAUSIBLE_CAP,
     REFERENCE,
@@ -19,11 +19,11 @@ from microfab.experiments.seed002_stage.calibration import (
     XYCalibration,
     fit_scales,
     force_budget,
-    linear_checks,
     scaled_changes,
     scales_of,
     write_twin_file,
 )
+from microfab.machines.xy_stage_identify import linear_checks
 from microfab.plants.xy_stage_params import load_params
 
 

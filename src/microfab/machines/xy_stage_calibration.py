@@ -1,4 +1,4 @@
-"""Fit the XY stage twin's disturbance magnitudes to seed 002 Table II column 1.
+"""``microfab calibrate xy-stage``: the XY stage twin's disturbance magnitudes, fitted.
 
 Seed 002 Table II, column 1: the 4-state linear model (eq. 6) predicts its own training
 data (600 s of random trajectories up to 5 m/s², §III-C.1, §III-D) with σ = 48.0 µm on x
@@ -57,6 +57,9 @@ are within ``rtol`` of the seed's.
 force and the force that 5 m/s² needs. A magnitude beyond what a real stage of this size
 shows is reported, not hidden (`ForceBudget`).
 
+The checks (measured with the fit, not fitted: σ, tracking error, slowest time constant,
+the order scan) are `microfab.machines.xy_stage_identify.linear_checks`.
+
 `write_twin_file` writes the fitted magnitudes into a copy of the twin's data file (or
 the packaged one), each with the source ``"calibrated: microfab calibrate xy-stage (seed
 002 Table II column 1) ..."``; `write_calibration_json` writes the fit itself. Both write
@@ -68,20 +71,23 @@ from __future__ import annotations
 import math
 import tempfile
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from microfab.core.validate import check_in_range, check_int, check_positive
-from microfab.experiments.seed002_stage import paper
-from microfab.experiments.seed002_stage.run import LinearSettings, fit_linear
 from microfab.identify.excitation import random_runs
-from microfab.identify.stage_data import decimate
-from microfab.identify.subspace import SubspaceConfig, order_scan
 from microfab.io.atomic import atomic_write_json, atomic_write_text
 from microfab.machines.xy_stage import TwinSettings, play_runs
+from microfab.machines.xy_stage_identify import (
+    LINEAR_A_MAX,
+    LINEAR_TOTAL_S,
+    LinearChecks,
+    LinearSettings,
+    fit_linear,
+)
 from microfab.plants.sourced_toml import update_sourced
 from microfab.plants.xy_stage_params import AXES, XYStageParams, load_params
 
@@ -93,11 +99,9 @@ __all__ = [
     "TARGET_SIGMA_M",
     "CalibrationSettings",
     "ForceBudget",
-    "LinearChecks",
     "XYCalibration",
     "fit_scales",
     "force_budget",
-    "linear_checks",
     "scaled_changes",
     "scales_of",
     "write_calibration_json",
@@ -105,9 +109,10 @@ __all__ = [
 ]
 
 #: Table II column 1: σ of the linear model on its training data (x, y), m.
+#: (``experiments/seed002_stage/paper.py``: TABLE_II["linear"][axis]["training"].sigma_m)
 TARGET_SIGMA_M = (
-    paper.TABLE_II["linear"]["x"]["training"].sigma_m,  # seed 002 Table II: 48.0 µm
-    paper.TABLE_II["linear"]["y"]["training"].sigma_m,  # seed 002 Table II: 156.3 µm
+    48.0e-6,  # seed 002 Table II: linear model, x, training data, σ 48.0 µm
+    156.3e-6,  # seed 002 Table II: linear model, y, training data, σ 156.3 µm
 )
 #: The issue's band for the fit: ±15 % of Table II column 1.
 TARGET_BAND = 0.15
@@ -210,9 +215,9 @@ class CalibrationSettings:
         the seed's there is kept at the cap and reported as capped, not pushed further.
     """
 
-    total_s: float = paper.LINEAR_SAMPLES / paper.LOOP_RATE_HZ  # seed 002 §III-C.1: 600 s
+    total_s: float = LINEAR_TOTAL_S  # seed 002 §III-C.1: 600 s
     search_s: float | None = 120.0  # assumed: a fifth of it, three times cheaper per run
-    a_max: float = paper.LINEAR_TRAINING_A_MAX  # seed 002 §III-D
+    a_max: float = LINEAR_A_MAX  # seed 002 §III-D
     seed: int = 0
     rtol: float = 0.01
     max_runs: int = 10
@@ -447,97 +452,6 @@ def force_budget(params: XYStageParams, a_max: float = 5.0) -> tuple[ForceBudget
             friction_coefficient=params.coulomb_n[i] / (masses[i] * _G),
         )
         for i, ax in enumerate(AXES)
-    )
-
-
-# --- checks (measured, not fitted) ---------------------------------------------------------
-
-
-@dataclass(frozen=True, kw_only=True)
-class LinearChecks:
-    """What `linear_checks` measured on one data set (nothing here is fitted).
-
-    Attributes
-    ----------
-    total_s : float
-        Random-run data, s.
-    sigma_m, mu_m : tuple of float
-        The 4-state model's σ and μ on it (x, y), m (Table II column 1).
-    tracking_sigma_m : tuple of float
-        σ of measured minus command, (x, y), m: the stage's own tracking error.
-    slowest_time_constant_s : float
-        Of the 4-state model (§III-B reading: about 20 ms).
-    orders : tuple of int
-        Orders of the order scan.
-    order_sigma_m : numpy.ndarray
-        Shape (n_orders, 2): σ per order and axis, m.
-    """
-
-    total_s: float
-    sigma_m: tuple[float, float]
-    mu_m: tuple[float, float]
-    tracking_sigma_m: tuple[float, float]
-    slowest_time_constant_s: float
-    orders: tuple[int, ...]
-    order_sigma_m: np.ndarray = field(repr=False)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready (µm, ms)."""
-        return {
-            "total_s": self.total_s,
-            "sigma_um": [v * 1e6 for v in self.sigma_m],
-            "mu_um": [v * 1e6 for v in self.mu_m],
-            "tracking_sigma_um": [v * 1e6 for v in self.tracking_sigma_m],
-            "slowest_time_constant_ms": self.slowest_time_constant_s * 1e3,
-            "order_scan_sigma_um": {
-                str(n): [float(v) * 1e6 for v in row]
-                for n, row in zip(self.orders, self.order_sigma_m, strict=True)
-            },
-        }
-
-
-def linear_checks(
-    total_s: float = paper.LINEAR_SAMPLES / paper.LOOP_RATE_HZ,
-    *,
-    seed: int = 0,
-    changes: tuple[tuple[str, Any], ...] = (),
-    orders: Sequence[int] = range(2, 9),
-) -> LinearChecks:
-    """Measure the twin's linear-model figures on ``total_s`` of seeded random data.
-
-    Parameters
-    ----------
-    total_s : float
-        Data, s (default the seed's 6×10⁶ samples, 600 s).
-    seed : int
-        Seed of the runs and the noise.
-    changes : tuple of (str, value)
-        Twin changes (default: the data file's twin, i.e. the calibrated one).
-    orders : sequence of int
-        Orders of the order scan (seed §III-A: 2..8; empty: no scan).
-    """
-    lin = LinearSettings(total_s=total_s, seed=seed)
-    played = play_runs(
-        random_runs(total_s, a_max=lin.a_max, seed=seed), TwinSettings(seed=seed, changes=changes)
-    )
-    fit = fit_linear(played, lin)
-    err = np.concatenate([r.y - r.u for r in played.records])
-    ords = tuple(orders)
-    if ords:
-        data = [(decimate(r.u, lin.decimate), decimate(r.y, lin.decimate)) for r in played.records]
-        cfg = SubspaceConfig(feedthrough=lin.feedthrough)
-        scan = order_scan(data, played.dt * lin.decimate, ords, cfg)
-        order_sigma = np.asarray(scan.fit_std, dtype=float)
-    else:
-        order_sigma = np.zeros((0, 2))
-    return LinearChecks(
-        total_s=total_s,
-        sigma_m=(float(fit.sigma_m[0]), float(fit.sigma_m[1])),
-        mu_m=(float(fit.mu_m[0]), float(fit.mu_m[1])),
-        tracking_sigma_m=tuple(float(v) for v in err.std(axis=0)),  # type: ignore[arg-type]
-        slowest_time_constant_s=float(np.max(fit.model.time_constants_s())),
-        orders=ords,
-        order_sigma_m=order_sigma,
     )
 
 
