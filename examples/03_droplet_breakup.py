@@ -13,12 +13,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from microfab.experiments.seed003_inkjet.figures import fig_montage
 from microfab.measure.imaging import analyze
 from microfab.measure.shadowgraph import Camera, render_sequence
 from microfab.process.inkjet.droplet import simulate_droplet
 from microfab.process.inkjet.fluids import naalg
 from microfab.report.canvas import save_figure
+from microfab.report.inkjet import fig_montage
 
 
 def main(concentration_pct: float = 0.15, out_dir: Path = Path()) -> Path:
