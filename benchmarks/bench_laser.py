@@ -26,16 +26,10 @@ from pathlib import Path
 import numpy as np
 from _timing import best, timed
 
-from microfab.experiments.seed004_laser.reference import ContourMotion, contour_reference
-from microfab.experiments.seed004_laser.run import (
-    ControlSettings,
-    TwinSettings,
-    contour_path,
-    make_controller,
-    make_stage,
-)
 from microfab.geometry.project import project_points, project_points_scalar
+from microfab.machines.laser_stage import ControlSettings, TwinSettings, controller, twin
 from microfab.sim.loop import LoopState, simulate, simulate_python
+from microfab.trajectory.contour_laps import ContourMotion, contour_path, contour_reference
 
 SPEED_M_S = 10e-3  # the seed's Fig. 7 speed
 RT_GOAL = 50.0
@@ -65,8 +59,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         dxf = write_part(Path(tmp))
         path = contour_path(str(dxf))
-    stage = make_stage(TwinSettings())
-    ctrl = make_controller(ControlSettings(law="contour"), stage)
+    stage = twin(TwinSettings())
+    ctrl = controller(ControlSettings(law="contour"), stage)
     ref = contour_reference(path, ContourMotion(speed_m_s=SPEED_M_S, laps=2))
     traj = ref.trajectory
     pos = np.asarray(traj.position)

@@ -49,12 +49,9 @@ def analyze_cmd(
     With --replay the trace must also hold current_x, current_y (A) and, for an exact
     comparison, the exported reference derivatives ref_vx, ref_vy, ref_ax, ref_ay.
     """
-    from microfab.experiments.seed004_laser.analyze import (
-        analysis_table,
-        analyze_file,
-        write_analysis,
-    )
     from microfab.io.atomic import atomic_write_json
+    from microfab.measure.contour_trace import analyze_file
+    from microfab.report.contour import analysis_table, write_analysis
 
     if not reference_tol_um > 0:
         fail(f"--reference-tol-um must be positive, got {reference_tol_um:g} µm")
@@ -65,8 +62,8 @@ def analyze_cmd(
     print_table(analysis_table(a))
     summary = a.summary()
     if replay:
-        from microfab.experiments.seed004_laser.hardware import replay_trace
         from microfab.io.trace import read_trace
+        from microfab.machines.laser_stage_files import replay_trace
 
         control = twin = None
         if job is not None:
@@ -115,7 +112,7 @@ def export_cmd(
     out: Annotated[Path, typer.Option(help="Folder for reference.csv and controller.json.")],
 ) -> None:
     """Write a job's reference and discrete controller for a real-time target (seed 004)."""
-    from microfab.experiments.seed004_laser.hardware import export_job
+    from microfab.machines.laser_stage_files import export_job
 
     cfg = _laser_job(job)
     ref, spec = export_job(cfg, out)

@@ -52,7 +52,7 @@ reference must still fall slower than the output. There the law runs on the log 
 (`dark_field_area`, option ``dark_field``), whose rate of change is of one order over the
 whole range, with constants from a design rule (`SlidingModeFocusConfig.for_dark_field`:
 ``ρ`` half the slowest fall over the capture range, ``h = ρ τ``). Measured on that twin
-(2 mm/s stage, 5 ms lag, 500 µm start; `experiments/seed004_laser/focus.py`): both laws
+(2 mm/s stage, 5 ms lag, 500 µm start; `microfab.machines.laser_stage.play_focus`): both laws
 reach ±27 µm (0.25 s and 0.89 s); steady peak to peak 5.9 µm (continuous) against
 9.0 µm (discontinuous). The detector's noise (63 µV) lies far below ``h``, so the relay
 seldom chatters and both laws keep one stall-reversal cycle; the gap is 1.5x, not the 5x
@@ -71,13 +71,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import njit
 
 from microfab.control.base import CompiledController, ReferenceWindow
 from microfab.core.validate import check_finite, check_nonnegative, check_positive
+
+if TYPE_CHECKING:
+    from microfab.plants.lmw_focus import LMWFocus
 
 __all__ = [
     "SlidingModeFocus",
@@ -86,6 +89,7 @@ __all__ = [
     "chi_scalar",
     "dark_field_area",
     "dark_field_area_scalar",
+    "focus_law",
     "focus_step",
     "relay",
     "relay_scalar",
@@ -469,3 +473,37 @@ class SlidingModeFocus(CompiledController):
     def direction(self, state: np.ndarray) -> int:
         """The direction register ``d`` (+1 or −1; 0 before the first sample)."""
         return int(np.asarray(state)[1])
+
+
+def focus_law(
+    plant: LMWFocus, *, continuous: bool = True, speed_m_s: float | None = None
+) -> SlidingModeFocusConfig:
+    """The focus law for a focus twin: `SlidingModeFocusConfig.for_dark_field` on its optics.
+
+    The capture range is the start's defocus (at least ``z_R``); the speed the stage's
+    limit unless given; the detector's resolution one converter count plus three noise
+    rms; the first move is up (+z).
+
+    Parameters
+    ----------
+    plant : LMWFocus
+        The focus twin (`microfab.plants.lmw_focus`): its optics, stage lag and start.
+    continuous : bool
+        Continuous sign and relay (seed 004 eqs. 16-17) or the discontinuous baseline.
+    speed_m_s : float or None
+        Search speed V, m/s (default: the twin's speed limit).
+    """
+    c = plant.config
+    return SlidingModeFocusConfig.for_dark_field(
+        rayleigh_range_m=c.rayleigh_range_m,
+        capture_m=max(abs(c.start_position_m - c.focus_position_m), c.rayleigh_range_m),
+        speed_m_s=c.speed_limit_m_s if speed_m_s is None else speed_m_s,
+        lag_s=c.velocity_lag_s,
+        dark_v=c.offset_v,
+        full_scale_v=c.full_scale_v,
+        resolution_v=c.adc_count_v + 3.0 * c.noise_rms_v,
+        stop_radius_ratio=c.stop_radius_ratio,
+        continuous=continuous,
+        dt=plant.dt,
+        initial_direction=1,
+    )

@@ -3,7 +3,9 @@
 Polynomial margin routines break down on a 1 MHz loop with 40 kHz modes (the polynomials
 of such models are numerically meaningless), and the galvo loop is conditionally stable, so
 margins are read off the frequency response of the discrete loop on a dense logarithmic
-grid, each crossing refined by interpolation.
+grid, each crossing refined by interpolation. `loop_axis_margins` adds the sensitivity
+peak ``max |1 / (1 + L)|`` on the same kind of grid; `feedback_loop` breaks a loop at the
+plant input, ``L = −C_fb P``, from the plant and the controller's feedback path.
 """
 
 from __future__ import annotations
@@ -12,9 +14,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import control
 from microfab.plants.lti import DiscreteLTI
 
-__all__ = ["Crossing", "LoopMargins", "loop_margins"]
+__all__ = [
+    "AxisMargins",
+    "Crossing",
+    "LoopMargins",
+    "feedback_loop",
+    "loop_axis_margins",
+    "loop_margins",
+]
 
 
 @dataclass(frozen=True)
@@ -121,4 +131,69 @@ def loop_margins(
         pm_deg=gc.margin,
         pm_freq_hz=gc.freq_hz,
         crossings=tuple(crossings),
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class AxisMargins:
+    """Margins of one axis loop.
+
+    Attributes
+    ----------
+    axis : str
+        The axis' name (``"x"``, ``"y"``, ...).
+    margins : LoopMargins
+        Gain and phase margins and their frequencies.
+    sensitivity_peak_db : float
+        ``max |S|``, dB.
+    sensitivity_peak_hz : float
+        Where it occurs, Hz.
+    """
+
+    axis: str
+    margins: LoopMargins
+    sensitivity_peak_db: float
+    sensitivity_peak_hz: float
+
+
+def _ss(sys: DiscreteLTI) -> control.StateSpace:
+    return control.ss(sys.A, sys.B, sys.C, sys.D, sys.dt)
+
+
+def feedback_loop(plant: DiscreteLTI, feedback: DiscreteLTI) -> DiscreteLTI:
+    """``L = −C_fb P``: a SISO loop broken at the plant input.
+
+    Parameters
+    ----------
+    plant : DiscreteLTI
+        ``P``, from the plant input (the command) to the measured output.
+    feedback : DiscreteLTI
+        ``C_fb``, the controller's path from the measured output to the command (negative
+        feedback has the sign in it: ``L`` takes it off), same sample time.
+    """
+    loop = -control.series(_ss(plant), _ss(feedback))
+    return DiscreteLTI(loop.A, loop.B, loop.C, loop.D, plant.dt)
+
+
+def loop_axis_margins(axis: str, loop: DiscreteLTI, n_points: int = 20_000) -> AxisMargins:
+    """`loop_margins` of a SISO loop and its sensitivity peak, on ``n_points`` from 1 Hz.
+
+    Parameters
+    ----------
+    axis : str
+        The axis' name.
+    loop : DiscreteLTI
+        The open loop ``L``.
+    n_points : int
+        Log-spaced grid points from 1 Hz to 0.999 of Nyquist.
+    """
+    m = loop_margins(loop, n_points=n_points)
+    f = np.geomspace(1.0, 0.999 / (2 * loop.dt), n_points)
+    s = 1.0 / np.abs(1.0 + loop.frequency_response(f)[:, 0, 0])
+    i = int(np.argmax(s))
+    return AxisMargins(
+        axis=axis,
+        margins=m,
+        sensitivity_peak_db=float(20 * np.log10(s[i])),
+        sensitivity_peak_hz=float(f[i]),
     )

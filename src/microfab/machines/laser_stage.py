@@ -1,26 +1,116 @@
-"""The laser-micromachining stage of seed 004 as a machine: the XY twin and the focus twin.
+"""The laser-micromachining stage of seed 004 as a machine: XY twin, focus twin, their loops.
 
 Each data file is parsed once and each twin built once per distinct settings
 (`microfab.machines.twins`): the contour runs, the sweep, the margins, the calibration and
 the hardware export of one process share them.
+
+The surface every job, study and command uses:
+
+`twin`, `controller`
+    The stage twin of `TwinSettings` and the controller of `ControlSettings` for it.
+`play`
+    Plays a sampled reference through the stage's loop from rest at its first point and
+    returns what the stage measures and what moved it (`StageTrace`).
+`play_contour`
+    A `ContourJob` end to end: the drawing's closed contour, its time-based spline
+    (`microfab.trajectory.contour_laps`), refused beyond the stage's limits, then `play`.
+`play_focus`
+    The sliding-mode focus search (seed 004 §III.B) on the focus twin (`FocusTrace`).
+`axis_loop`, `axis_margins`
+    Each axis loop broken at the current reference, and its margins.
+
+Controller laws (`ControlSettings.law`; the seed gives no gains):
+
+``"preview-dob"``
+    Preview control with disturbance observer on each axis (seed 004 eqs. 3-4), without
+    the contour correction: Fig. 7's "Response1".
+``"contour"``
+    The same with the task-space contour compensator on top (eqs. 5-15): "Response2".
+``"preview"``
+    Preview control without DOB.
+``"pd"``
+    PD only (``K_a = 0``, no DOB).
+``"cross-coupled"``
+    Koren's cross-coupled controller on the preview + DOB axes, at the compensator's
+    bandwidth.
+
+The controllers are given the twin's nominal model (``M_n``, ``K_fn``); the twin uses the
+true values, 10 % off (data file). Encoder noise is drawn from ``TwinSettings.seed``, so a
+run is reproducible to the bit. `play` returns the signals, the true positions, motor
+force and disturbance force per sample (replayed from the run's commands: the twin is
+deterministic given them, `microfab.sim.replay.replay_plant`).
+
+Axis margins: the loop is broken at the plant input (the current reference), ``L = −C_fb
+P`` with ``P`` the twin's linear axis (true mass and force constant, amplifier lag, ZOH at
+the sample time: `LMWStage.linear_model`) and ``C_fb`` the controller's path from the
+measured position to the current (`PreviewDOB.linear_model`, input ``x_fb``: position and
+velocity feedback and the disturbance observer together); `microfab.control.margins`
+reads margins and sensitivity peak off the frequency response. The contour compensator
+adds its normal gains on top (`microfab.control.contour.check_normal_gains`); these are
+the axis loops alone.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
+from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
+from microfab.control.contour import ContourCompensator, ContourConfig
+from microfab.control.cross_coupled import CrossCoupled, CrossCoupledConfig
+from microfab.control.focus import SlidingModeFocus, focus_law
+from microfab.control.margins import AxisMargins, feedback_loop, loop_axis_margins
+from microfab.control.preview_dob import PreviewDOB
+from microfab.control.preview_dob_model import PreviewDOBConfig
 from microfab.core.limits import MachineLimits
+from microfab.core.validate import check_int, check_positive
+from microfab.geometry.path import Path
 from microfab.machines.twins import TwinCache
 from microfab.plants import lmw_focus, lmw_stage_params
 from microfab.plants.lmw_focus import LMWFocus, LMWFocusParams, lmw_focus_twin
 from microfab.plants.lmw_stage import LMWStage, lmw_stage_twin
 from microfab.plants.lmw_stage_params import LMWStageParams
+from microfab.plants.lti import DiscreteLTI
+from microfab.sim.loop import LoopState, simulate
+from microfab.sim.replay import replay_plant
+from microfab.trajectory.base import Trajectory
+from microfab.trajectory.contour_laps import (
+    ContourMotion,
+    ContourReference,
+    check_reference,
+    contour_path,
+    contour_reference,
+)
 
-__all__ = ["DATA_FILES", "focus", "limits", "stage"]
+__all__ = [
+    "DATA_FILES",
+    "LAWS",
+    "ContourJob",
+    "ContourPlay",
+    "ControlSettings",
+    "FocusTrace",
+    "StageTrace",
+    "TwinSettings",
+    "axis_loop",
+    "axis_margins",
+    "controller",
+    "focus",
+    "limits",
+    "play",
+    "play_contour",
+    "play_focus",
+    "stage",
+    "twin",
+]
 
 #: The packaged data files the twins are built from (every value with its source).
 DATA_FILES = ("lmw_stage.toml", "lmw_focus.toml")
+
+#: Controller laws `ControlSettings.law` may name (module notes).
+LAWS = ("preview-dob", "contour", "preview", "pd", "cross-coupled")
 
 _STAGES: TwinCache[LMWStageParams, LMWStage] = TwinCache(
     lmw_stage_params.load_params, lambda cfg, **s: lmw_stage_twin(params=cfg, **s), DATA_FILES[0]
@@ -45,3 +135,374 @@ def focus(path: str | os.PathLike[str] | None = None, **overrides: Any) -> LMWFo
 def limits() -> MachineLimits:
     """The stage's declared limits (seed 004 Table I)."""
     return MachineLimits.seed004_stage()
+
+
+# ---------------------------------------------------------------------------- settings
+@dataclass(frozen=True, kw_only=True)
+class TwinSettings:
+    """Which stage twin runs (defaults: the data file's, noise and nonlinear parts on).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the encoder noise.
+    noise : bool
+        Encoder interpolation noise on (``noise_rms_m`` of the data file).
+    nonlinear : bool
+        Friction, cogging, cable, saturation and quantisation on (off: the linear twin).
+    disturbance_scale : float or None
+        Scale of friction + cogging + cable (default: the data file's).
+    mass_error : float
+        Relative error of the controller's nominal mass against the twin's own nominal
+        (0: the data file's nominal; 0.3: the controller believes 30 % more), for the
+        robustness check.
+    params_file : str or None
+        Another twin data file.
+    """
+
+    seed: int = 0
+    noise: bool = True
+    nonlinear: bool = True
+    disturbance_scale: float | None = None
+    mass_error: float = 0.0
+    params_file: str | None = None
+
+    def __post_init__(self) -> None:
+        check_int("seed", self.seed, 0)
+        if self.disturbance_scale is not None:
+            check_positive("disturbance_scale", self.disturbance_scale)
+        if not -0.9 <= self.mass_error <= 10.0:
+            raise ValueError(
+                f"mass_error must lie in [-0.9, 10] (a relative error), got {self.mass_error!r}"
+            )
+
+
+@dataclass(frozen=True, kw_only=True)
+class ControlSettings:
+    """The controller law and its bandwidths (all assumed; the seed gives no gains).
+
+    Parameters
+    ----------
+    law : str
+        One of `LAWS`.
+    bandwidth_hz : float
+        Axis position loop ``ω_c / 2π`` (`PreviewDOBConfig`, default 50 Hz).
+    dob_bandwidth_hz : float
+        DOB filter ``ω_q / 2π`` (default 500 Hz).
+    k_a : float
+        Acceleration feedforward gain of eq. 3 (default 1).
+    contour_bandwidth_hz : float
+        Contour compensator (or cross-coupled) ``ω_cc / 2π`` (default 100 Hz).
+    """
+
+    law: str = "contour"
+    bandwidth_hz: float = 50.0
+    dob_bandwidth_hz: float = 500.0
+    k_a: float = 1.0
+    contour_bandwidth_hz: float = 100.0
+
+    def __post_init__(self) -> None:
+        if self.law not in LAWS:
+            raise ValueError(f"law must be one of {', '.join(LAWS)}; got {self.law!r}")
+        check_positive("bandwidth_hz", self.bandwidth_hz, "Hz")
+        check_positive("dob_bandwidth_hz", self.dob_bandwidth_hz, "Hz")
+        check_positive("contour_bandwidth_hz", self.contour_bandwidth_hz, "Hz")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContourJob:
+    """One contour run: the drawing, how it is run, the controller and the twin.
+
+    Parameters
+    ----------
+    drawing : str
+        A drawing source for `microfab.geometry.load.load_drawing` (default the seed's
+        Fig. 3 circle, ``circle:radius=30e-6``), in m.
+    contour : int
+        Which closed contour of the drawing (in the drawing's order).
+    motion : ContourMotion
+        Speed, laps, ramps, knots, sample rate.
+    control : ControlSettings
+        The controller.
+    twin : TwinSettings
+        The stage twin.
+    """
+
+    drawing: str = "circle:radius=30e-6"
+    contour: int = 0
+    motion: ContourMotion = field(default_factory=ContourMotion)
+    control: ControlSettings = field(default_factory=ControlSettings)
+    twin: TwinSettings = field(default_factory=TwinSettings)
+
+    def with_(self, **changes: Any) -> ContourJob:
+        """A copy with fields replaced (``motion=``, ``control=``, ``twin=``, ...)."""
+        return dataclasses.replace(self, **changes)
+
+
+def twin(settings: TwinSettings | None = None) -> LMWStage:
+    """The stage twin of ``settings`` (`stage`: built once per distinct settings)."""
+    tw = settings or TwinSettings()
+    over: dict[str, Any] = {}
+    if tw.disturbance_scale is not None:
+        over["disturbance_scale"] = tw.disturbance_scale
+    return stage(tw.params_file, ideal=not tw.nonlinear, **over)
+
+
+def controller(cs: ControlSettings, plant: LMWStage, mass_error: float = 0.0) -> Any:
+    """The controller of ``cs`` for ``plant``'s nominal model (mass off by ``mass_error``).
+
+    Returns
+    -------
+    PreviewDOB, ContourCompensator or CrossCoupled
+        A fresh controller (module notes: laws).
+    """
+    nom = plant.nominal()
+    inner = PreviewDOBConfig(
+        mass_kg=tuple(m * (1.0 + mass_error) for m in nom.mass_kg),
+        force_constant_n_per_a=tuple(nom.force_constant_n_per_a),
+        dt=plant.dt,
+        bandwidth_hz=cs.bandwidth_hz,
+        dob_bandwidth_hz=cs.dob_bandwidth_hz,
+        k_a=0.0 if cs.law == "pd" else cs.k_a,
+        dob=cs.law not in ("preview", "pd"),
+    )
+    if cs.law == "contour":
+        return ContourCompensator(ContourConfig(inner=inner, bandwidth_hz=cs.contour_bandwidth_hz))
+    if cs.law == "cross-coupled":
+        return CrossCoupled(CrossCoupledConfig(inner=inner, bandwidth_hz=cs.contour_bandwidth_hz))
+    return PreviewDOB(inner)
+
+
+# ---------------------------------------------------------------------------- play
+@dataclass(frozen=True, kw_only=True, eq=False)
+class StageTrace:
+    """What the stage did over a played reference (all shape (n, 2), x and y).
+
+    Attributes
+    ----------
+    output : numpy.ndarray
+        True positions, m (replayed from the twin's state).
+    encoder : numpy.ndarray
+        Encoder counts as positions (10 nm steps), m.
+    measured : numpy.ndarray
+        What the controller saw: encoder plus interpolation noise, m.
+    command : numpy.ndarray
+        Current references, A.
+    force : numpy.ndarray
+        Motor force ``K_f i`` after each sample, N.
+    disturbance : numpy.ndarray
+        True ``F_l`` over each sample, N.
+    controller : object
+        The controller that ran (for replays of its recorded measurements).
+    dt : float
+        Sample time, s.
+    """
+
+    output: np.ndarray
+    encoder: np.ndarray
+    measured: np.ndarray
+    command: np.ndarray
+    force: np.ndarray
+    disturbance: np.ndarray
+    controller: Any
+    dt: float
+
+
+def play(
+    reference: Trajectory,
+    control: ControlSettings | None = None,
+    settings: TwinSettings | None = None,
+) -> StageTrace:
+    """Play a sampled reference through the stage's loop from rest at its first point.
+
+    Parameters
+    ----------
+    reference : Trajectory
+        Position (m), velocity (m/s) and acceleration (m/s²), shape (n, 2), at the twin's
+        sample time (the preview controllers read the derivatives).
+    control : ControlSettings, optional
+        The controller (default `ControlSettings`).
+    settings : TwinSettings, optional
+        The twin (default `TwinSettings`).
+
+    Returns
+    -------
+    StageTrace
+    """
+    tw = settings or TwinSettings()
+    plant = twin(tw)
+    pos = np.asarray(reference.position)
+    n = pos.shape[0]
+    noise = plant.noise(n, tw.seed) if tw.noise else np.zeros((n, 2))
+    ctrl = controller(control or ControlSettings(), plant, tw.mass_error)
+    s0 = plant.state_at((float(pos[0, 0]), float(pos[0, 1])))
+    start = LoopState(plant=s0, controller=ctrl.init(), observer=np.zeros(0), command=np.zeros(2))
+    der = (reference.velocity, reference.acceleration)
+    res = simulate(plant, ctrl, pos, noise, start, derivatives=der)  # type: ignore[arg-type]
+    states = replay_plant(plant, res.command, s0)  # the twin's state after each sample
+    # the true position at sample k is the state after sample k - 1 (the simulator's
+    # output is the quantised encoder)
+    true = plant.linear_state(np.vstack([s0[None, :], states[:-1]]))[:, [0, 3]]
+    return StageTrace(
+        output=true,
+        encoder=res.output,
+        measured=res.measured,
+        command=res.command,
+        force=plant.force(states),
+        disturbance=plant.disturbance(states),
+        controller=ctrl,
+        dt=plant.dt,
+    )
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ContourPlay:
+    """A `ContourJob` played: its contour, its reference and what the stage did.
+
+    Attributes
+    ----------
+    job : ContourJob
+    path : Path
+        The exact contour, m.
+    reference : ContourReference
+        The reference (spline, samples, laps).
+    trace : StageTrace
+    """
+
+    job: ContourJob
+    path: Path
+    reference: ContourReference
+    trace: StageTrace
+
+    @property
+    def full_laps(self) -> slice:
+        """Samples of the full-speed laps, first to last."""
+        ref = self.reference
+        return slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
+
+
+def play_contour(job: ContourJob | None = None) -> ContourPlay:
+    """Run a contour job on the stage twin (module notes).
+
+    Raises
+    ------
+    ValueError
+        On a drawing without the closed contour asked for, or bad settings.
+    LimitViolation
+        When the reference exceeds the stage's limits (seed 004 Table I, travel):
+        naming axis, time, value and limit; nothing is run.
+    """
+    job = job or ContourJob()
+    path = contour_path(job.drawing, job.contour)
+    plant = twin(job.twin)
+    if abs(plant.dt - 1.0 / job.motion.sample_rate_hz) > 1e-12 * plant.dt:
+        raise ValueError(
+            f"the motion's sample rate {job.motion.sample_rate_hz:g} Hz differs from the "
+            f"twin's {1.0 / plant.dt:g} Hz; use {1.0 / plant.dt:g}"
+        )
+    ref = contour_reference(path, job.motion)
+    check_reference(ref, limits(), tuple(plant.config.mass_kg))  # type: ignore[arg-type]
+    return ContourPlay(
+        job=job, path=path, reference=ref, trace=play(ref.trajectory, job.control, job.twin)
+    )
+
+
+# ---------------------------------------------------------------------------- margins
+def axis_loop(plant: LMWStage, ctrl: PreviewDOB, axis: int) -> DiscreteLTI:
+    """``L = −C_fb P`` of axis ``axis`` (0: x, 1: y), broken at the current reference."""
+    return feedback_loop(
+        plant.linear_model().channel(axis, axis), ctrl.linear_model(axis).channel(0, 3)
+    )
+
+
+def axis_margins(
+    plant: LMWStage, ctrl: PreviewDOB, n_points: int = 20_000
+) -> tuple[AxisMargins, ...]:
+    """`AxisMargins` of both axis loops (module notes), x then y."""
+    return tuple(
+        loop_axis_margins(name, axis_loop(plant, ctrl, a), n_points=n_points)
+        for a, name in enumerate("xy")
+    )
+
+
+# ---------------------------------------------------------------------------- focus
+@dataclass(frozen=True, kw_only=True, eq=False)
+class FocusTrace:
+    """A focus search played on the focus twin (all shape (n,)).
+
+    Attributes
+    ----------
+    plant : LMWFocus
+        The focus twin.
+    detector : numpy.ndarray
+        Measured detector output, V.
+    z : numpy.ndarray
+        z encoder as measured, m.
+    z_output : numpy.ndarray
+        z encoder as the twin output it (before the measurement noise), m.
+    focus : numpy.ndarray
+        Focus position at each sample, m (moves with ``surface_rate_m_s``).
+    command : numpy.ndarray
+        z velocity command, m/s.
+    """
+
+    plant: LMWFocus
+    detector: np.ndarray
+    z: np.ndarray
+    z_output: np.ndarray
+    focus: np.ndarray
+    command: np.ndarray
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times, s."""
+        return np.arange(self.z.size) * self.plant.dt
+
+
+def play_focus(
+    *,
+    continuous: bool = True,
+    duration_s: float = 2.0,
+    speed_m_s: float | None = None,
+    surface_rate_m_s: float = 0.0,
+    seed: int = 0,
+    noise: bool = True,
+) -> FocusTrace:
+    """Play the sliding-mode focus search on the focus twin from its start position.
+
+    The law is `microfab.control.focus.focus_law` of the twin (seed 004 eqs. 16-17 when
+    ``continuous``, else the discontinuous baseline).
+
+    Parameters
+    ----------
+    continuous : bool
+        Continuous sign and relay, or the discontinuous baseline.
+    duration_s : float
+        Simulated time, s.
+    speed_m_s : float or None
+        Search speed V, m/s (default: the stage's speed limit).
+    surface_rate_m_s : float
+        Drift of the focal plane, m/s (a tilted part moving under the beam; 0: fixed).
+    seed : int
+        Seed of the detector noise.
+    noise : bool
+        Detector noise on.
+    """
+    plant = focus(surface_rate_m_s=surface_rate_m_s)
+    c = plant.config
+    ctrl = SlidingModeFocus(focus_law(plant, continuous=continuous, speed_m_s=speed_m_s))
+    n = round(duration_s / plant.dt)
+    rng = np.random.default_rng(seed)
+    v = np.zeros((n, 2))
+    if noise:
+        v[:, 0] = rng.standard_normal(n) * plant.noise_level.rms[0]
+    res = simulate(plant, ctrl, np.zeros((n, 1)), v)
+    t = np.arange(n) * plant.dt
+    return FocusTrace(
+        plant=plant,
+        detector=res.measured[:, 0],
+        z=res.measured[:, 1],
+        z_output=res.output[:, 1],
+        focus=c.focus_position_m + c.surface_rate_m_s * t,
+        command=res.command[:, 0],
+    )

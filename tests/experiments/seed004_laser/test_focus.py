@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.control.focus import SlidingModeFocus
+from microfab.control.focus import SlidingModeFocus, focus_law
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.focus import FocusJob, focus_law, focus_study, run_focus
+from microfab.experiments.seed004_laser.focus import FocusJob, focus_study, run_focus
 from microfab.plants.lmw_focus import lmw_focus_twin
 from microfab.sim.loop import simulate
 

@@ -7,17 +7,11 @@ import pytest
 
 from microfab.core.limits import LimitViolation
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.reference import ContourMotion
-from microfab.experiments.seed004_laser.run import (
-    ContourJob,
-    ControlSettings,
-    TwinSettings,
-    contour_path,
-    dob_estimate,
-    make_controller,
-    make_stage,
-    run_contour,
-)
+from microfab.experiments.seed004_laser.run import dob_estimate, run_contour
+from microfab.machines.laser_stage import ContourJob, ControlSettings, TwinSettings
+from microfab.machines.laser_stage import controller as make_controller
+from microfab.machines.laser_stage import twin as make_stage
+from microfab.trajectory.contour_laps import ContourMotion, contour_path
 
 
 def _fig7(law: str, speed: float, radius: float = paper.FIG7_SIZE_M, noise: bool = False):

@@ -1,7 +1,9 @@
 """Figures of seed 004: Figs. 3, 4, 6 and 7 redrawn, speed sweep, force, disturbance.
 
-Physics lives in `run` and `metrics`; this module only draws (matplotlib, through
-`microfab.report.canvas.new_figure`).
+Physics lives in `run` and `microfab.measure.contour`; this module only draws (matplotlib,
+through `microfab.report.canvas.new_figure`). The plots of any contouring run (axis errors,
+ballbar, contour error in time) are `microfab.report.contour`'s; here they are applied to
+the twin runs, beside the reproduction's own figures.
 """
 
 from __future__ import annotations
@@ -12,11 +14,14 @@ import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.metrics import AxisErrors, ContourErrors
 from microfab.experiments.seed004_laser.run import ContourRun
-from microfab.geometry.path import Path
-from microfab.geometry.project import project_points
 from microfab.report.canvas import new_figure
+from microfab.report.contour import (
+    AXIS_COLOURS,
+    plot_axis_errors,
+    plot_ballbar,
+    plot_contour_time,
+)
 
 __all__ = [
     "fig_axis_errors",
@@ -25,58 +30,14 @@ __all__ = [
     "fig_disturbance",
     "fig_force",
     "fig_speed",
-    "plot_axis_errors",
-    "plot_ballbar",
-    "plot_contour_time",
     "plot_disturbance",
     "plot_focus",
 ]
-
-_AXES = (("x", "tab:red"), ("y", "tab:blue"))
-
-
-def _lap_span(ax: object, span: tuple[float, float] | None) -> None:
-    """Shade the full-speed laps (``span``: start and end time, s) on a time axis."""
-    if span is not None:
-        ax.axvspan(*span, color="0.94", zorder=0)  # type: ignore[attr-defined]
 
 
 def _run_span(run: ContourRun) -> tuple[float, float]:
     ref = run.reference
     return ref.lap_starts[0] * run.dt, (ref.lap_starts[-1] + ref.lap_samples) * run.dt
-
-
-def plot_axis_errors(
-    time: np.ndarray,
-    reference: np.ndarray,
-    measured: np.ndarray,
-    axis: AxisErrors,
-    span: tuple[float, float] | None = None,
-) -> MplFigure:
-    """Seed 004 Fig. 3: x and y tracking errors against time, with the ±0.5 µm band.
-
-    ``time`` (s, (n,)), ``reference`` and ``measured`` (m, (n, 2)); ``axis`` the errors'
-    figures (`metrics.axis_errors`); ``span`` the laps' time span to shade.
-    """
-    fig = new_figure(7.0, 4.2)
-    axes = fig.subplots(2, 1, sharex=True)
-    e = (np.asarray(reference) - np.asarray(measured)) * 1e6
-    band = axis.band_m * 1e6
-    for k, (ax, (name, col)) in enumerate(zip(axes, _AXES, strict=True)):
-        _lap_span(ax, span)
-        ax.plot(time, e[:, k], lw=0.6, color=col)
-        for s in (-band, band):
-            ax.axhline(s, color="k", lw=0.6, ls="--")
-        frac = axis.fraction_below[k] * 100
-        ax.set_ylabel(f"e_{name} [µm]")
-        ax.set_title(
-            f"{name}: {frac:.1f} % of lap samples within ±{band:g} µm, peak "
-            f"{axis.peak_m[k] * 1e6:.2f} µm (seed: < 0.5, peaks 0.8 µm)",
-            fontsize=8,
-        )
-        ax.grid(True, alpha=0.3)
-    axes[-1].set_xlabel("time [s]" + (" (shaded: full-speed laps)" if span else ""))
-    return fig
 
 
 def fig_axis_errors(run: ContourRun) -> MplFigure:
@@ -86,56 +47,11 @@ def fig_axis_errors(run: ContourRun) -> MplFigure:
     )
 
 
-def plot_ballbar(path: Path, measured: np.ndarray, magnify: float | None = None) -> MplFigure:
-    """Seed 004 Fig. 4, ballbar style: the contour and the trace, radial error magnified.
-
-    Each measured point (m, (n, 2)) is drawn at its foot point on the contour plus
-    ``magnify`` times its contour error along the normal (default: the error's largest
-    value shown as 15 % of the contour's size).
-    """
-    pr = project_points(path, measured)
-    bb = path.bbox
-    size = max(bb[2] - bb[0], bb[3] - bb[1])
-    worst = float(np.max(np.abs(pr.distance))) or 1.0
-    m = magnify if magnify is not None else 0.15 * size / worst
-    shown = pr.foot + m * pr.distance[:, None] * pr.normal
-    fig = new_figure(5.2, 5.2)
-    ax = fig.subplots()
-    pts = path.flatten(size * 1e-4)
-    ax.plot(pts[:, 0] * 1e6, pts[:, 1] * 1e6, color="k", lw=0.8, label="drawing")
-    ax.plot(shown[:, 0] * 1e6, shown[:, 1] * 1e6, color="tab:green", lw=0.6,
-            label=f"measured, error x{m:.3g}")  # fmt: skip
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [µm]")
-    ax.set_ylabel("y [µm]")
-    ax.legend(loc="upper right", fontsize=7)
-    ax.set_title(f"Contour error magnified {m:.3g}x (largest {worst * 1e9:.0f} nm)", fontsize=8)
-    return fig
-
-
 def fig_ballbar(run: ContourRun, magnify: float | None = None) -> MplFigure:
     """`plot_ballbar` of a twin run's full-speed laps."""
     ref = run.reference
     sl = slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
     return plot_ballbar(ref.path, run.measured[sl], magnify)
-
-
-def plot_contour_time(
-    series: Mapping[str, tuple[np.ndarray, ContourErrors]],
-    span: tuple[float, float] | None = None,
-) -> MplFigure:
-    """Contour error against time: ``label -> (time s (n,), ContourErrors)``."""
-    fig = new_figure(7.0, 3.2)
-    ax = fig.subplots()
-    _lap_span(ax, span)
-    for label, (t, ce) in series.items():
-        ax.plot(t, ce.error_m * 1e9, lw=0.7,
-                label=f"{label}: {ce.steady_label} {ce.steady_max() * 1e9:.0f} nm")  # fmt: skip
-    ax.set_xlabel("time [s]" + (" (shaded: full-speed laps)" if span else ""))
-    ax.set_ylabel("contour error [nm]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
-    return fig
 
 
 def fig_contour_time(runs: Mapping[str, ContourRun]) -> MplFigure:
@@ -169,7 +85,7 @@ def fig_force(run: ContourRun) -> MplFigure:
     fig = new_figure(7.0, 3.0)
     ax = fig.subplots()
     rms = np.sqrt(np.mean(run.force**2, axis=0))
-    for k, (name, col) in enumerate(_AXES):
+    for k, (name, col) in enumerate(AXIS_COLOURS):
         ax.plot(run.time, run.force[:, k], lw=0.6, color=col,
                 label=f"{name} (RMS {rms[k]:.3g} N / {paper.CONTINUOUS_FORCE_N:g} N)")  # fmt: skip
     top = max(float(np.abs(run.force).max()) * 1.2, 1e-3)
@@ -191,7 +107,7 @@ def plot_disturbance(time: np.ndarray, true: np.ndarray, estimate: np.ndarray) -
     """
     fig = new_figure(7.0, 4.2)
     axes = fig.subplots(2, 1, sharex=True)
-    for k, (name, col) in enumerate(_AXES):
+    for k, (name, col) in enumerate(AXIS_COLOURS):
         ax = axes[k]
         ax.plot(time, true[:, k], lw=0.8, color="0.3", label="true F_l (twin)")
         ax.plot(time, estimate[:, k], lw=0.6, color=col, label="DOB estimate K_fn î_d")

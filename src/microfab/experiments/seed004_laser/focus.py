@@ -1,19 +1,20 @@
-"""Seed 004 autofocus on the focus twin: sliding-mode search, continuous and discontinuous.
+"""Seed 004 autofocus study on the focus twin: sliding-mode search, both laws, a tilted part.
 
-`run_focus` runs `microfab.control.focus.SlidingModeFocus` on the focus twin
-(`microfab.plants.lmw_focus`, set-up assumed: the seed's [23] is undescribed) from its
-start position (500 µm off focus, assumed) and measures what seed 004 Fig. 6 shows: the
-detector output falling to its minimum and the z encoder settling at the focus. Figures of
-merit: the time to enter the depth of focus (±DOF/2 about the focus, DOF from the beam:
-`LMWFocusParams.depth_of_focus_m`, 55 µm against the seed's ~54 µm) for good, and the
-steady peak-to-peak of z over the last ``settle_window_s``.
+`run_focus` plays `microfab.control.focus.SlidingModeFocus` on the focus twin
+(`microfab.machines.laser_stage.play_focus`; set-up assumed: the seed's [23] is
+undescribed) from its start position (500 µm off focus, assumed) and measures what seed
+004 Fig. 6 shows: the detector output falling to its minimum and the z encoder settling at
+the focus. Figures of merit: the time to enter the depth of focus (±DOF/2 about the focus,
+DOF from the beam: `LMWFocusParams.depth_of_focus_m`, 55 µm against the seed's ~54 µm) for
+good, and the steady peak-to-peak of z over the last ``settle_window_s``.
 
 The law runs on the log spot area of the twin's dark-field detector
 (`microfab.control.focus.dark_field_area`); its constants follow the design rule of
 `SlidingModeFocusConfig.for_dark_field` from the twin's optics, stage lag and start
-(`focus_law`): search speed = the stage's speed limit, ``ρ`` = half the slowest fall of
-the log spot area over the capture range, ``h = ρ τ``. A tilted part moving under the beam
-is a focal plane drifting at ``tilt × part speed`` (1 mrad at 10 mm/s: 10 µm/s).
+(`microfab.control.focus.focus_law`): search speed = the stage's speed limit, ``ρ`` = half
+the slowest fall of the log spot area over the capture range, ``h = ρ τ``. A tilted part
+moving under the beam is a focal plane drifting at ``tilt × part speed`` (1 mrad at 10
+mm/s: 10 µm/s).
 
 `focus_study` runs what the job and the reproduction report: both laws on a fixed part,
 and the continuous law on a tilted one.
@@ -25,13 +26,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from microfab.control.focus import SlidingModeFocus, SlidingModeFocusConfig
 from microfab.core.validate import check_int, check_positive
 from microfab.machines import laser_stage
 from microfab.plants.lmw_focus import LMWFocus
-from microfab.sim.loop import simulate
 
-__all__ = ["FocusJob", "FocusRun", "FocusStudy", "focus_law", "focus_study", "run_focus"]
+__all__ = ["FocusJob", "FocusRun", "FocusStudy", "focus_study", "run_focus"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -117,62 +116,35 @@ class FocusRun:
         return np.arange(self.z.size) * self.plant.dt
 
 
-def focus_law(
-    plant: LMWFocus, *, continuous: bool = True, speed_m_s: float | None = None
-) -> SlidingModeFocusConfig:
-    """The focus law for a focus twin: `SlidingModeFocusConfig.for_dark_field` on its optics.
-
-    The capture range is the start's defocus (at least ``z_R``); the speed the stage's
-    limit unless given; the detector's resolution one converter count plus three noise
-    rms; the first move is up (+z).
-    """
-    c = plant.config
-    return SlidingModeFocusConfig.for_dark_field(
-        rayleigh_range_m=c.rayleigh_range_m,
-        capture_m=max(abs(c.start_position_m - c.focus_position_m), c.rayleigh_range_m),
-        speed_m_s=c.speed_limit_m_s if speed_m_s is None else speed_m_s,
-        lag_s=c.velocity_lag_s,
-        dark_v=c.offset_v,
-        full_scale_v=c.full_scale_v,
-        resolution_v=c.adc_count_v + 3.0 * c.noise_rms_v,
-        stop_radius_ratio=c.stop_radius_ratio,
-        continuous=continuous,
-        dt=plant.dt,
-        initial_direction=1,
-    )
-
-
 def run_focus(job: FocusJob | None = None) -> FocusRun:
     """Run the sliding-mode focus search on the focus twin (module notes)."""
     job = job or FocusJob()
-    plant = laser_stage.focus(surface_rate_m_s=job.surface_rate_m_s)
-    c = plant.config
-    ctrl = SlidingModeFocus(focus_law(plant, continuous=job.continuous, speed_m_s=job.speed_m_s))
-    n = round(job.duration_s / plant.dt)
-    rng = np.random.default_rng(job.seed)
-    noise = np.zeros((n, 2))
-    if job.noise:
-        noise[:, 0] = rng.standard_normal(n) * plant.noise_level.rms[0]
-    res = simulate(plant, ctrl, np.zeros((n, 1)), noise)
-    t = np.arange(n) * plant.dt
-    focus = c.focus_position_m + c.surface_rate_m_s * t
-    z = res.output[:, 1]
-    err = z - focus
+    tr = laser_stage.play_focus(
+        continuous=job.continuous,
+        duration_s=job.duration_s,
+        speed_m_s=job.speed_m_s,
+        surface_rate_m_s=job.surface_rate_m_s,
+        seed=job.seed,
+        noise=job.noise,
+    )
+    plant = tr.plant
+    n = tr.z.size
+    err = tr.z_output - tr.focus
     dof = plant.depth_of_focus_m()
     outside = np.flatnonzero(np.abs(err) > 0.5 * dof)
     entered = None
     if outside.size == 0:
         entered = 0.0
     elif outside[-1] < n - 1:
-        entered = float(t[outside[-1] + 1])
+        entered = float(tr.time[outside[-1] + 1])
     w = round(job.settle_window_s / plant.dt)
     return FocusRun(
         job=job,
         plant=plant,
-        detector=res.measured[:, 0],
-        z=res.measured[:, 1],
-        focus=focus,
-        command=res.command[:, 0],
+        detector=tr.detector,
+        z=tr.z,
+        focus=tr.focus,
+        command=tr.command,
         depth_of_focus_m=dof,
         entered_s=entered,
         steady_ptp_m=float(np.ptp(err[-w:])),

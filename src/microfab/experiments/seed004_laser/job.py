@@ -31,28 +31,26 @@ import numpy as np
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed004_laser import paper
 from microfab.experiments.seed004_laser.focus import focus_study
-from microfab.experiments.seed004_laser.margins import axis_margins
-from microfab.experiments.seed004_laser.reference import ContourMotion
 from microfab.experiments.seed004_laser.results import (
     FocusSettings,
     LaserJob,
     LaserResult,
     focus_table,
 )
-from microfab.experiments.seed004_laser.run import (
-    LAWS,
-    ContourJob,
-    ControlSettings,
-    TwinSettings,
-    make_controller,
-    make_stage,
-    run_contour,
-)
+from microfab.experiments.seed004_laser.run import run_contour
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.io.sweep import run_sweep
 from microfab.machines import laser_stage
+from microfab.machines.laser_stage import (
+    LAWS,
+    ContourJob,
+    ControlSettings,
+    TwinSettings,
+    axis_margins,
+)
 from microfab.report.tables import Table, versus
+from microfab.trajectory.contour_laps import ContourMotion
 
 __all__ = [
     "LASER_MICROMACHINING",
@@ -173,18 +171,20 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> LaserJob:
 
 def _checked_config(sec: dict[str, dict[str, Any]]) -> LaserJob:
     """`config_from_sections`, then the controller checks (stability with the twin)."""
-    from microfab.core.limits import MachineLimits
-    from microfab.experiments.seed004_laser.reference import check_reference, contour_reference
-    from microfab.experiments.seed004_laser.run import contour_path
+    from microfab.trajectory.contour_laps import (
+        check_reference,
+        contour_path,
+        contour_reference,
+    )
 
     cfg = config_from_sections(sec)
     path = contour_path(cfg.run.drawing, cfg.run.contour)  # refuses a drawing without it
-    stage = make_stage(cfg.run.twin)
-    make_controller(cfg.run.control, stage)  # refuses an unstable loop
+    stage = laser_stage.twin(cfg.run.twin)
+    laser_stage.controller(cfg.run.control, stage)  # refuses an unstable loop
     masses = tuple(stage.config.mass_kg)
     for v in (cfg.run.motion.speed_m_s, *(s * 1e-3 for s in cfg.speeds_mm_s)):
         motion = dataclasses.replace(cfg.run.motion, speed_m_s=v)  # refuses beyond Table I
-        check_reference(contour_reference(path, motion), MachineLimits.seed004_stage(), masses)  # type: ignore[arg-type]
+        check_reference(contour_reference(path, motion), laser_stage.limits(), masses)  # type: ignore[arg-type]
     return cfg
 
 
@@ -225,9 +225,6 @@ class _SpeedTask:
         return speed_point(self.job, point)
 
 
-# ---------------------------------------------------------------------------- focus
-
-
 # ---------------------------------------------------------------------------- result
 
 
@@ -266,10 +263,10 @@ def _run(config: LaserJob, out: Path, progress: Progress) -> LaserResult:
             seed=config.run.twin.seed,
             noise=config.run.twin.noise,
         )
-    stage = make_stage(config.run.twin)
+    stage = laser_stage.twin(config.run.twin)
     law = config.run.control.law  # the axis controllers of the run (without the add-on)
     axes_law = law if law in ("preview-dob", "preview", "pd") else "preview-dob"
-    inner = make_controller(dataclasses.replace(config.run.control, law=axes_law), stage)
+    inner = laser_stage.controller(dataclasses.replace(config.run.control, law=axes_law), stage)
     result = LaserResult(
         config=config,
         main=main,

@@ -33,7 +33,7 @@ def _notes(result: LaserResult) -> list[str]:
         + ".",
         f"Reference: the drawing's contour through a time-based spline (seed eq. 1) at "
         f"{job.motion.speed_m_s * 1e3:g} mm/s for {job.motion.laps} lap(s), ramps and "
-        "knots as documented in experiments/seed004_laser/reference.py; checked against "
+        "knots as documented in microfab/trajectory/contour_laps.py; checked against "
         "Table I (speed, acceleration, 12 N peak, 3 N RMS force) before running.",
         f"Controller: {job.control.law} (axis loop {job.control.bandwidth_hz:g} Hz, DOB "
         f"{job.control.dob_bandwidth_hz:g} Hz, K_a = {job.control.k_a:g}, contour loop "

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.experiments.seed004_laser.metrics import ContourErrors, axis_errors
+from microfab.measure.contour import ContourErrors, axis_errors
 
 
 def test_steady_max_leaves_out_lap_one_when_there_are_more():

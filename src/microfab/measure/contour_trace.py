@@ -1,4 +1,4 @@
-"""Seed 004 figures of merit from a measured trace (``microfab laser analyze``).
+"""Figures of merit of a measured contouring trace against its drawing (``microfab laser analyze``).
 
 A trace is a file (``.csv``, ``.mat``, ``.h5``: `microfab.io.trace.read_trace`) with the
 columns ``time`` (s), ``ref_x``, ``ref_y`` (the reference the controller was given, m)
@@ -19,7 +19,6 @@ contour:
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 from typing import Any
@@ -28,24 +27,22 @@ import numpy as np
 
 from microfab.core.signals import Trace
 from microfab.core.validate import check_positive
-from microfab.experiments.seed004_laser.metrics import (
+from microfab.geometry.path import Path
+from microfab.geometry.project import project_points
+from microfab.measure.contour import (
     AxisErrors,
     ContourErrors,
     axis_errors,
     contour_errors,
+    laps_along,
 )
-from microfab.geometry.path import Path
-from microfab.geometry.project import project_points
-from microfab.report.tables import Table
 
 __all__ = [
     "REF_TOL_M",
     "REQUIRED",
     "TraceAnalysis",
-    "analysis_table",
     "analyze_file",
     "analyze_trace",
-    "write_analysis",
 ]
 
 #: Columns a trace must hold besides ``time`` (m).
@@ -103,22 +100,6 @@ class TraceAnalysis:
         }
 
 
-def _laps(path: Path, reference: np.ndarray) -> tuple[slice, ...]:
-    """Full laps along the reference's unwrapped arc length on the closed contour."""
-    n = reference.shape[0]
-    if not path.closed:
-        return (slice(0, n),)
-    L = float(path.length)
-    s = np.asarray(project_points(path, reference).s, dtype=float)
-    ds = np.diff(s)
-    ds = ds - L * np.round(ds / L)  # unwrap across the start point (either direction)
-    run = np.concatenate([[0.0], np.cumsum(np.abs(ds))])
-    k = np.floor(run / L).astype(np.int64)
-    edges = np.concatenate([[0], np.flatnonzero(np.diff(k)) + 1])
-    laps = [slice(int(a), int(b)) for a, b in itertools.pairwise(edges)]
-    return tuple(laps) or (slice(0, n),)
-
-
 def analyze_trace(trace: Trace, path: Path, *, reference_tol_m: float = REF_TOL_M) -> TraceAnalysis:
     """Analyse a measured trace against the exact contour (module notes).
 
@@ -153,7 +134,7 @@ def analyze_trace(trace: Trace, path: Path, *, reference_tol_m: float = REF_TOL_
             f"m), more than {reference_tol_m * 1e6:g} µm; check the drawing, its units and "
             "its placement, or raise the tolerance"
         )
-    laps = _laps(path, ref)
+    laps = laps_along(path, ref)
     return TraceAnalysis(
         path=path,
         time=time,
@@ -175,58 +156,8 @@ def analyze_file(
     reference_tol_m: float = REF_TOL_M,
 ) -> TraceAnalysis:
     """`analyze_trace` of a trace file against contour ``contour`` of a drawing source."""
-    from microfab.experiments.seed004_laser.run import contour_path
     from microfab.io.trace import read_trace
+    from microfab.trajectory.contour_laps import contour_path
 
     path = contour_path(drawing, contour)
     return analyze_trace(read_trace(trace_file), path, reference_tol_m=reference_tol_m)
-
-
-def analysis_table(a: TraceAnalysis) -> Table:
-    """The figures of merit beside the seed's."""
-    rows = [
-        ("samples / full laps", f"{a.time.size} / {len(a.laps)}"),
-        ("reference off the drawing, max [nm]", f"{a.reference_deviation_m * 1e9:.3g}"),
-        ("within ±0.5 µm, x / y [%]",
-         " / ".join(f"{v * 100:.1f}" for v in a.axis.fraction_below) + "  (seed: 'generally')"),
-        ("peak |e|, x / y [µm]",
-         " / ".join(f"{v * 1e6:.3f}" for v in a.axis.peak_m) + "  (seed: 0.8)"),
-        ("contour error per lap, max [nm]",
-         ", ".join(f"{v * 1e9:.1f}" for v in a.contour.lap_max_m)),
-    ]  # fmt: skip
-    return Table(title="Measured trace against the drawing", columns=("figure", "value"),
-                 rows=rows)  # fmt: skip
-
-
-def write_analysis(a: TraceAnalysis, out: str | FilePath, title: str) -> FilePath:
-    """Write ``report.html`` with the figures of a measured trace into ``out``."""
-    from microfab.experiments.seed004_laser.figures import (
-        plot_axis_errors,
-        plot_ballbar,
-        plot_contour_time,
-    )
-    from microfab.report.canvas import render_png
-    from microfab.report.page import Figure, page_html, write_page
-
-    figs = [
-        Figure(name="axis_errors.png",
-               png=render_png(plot_axis_errors(a.time, a.reference, a.measured, a.axis)),
-               caption="As seed 004 Fig. 3: x and y tracking error with the ±0.5 µm band."),
-        Figure(name="ballbar.png", png=render_png(plot_ballbar(a.path, a.measured)),
-               caption="As seed 004 Fig. 4, ballbar style: the measured path, its contour "
-               "error magnified."),
-        Figure(name="contour_time.png",
-               png=render_png(plot_contour_time({"measured": (a.time, a.contour)})),
-               caption="Contour error of the encoder against the exact drawing."),
-    ]  # fmt: skip
-    text = page_html(
-        title,
-        intro=f"{a.time.size} samples, {len(a.laps)} full lap(s) of the drawing's contour.",
-        notes=[
-            "Contour error: signed distance of the encoder position to the exact drawing "
-            "(foot point); laps counted along the reference.",
-        ],
-        figures=figs,
-        tables=(analysis_table(a),),
-    )
-    return write_page(FilePath(out), text, figs)

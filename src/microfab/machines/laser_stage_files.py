@@ -1,7 +1,9 @@
-"""Seed 004 on a real stage, through files: export for a real-time target, replay a trace.
+"""The seed 004 stage on hardware, through files: export for a real-time target, replay a trace.
 
-`export_job` writes what a real-time target (the seed's dSPACE, or any controller board)
-needs to run a ``laser-micromachining`` job, each file atomically:
+``microfab laser export`` and ``microfab laser analyze --replay``. `export_job` writes what
+a real-time target (the seed's dSPACE, or any controller board) needs to run a contour job
+(`microfab.machines.laser_stage.ContourJob`, e.g. a ``laser-micromachining`` job's run),
+each file atomically:
 
 ``reference.csv``
     ``time`` (s) and per sample the reference position, velocity and acceleration of
@@ -26,23 +28,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from microfab.core.signals import Trace
-from microfab.experiments.seed004_laser.reference import contour_reference
-from microfab.experiments.seed004_laser.results import LaserJob
-from microfab.experiments.seed004_laser.run import (
-    ControlSettings,
-    TwinSettings,
-    contour_path,
-    make_controller,
-    make_stage,
-)
 from microfab.io.atomic import atomic_write_json
 from microfab.io.trace import write_trace
+from microfab.machines.laser_stage import (
+    ContourJob,
+    ControlSettings,
+    TwinSettings,
+    controller,
+    twin,
+)
 from microfab.sim.replay import replay_controller
+from microfab.trajectory.contour_laps import contour_path, contour_reference
 
 __all__ = ["EXPORT_FORMAT", "Replay", "export_job", "replay_trace"]
 
@@ -64,18 +65,30 @@ def _axis_model(ctrl: Any, axis: int) -> dict[str, Any]:
     }
 
 
-def export_job(job: LaserJob, out: str | Path) -> tuple[Path, Path]:
+class HoldsRun(Protocol):
+    """A job config that holds its contour run (the ``laser-micromachining`` job's)."""
+
+    @property
+    def run(self) -> ContourJob: ...
+
+
+def export_job(job: ContourJob | HoldsRun, out: str | Path) -> tuple[Path, Path]:
     """Write ``reference.csv`` and ``controller.json`` of a job into ``out`` (module notes).
 
-    The job is expected checked (`microfab.experiments.catalog.load_job` refuses a
-    reference beyond the stage's limits before this runs).
+    Parameters
+    ----------
+    job : ContourJob or a config holding one as ``run``
+        The contour run, expected checked (`microfab.experiments.catalog.load_job` refuses
+        a reference beyond the stage's limits before this runs).
+    out : path-like
+        The folder.
 
     Returns
     -------
     tuple of pathlib.Path
         The two files.
     """
-    run = job.run
+    run = job if isinstance(job, ContourJob) else job.run
     out = Path(out)
     path = contour_path(run.drawing, run.contour)
     ref = contour_reference(path, run.motion)
@@ -85,8 +98,8 @@ def export_job(job: LaserJob, out: str | Path) -> tuple[Path, Path]:
             "ref_ax": acc[:, 0], "ref_ay": acc[:, 1]}  # fmt: skip
     trace = Trace(dt=ref.dt, values=np.column_stack(list(cols.values())), axes=tuple(cols),
                   unit="m")  # fmt: skip
-    stage = make_stage(run.twin)
-    ctrl = make_controller(run.control, stage)
+    stage = twin(run.twin)
+    ctrl = controller(run.control, stage)
     nom = stage.nominal()
     cfg = getattr(ctrl, "config", None)
     add_on: dict[str, Any] = {}
@@ -146,9 +159,19 @@ class Replay:
 def replay_trace(
     trace: Trace,
     control: ControlSettings | None = None,
-    twin: TwinSettings | None = None,
+    settings: TwinSettings | None = None,
 ) -> Replay:
     """Run our controller over a trace's encoder and compare currents (module notes).
+
+    Parameters
+    ----------
+    trace : Trace
+        The measured run: ``ref_x, ref_y, x, y`` (m), ``current_x, current_y`` (A) and
+        optionally ``ref_vx, ref_vy`` (m/s), ``ref_ax, ref_ay`` (m/s²), shape (n, columns).
+    control : ControlSettings, optional
+        The controller the target ran (default `ControlSettings`).
+    settings : TwinSettings, optional
+        The twin whose nominal model the controller was given (default `TwinSettings`).
 
     Raises
     ------
@@ -174,13 +197,13 @@ def replay_trace(
     else:
         vel = np.gradient(pos, trace.dt, axis=0)
         acc = np.gradient(vel, trace.dt, axis=0)
-    stage = make_stage(twin or TwinSettings())
+    stage = twin(settings or TwinSettings())
     if abs(stage.dt - trace.dt) > 1e-9 * stage.dt:
         raise ValueError(
             f"the trace's sample time {trace.dt:g} s differs from the controller's "
             f"{stage.dt:g} s; record at the controller's rate"
         )
-    ctrl = make_controller(control or ControlSettings(), stage)
+    ctrl = controller(control or ControlSettings(), stage)
     u, _ = replay_controller(ctrl, pos, meas, (vel, acc))
     d = u - rec
     return Replay(

@@ -12,17 +12,14 @@ from typer.testing import CliRunner
 from microfab.cli import app
 from microfab.core.signals import Trace
 from microfab.experiments.catalog import load_job
-from microfab.experiments.seed004_laser.hardware import export_job, replay_trace
-from microfab.experiments.seed004_laser.reference import ContourMotion
-from microfab.experiments.seed004_laser.run import (
-    ContourJob,
-    ControlSettings,
-    make_controller,
-    make_stage,
-    run_contour,
-)
+from microfab.experiments.seed004_laser.run import run_contour
 from microfab.io.trace import read_trace, write_trace
+from microfab.machines.laser_stage import ContourJob, ControlSettings
+from microfab.machines.laser_stage import controller as make_controller
+from microfab.machines.laser_stage import twin as make_stage
+from microfab.machines.laser_stage_files import export_job, replay_trace
 from microfab.sim.replay import replay_controller
+from microfab.trajectory.contour_laps import ContourMotion
 
 
 @pytest.fixture(scope="module")
@@ -112,6 +109,6 @@ def test_cli_analyze_replay(tmp_path, contour_run):
 
 
 def test_export_of_the_example_job(tmp_path):
-    example = Path(__file__).parents[3] / "examples" / "laser_micromachining.toml"
+    example = Path(__file__).parents[2] / "examples" / "laser_micromachining.toml"
     ref, spec = export_job(load_job(example).config, tmp_path)
     assert read_trace(ref).values.shape[0] == json.loads(spec.read_text())["reference"]["samples"]

@@ -4,12 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from microfab.experiments.seed004_laser.calibration import (
-    FIG3_JOB,
-    fit_disturbance_scale,
-    write_scale,
-)
-from microfab.experiments.seed004_laser.run import TwinSettings
+from microfab.machines.laser_stage import TwinSettings
+from microfab.machines.laser_stage_calibration import FIG3_JOB, fit_disturbance_scale, write_scale
 from microfab.plants.lmw_stage import load_params
 
 

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from microfab.core.limits import LimitViolation, MachineLimits
-from microfab.experiments.seed004_laser.reference import (
+from microfab.geometry.path import Path
+from microfab.geometry.shapes import circle, rectangle
+from microfab.trajectory.contour_laps import (
     ContourMotion,
     check_force,
     check_reference,
     contour_reference,
 )
-from microfab.geometry.path import Path
-from microfab.geometry.shapes import circle, rectangle
 
 
 def test_laps_run_at_constant_speed_on_the_exact_circle():

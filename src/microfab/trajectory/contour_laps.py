@@ -1,9 +1,12 @@
-"""Drawing → time-based spline → sampled reference for the seed 004 stage.
+"""Drawing → time-based spline → sampled reference running laps of a closed contour.
 
-Seed 004 §IV.A: the drawing is parsed, its "coordinate data" interpolated, and a time-based
-spline (eq. (1), `microfab.trajectory.spline.TimeSpline`) turns the points into position,
-velocity and acceleration references for the controller. The seed gives no speed, knot
-spacing or start-up; ours (assumed, stated here and in `ContourMotion`):
+Built for the laser-micromachining stage of seed 004 (its job, and the reference that
+``microfab laser export`` writes for a real-time target), usable by any XY machine that
+runs laps of a drawn contour. Seed 004 §IV.A: the drawing is parsed, its "coordinate data"
+interpolated, and a time-based spline (eq. (1), `microfab.trajectory.spline.TimeSpline`)
+turns the points into position, velocity and acceleration references for the controller.
+The seed gives no speed, knot spacing or start-up; ours (assumed, stated here and in
+`ContourMotion`):
 
 * **Time law**: the stage rests on the contour, speeds up along it with the rate
   ``v (3τ² − 2τ³)`` over ``ramp_s`` (continuous acceleration, no jerk step at the joins),
@@ -42,14 +45,23 @@ import numpy as np
 
 from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.core.validate import check_int, check_nonnegative, check_positive
-from microfab.experiments.seed004_laser import paper
 from microfab.geometry.path import Path
 from microfab.trajectory.base import Trajectory
 from microfab.trajectory.spline import TimeSpline
 
-__all__ = ["ContourMotion", "ContourReference", "check_force", "contour_reference"]
+__all__ = [
+    "ContourMotion",
+    "ContourReference",
+    "check_force",
+    "check_reference",
+    "contour_path",
+    "contour_reference",
+]
 
 _MIN_KNOTS_PER_LAP = 64  # assumed: a coarser lap would show the spline's polygon
+MAX_ACCELERATION_M_S2 = 5.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
+PEAK_FORCE_N = 12.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
+CONTINUOUS_FORCE_N = 3.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -96,7 +108,7 @@ class ContourMotion:
         """The ramp duration used, s."""
         if self.ramp_s is not None:
             return self.ramp_s
-        return max(0.02, 3.0 * self.speed_m_s / (0.5 * paper.MAX_ACCELERATION_M_S2))
+        return max(0.02, 3.0 * self.speed_m_s / (0.5 * MAX_ACCELERATION_M_S2))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -169,6 +181,36 @@ def _time_law(motion: ContourMotion, length: float) -> tuple[np.ndarray, np.ndar
         t = np.append(t, t3 + motion.rest_s)
         s = np.append(s, s[-1])
     return t, s, t1
+
+
+def contour_path(drawing: str, contour: int = 0) -> Path:
+    """Closed contour number ``contour`` of a drawing source (m).
+
+    Parameters
+    ----------
+    drawing : str
+        A drawing source for `microfab.geometry.load.load_drawing` (a DXF/SVG file or a
+        shape such as ``circle:radius=30e-6``), m.
+    contour : int
+        Which closed contour, in the drawing's order, from 0.
+
+    Raises
+    ------
+    ValueError
+        When the drawing has no closed contour, or fewer than ``contour + 1``.
+    """
+    from microfab.geometry.load import load_drawing
+
+    closed = load_drawing(drawing).closed
+    if not closed:
+        raise ValueError(f"the drawing {drawing!r} has no closed contour to run")
+    check_int("contour", contour, 0)
+    if contour >= len(closed):
+        raise ValueError(
+            f"the drawing {drawing!r} has {len(closed)} closed contour(s); contour = "
+            f"{contour} does not exist (count from 0)"
+        )
+    return closed[contour]
 
 
 def contour_reference(path: Path, motion: ContourMotion | None = None) -> ContourReference:
@@ -254,8 +296,8 @@ def check_force(
     masses_kg: tuple[float, float],
     dt: float,
     *,
-    peak_n: float = paper.PEAK_FORCE_N,
-    continuous_n: float = paper.CONTINUOUS_FORCE_N,
+    peak_n: float = PEAK_FORCE_N,
+    continuous_n: float = CONTINUOUS_FORCE_N,
     axes: tuple[str, ...] = ("x", "y"),
 ) -> None:
     """Refuse a reference whose inertial force exceeds the motor's peak or continuous force.

@@ -8,15 +8,11 @@ from typer.testing import CliRunner
 
 from microfab.cli import app
 from microfab.core.signals import Trace
-from microfab.experiments.seed004_laser.analyze import analyze_file, analyze_trace
-from microfab.experiments.seed004_laser.reference import ContourMotion
-from microfab.experiments.seed004_laser.run import (
-    ContourJob,
-    ControlSettings,
-    contour_path,
-    run_contour,
-)
+from microfab.experiments.seed004_laser.run import run_contour
 from microfab.io.trace import write_trace
+from microfab.machines.laser_stage import ContourJob, ControlSettings
+from microfab.measure.contour_trace import analyze_file, analyze_trace
+from microfab.trajectory.contour_laps import ContourMotion, contour_path
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,7 @@
-"""Seed 004 figures of merit: axis tracking errors (Fig. 3) and contour error (Figs. 4, 7).
+"""Axis tracking errors and the exact contour error of any contouring machine.
+
+The figures of merit of seed 004 (laser micromachining stage: Fig. 3, Figs. 4 and 7), for
+a twin run or a measured trace of any XY machine that follows a drawn contour:
 
 * Axis errors ``e = r − y`` per axis (Fig. 3): the fraction of samples under the seed's
   "generally lower than 0.5 µm" and the peak ("reaching 0.8 µm at the peak points").
@@ -10,16 +13,27 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
 from microfab.core.validate import check_positive
-from microfab.experiments.seed004_laser import paper
 from microfab.geometry.path import Path
 from microfab.geometry.project import project_points
 
-__all__ = ["AxisErrors", "ContourErrors", "axis_errors", "contour_errors"]
+__all__ = [
+    "AXIS_BAND_M",
+    "AxisErrors",
+    "ContourErrors",
+    "axis_errors",
+    "contour_errors",
+    "laps_along",
+]
+
+#: Default band of `axis_errors`, m: seed 004 §IV.A, "errors are generally lower than
+#: 0.5 µm" (experiments/seed004_laser/paper.py, FIG3_TYPICAL_ERROR_M).
+AXIS_BAND_M = 0.5e-6
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -45,7 +59,7 @@ class AxisErrors:
 
 
 def axis_errors(
-    reference: np.ndarray, measured: np.ndarray, band_m: float = paper.FIG3_TYPICAL_ERROR_M
+    reference: np.ndarray, measured: np.ndarray, band_m: float = AXIS_BAND_M
 ) -> AxisErrors:
     """`AxisErrors` of ``reference − measured``, both m, shape (n, 2)."""
     r = np.asarray(reference, dtype=float)
@@ -108,9 +122,54 @@ class ContourErrors:
 def contour_errors(
     path: Path, positions: np.ndarray, laps: list[slice] | tuple[slice, ...]
 ) -> ContourErrors:
-    """`ContourErrors` of ``positions`` (m, shape (n, 2)) against ``path`` over ``laps``."""
+    """`ContourErrors` of measured points against a path, per lap.
+
+    Parameters
+    ----------
+    path : Path
+        The exact contour (open or closed), m.
+    positions : numpy.ndarray
+        Measured (or true) positions, m, shape (n, 2).
+    laps : sequence of slice
+        The samples of each lap (one slice for a whole open path), at least one.
+
+    Returns
+    -------
+    ContourErrors
+        The signed error per sample and the figures per lap.
+    """
     p = np.asarray(positions, dtype=float)
     err = np.asarray(project_points(path, p).distance, dtype=float)
     lap_max = np.array([np.max(np.abs(err[s])) for s in laps])
     lap_rms = np.array([np.sqrt(np.mean(err[s] ** 2)) for s in laps])
     return ContourErrors(error_m=err, lap_max_m=lap_max, lap_rms_m=lap_rms)
+
+
+def laps_along(path: Path, reference: np.ndarray) -> tuple[slice, ...]:
+    """Full laps along a reference's unwrapped arc length on a closed contour.
+
+    Parameters
+    ----------
+    path : Path
+        The contour, m.
+    reference : numpy.ndarray
+        Reference positions on (or near) it, m, shape (n, 2).
+
+    Returns
+    -------
+    tuple of slice
+        The samples of each full lap (a partial last lap is not counted); one slice over
+        everything for an open path or a reference under one lap.
+    """
+    n = reference.shape[0]
+    if not path.closed:
+        return (slice(0, n),)
+    L = float(path.length)
+    s = np.asarray(project_points(path, reference).s, dtype=float)
+    ds = np.diff(s)
+    ds = ds - L * np.round(ds / L)  # unwrap across the start point (either direction)
+    run = np.concatenate([[0.0], np.cumsum(np.abs(ds))])
+    k = np.floor(run / L).astype(np.int64)
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(k)) + 1])
+    laps = [slice(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+    return tuple(laps) or (slice(0, n),)
