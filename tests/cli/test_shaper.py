@@ -178,3 +178,34 @@ def test_shaper_design_classic_refusals(
     res = runner.invoke(app, ["shaper", "design", "--kind", "zv", *argv, "--out", str(out)])
     one_error_line(res, says)
     assert not out.exists()
+
+
+def test_compare_command_gives_the_library_rows(tmp_path: Path):
+    from microfab.machines.slm_galvo_shapers import CompareSettings, compare_shapers
+
+    out = tmp_path / "cmp.json"
+    res = runner.invoke(
+        app,
+        ["shaper", "compare", "--twin", "mirror", "--shapers", "zv,ei", "--true-mode",
+         "--json", str(out)],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "Shapers on the mirror twin" in res.output
+    want = compare_shapers("mirror", CompareSettings(shapers=("zv", "ei"), frf_noise=False))
+    assert json.loads(out.read_text()) == json.loads(json.dumps(want.summary()))
+
+
+@pytest.mark.parametrize(
+    "extra, says",
+    [
+        (["--twin", "bunny"], "twin must be 'seed'"),
+        (["--shapers", "zv,nope"], "unknown shaper 'nope'"),
+        (["--start-bit", "40000"], "outside the twin's field"),
+        (["--inverse", "tustin"], "inverse must be 'zoh'"),
+        (["--band-pct", "0"], "--band-pct"),
+        (["--seed", "-1"], "seed"),
+    ],
+)
+def test_compare_command_refusals(extra: list[str], says: str):
+    res = runner.invoke(app, ["shaper", "compare", "--true-mode", "--shapers", "zv", *extra])
+    assert res.exit_code == 2 and says in res.output, res.output

@@ -1,10 +1,11 @@
-"""``microfab shaper design``: an input shaper written as JSON.
+"""``microfab shaper design|compare``: an input shaper written as JSON; shapers compared.
 
 Seed 003 part 2 (Buls et al.) §2: the seed's model-inverse shaper from a model JSON
 (``identify chirp --json``, `cli/identify.py`), or a classic impulse shaper (ZV ... 3-hump
 EI) for a given mode or auto-fitted to a measured FRF, trace or PSD
 (`microfab.control.shaper_fit`); writes a shaper JSON (`microfab.control.shaper_io`) that
-``slm scan-time --shaper`` (`cli/slm.py`) reads.
+``slm scan-time --shaper`` (`cli/slm.py`) reads. ``shaper compare`` puts the inverse and
+the classic shapers side by side on the SLM galvo twin (`microfab.machines.slm_galvo_shapers`).
 
 Every refusal is one ``error:`` line, exit code 2, and nothing is written.
 """
@@ -328,3 +329,64 @@ def _design_classic(
     except ValueError as exc:
         fail(renamed(str(exc), {"dt =": "--dt ="}))
     return shaper, _impulse_table(shaper, dt, fit)
+
+
+@shaper_app.command("compare")
+def compare_cmd(
+    twin: Annotated[
+        str, typer.Option(help="seed (the seed's 3rd-order twin) or mirror (3 kHz mode added).")
+    ] = "seed",
+    jump_bit: Annotated[float, typer.Option(help="Step of the settling test [bit].")] = 1000.0,
+    start_bit: Annotated[float, typer.Option(help="Position before the step [bit].")] = 0.0,
+    band_pct: Annotated[float, typer.Option(help="Settling band [% of the jump].")] = 2.0,
+    v_tol: Annotated[
+        float | None,
+        typer.Option(help="Vibration tolerance of the EI-family shapers (default 0.05)."),
+    ] = None,
+    inverse: Annotated[
+        str, typer.Option(help="Inverse shaper's discretisation: zoh (the seed's) or zpetc.")
+    ] = "zpetc",
+    shapers: Annotated[
+        str | None,
+        typer.Option(help="Classic shapers, comma-separated (default: all of --kind's)."),
+    ] = None,
+    true_mode: Annotated[
+        bool,
+        typer.Option(help="Design the classic shapers at the twin's true mode, not its chirp FRF."),
+    ] = False,
+    seed: Annotated[int, typer.Option(help="Noise seed of the chirp identification.")] = 0,
+    json_path: Annotated[
+        Path | None, typer.Option("--json", help="Write the comparison (JSON) here.")
+    ] = None,
+) -> None:
+    """Shapers side by side on the SLM galvo twin: vibration, delay, settling, ramp lag.
+
+    Rows: unshaped, the seed 003 §2 model inverse, each classic shaper designed for the
+    mode identified from the twin's noisy chirp FRF (or its true mode), and inverse+ZV.
+    A shaped step that leaves the scanner's field is reported as refused.
+    """
+    from microfab.control.shapers import DEFAULT_V_TOL, SHAPER_NAMES
+    from microfab.machines.slm_galvo_shapers import CompareSettings, compare_shapers
+    from microfab.report.slm_tables import comparison_table
+
+    check_option("--band-pct", band_pct, "%", high=100.0)
+    names = SHAPER_NAMES if shapers is None else tuple(n.strip() for n in shapers.split(","))
+    try:
+        settings = CompareSettings(
+            jump_bit=jump_bit,
+            start_bit=start_bit,
+            band=band_pct / 100.0,
+            v_tol=DEFAULT_V_TOL if v_tol is None else v_tol,
+            inverse=inverse,  # type: ignore[arg-type]  # checked by CompareSettings
+            shapers=names,
+            frf_noise=not true_mode,
+        )
+        result = compare_shapers(twin, settings, seed=seed)  # type: ignore[arg-type]
+    except ValueError as exc:
+        fail(str(exc))
+    print_table(comparison_table(result))
+    if json_path is not None:
+        from microfab.io.atomic import atomic_write_json
+
+        atomic_write_json(json_path, result.summary())
+        console.print(f"wrote {json_path}", highlight=False)

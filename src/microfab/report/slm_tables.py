@@ -3,13 +3,15 @@
 Each function reads a finished result and formats it as a `microfab.report.tables.Table`
 (printed by the CLI, written into a report); none computes physics. `build_table` reads a
 `microfab.process.slm.build.BuildResult` (``microfab slm build``, the ``slm-shaping``
-job).
+job); `comparison_table` a `microfab.machines.slm_galvo_shapers.ShaperComparison`
+(``microfab shaper compare``, the job).
 """
 
 from __future__ import annotations
 
 import math
 
+from microfab.machines.slm_galvo_shapers import ShaperComparison
 from microfab.process.slm.build import ESTIMATES, LABELS, BuildResult
 from microfab.process.slm.estimate import (
     SEED_JUMP_DELAY_SHAPED_S,
@@ -18,9 +20,9 @@ from microfab.process.slm.estimate import (
     SEED_TOTAL_UNSHAPED_S,
 )
 from microfab.process.slm.timing import CATEGORIES
-from microfab.report.tables import Table
+from microfab.report.tables import DASH, Table
 
-__all__ = ["build_table"]
+__all__ = ["build_table", "comparison_table"]
 
 
 def build_table(result: BuildResult) -> Table:
@@ -67,4 +69,63 @@ def build_table(result: BuildResult) -> Table:
         columns=("category", *(LABELS[e] for e in ESTIMATES)),
         rows=rows,
         note=note,
+    )
+
+
+def _us(x: float) -> str:
+    return DASH if not math.isfinite(x) else f"{x * 1e6:.1f}"
+
+
+def comparison_table(comparison: ShaperComparison) -> Table:
+    """One line per shaper of a comparison on one twin, units in the headers.
+
+    Parameters
+    ----------
+    comparison : ShaperComparison
+        `microfab.machines.slm_galvo_shapers.compare_shapers`'s rows on one twin.
+
+    Returns
+    -------
+    Table
+        Per shaper: design mode, residual vibration over 0.8-1.2 f (%), added delay,
+        command peak, settling and ramp lag (µs) and the field check.
+    """
+    rows = []
+    for r in comparison.rows:
+        design = (
+            DASH if not math.isfinite(r.design_hz) else f"{r.design_hz:.1f}, {r.design_damping:.4f}"
+        )
+        rows.append(
+            (
+                r.name,
+                design,
+                DASH if not math.isfinite(r.vibration) else f"{100 * r.vibration:.2f}",
+                _us(r.delay_s),
+                DASH if not math.isfinite(r.command_peak) else f"{r.command_peak:.2f}",
+                _us(r.settling_s),
+                _us(r.lag_s),
+                "emitted" if r.refused is None else f"refused: {r.refused}",
+            )
+        )
+    s = comparison.settings
+    return Table(
+        title=(
+            f"Shapers on the {comparison.twin} twin: mode {comparison.mode_hz:.1f} Hz, ζ "
+            f"{comparison.damping:.4g}; jump {s.jump_bit:g} bit from {s.start_bit:g} bit"
+        ),
+        columns=(
+            "shaper",
+            "design f [Hz], ζ",
+            "V over 0.8-1.2 f [%]",
+            "added delay [µs]",
+            "command peak [× jump]",
+            f"settling {100 * s.band:g} % [µs]",
+            "ramp lag [µs]",
+            "field check",
+        ),
+        rows=rows,
+        note=(
+            f"10 µs samples, no noise; inverse: {s.inverse.upper()}; classic shapers "
+            + ("at the mode fitted to the twin's chirp FRF" if s.frf_noise else "at the true mode")
+        ),
     )

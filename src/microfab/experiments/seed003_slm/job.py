@@ -25,11 +25,6 @@ from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
-from microfab.experiments.seed003_slm.compare import (
-    CompareSettings,
-    ShaperComparison,
-    compare_shapers,
-)
 from microfab.experiments.seed003_slm.results import ShapingJob, ShapingResult
 from microfab.experiments.seed003_slm.run import (
     DISCRETIZATIONS,
@@ -45,6 +40,11 @@ from microfab.identify.chirp import ChirpDesign
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import slm_galvo
+from microfab.machines.slm_galvo_shapers import (
+    CompareSettings,
+    ShaperComparison,
+    compare_shapers,
+)
 from microfab.process.slm.build import BuildSettings, run_build
 from microfab.process.slm.estimate import SettleTolerance
 from microfab.process.slm.timing import TICK_S, RTCDelays, RTCSettings, ScanSpeeds

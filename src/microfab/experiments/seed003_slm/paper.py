@@ -2,7 +2,8 @@
 
 Every value cites its section in ``../shared/seeds/003_4915b267b12a78d4.txt`` (second
 paper). The scan-time numbers of §4 live with the estimate that uses them
-(`microfab.process.slm.estimate`: 4686 -> 4219 s, jump delay 750 -> 250 µs) and are
+(`microfab.process.slm.estimate`: 4686 -> 4219 s, jump delay 750 -> 250 µs) and the
+identified model of §1 with the machine (`microfab.machines.slm_galvo`); both are
 re-exported here.
 
 Seed errors noted here once:
@@ -18,6 +19,8 @@ Seed errors noted here once:
 
 from __future__ import annotations
 
+from microfab.machines.slm_galvo import SEED_MODEL_DEN as MODEL_DEN
+from microfab.machines.slm_galvo import SEED_MODEL_NUM as MODEL_NUM
 from microfab.process.slm.estimate import (
     SEED_JUMP_DELAY_SHAPED_S,
     SEED_JUMP_DELAY_UNSHAPED_S,
@@ -39,8 +42,7 @@ __all__ = [
 ]
 
 # ---------------------------------------------------------------- §1: identified model
-MODEL_NUM = (1.242e11,)  # seed 003 part 2 §1, G(s) numerator
-MODEL_DEN = (1.0, 9517.0, 5.773e7, 1.272e11)  # seed 003 part 2 §1, G(s) denominator
+# MODEL_NUM, MODEL_DEN (§1, G(s)): microfab.machines.slm_galvo.SEED_MODEL_NUM / _DEN
 CHIRP_BAND_HZ = (10.0, 2000.0)  # seed 003 part 2 §1: chirp 10 Hz to 2 kHz
 CHIRP_AMPLITUDE_BIT = 100.0  # seed 003 part 2 §1: amplitude 100 bit
 CHIRP_DURATION_S = 1.0  # seed 003 part 2 §1: 1 s

@@ -9,16 +9,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from microfab.experiments.seed003_slm.compare import (
-    ShaperComparison,
-)
 from microfab.experiments.seed003_slm.run import (
     ShapingRun,
     ShapingSettings,
 )
 from microfab.experiments.seed003_slm.tables import run_summary, scan_table, seed_table
+from microfab.machines.slm_galvo_shapers import (
+    ShaperComparison,
+)
 from microfab.process.slm.build import BuildResult, BuildSettings
-from microfab.report.slm_tables import build_table
+from microfab.report.slm_tables import build_table, comparison_table
 from microfab.report.tables import Table
 
 __all__ = ["ShapingJob", "ShapingResult"]
@@ -48,7 +48,7 @@ class ShapingResult:
     def comparison(self) -> tuple[Table, ...]:
         """Seed beside ours, the layer's scan times, the shaper comparisons, the build."""
         tables = [seed_table(self.run), scan_table(self.run)]
-        tables += [c.table() for c in self.comparisons]
+        tables += [comparison_table(c) for c in self.comparisons]
         if self.build is not None:
             tables.append(build_table(self.build))
         return tuple(tables)

@@ -2,10 +2,9 @@
 
 One run is the seed's procedure, end to end, on the twin (`microfab.plants.galvo_slm`):
 
-1. **Identify** (seed §1): play the chirp through the compiled loop
-   (`microfab.sim.loop.simulate` with `microfab.control.setpoint.SetPoint`), with the
-   twin's seeded noise, estimate the FRF per period and fit ``G(s)`` by the ZOH-aware
-   least squares (`microfab.identify`).
+1. **Identify** (seed §1): play the chirp through the scanner's loop with the twin's
+   seeded noise, estimate the FRF per period (`microfab.machines.slm_galvo.chirp_frf`)
+   and fit ``G(s)`` by the ZOH-aware least squares (`microfab.identify`).
 2. **Shape** (seed §2): invert the *fitted* model (`design_inverse_shaper`), both
    discretisations (the seed's ZOH, and ZPETC on the sampled axis), and measure lag,
    settling and time to 95 % speed (`microfab.control.shaping_metrics`).
@@ -28,13 +27,12 @@ from typing import Any, Literal
 
 import numpy as np
 
-from microfab.control.setpoint import SetPoint
 from microfab.control.shaping import InverseShaper, InverseShaperConfig, design_inverse_shaper
 from microfab.control.shaping_metrics import ramp_lag, ramp_speed_time, step_settling_time
 from microfab.experiments.seed003_slm import paper
 from microfab.identify.chirp import Chirp, ChirpDesign
 from microfab.identify.fit import FitResult, fit_tf
-from microfab.identify.frf import FRF, estimate_frf
+from microfab.identify.frf import FRF
 from microfab.machines import slm_galvo
 from microfab.plants.galvo_slm import GalvoSLMPlant
 from microfab.process.slm.estimate import (
@@ -48,7 +46,6 @@ from microfab.process.slm.lattice import LatticeSpec
 from microfab.process.slm.program import VectorPath
 from microfab.process.slm.source import scan_program
 from microfab.process.slm.timing import TICK_S, RTCSettings
-from microfab.sim.loop import simulate
 
 __all__ = [
     "DISCRETIZATIONS",
@@ -237,7 +234,7 @@ class Identification:
 def identify_twin(
     twin: GalvoSLMPlant, settings: IdentifySettings, *, noise: bool = True, seed: int = 0
 ) -> Identification:
-    """Play the chirp on the twin's x axis through the compiled loop and fit the model.
+    """Play the chirp on the twin's x axis through its loop and fit the model.
 
     Raises
     ------
@@ -245,13 +242,9 @@ def identify_twin(
         From the fit: a band outside the excitation, too little coherence (named
         range), an unstable model.
     """
-    chirp = settings.chirp.signal()
-    n = chirp.input.size
-    ref = np.column_stack([chirp.input, np.zeros(n)])
-    v = twin.noise(n, seed) if noise else np.zeros((n, 2))
-    res = simulate(twin, SetPoint(2), ref, v)
-    y = np.ascontiguousarray(res.measured[:, 0])
-    frf = estimate_frf(chirp, y)
+    chirp, y, frf = slm_galvo.chirp_frf(
+        settings.chirp, noise_seed=seed if noise else None, plant=twin
+    )
     fit = fit_tf(
         frf,
         n_poles=settings.n_poles,
@@ -322,7 +315,7 @@ def jump_response(
                               unit="bit")[:n]  # fmt: skip
         sent = shaped
     ref = np.column_stack([sent, np.zeros(n)])
-    clean = simulate(twin, SetPoint(2), ref, np.zeros((n, 2))).measured[:, 0]
+    clean = slm_galvo.play(ref, plant=twin)[:, 0]
     # the set point does not read the measurement: the noisy run is the clean one plus noise
     pos = clean + twin.noise(n, seed)[:, 0] if noise else clean
     g0 = twin.static_gain

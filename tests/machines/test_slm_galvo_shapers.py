@@ -10,13 +10,14 @@ import pytest
 
 from microfab.control.shaped_command import ShapedCommandError, check_shaped_command
 from microfab.control.shapers import SHAPER_NAMES, SHAPERS, design_shaper
-from microfab.experiments.seed003_slm.compare import (
+from microfab.machines.slm_galvo_shapers import (
     ROW_COMBINED,
     ROW_INVERSE,
     ROW_UNSHAPED,
     CompareSettings,
     compare_shapers,
 )
+from microfab.report.slm_tables import comparison_table
 
 DT = 1e-5  # s, the twin's tick (seed 003 §2)
 FIELD = 32768.0  # bit, the twin's field (data/galvo_slm.toml)
@@ -172,7 +173,7 @@ def test_summary_is_json_and_table_has_units(seed_twin, mirror_twin):
         assert [r["name"] for r in back["rows"]] == [r.name for r in cmp.rows]
         assert back["rows"][1]["settling_s"] == pytest.approx(cmp.rows[1].settling_s)
         assert back["settings"]["shapers"] == list(SHAPER_NAMES)
-        table = cmp.table()
+        table = comparison_table(cmp)
         assert len(table.rows) == len(cmp.rows)
         assert any("[µs]" in c for c in table.columns) and any("[%]" in c for c in table.columns)
         assert table.to_text()

@@ -24,19 +24,20 @@ measured, ``ShaperComparison.mode_hz``, ``damping``: the twin's true mode):
 **Design from the twin's chirp** (``frf_noise=True``, default): a chirp (10 Hz to 2 kHz
 on the seed twin, the seed's band; to 6 kHz on the mirror twin, assumed, so that it sees
 the mode; 100 bit, 0.1 s periods, four played and the first dropped) runs through the
-compiled loop with the twin's 0.3 bit noise (seeded), `microfab.identify.estimate_frf`
-gives the FRF, and the mode is read off it: on the seed twin the complex pair of the
-ZOH-aware 3-pole fit (`microfab.identify.fit_tf`, as ``reproduce slm-shaper``); on the
-mirror twin a 2-pole fit of the FRF divided by the seed's ``G`` (ZOH, the model the
-inverse cancels) over 0.7-1.3 times its peak. Each classic shaper is then designed at
-that frequency and damping (`design_shaper`). `microfab.control.shaper_fit.fit_shaper`
-(Klipper's auto-tune) is not used for the rows: its score trades remaining vibration
-against delay and only asks for ``V`` below 1/20 at the measured peak, so on the mirror
-twin's FRF (design dampings 0.01-0.05 scanned over 1.5-6 kHz) it moves MZV, ZVD and the
-EI family up to 3.1-5.9 kHz, where their worst ``V`` over 0.8-1.2 f is 21-26 % instead
-of their designs' 9 % (ZVD) and 5 % (EI family); on the seed twin the pair (``zeta``
-0.5) makes no peak for it to find. A comparison of shapers *for a mode* designs them
-for the mode. ``frf_noise=False`` designs them at the true mode.
+scanner's loop with the twin's 0.3 bit noise (seeded) and gives the FRF
+(`microfab.machines.slm_galvo.chirp_frf`), and the mode is read off it: on the seed twin
+the complex pair of the ZOH-aware 3-pole fit (`microfab.identify.fit_tf`, as ``reproduce
+slm-shaper``); on the mirror twin a 2-pole fit of the FRF divided by the seed's ``G``
+(ZOH, the model the inverse cancels) over 0.7-1.3 times its peak. Each classic shaper is
+then designed at that frequency and damping (`design_shaper`).
+`microfab.control.shaper_fit.fit_shaper` (Klipper's auto-tune) is not used for the rows:
+its score trades remaining vibration against delay and only asks for ``V`` below 1/20 at
+the measured peak, so on the mirror twin's FRF (design dampings 0.01-0.05 scanned over
+1.5-6 kHz) it moves MZV, ZVD and the EI family up to 3.1-5.9 kHz, where their worst ``V``
+over 0.8-1.2 f is 21-26 % instead of their designs' 9 % (ZVD) and 5 % (EI family); on the
+seed twin the pair (``zeta`` 0.5) makes no peak for it to find. A comparison of shapers
+*for a mode* designs them for the mode. ``frf_noise=False`` designs them at the true
+mode.
 
 **Figures** (one row each; all on 10 µs samples, no noise, positions calibrated by
 ``1 / G(0)`` as in `microfab.process.slm.estimate`):
@@ -71,6 +72,9 @@ figures are still those of the jump as shaped (the dynamics are linear, the same
 start). The declared velocity and acceleration limits are not checked here: a step is
 no vector at a jump speed and exceeds them unshaped too. The record starts one tick
 before the jump (``t_s[0] = -dt``).
+
+``microfab shaper compare`` runs it; its table is
+`microfab.report.slm_tables.comparison_table`.
 """
 
 from __future__ import annotations
@@ -82,7 +86,6 @@ from typing import Any, Literal, TypeAlias
 import numpy as np
 import scipy.signal
 
-from microfab.control.setpoint import SetPoint
 from microfab.control.shaped_command import ShapedCommandError, filter_command
 from microfab.control.shapers import DEFAULT_V_TOL, SHAPER_NAMES, ImpulseShaper, design_shaper
 from microfab.control.shaping import (
@@ -94,14 +97,11 @@ from microfab.control.shaping import (
 from microfab.control.shaping_metrics import discrete_lag, settling_time
 from microfab.core.arrays import readonly
 from microfab.core.validate import check_in_range, check_int, check_positive
-from microfab.experiments.seed003_slm import paper
 from microfab.identify.chirp import ChirpDesign
 from microfab.identify.fit import fit_tf
-from microfab.identify.frf import FRF, estimate_frf
+from microfab.identify.frf import FRF
 from microfab.machines import slm_galvo
 from microfab.plants.galvo_slm import GalvoSLMPlant
-from microfab.report.tables import DASH, Table
-from microfab.sim.loop import simulate
 
 __all__ = [
     "ROW_COMBINED",
@@ -258,10 +258,6 @@ class ShaperRow:
         return out
 
 
-def _us(x: float) -> str:
-    return DASH if not math.isfinite(x) else f"{x * 1e6:.1f}"
-
-
 @dataclass(frozen=True, kw_only=True, eq=False)
 class ShaperComparison:
     """The rows of one twin (`compare_shapers`).
@@ -290,54 +286,6 @@ class ShaperComparison:
             if r.name == name:
                 return r
         raise KeyError(f"no row {name!r}; rows: {', '.join(r.name for r in self.rows)}")
-
-    def table(self) -> Table:
-        """One line per shaper, units in the headers."""
-        rows = []
-        for r in self.rows:
-            design = (
-                DASH
-                if not math.isfinite(r.design_hz)
-                else f"{r.design_hz:.1f}, {r.design_damping:.4f}"
-            )
-            rows.append(
-                (
-                    r.name,
-                    design,
-                    DASH if not math.isfinite(r.vibration) else f"{100 * r.vibration:.2f}",
-                    _us(r.delay_s),
-                    DASH if not math.isfinite(r.command_peak) else f"{r.command_peak:.2f}",
-                    _us(r.settling_s),
-                    _us(r.lag_s),
-                    "emitted" if r.refused is None else f"refused: {r.refused}",
-                )
-            )
-        s = self.settings
-        return Table(
-            title=(
-                f"Shapers on the {self.twin} twin: mode {self.mode_hz:.1f} Hz, ζ "
-                f"{self.damping:.4g}; jump {s.jump_bit:g} bit from {s.start_bit:g} bit"
-            ),
-            columns=(
-                "shaper",
-                "design f [Hz], ζ",
-                "V over 0.8-1.2 f [%]",
-                "added delay [µs]",
-                "command peak [× jump]",
-                f"settling {100 * s.band:g} % [µs]",
-                "ramp lag [µs]",
-                "field check",
-            ),
-            rows=rows,
-            note=(
-                f"10 µs samples, no noise; inverse: {s.inverse.upper()}; classic shapers "
-                + (
-                    "at the mode fitted to the twin's chirp FRF"
-                    if s.frf_noise
-                    else "at the true mode"
-                )
-            ),
-        )
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary: twin, mode, settings and each row's figures (no arrays)."""
@@ -405,11 +353,8 @@ def _true_mode(twin: GalvoSLMPlant) -> tuple[float, float]:
 
 def _identified_mode(twin: GalvoSLMPlant, name: str, seed: int) -> tuple[float, float]:
     """The mode read off the twin's noisy chirp FRF (module doc), Hz and 1."""
-    chirp = ChirpDesign(f1_hz=_CHIRP_F1_HZ[name], period_s=_CHIRP_PERIOD_S).signal()
-    n = chirp.input.size
-    ref = np.column_stack([chirp.input, np.zeros(n)])
-    res = simulate(twin, SetPoint(2), ref, twin.noise(n, seed))
-    frf = estimate_frf(chirp, res.measured[:, 0])
+    design = ChirpDesign(f1_hz=_CHIRP_F1_HZ[name], period_s=_CHIRP_PERIOD_S)
+    _chirp, _y, frf = slm_galvo.chirp_frf(design, noise_seed=seed, plant=twin)
     if not twin.mirror_mode:
         mode = fit_tf(frf, dt=twin.dt).model.complex_modes[0]  # ZOH-aware, 3 poles (seed §1)
         return mode.frequency_hz, mode.damping
@@ -578,7 +523,7 @@ def compare_shapers(
     mode = _true_mode(twin)
     design = _identified_mode(twin, twin_name, seed) if s.frf_noise else mode
     dt = twin.dt
-    model = (paper.MODEL_NUM, paper.MODEL_DEN)  # seed 003 §1: what the inverse inverts
+    model = (slm_galvo.SEED_MODEL_NUM, slm_galvo.SEED_MODEL_DEN)  # what the inverse inverts
     inverse = design_inverse_shaper(model, InverseShaperConfig(discretization=s.inverse))
     none = (math.nan, math.nan)
     rows = [
