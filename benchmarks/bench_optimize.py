@@ -42,16 +42,12 @@ R_HEIGHT_M = 18.95e-3  # the job's sizing step on the twin's model (stage 1: r =
 
 def _models(args: argparse.Namespace) -> tuple[Any, Any, str]:
     if args.model:
-        from microfab.experiments.seed002_reference.run import load_models
+        from microfab.optimize.models import load_models
 
         m = load_models(args.model, networks=not args.no_stage2)
         return m.linear, m.networks, f"models of {args.model}"
-    from microfab.experiments.seed002_stage.run import (
-        AnnSettings,
-        ann_records,
-        linear_study,
-        train_networks,
-    )
+    from microfab.experiments.seed002_stage.run import AnnSettings, ann_records, train_networks
+    from microfab.machines.xy_stage_identify import linear_study
 
     t0 = time.perf_counter()
     _, lin = linear_study()

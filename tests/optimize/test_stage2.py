@@ -9,8 +9,8 @@ pytest.importorskip("casadi")
 pytest.importorskip("torch")
 
 from microfab.core.limits import MachineLimits
-from microfab.experiments.seed002_reference.run import load_models
 from microfab.geometry.shapes import circle
+from microfab.optimize.models import load_models
 from microfab.optimize.pipeline import optimize_reference
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Settings, solve_stage1

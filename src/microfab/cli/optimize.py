@@ -125,7 +125,7 @@ def optimize_cmd(
 
 
 def _models(directory: Path, need_networks: bool) -> Any:
-    from microfab.experiments.seed002_reference.run import load_models
+    from microfab.optimize.models import load_models
 
     try:
         return load_models(directory, networks=need_networks)
@@ -150,11 +150,11 @@ def _stage2(problem: Any, models: Any, st1: Any, stage: str, checkpoint: str | N
 
 
 def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, networks: Any) -> None:
-    from microfab.experiments.seed002_reference.figures import plot_contour, plot_deviation
     from microfab.io.atomic import atomic_write_json
     from microfab.io.trace import write_columns
     from microfab.optimize.pipeline import training_warning
     from microfab.report.canvas import save_figure
+    from microfab.report.reference import plot_contour, plot_deviation
 
     cmd = res.command
     try:

@@ -1,6 +1,8 @@
 """Figures of seed 002 part 2: Figs. 11-17 redrawn, and the stage timings.
 
-Physics lives in `microfab.optimize` and `run`; this module only draws (matplotlib,
+The contour and deviation figures of one optimised reference are
+`microfab.report.reference`'s (``microfab optimize`` draws them too). Physics lives in
+`microfab.optimize` and `run`; this module only draws (matplotlib,
 `microfab.report.canvas.new_figure`). Lengths in mm, deviations in µm.
 """
 
@@ -13,12 +15,11 @@ import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
 from microfab.geometry.path import Path
-from microfab.geometry.project import project_points
+from microfab.optimize.metrics import projected_speed
 from microfab.report.canvas import new_figure
+from microfab.report.reference import signed_deviation
 
 __all__ = [
-    "plot_contour",
-    "plot_deviation",
     "plot_point_along_s",
     "plot_point_xy",
     "plot_timings",
@@ -26,52 +27,6 @@ __all__ = [
 ]
 
 _MM, _UM = 1e3, 1e6
-
-
-def _foot(path: Path, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Foot-point ``s`` (m) and signed deviation (m, port positive) of each point."""
-    proj = project_points(path, pts)
-    d = np.sum((pts - proj.foot) * proj.normal, axis=1)
-    return np.asarray(proj.s), d
-
-
-def plot_contour(res: Any) -> MplFigure:
-    """The contour, stage 1's output, the optimised input and the predicted output (mm)."""
-    fig = new_figure(6.5, 6.0)
-    ax = fig.subplots()
-    xy = res.problem.path.flatten(1e-7)
-    ax.plot(xy[:, 0] * _MM, xy[:, 1] * _MM, "k-", lw=1.2, label="target Ξ")
-    ax.plot(res.stage1.gamma[:, 0] * _MM, res.stage1.gamma[:, 1] * _MM, lw=0.8,
-            label="stage 1: linear model γ")  # fmt: skip
-    ax.plot(res.r[:, 0] * _MM, res.r[:, 1] * _MM, lw=0.8, label="input r (400 Hz)")
-    if res.predicted is not None:
-        ax.plot(res.predicted[:, 0] * _MM, res.predicted[:, 1] * _MM, lw=0.8,
-                label="networks φ")  # fmt: skip
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_title(f"T = {res.duration:.3f} s at a_max = {res.problem.a_max:g} m/s²")
-    ax.legend(fontsize=7)
-    return fig
-
-
-def plot_deviation(res: Any) -> MplFigure:
-    """Signed deviation along ``s`` of the input and the predicted output, with ±μ (µm)."""
-    fig = new_figure(7.0, 3.6)
-    ax = fig.subplots()
-    path = res.problem.path
-    mu = res.problem.tolerance_m * _UM
-    ax.axhspan(-mu, mu, color="#e0f0e0", label="±μ")
-    ax.plot(res.stage1.s * _MM, res.stage1.deviation * _UM, lw=0.8, label="stage 1 γ (linear)")
-    s, d = _foot(path, res.r)
-    ax.plot(s * _MM, d * _UM, ".", ms=2, label="input r")
-    if res.predicted is not None:
-        s, d = _foot(path, res.predicted)
-        ax.plot(s * _MM, d * _UM, ".", ms=2, label="networks φ")
-    ax.set_xlabel("s [mm]")
-    ax.set_ylabel("deviation [µm]")
-    ax.legend(fontsize=7, ncol=2)
-    return fig
 
 
 def plot_point_xy(path: Path, outputs: Mapping[str, np.ndarray], title: str = "") -> MplFigure:
@@ -84,7 +39,7 @@ def plot_point_xy(path: Path, outputs: Mapping[str, np.ndarray], title: str = ""
     xy = path.flatten(1e-7)
     worst = None
     if "baseline_twin" in outputs:
-        _, d = _foot(path, outputs["baseline_twin"])
+        _, d = signed_deviation(path, outputs["baseline_twin"])
         worst = outputs["baseline_twin"][int(np.argmax(np.abs(d)))]
     for a in (ax, det):
         a.plot(xy[:, 0] * _MM, xy[:, 1] * _MM, "k-", lw=1.2, label="target")
@@ -117,18 +72,14 @@ def plot_point_along_s(path: Path, outputs: Mapping[str, np.ndarray], dt: float,
     top, bot = fig.subplots(2, 1, sharex=True)
     mu = tolerance_m * _UM
     top.axhspan(-mu, mu, color="#e0f0e0", label="±μ")
-    length = path.length
-    closed = bool(np.linalg.norm(path.end - path.start) < 1e-9)
     for key in ("optimised_twin", "baseline_twin", "optimised_input"):
         if key not in outputs:
             continue
-        s, d = _foot(path, outputs[key])
+        s, d = signed_deviation(path, outputs[key])
         top.plot(s * _MM, d * _UM, ".", ms=2, label=key.replace("_", " "))
         if key.endswith("twin"):
-            ds = np.diff(s)
-            if closed:
-                ds = (ds + length / 2) % length - length / 2
-            bot.plot(s[1:] * _MM, ds / dt, ".", ms=2, label=key.replace("_", " "))
+            speed = projected_speed(path, outputs[key], dt)
+            bot.plot(s[1:] * _MM, speed, ".", ms=2, label=key.replace("_", " "))
     top.set_ylabel("deviation [µm]")
     top.legend(fontsize=7, ncol=2)
     bot.set_ylabel("projected speed [m/s]")

@@ -16,8 +16,8 @@ Deviations (eqs. 16-18, exact foot-point projection) are taken at the 400 Hz ins
 ``t_1 … t_M`` of eq. (13), as the seed defines them over ``φ_1 … φ_M``; the ``h`` samples
 after ``T`` (the input held) are scored separately as the tail.
 
-`Models` are the linear model and the networks of a ``stage-identify`` output
-(`load_models`).
+The models are the linear model and the networks of a ``stage-identify`` output
+(`microfab.optimize.models.load_models`).
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from microfab.identify.subspace_model import ContinuousModel
 from microfab.machines.xy_stage import Played, TwinSettings, play_runs
 from microfab.optimize.command import LEAD
+from microfab.optimize.models import Models
 from microfab.optimize.pipeline import (
     MODEL_RATE_HZ,
     ReferenceResult,
@@ -45,66 +45,14 @@ from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Settings
 
 __all__ = [
-    "Models",
     "PointResult",
     "Scored",
     "baseline_scores",
-    "load_models",
     "run_point",
 ]
 
 RUN_RATE_HZ = 1e4  # seed 002 Table I: the 10 kHz loop
 TAIL = 200  # issue 18: after T the input is held for h = 200 samples (500 ms)
-
-
-@dataclass(frozen=True, eq=False)
-class Models:
-    """The identified models a point is optimised with.
-
-    Attributes
-    ----------
-    linear : ContinuousModel
-        Eq. (6), continuous, m.
-    networks : microfab.identify.ann.AnnModel
-        Eq. (7), one per axis.
-    source : str
-        Where they were read from.
-    """
-
-    linear: ContinuousModel
-    networks: Any
-    source: str = ""
-
-
-def load_models(directory: str | Path, *, networks: bool = True) -> Models:
-    """The models of a ``stage-identify`` output: ``linear_model.json`` and ``ann/model``.
-
-    ``networks=False`` reads only the linear model (stage 1 alone).
-
-    Raises
-    ------
-    ValueError
-        A missing or unreadable model, another format version, model rate or history
-        (the message names the file).
-    """
-    from microfab.identify.stage_ann import read_ann_stage_model
-    from microfab.identify.stage_data import StageLinearModel, read_stage_model
-
-    d = Path(directory)
-    lin_path = d / "linear_model.json"
-    if not lin_path.is_file():
-        raise ValueError(f"{lin_path}: no linear model (the output of a stage-identify job)")
-    lin = read_stage_model(lin_path)
-    if not isinstance(lin, StageLinearModel):
-        raise ValueError(f"{lin_path}: not a linear stage model")
-    try:
-        cont = lin.model.to_continuous()
-    except ValueError as exc:
-        raise ValueError(f"{lin_path}: {exc}") from None
-    if not networks:
-        return Models(linear=cont, networks=None, source=str(d))
-    ann = read_ann_stage_model(d / "ann" / "model")
-    return Models(linear=cont, networks=ann.model, source=str(d))
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,8 @@
 ``out/points/`` and skipping a point already there on a rerun (same settings: the
 fingerprint is in the point's JSON):
 
-1. the models: read from a ``stage-identify`` output (`run.load_models`);
+1. the models: read from a ``stage-identify`` output
+   (`microfab.optimize.models.load_models`);
 2. the sizes: the documented step of `sizing` (stage 1's ``T`` of "r" and of the airfoil
    at 1 m/s²), or the sizes given;
 3. every case at every ``a_max`` of `ReferenceSettings.a_max` (Table III: 1 and 3) and the
@@ -33,8 +34,6 @@ from typing import Any
 import numpy as np
 
 from microfab.experiments.seed002_reference.run import (
-    Models,
-    load_models,
     read_point_summary,
     run_point,
     write_point,
@@ -42,6 +41,7 @@ from microfab.experiments.seed002_reference.run import (
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_cases import CASES, CaseSizes, case_paths
+from microfab.optimize.models import Models, load_models
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 
