@@ -52,7 +52,7 @@ def plot_axis_errors(
     """Seed 004 Fig. 3: x and y tracking errors against time, with the ±0.5 µm band.
 
     ``time`` (s, (n,)), ``reference`` and ``measured`` (m, (n, 2)); ``axis`` the errors'
-    figures (`metrics.axis_errors`); ``span`` the laps' time span to shade.
+    figures (`microfab.measure.contour.axis_errors`); ``span`` the laps' time span to shade.
     """
     fig = new_figure(7.0, 4.2)
     axes = fig.subplots(2, 1, sharex=True)
