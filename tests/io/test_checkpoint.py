@@ -59,7 +59,7 @@ def test_other_version_and_kind_refused(tmp_path: Path) -> None:
 def test_empty_folder_and_foreign_files(tmp_path: Path) -> None:
     empty = tmp_path / "empty.npz"
     empty.write_bytes(b"")
-    with pytest.raises(StateFileError, match="is empty.*start again"):
+    with pytest.raises(StateFileError, match=r"is empty.*start again"):
         read_state(empty, kind=KIND, versions=(3,))
     folder = tmp_path / "dir.npz"
     folder.mkdir()
