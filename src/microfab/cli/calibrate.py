@@ -19,7 +19,7 @@ def calibrate_galvo_cmd(
     write: Annotated[Path | None, typer.Option(help="Write the calibration TOML here.")] = None,
 ) -> None:
     """Refit the galvo twin (rigid-body pole, gain ratio, noise) to seed 000 Table 1."""
-    from microfab.experiments.seed000_msl.calibration import calibrate_galvo
+    from microfab.machines.galvo_calibration import calibrate_galvo
 
     cal = calibrate_galvo(write)
     for name, c in cal.items():

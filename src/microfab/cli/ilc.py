@@ -60,8 +60,8 @@ def ilc_step_cmd(
     """
     from microfab.control.ilc import ILCConfig
     from microfab.core.limits import AxisLimits
+    from microfab.machines import galvo
     from microfab.machines.files import ilc_step
-    from microfab.machines.galvo import GALVO_LIMITS
 
     check_option("--cutoff-hz", cutoff_hz, "Hz")
     check_option("--gain", gain, "", high=2.0)
@@ -92,7 +92,7 @@ def ilc_step_cmd(
         given = (max_position, max_velocity, max_acceleration)
         limits = None
         if any(v is not None for v in given) or not (state / "ilc_state.npz").exists():
-            base = GALVO_LIMITS["x"]
+            base = galvo.limits()["x"]
             lim = AxisLimits(
                 position=max_position if max_position is not None else base.position,
                 velocity=max_velocity if max_velocity is not None else base.velocity,

@@ -3,7 +3,12 @@
 The plant (`microfab.plants.galvo.GalvoAxis`) is open loop; this module closes the loop
 with the seed's controller and gives the stabilised scanner that the ILC sees, as
 transfer functions (`open_loop`, `complementary_sensitivity`) and as a `SimulatedMachine`
-(`galvo_twin`).
+(`twin`, alias `galvo_twin`). The machine surface: `DATA_FILES`, `limits`, `twin` and
+`play` (one periodic command through the twin, what its encoders measure). The twin's
+axes are read once per version of the data file and each axis' loop is built once; the
+machine itself is new at each call, since it carries its noise generator's state.
+The calibration of the axes against seed 000 Table 1 is
+`microfab.machines.galvo_calibration`.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import control
 from microfab.control.base import LTIController
 from microfab.control.leadlag import lead_lag
 from microfab.core.limits import AxisLimits
+from microfab.machines.base import Measurement
 from microfab.machines.simulated import EncoderNoise, SimPath, SimulatedMachine
 from microfab.machines.twins import TwinCache
 from microfab.plants.base import LTIPlant
@@ -31,7 +37,10 @@ __all__ = [
     "controller_tf",
     "discrete_controller",
     "galvo_twin",
+    "limits",
     "open_loop",
+    "play",
+    "twin",
 ]
 
 # Declared command limits of the twin, in encoder volts. Not from the seed: position is the
@@ -108,6 +117,47 @@ def galvo_twin(
         settle_periods=settle_periods,
         path=path,
     )
+
+
+twin = galvo_twin
+
+
+def limits() -> dict[str, AxisLimits]:
+    """The twin's declared command limits per axis, encoder V (`GALVO_LIMITS`, a copy)."""
+    return dict(GALVO_LIMITS)
+
+
+def play(
+    command: np.ndarray,
+    *,
+    axes: Mapping[str, GalvoAxis] | None = None,
+    seed: int = 0,
+    settle_periods: int = 1,
+) -> Measurement:
+    """Play one period of a command on a fresh twin; its steady-state period measured.
+
+    Parameters
+    ----------
+    command : numpy.ndarray
+        One period of the command, encoder V, shape (n, 2): x and y at the axes' 1 MHz.
+    axes : mapping of str to GalvoAxis, optional
+        Axis models; the calibrated defaults when omitted.
+    seed : int
+        Noise seed.
+    settle_periods : int
+        Periods played before the recorded one.
+
+    Returns
+    -------
+    Measurement
+        The last period: ``output`` the encoders' positions, V, shape (n, 2).
+
+    Raises
+    ------
+    microfab.core.limits.LimitViolation
+        A command beyond `limits` (nothing is run).
+    """
+    return galvo_twin(axes, seed=seed, settle_periods=settle_periods).run(command)
 
 
 def controller_tf(axis: GalvoAxis) -> control.TransferFunction:

@@ -1,27 +1,28 @@
 """Published numbers of seed 000 (Yoo et al., ILC for laser-scanning micro 3D printing).
 
 Every value cites its table or section in ``../shared/seeds/000_f8fa17eaefc5dca4.txt``.
+Table 1 and the rates, the galvo twin's calibration target, live with the calibration
+(`microfab.machines.galvo_calibration`) and are re-exported here.
 """
 
 from __future__ import annotations
 
-RATES = (100, 200, 400)  # seed 000 §4: features/s
+# RATES (seed 000 §4) and TABLE1_MV (seed 000 Table 1) are the galvo twin's calibration
+# target and live with it.
+from microfab.machines.galvo_calibration import RATES, TABLE1_MV
+
+__all__ = [
+    "MARGINS",
+    "MAX_VELOCITY_ERROR_400",
+    "RATES",
+    "SIDE_MM",
+    "TABLE1_MV",
+    "TABLE2_MM_S",
+    "TARGET_SPEED_MM_S",
+]
+
 SIDE_MM = 0.6  # seed 000 §4: 0.6 x 0.6 mm square
 TARGET_SPEED_MM_S = {100: 240.0, 200: 480.0, 400: 960.0}  # seed 000 §4.2
-
-# seed 000 Table 1: RMS (PP) tracking errors in mV.
-TABLE1_MV: dict[str, dict[int, dict[str, float]]] = {
-    "x": {
-        100: {"fb_rms": 15.49, "fb_pp": 126.82, "ilc_rms": 1.41, "ilc_pp": 12.91},
-        200: {"fb_rms": 41.86, "fb_pp": 243.10, "ilc_rms": 1.92, "ilc_pp": 21.24},
-        400: {"fb_rms": 121.18, "fb_pp": 491.46, "ilc_rms": 4.11, "ilc_pp": 41.99},
-    },
-    "y": {
-        100: {"fb_rms": 17.98, "fb_pp": 142.40, "ilc_rms": 1.45, "ilc_pp": 12.98},
-        200: {"fb_rms": 48.29, "fb_pp": 275.90, "ilc_rms": 1.8207, "ilc_pp": 20.02},
-        400: {"fb_rms": 139.59, "fb_pp": 532.96, "ilc_rms": 5.21, "ilc_pp": 44.43},
-    },
-}
 
 # seed 000 Table 2: beam velocity mean (std) and (max, min) in mm/s. The table's header
 # says "(Max., Min.)" but lists the smaller value first; we store them by meaning.

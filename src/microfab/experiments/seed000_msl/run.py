@@ -20,7 +20,7 @@ from microfab.control.margins import loop_margins
 from microfab.experiments.seed000_msl import paper as seed000
 from microfab.machines import galvo as galvo_machine
 from microfab.machines.base import Machine
-from microfab.machines.galvo import complementary_sensitivity, galvo_twin, open_loop
+from microfab.machines.galvo import complementary_sensitivity, open_loop
 from microfab.machines.learning import learn
 from microfab.plants.galvo import GalvoAxis
 from microfab.process.velocity import BeamVelocityParams, beam_velocity
@@ -181,7 +181,7 @@ def run_msl_ilc(
         raise ValueError(f"iterations must be >= 2 (trial 1 is feedback only), got {iterations}")
     axes = axes or galvo_machine.calibrated_axes()
     names = tuple(axes)
-    machine = machine or galvo_twin(axes, seed=seed)
+    machine = machine or galvo_machine.twin(axes, seed=seed)
     ref = _square_reference(axes, features_per_s)
     dt = machine.dt
 

@@ -11,6 +11,8 @@ Three parameters per axis are not given by the seed and are fitted here:
   to zero) plus noise, so ``sigma^2 = rms_ILC^2 - rms_truncation^2``.
 
 Run ``microfab calibrate galvo`` to redo the fit and rewrite ``data/galvo_twin.toml``.
+The seed's Table 1 (`TABLE1_MV`, at the rates `RATES`) is the calibration's target and
+lives here; ``microfab.experiments.seed000_msl.paper`` re-exports it.
 """
 
 from __future__ import annotations
@@ -21,13 +23,35 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from microfab.experiments.seed000_msl.paper import RATES, TABLE1_MV
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.galvo import complementary_sensitivity
 from microfab.plants.galvo import GalvoAxis, _seed_axes
 from microfab.trajectory.periodic import square_scan
 
-__all__ = ["AxisCalibration", "calibrate_galvo", "fb_error", "truncation_error"]
+__all__ = [
+    "RATES",
+    "TABLE1_MV",
+    "AxisCalibration",
+    "calibrate_galvo",
+    "fb_error",
+    "truncation_error",
+]
+
+RATES = (100, 200, 400)  # seed 000 §4: features/s
+
+# seed 000 Table 1: RMS (PP) tracking errors in mV.
+TABLE1_MV: dict[str, dict[int, dict[str, float]]] = {
+    "x": {
+        100: {"fb_rms": 15.49, "fb_pp": 126.82, "ilc_rms": 1.41, "ilc_pp": 12.91},
+        200: {"fb_rms": 41.86, "fb_pp": 243.10, "ilc_rms": 1.92, "ilc_pp": 21.24},
+        400: {"fb_rms": 121.18, "fb_pp": 491.46, "ilc_rms": 4.11, "ilc_pp": 41.99},
+    },
+    "y": {
+        100: {"fb_rms": 17.98, "fb_pp": 142.40, "ilc_rms": 1.45, "ilc_pp": 12.98},
+        200: {"fb_rms": 48.29, "fb_pp": 275.90, "ilc_rms": 1.8207, "ilc_pp": 20.02},
+        400: {"fb_rms": 139.59, "fb_pp": 532.96, "ilc_rms": 5.21, "ilc_pp": 44.43},
+    },
+}
 
 
 @dataclass(frozen=True)
@@ -111,7 +135,7 @@ def calibrate_galvo(write_to: str | Path | None = None) -> dict[str, AxisCalibra
     if write_to is not None:
         lines = [
             "# Galvo twin calibration, written by `microfab calibrate galvo`",
-            "# (microfab.experiments.seed000_msl.calibration).",
+            "# (microfab.machines.galvo_calibration).",
             "# Fitted to seed 000 Table 1 feedback rows;",
             "# residual_pct = model/seed - 1 in % for (RMS, PP) at 100, 200, 400 features/s.",
             "",

@@ -8,9 +8,14 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from microfab.experiments.seed000_msl import calibration as galvo_calibration
-from microfab.experiments.seed000_msl.calibration import calibrate_galvo, fb_error, truncation_error
-from microfab.experiments.seed000_msl.paper import RATES, TABLE1_MV
+from microfab.machines import galvo_calibration
+from microfab.machines.galvo_calibration import (
+    RATES,
+    TABLE1_MV,
+    calibrate_galvo,
+    fb_error,
+    truncation_error,
+)
 from microfab.plants.galvo import default_galvo_axes
 from microfab.trajectory.periodic import square_scan
 
