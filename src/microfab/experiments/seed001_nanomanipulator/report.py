@@ -1,10 +1,11 @@
 """Report of a ``nanomanipulator-msl`` job: seed 001 Figs. 12-15 redrawn on the twin.
 
 The trace figures (Fig. 12 XY, Fig. 13a errors with the gate, Fig. 13b contour error
-against phase, RMS per period) are those of a measured trace (`figures`), so a twin run
-and `microfab nanomanipulator analyze` look alike; this module adds what only a run of
-the controllers has: ‖Ŵ‖ and ``s`` against time, the control effort, and the cured-line
-maps with and without warm-up compensation.
+against phase, RMS per period) are those of a measured trace
+(`microfab.report.circle_tracking`), so a twin run and `microfab nanomanipulator analyze`
+look alike; this module adds what only a run of the controllers has: ‖Ŵ‖ and ``s``
+against time, the control effort, and the cured-line maps with and without warm-up
+compensation.
 """
 
 from __future__ import annotations

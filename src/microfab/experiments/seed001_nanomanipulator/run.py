@@ -1,7 +1,8 @@
 """Seed 001 §4.2 on the twin: four circles, RBF + plug-in RC, gated laser, cured lines.
 
-`run_job` runs the whole pattern of `pattern.pattern_reference` on the nanomanipulator
-twin, one sample at a time (`microfab.sim.loop.simulate`, compiled):
+`run_job` runs the whole pattern of `microfab.trajectory.circle_pattern.pattern_reference`
+on the nanomanipulator twin, one sample at a time (`microfab.sim.loop.LoopStepper`,
+compiled):
 
 * **Transfers** between circles (the move and the final hold) run under the PID of
   seed 001 Fig. 8 (`PID.tuned`, crossover ``pid_bandwidth_hz``): the seed does not say
@@ -357,7 +358,7 @@ class JobRun:
         return self.reference.position - self.output
 
     def metrics(self) -> TrackingMetrics:
-        """Seed 001 §4.2 metrics of the measured signals (`metrics.pattern_metrics`)."""
+        """Seed 001 §4.2 metrics of the measured signals (`microfab.measure.circle_tracking`)."""
         return pattern_metrics(self.reference, self.measured, self.laser)
 
 
