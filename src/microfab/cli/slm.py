@@ -104,7 +104,7 @@ def scan_time_cmd(
     """
     from microfab.control.shaper_io import read_shaper, shaper_lti, shaper_to_dict
     from microfab.machines import slm_galvo
-    from microfab.process.slm.estimate import SettleTolerance, estimate_scan_time, series
+    from microfab.process.slm.estimate import SettleTolerance, estimate_with_shaper
     from microfab.process.slm.source import parse_lattice_source, scan_program
     from microfab.process.slm.timing import (
         TICK_S,
@@ -195,13 +195,15 @@ def scan_time_cmd(
     if reach > field_m:
         fail(f"{source}: the program reaches {reach * 1e3:.4g} mm from the field's centre, "
              f"outside the scanner's field of ±{field_m * 1e3:.4g} mm")  # fmt: skip
-    runs = {"unshaped": estimate_scan_time(path, twin, settings, tolerance=tol,
-                                           naive_jump_delay=naive_jump_delay)}  # fmt: skip
-    if the_shaper is not None:
-        model = series(prefilter, twin.axis_model)
-        runs["shaped"] = estimate_scan_time(
-            path, model, shaped_settings, tolerance=tol, naive_jump_delay=naive_jump_delay
-        )
+    runs = estimate_with_shaper(
+        path,
+        twin,
+        settings,
+        prefilter=prefilter if the_shaper is not None else None,
+        shaped_settings=shaped_settings,
+        tolerance=tol,
+        naive_jump_delay=naive_jump_delay,
+    )
     print_table(_scan_table(source, runs))
     _print_scan_summary(path, runs)
     if json_path is not None:

@@ -200,3 +200,27 @@ def test_a_twin_with_another_bit_or_tick_is_refused(twin):
     slow = discretize(control.tf([1.0], [1e-3, 1.0]), 2e-5, "zoh")
     with pytest.raises(ValueError, match="the RTC runs on 1e-05 s ticks"):
         dynamics_estimate(path, slow)
+
+
+def test_estimate_with_shaper_is_both_estimates():
+    from microfab.control.shaping import InverseShaperConfig, design_inverse_shaper
+    from microfab.plants.galvo_slm import galvo_slm_twin
+    from microfab.process.slm.estimate import estimate_scan_time, estimate_with_shaper, series
+    from microfab.process.slm.lattice import LatticeSpec, lattice_layer
+    from microfab.process.slm.timing import RTCSettings
+
+    twin = galvo_slm_twin()
+    path = lattice_layer(4e-4, LatticeSpec(outline_radius_m=1.5e-3))
+    lti = design_inverse_shaper(twin.transfer_function(), InverseShaperConfig()).to_lti()
+    fast = RTCSettings().with_delays(jump_s=250e-6)
+    runs = estimate_with_shaper(path, twin, prefilter=lti, shaped_settings=fast)
+    want = {
+        "unshaped": estimate_scan_time(path, twin),
+        "shaped": estimate_scan_time(path, series(lti, twin.axis_model), fast),
+    }
+    assert set(runs) == set(want)
+    for k, c in want.items():
+        for got, ref in zip((runs[k].naive, runs[k].fixed, runs[k].dynamics),
+                            (c.naive, c.fixed, c.dynamics), strict=True):  # fmt: skip
+            assert got.total_s == ref.total_s and got.breakdown_s == ref.breakdown_s
+    assert set(estimate_with_shaper(path, twin)) == {"unshaped"}

@@ -38,7 +38,7 @@ from microfab.plants.galvo_slm import GalvoSLMPlant
 from microfab.process.slm.estimate import (
     ScanTimeComparison,
     SettleTolerance,
-    estimate_scan_time,
+    estimate_with_shaper,
     jump_delay,
     series,
 )
@@ -450,11 +450,15 @@ def run_shaping(settings: ShapingSettings | None = None, progress: Any = None) -
     }
     say("layer scan time", 0, None)
     program = s.layer.program()
-    base = estimate_scan_time(program, axis, s.rtc, tolerance=s.tolerance)
     # the shaper's own derived jump delay (at least one tick) for the fixed estimate
     rtc_shaped = s.rtc.with_delays(jump_s=max(_ticks_up(jd[s.shaper.discretization]), TICK_S))
-    shaped = estimate_scan_time(
-        program, shaped_axes[s.shaper.discretization], rtc_shaped, tolerance=s.tolerance
+    scan = estimate_with_shaper(
+        program,
+        axis,
+        s.rtc,
+        prefilter=shapers[s.shaper.discretization].to_lti(),
+        shaped_settings=rtc_shaped,
+        tolerance=s.tolerance,
     )
     return ShapingRun(
         settings=s,
@@ -465,7 +469,7 @@ def run_shaping(settings: ShapingSettings | None = None, progress: Any = None) -
         speed_jumps=speed_jumps,
         jump_delay_s=jd,
         layer_vectors=len(program),
-        scan={"unshaped": base, "shaped": shaped},
+        scan=scan,
     )
 
 

@@ -57,6 +57,7 @@ __all__ = [
     "axis_model_of",
     "dynamics_estimate",
     "estimate_scan_time",
+    "estimate_with_shaper",
     "fixed_delay_estimate",
     "implied_jumps",
     "jump_delay",
@@ -423,6 +424,42 @@ def estimate_scan_time(
         fixed=fixed_delay_estimate(path, s, model),
         dynamics=dynamics_estimate(path, model, s, tolerance=tolerance),
     )
+
+
+def estimate_with_shaper(
+    path: VectorPath,
+    model: Any,
+    settings: RTCSettings | None = None,
+    *,
+    prefilter: DiscreteLTI | None = None,
+    shaped_settings: RTCSettings | None = None,
+    tolerance: SettleTolerance | None = None,
+    naive_jump_delay: bool = False,
+) -> dict[str, ScanTimeComparison]:
+    """The three estimates of one program without and with a command filter in front.
+
+    Parameters
+    ----------
+    path, model, settings, tolerance, naive_jump_delay
+        As for `estimate_scan_time` (the unshaped estimates).
+    prefilter : DiscreteLTI, optional
+        The shaper as a sampled filter at the 10 µs tick; None: no shaped estimates.
+    shaped_settings : RTCSettings, optional
+        The settings of the shaped estimates (e.g. the shaper's shorter fixed jump delay);
+        ``settings`` when omitted.
+
+    Returns
+    -------
+    dict of str to ScanTimeComparison
+        ``"unshaped"``, and ``"shaped"`` (the axis behind ``prefilter``) when one is given.
+    """
+    opts: dict[str, Any] = {"tolerance": tolerance, "naive_jump_delay": naive_jump_delay}
+    runs = {"unshaped": estimate_scan_time(path, model, settings, **opts)}
+    if prefilter is not None:
+        shaped = series(prefilter, axis_model_of(model))
+        again = settings if shaped_settings is None else shaped_settings
+        runs["shaped"] = estimate_scan_time(path, shaped, again, **opts)
+    return runs
 
 
 def jump_delay(
