@@ -1,7 +1,8 @@
 """Figures of seed 003 part 2: Figs. 5-7 redrawn, shaper comparison, scan-time bars, build.
 
-Fig. 4 is `microfab.identify.fit.FitResult.plot`. Physics lives in `run`, `compare` and
-`build`; this module only draws (matplotlib, `microfab.report.canvas.new_figure`).
+Fig. 4 is `microfab.identify.fit.FitResult.plot`. Physics lives in `run`,
+`microfab.machines.slm_galvo_shapers` and `microfab.process.slm.build`; this module only
+draws (matplotlib, `microfab.report.canvas.new_figure`).
 """
 
 from __future__ import annotations

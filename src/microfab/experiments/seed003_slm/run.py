@@ -15,9 +15,10 @@ One run is the seed's procedure, end to end, on the twin (`microfab.plants.galvo
    `process.slm.source.scan_program`): naive, fixed-delay and dynamics-aware estimates,
    without and with the shaper (the shaper's own derived jump delay).
 
-The side-by-side comparison of shapers (`compare`) and the whole build (`build`) are
-optional parts, run by the job (`job.py`). Every part is seconds long; only the build is
-long, and it is resumable (`microfab.io.sweep.run_sweep`).
+The side-by-side comparison of shapers (`microfab.machines.slm_galvo_shapers`) and the
+whole build (`microfab.process.slm.build`) are optional parts, run by the job
+(`job.py`). Every part is seconds long; only the build is long, and it is resumable
+(`microfab.io.sweep.run_sweep`).
 """
 
 from __future__ import annotations
