@@ -17,6 +17,7 @@ from typing import Any, Literal
 import numpy as np
 from numba import njit
 
+from microfab.core.signals import period_samples
 from microfab.core.validate import check_in_range, check_int, check_positive
 
 __all__ = [
@@ -31,39 +32,6 @@ __all__ = [
 #: What the correction adds to a reference window's derivatives (`RCConfig.derivatives`),
 #: in the order `microfab.control.repetitive.PluginRC` encodes them in its params.
 DERIV_MODES = ("zero", "memory")
-
-
-def period_samples(period_s: float, dt: float) -> int:
-    """Samples in one period, refusing a period that is not a whole number of samples.
-
-    Parameters
-    ----------
-    period_s : float
-        Period, s.
-    dt : float
-        Sample time, s.
-
-    Returns
-    -------
-    int
-        ``period_s / dt`` (>= 2).
-
-    Raises
-    ------
-    ValueError
-        If either is not positive, or ``period_s / dt`` is not whole to 1e-9 (relative)
-        or below 2.
-    """
-    check_positive("period_s", period_s, "s")
-    check_positive("dt", dt, "s")
-    n_float = period_s / dt
-    n = round(n_float)
-    if n < 2 or abs(n - n_float) > 1e-9 * n_float:
-        raise ValueError(
-            f"period_s must be a whole number (>= 2) of samples: {period_s:g} s / {dt:g} s = "
-            f"{n_float:.9g} samples; choose a period that is a multiple of dt"
-        )
-    return n
 
 
 @dataclass(frozen=True, kw_only=True)

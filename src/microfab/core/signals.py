@@ -32,6 +32,8 @@ from typing import Any
 
 import numpy as np
 
+from microfab.core.validate import check_positive
+
 __all__ = [
     "TIME",
     "Trace",
@@ -40,6 +42,7 @@ __all__ = [
     "check_samples",
     "check_time_base",
     "check_unit",
+    "period_samples",
 ]
 
 #: Name of the time column; no channel may take it.
@@ -435,3 +438,36 @@ class Trace:
                 )
         values = np.column_stack([np.asarray(c, dtype=np.float64) for c in columns.values()])
         return cls(dt=dt, values=values, axes=tuple(columns), unit=unit, t0=t0)
+
+
+def period_samples(period_s: float, dt: float) -> int:
+    """Samples in one period, refusing a period that is not a whole number of samples.
+
+    Parameters
+    ----------
+    period_s : float
+        Period, s.
+    dt : float
+        Sample time, s.
+
+    Returns
+    -------
+    int
+        ``period_s / dt`` (>= 2).
+
+    Raises
+    ------
+    ValueError
+        If either is not positive, or ``period_s / dt`` is not whole to 1e-9 (relative)
+        or below 2.
+    """
+    check_positive("period_s", period_s, "s")
+    check_positive("dt", dt, "s")
+    n_float = period_s / dt
+    n = round(n_float)
+    if n < 2 or abs(n - n_float) > 1e-9 * n_float:
+        raise ValueError(
+            f"period_s must be a whole number (>= 2) of samples: {period_s:g} s / {dt:g} s = "
+            f"{n_float:.9g} samples; choose a period that is a multiple of dt"
+        )
+    return n

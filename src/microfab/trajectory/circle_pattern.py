@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from microfab.core.signals import period_samples
 from microfab.core.validate import check_in_range, check_int, check_positive
 from microfab.trajectory.base import Trajectory
 
@@ -30,24 +31,6 @@ N_CIRCLES = 4  # seed 001 §4.2: four circle patterns in one operation
 CIRCLE_DIAMETER_MM = 0.15  # seed 001 §4.2: circular contour of diameter 0.15 mm
 FIELD_MM = 0.5  # seed 001 §4.2: working range of the manipulator about 0.5 mm
 TRAVEL_MM = 1.5  # seed 001 §2: working range up to ±1.5 mm per axis
-
-
-def _period_samples(period_s: float, dt: float) -> int:
-    """Samples in one period, refusing one that is not a whole number (>= 2) of samples.
-
-    The check of `microfab.control.rc_law.period_samples` (the repetitive controller's
-    memory needs whole samples), with its message; this layer lies below control.
-    """
-    check_positive("period_s", period_s, "s")
-    check_positive("dt", dt, "s")
-    n_float = period_s / dt
-    n = round(n_float)
-    if n < 2 or abs(n - n_float) > 1e-9 * n_float:
-        raise ValueError(
-            f"period_s must be a whole number (>= 2) of samples: {period_s:g} s / {dt:g} s = "
-            f"{n_float:.9g} samples; choose a period that is a multiple of dt"
-        )
-    return n
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -223,7 +206,7 @@ def pattern_reference(config: PatternConfig, dt: float) -> PatternReference:
         memory needs one), or a duration is shorter than a sample.
     """
     check_positive("dt", dt, "s")
-    n_period = _period_samples(config.period_s, dt)  # the RC's memory needs whole samples
+    n_period = period_samples(config.period_s, dt)  # the RC's memory needs whole samples
     n_move = max(round(config.move_s / dt), 1)
     n_pause = max(round(config.pause_s / dt), 1)
     n_ramp = max(round(config.ramp_s / dt), 1)
