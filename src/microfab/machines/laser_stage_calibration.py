@@ -26,6 +26,7 @@ import numpy as np
 from microfab.core.validate import check_in_range, check_int
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.laser_stage import ContourJob, ControlSettings, play_contour, twin
+from microfab.measure.contour import AxisErrors, axis_errors
 from microfab.plants.sourced_toml import update_sourced
 
 __all__ = ["FIG3_JOB", "DisturbanceFit", "fit_disturbance_scale", "write_scale"]
@@ -96,12 +97,12 @@ def fit_disturbance_scale(
     hist: list[tuple[float, float]] = []
     last = None
 
-    def run(s: float) -> tuple[float, np.ndarray]:
+    def run(s: float) -> tuple[float, AxisErrors]:
         p = play_contour(job.with_(twin=dataclasses.replace(job.twin, disturbance_scale=s)))
         full = p.full_laps
         ref = np.asarray(p.reference.trajectory.position, dtype=float)[full]
-        e = np.abs(ref - np.asarray(p.trace.measured, dtype=float)[full])  # |r − y|, m
-        peak = max(float(v) for v in e.max(axis=0)) * 1e6
+        e = axis_errors(ref, np.asarray(p.trace.measured, dtype=float)[full], FIG3_TYPICAL_ERROR_M)
+        peak = max(e.peak_m) * 1e6
         hist.append((s, peak))
         if progress:
             progress(len(hist), s, peak)
@@ -131,8 +132,8 @@ def fit_disturbance_scale(
     assert last is not None
     return DisturbanceFit(
         scale=scale,
-        peak_um=tuple(float(v) * 1e6 for v in last.max(axis=0)),  # type: ignore[arg-type]
-        fraction_below=tuple(float(v) for v in np.mean(last < FIG3_TYPICAL_ERROR_M, axis=0)),  # type: ignore[arg-type]
+        peak_um=tuple(v * 1e6 for v in last.peak_m),  # type: ignore[arg-type]
+        fraction_below=last.fraction_below,
         runs=len(hist),
         history=tuple(hist),
     )
