@@ -11,8 +11,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from microfab.experiments.seed000_msl.figures import fig_xy, save_figure
-from microfab.experiments.seed000_msl.run import run_msl_ilc
+from microfab.machines.galvo_ilc import run_msl_ilc
+from microfab.report.canvas import save_figure
+from microfab.report.galvo_ilc import fig_xy
 
 
 def main(iterations: int = 10, out_dir: Path = Path()) -> Path:

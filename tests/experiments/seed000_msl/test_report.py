@@ -7,7 +7,8 @@ import pytest
 from microfab.experiments.seed000_msl import figures
 from microfab.experiments.seed000_msl import paper as seed000
 from microfab.experiments.seed000_msl.report import FIGURE_FILES, fmt_mm_s, fmt_mv, write_report
-from microfab.experiments.seed000_msl.run import run_msl_ilc
+from microfab.machines.galvo_ilc import run_msl_ilc
+from microfab.report import galvo_ilc
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -100,15 +101,15 @@ def test_without_tables_no_comparison(result, tmp_path, monkeypatch):
         fig.add_subplot().plot([0, 1])
         return fig
 
-    for name in (
-        "fig_xy",
-        "fig_time",
-        "fig_psd",
-        "fig_learning",
-        "fig_velocity",
-        "fig_line_width",
+    for module, name in (
+        (galvo_ilc, "fig_xy"),
+        (galvo_ilc, "fig_time"),
+        (galvo_ilc, "fig_psd"),
+        (galvo_ilc, "fig_learning"),
+        (figures, "fig_velocity"),
+        (figures, "fig_line_width"),
     ):
-        monkeypatch.setattr(figures, name, tiny)
+        monkeypatch.setattr(module, name, tiny)
     path = write_report(tmp_path, {400: result}, main_rate=400.0)
     text = path.read_text(encoding="utf-8")
     assert "Comparison with seed 000" not in text
@@ -120,7 +121,7 @@ def test_figure_failure_leaves_no_report(result, tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise RuntimeError("simulated figure failure")
 
-    monkeypatch.setattr(figures, "fig_psd", boom)
+    monkeypatch.setattr(galvo_ilc, "fig_psd", boom)
     out = tmp_path / "fresh"
     with pytest.raises(RuntimeError, match="simulated figure failure"):
         write_report(out, {400.0: result}, main_rate=400)
@@ -135,7 +136,7 @@ def test_figure_failure_keeps_previous_report(result, tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise RuntimeError("simulated figure failure")
 
-    monkeypatch.setattr(figures, "fig_xy", boom)
+    monkeypatch.setattr(galvo_ilc, "fig_xy", boom)
     with pytest.raises(RuntimeError):
         write_report(tmp_path, {400.0: result}, main_rate=400)
     assert old.read_text(encoding="utf-8") == "old report"

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from microfab.experiments.seed000_msl.report import FIGURE_FILES, write_report
-from microfab.experiments.seed000_msl.run import run_msl_ilc
+from microfab.machines.galvo_ilc import run_msl_ilc
 
 BROWSER = next(
     (b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None

@@ -22,9 +22,10 @@ Job file (``examples/galvo_msl_default.toml``)::
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from microfab.control.ilc import ILCConfig
 from microfab.experiments.kinds import (
@@ -39,7 +40,19 @@ from microfab.io.job import Key
 from microfab.machines import galvo as galvo_machine
 from microfab.report.tables import Table, versus
 
-__all__ = ["MSL_ILC", "MSL_ILC_REPRODUCTION", "MSLConfig", "MSLJobResult", "comparison_tables"]
+if TYPE_CHECKING:  # the learning run is imported when a job runs
+    from microfab.machines.galvo_ilc import MSLRunResult
+    from microfab.plants.galvo import GalvoAxis
+
+__all__ = [
+    "MSL_ILC",
+    "MSL_ILC_REPRODUCTION",
+    "MSLConfig",
+    "MSLJobResult",
+    "comparison_tables",
+    "reproduce_tables",
+    "tables_from_runs",
+]
 
 FS_HZ = 1_000_000  # seed 000 §3.1: the loop runs at 1 MHz; a rate must divide it
 MAX_ITERATIONS = 1000  # assumed bound: 30 trials take ~4 s per rate; 1000 about 2 minutes
@@ -132,7 +145,7 @@ class MSLJobResult:
     """Runs of one msl-ilc job, by rate, with the numbers of seed Tables 1 and 2."""
 
     config: MSLConfig
-    runs: dict[int, Any]
+    runs: dict[int, MSLRunResult]
     numbers: dict[str, Any]
 
     def comparison(self) -> tuple[Table, ...]:
@@ -162,7 +175,7 @@ class MSLJobResult:
 
 
 def _run(config: MSLConfig, out: Path, progress: Progress) -> MSLJobResult:
-    from microfab.experiments.seed000_msl.run import run_msl_ilc, tables_from_runs
+    from microfab.machines.galvo_ilc import run_msl_ilc
 
     axes = galvo_machine.calibrated_axes()
     runs = {}
@@ -215,7 +228,7 @@ def comparison_tables(tables: dict[str, Any]) -> tuple[Table, ...]:
     Parameters
     ----------
     tables : dict
-        From `microfab.experiments.seed000_msl.run.tables_from_runs` (rates as strings).
+        From `tables_from_runs` (rates as strings).
     """
     rates = sorted(int(r) for r in tables["table2"])
     t1_rows = []
@@ -273,9 +286,69 @@ def comparison_tables(tables: dict[str, Any]) -> tuple[Table, ...]:
     )
 
 
-def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
-    from microfab.experiments.seed000_msl.run import reproduce_tables
+def tables_from_runs(
+    runs: Mapping[int, MSLRunResult], axes: Mapping[str, GalvoAxis]
+) -> dict[str, Any]:
+    """Our numbers of seed Tables 1 and 2, the loop margins and the learning curves.
 
+    Parameters
+    ----------
+    runs : mapping of int to MSLRunResult
+        Runs by rate, features/s.
+    axes : mapping of str to GalvoAxis
+        The axes whose feedback-loop margins are computed (seed 000 §3.1).
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``table1`` (mV), ``table2`` (mm/s), ``margins`` (dB, deg, Hz) and
+        ``rms_history`` (mV), rates as string keys.
+    """
+    from microfab.machines.galvo_ilc import axis_margins
+
+    rates = sorted(runs)
+    names = runs[rates[0]].axes
+    table1 = {a: {str(r): runs[r].table1_row(a) for r in rates} for a in names}
+    table2 = {str(r): runs[r].velocity_stats() for r in rates}
+    hist = {
+        a: {str(r): (runs[r].rms_history[:, i] * 1e3).tolist() for r in rates}
+        for i, a in enumerate(names)
+    }
+    return {
+        "table1": table1,
+        "table2": table2,
+        "margins": axis_margins(axes),
+        "rms_history": hist,
+    }
+
+
+def reproduce_tables(
+    rates: tuple[int, ...] = paper.RATES,
+    iterations: int = 30,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[dict[str, Any], dict[int, MSLRunResult]]:
+    """Run every rate and collect Tables 1 and 2, margins and learning curves.
+
+    Returns
+    -------
+    tables : dict
+        `tables_from_runs` of the runs (values in mV and mm/s).
+    runs : dict of int to MSLRunResult
+        The runs by rate.
+    """
+    from microfab.machines.galvo_ilc import run_msl_ilc
+
+    axes = galvo_machine.calibrated_axes()
+    runs: dict[int, MSLRunResult] = {}
+    for r in rates:
+        if progress is not None:
+            progress(f"{r} features/s")
+        runs[r] = run_msl_ilc(r, iterations, axes=axes, seed=seed)
+    return tables_from_runs(runs, axes), runs
+
+
+def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
     n = len(paper.RATES)
     progress("seed 000 rates", 0, n)
     done = 0

@@ -1,11 +1,11 @@
 """Self-contained HTML report of seed 000 runs: figures, Tables 1 and 2, seed comparison.
 
-:func:`write_report` draws the figures of :mod:`.figures` for the main rate (the
-learning transient for every rate), writes them as PNGs next to ``report.html``, and
-writes the HTML with tables of our numbers and, when given, our numbers beside the
-seed's. All figures are rendered in memory before anything is written, and every file is
-written atomically, so a failure while drawing leaves the directory as it was (no partial
-or new ``report.html``).
+`write_report` draws the figures (`microfab.report.galvo_ilc`, `microfab.report.loops`
+and `.figures`) of the main rate (the learning transient of every rate), writes them as
+PNGs next to ``report.html``, and writes the HTML with tables of our numbers and, when
+given, our numbers beside the seed's. All figures are rendered in memory before anything
+is written, and every file is written atomically, so a failure while drawing leaves the
+directory as it was (no partial or new ``report.html``).
 
 References
 ----------
@@ -21,12 +21,14 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from microfab.experiments.seed000_msl import figures, loop_figures
+from microfab.experiments.seed000_msl import figures
 from microfab.experiments.seed000_msl import paper as seed000
-from microfab.experiments.seed000_msl.run import MSLRunResult
 from microfab.machines import galvo as galvo_machine
+from microfab.machines.galvo import open_loop
+from microfab.machines.galvo_ilc import MSLRunResult
 from microfab.plants.galvo import GalvoAxis
-from microfab.report.canvas import render_svg
+from microfab.report import galvo_ilc, loops
+from microfab.report.canvas import render_png, render_svg
 from microfab.report.page import Figure, page_html, write_page
 
 __all__ = ["FIGURE_FILES", "fmt_mm_s", "fmt_mv", "write_report"]
@@ -43,7 +45,7 @@ FIGURE_FILES = (
     "eq5.png",
 )
 
-_T1_KEYS = ("fb_rms", "fb_pp", "ilc_rms", "ilc_pp")
+_BODE_TITLE = "Open loop of each axis (seed 000 eq. 1 controller, twin plant)"
 _T2_STATS = ("mean", "std", "min", "max")
 _DASH = "&mdash;"
 
@@ -99,19 +101,20 @@ def _render_figures(
     """Draw and render every figure to PNG and SVG bytes (nothing is written here)."""
     # Looked up on the module at call time so that tests can substitute a function.
     makers: list[tuple[str, Callable[[], Any]]] = [
-        ("xy.png", lambda: figures.fig_xy(main)),
-        ("time.png", lambda: figures.fig_time(main)),
-        ("psd.png", lambda: figures.fig_psd(main)),
-        ("learning.png", lambda: figures.fig_learning(runs)),
+        ("xy.png", lambda: galvo_ilc.fig_xy(main)),
+        ("time.png", lambda: galvo_ilc.fig_time(main)),
+        ("psd.png", lambda: galvo_ilc.fig_psd(main)),
+        ("learning.png", lambda: galvo_ilc.fig_learning(runs)),
         ("velocity.png", lambda: figures.fig_velocity(main)),
         ("line_width.png", lambda: figures.fig_line_width(main)),
-        ("bode.png", lambda: loop_figures.fig_bode(galvo_axes)),
-        ("eq5.png", lambda: loop_figures.fig_eq5(main)),
-    ]
+        ("bode.png", lambda: loops.fig_bode({n: open_loop(a) for n, a in galvo_axes.items()},
+                                            title=_BODE_TITLE)),
+        ("eq5.png", lambda: galvo_ilc.fig_eq5(main)),
+    ]  # fmt: skip
     out = []
     for name, make in makers:
         fig = make()
-        out.append((name, figures.render_png(fig), render_svg(fig)))
+        out.append((name, render_png(fig), render_svg(fig)))
     return out
 
 
@@ -350,7 +353,7 @@ def write_report(
         Rate whose run is drawn in the other figures; must be a key of ``runs``.
     tables : dict, optional
         Our numbers as returned by
-        :func:`microfab.experiments.seed000_msl.run.reproduce_tables`: ``{"table1": {axis:
+        `microfab.experiments.seed000_msl.job.tables_from_runs`: ``{"table1": {axis:
         {rate: {"fb_rms", "fb_pp", "ilc_rms", "ilc_pp"}}}, "table2": {rate: {...}},
         "margins": {axis: {"gm_db", "pm_deg"}}}`` with string rate keys. When given,
         they are shown beside the seed's values (:mod:`microfab.experiments.seed000_msl.paper`)

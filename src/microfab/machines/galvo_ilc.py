@@ -1,9 +1,17 @@
-"""Seed 000 on the digital twin: galvo MSL, feedback vs frequency-domain ILC.
+"""The ILC learning run of the galvo MSL machine (seed 000): `run_msl_ilc`.
 
-`run_msl_ilc` runs one scan rate (both axes) for a number of ILC iterations on a
-`Machine`, saving the learning state after every iteration so that an interrupted run
-resumes where it stopped. `reproduce_tables` runs all three rates and assembles the
-numbers of seed Tables 1 and 2 beside ours.
+`run_msl_ilc` learns one scan rate (the square of seed 000 §4, both axes) for a number of
+trials with the frequency-domain ILC (`microfab.control.ilc.FrequencyILC`) through the
+one learning loop (`microfab.machines.learning.learn`) on the galvo twin
+(`microfab.machines.galvo.twin`) or another `Machine`. With a state directory the learning
+state and the twin's snapshot are saved as it goes (at least every `SAVE_EVERY_S`), so an
+interrupted run resumes bit-identically. `MSLRunResult` holds what it measured: the
+feedback-only and last trials, the learning curves, the eq. (5) convergence factor at
+every learned harmonic, and the seed's error and beam-speed figures of one rate
+(`MSLRunResult.table1_row`, `MSLRunResult.velocity_stats`); `axis_margins` gives the
+feedback loops' margins (seed 000 §3.1). The ``msl-ilc`` job kind
+(``microfab run``, `microfab.experiments.seed000_msl.job`) runs it per rate; its figures
+are `microfab.report.galvo_ilc`.
 """
 
 from __future__ import annotations
@@ -11,13 +19,11 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from microfab.control.ilc import FrequencyILC, ILCConfig
 from microfab.control.margins import loop_margins
-from microfab.experiments.seed000_msl import paper as seed000
 from microfab.machines import galvo as galvo_machine
 from microfab.machines.base import Machine
 from microfab.machines.galvo import complementary_sensitivity, open_loop
@@ -26,7 +32,7 @@ from microfab.plants.galvo import GalvoAxis
 from microfab.process.velocity import BeamVelocityParams, beam_velocity
 from microfab.trajectory.periodic import square_scan
 
-__all__ = ["MSLRunResult", "reproduce_tables", "run_msl_ilc"]
+__all__ = ["SAVE_EVERY_S", "MSLRunResult", "axis_margins", "run_msl_ilc", "square_reference"]
 
 #: Least wall time between two saves of the learning state on the twin, s. Assumed: a
 #: killed run then replays at most 2 s of trials (bit-identical), and the state file,
@@ -101,6 +107,10 @@ class MSLRunResult:
         """Scan period, s."""
         return self.reference.shape[0] * self.dt
 
+    def to_mm(self, signal: np.ndarray) -> np.ndarray:
+        """Encoder volts, shape (N, n_axes), to beam position, mm, per-axis scale."""
+        return np.asarray(signal, dtype=float) * np.asarray(self.scale_mm_per_v)[np.newaxis, :]
+
     def velocity_params(self) -> BeamVelocityParams:
         """Seed 000 §4.2 beam-velocity settings with this run's mm/V scales."""
         return BeamVelocityParams(scale_mm_per_v=self.scale_mm_per_v)
@@ -130,7 +140,21 @@ class MSLRunResult:
         }
 
 
-def _square_reference(axes: dict[str, GalvoAxis], features_per_s: float) -> np.ndarray:
+def square_reference(axes: Mapping[str, GalvoAxis], features_per_s: float) -> np.ndarray:
+    """One period of the square scan of seed 000 §4 on the first two axes, encoder V.
+
+    Parameters
+    ----------
+    axes : mapping of str to GalvoAxis
+        The axes; their ``amplitude_v`` sizes the square, the first one's ``fs_hz`` samples it.
+    features_per_s : float
+        Laps of the square per second.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (N, 2), N samples per period at the first axis' sample rate.
+    """
     ax = list(axes.values())
     return square_scan(features_per_s, (ax[0].amplitude_v, ax[1].amplitude_v), ax[0].fs_hz)
 
@@ -182,7 +206,7 @@ def run_msl_ilc(
     axes = axes or galvo_machine.calibrated_axes()
     names = tuple(axes)
     machine = machine or galvo_machine.twin(axes, seed=seed)
-    ref = _square_reference(axes, features_per_s)
+    ref = square_reference(axes, features_per_s)
     dt = machine.dt
 
     def true_frf(f: np.ndarray) -> np.ndarray:
@@ -232,64 +256,26 @@ def _eq5(ilc: FrequencyILC, true_frf: Callable[[np.ndarray], np.ndarray]) -> lis
     return out
 
 
-def reproduce_tables(
-    rates: tuple[int, ...] = seed000.RATES,
-    iterations: int = 30,
-    seed: int = 0,
-    progress: Callable[[str], None] | None = None,
-) -> tuple[dict[str, Any], dict[int, MSLRunResult]]:
-    """Run every rate and collect Tables 1 and 2, margins and learning curves.
-
-    Returns
-    -------
-    tables : dict
-        JSON-ready dict with keys ``table1``, ``table2``, ``margins``, ``rms_history``
-        (values in mV and mm/s), shaped as documented in the README.
-    runs : dict of int to MSLRunResult
-        The runs by rate.
-    """
-    axes = galvo_machine.calibrated_axes()
-    runs: dict[int, MSLRunResult] = {}
-    for r in rates:
-        if progress is not None:
-            progress(f"{r} features/s")
-        runs[r] = run_msl_ilc(r, iterations, axes=axes, seed=seed)
-    return tables_from_runs(runs, axes), runs
-
-
-def tables_from_runs(
-    runs: Mapping[int, MSLRunResult], axes: Mapping[str, GalvoAxis]
-) -> dict[str, Any]:
-    """Our numbers of seed Tables 1 and 2, the loop margins and the learning curves.
+def axis_margins(axes: Mapping[str, GalvoAxis]) -> dict[str, dict[str, float]]:
+    """Gain and phase margins of each axis' feedback loop ``L = C G`` (seed 000 §3.1).
 
     Parameters
     ----------
-    runs : mapping of int to MSLRunResult
-        Runs by rate, features/s.
     axes : mapping of str to GalvoAxis
-        The axes whose feedback-loop margins are computed (seed 000 §3.1).
+        The axes (their discrete open loops, `microfab.machines.galvo.open_loop`).
 
     Returns
     -------
     dict
-        JSON-ready: ``table1`` (mV), ``table2`` (mm/s), ``margins`` (dB, deg, Hz) and
-        ``rms_history`` (mV), rates as string keys.
+        Per axis: ``gm_db`` (dB), ``pm_deg`` (deg), ``gm_freq_hz`` and ``pm_freq_hz`` (Hz).
     """
-    rates = sorted(runs)
-    names = runs[rates[0]].axes
-    table1 = {a: {str(r): runs[r].table1_row(a) for r in rates} for a in names}
-    table2 = {str(r): runs[r].velocity_stats() for r in rates}
-    margins = {}
+    out = {}
     for name, ax in axes.items():
         m = loop_margins(open_loop(ax))
-        margins[name] = {
+        out[name] = {
             "gm_db": m.gm_db,
             "pm_deg": m.pm_deg,
             "gm_freq_hz": m.gm_freq_hz,
             "pm_freq_hz": m.pm_freq_hz,
         }
-    hist = {
-        a: {str(r): (runs[r].rms_history[:, i] * 1e3).tolist() for r in rates}
-        for i, a in enumerate(names)
-    }
-    return {"table1": table1, "table2": table2, "margins": margins, "rms_history": hist}
+    return out
