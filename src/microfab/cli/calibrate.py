@@ -44,9 +44,8 @@ def calibrate_nanomanipulator_cmd(
 ) -> None:
     """Fit the nanomanipulator twin's sensor noise to seed 001 §4.2's axial RMS."""
     from microfab.cli._kit import fail
-    from microfab.experiments.seed001_nanomanipulator.calibration import fit_noise
-    from microfab.experiments.seed001_nanomanipulator.run import JobConfig
-    from microfab.machines.nanomanipulator_calibration import write_noise
+    from microfab.machines.nanomanipulator_calibration import fit_noise, write_noise
+    from microfab.machines.nanomanipulator_job import JobConfig
 
     config = None
     if job is not None:

@@ -3,8 +3,8 @@
 Seed 001 §4.2 (Fig. 13a) reports axial tracking errors of 485.8 nm (x) and 885.8 nm (y)
 on the four-circle job; it names no noise, disturbance or sensor. The twin's
 ``noise_rms_mm`` per axis is the one free magnitude fitted here: `fit_sensor_noise` runs
-the job with a noise (the caller's ``run``: the nanomanipulator job,
-`microfab.experiments.seed001_nanomanipulator.calibration.fit_noise`), compares the axial
+the job with a noise (the caller's ``run``; `fit_noise` runs the nanomanipulator job,
+`microfab.machines.nanomanipulator_job.run_job`), compares the axial
 RMS of the error the sensor shows over every circle period
 (`microfab.measure.circle_tracking.tracking_metrics`) with the seed's, and updates the
 noise per axis by the secant method on ``(σ², RMS²)``. White noise adds to the squared
@@ -17,6 +17,7 @@ one) with a source line naming this command.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,12 +25,14 @@ from pathlib import Path
 
 from microfab.core.validate import check_in_range, check_int
 from microfab.io.atomic import atomic_write_text
+from microfab.machines.nanomanipulator_job import JobConfig, make_twin, run_job
 from microfab.plants.sourced_toml import update_sourced
 
 __all__ = [
     "SEED_AXIAL_RMS_NM",
     "SEED_CONTOUR_RMS_NM",
     "NoiseFit",
+    "fit_noise",
     "fit_sensor_noise",
     "write_noise",
 ]
@@ -161,6 +164,46 @@ def fit_sensor_noise(
         contour_rms_nm=contour,
         runs=len(hist),
         history=tuple(hist),
+    )
+
+
+def fit_noise(
+    config: JobConfig | None = None,
+    *,
+    rtol: float = 0.01,
+    max_runs: int = 8,
+    progress: Callable[[int, tuple[float, float], tuple[float, float]], None] | None = None,
+) -> NoiseFit:
+    """Fit ``noise_rms_mm`` per axis so the job's axial RMS meets seed 001 §4.2.
+
+    Parameters
+    ----------
+    config : JobConfig, optional
+        The job (default `JobConfig()`); its twin's noise is the start and must be on.
+    rtol, max_runs, progress
+        As `fit_sensor_noise`.
+
+    Returns
+    -------
+    NoiseFit
+
+    Raises
+    ------
+    ValueError
+        When the noise is off in ``config``, or as `fit_sensor_noise`.
+    """
+    cfg = config or JobConfig()
+    if not cfg.twin.noise:
+        raise ValueError("fit_noise needs the sensor noise on ([twin] noise = true)")
+
+    def run(s: tuple[float, float]) -> tuple[tuple[float, float], float]:
+        tw = dataclasses.replace(cfg.twin, noise_rms_mm=(s[0] * 1e-6, s[1] * 1e-6))
+        m = run_job(dataclasses.replace(cfg, twin=tw)).metrics()
+        return (float(m.axial_rms_nm[0]), float(m.axial_rms_nm[1])), float(m.contour_rms_nm)
+
+    start = [float(v) * 1e6 for v in make_twin(cfg.twin).noise_rms_mm()]  # nm
+    return fit_sensor_noise(
+        run, (start[0], start[1]), rtol=rtol, max_runs=max_runs, progress=progress
     )
 
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
-from microfab.experiments.seed001_nanomanipulator.run import JobConfig
 from microfab.io.job import JobFileError
+from microfab.machines.nanomanipulator_job import JobConfig
 
 EXAMPLE = Path(__file__).parents[3] / "examples" / "nanomanipulator_msl.toml"
 

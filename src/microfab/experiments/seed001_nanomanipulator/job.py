@@ -32,19 +32,19 @@ from typing import Any
 from microfab.control.rbf import RBFConfig
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed001_nanomanipulator import paper
-from microfab.experiments.seed001_nanomanipulator.cure import cure_circles
-from microfab.experiments.seed001_nanomanipulator.results import (
-    NanomanipulatorResult,
-)
-from microfab.experiments.seed001_nanomanipulator.run import (
-    JobConfig,
-    RCSettings,
-    TwinSettings,
-    run_job,
-)
+from microfab.experiments.seed001_nanomanipulator.results import NanomanipulatorResult
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import nanomanipulator
+from microfab.machines.nanomanipulator_cure import cure_circles
+from microfab.machines.nanomanipulator_job import (
+    JobConfig,
+    RCSettings,
+    TwinSettings,
+    job_reference,
+    make_twin,
+    run_job,
+)
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
 from microfab.trajectory.circle_pattern import PatternConfig
@@ -184,14 +184,8 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> JobConfig:
 
 def _checked_config(sec: dict[str, dict[str, Any]]) -> JobConfig:
     """`config_from_sections`, then the checks that need the twin (β, period, travel)."""
-    from microfab.core.limits import MachineLimits, check_trajectory
-    from microfab.experiments.seed001_nanomanipulator.run import make_twin
-    from microfab.trajectory.circle_pattern import pattern_reference
-
     cfg = config_from_sections(sec)
-    plant = make_twin(cfg.twin)  # refuses β <= β_min in the workspace
-    ref = pattern_reference(cfg.pattern, plant.dt)  # refuses a period not whole samples
-    check_trajectory(ref.trajectory(), MachineLimits.seed001_stage())
+    job_reference(cfg, make_twin(cfg.twin))  # make_twin refuses β <= β_min in the workspace
     return cfg
 
 

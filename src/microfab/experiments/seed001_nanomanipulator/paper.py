@@ -1,11 +1,41 @@
 """Published numbers of seed 001 (compliant nanomanipulator MSL, RBF + plug-in RC).
 
 Every value cites its equation or section in ``../shared/seeds/001_44fdd8e8f587fd7f.txt``.
-Figures 8-10 carry no numbers; the targets the project sets for them are in
-`FIG_TARGETS` and say so.
+The values a lower module needs are written there, with their citation, and re-exported
+here: the pattern's (`microfab.trajectory.circle_pattern`), the spot and line width
+(`microfab.process.dose`) and the axial and contour RMS the noise fit aims at
+(`microfab.machines.nanomanipulator_calibration`). Figures 8-10 carry no numbers; the
+targets the project sets for them are in `FIG_TARGETS` and say so.
 """
 
 from __future__ import annotations
+
+from microfab.machines.nanomanipulator_calibration import (
+    SEED_AXIAL_RMS_NM,
+    SEED_CONTOUR_RMS_NM,
+)
+from microfab.process.dose import SEED001_LINE_WIDTH_M, SEED001_SPOT_DIAMETER_M
+from microfab.trajectory.circle_pattern import (
+    CIRCLE_DIAMETER_MM,
+    FIELD_MM,
+    N_CIRCLES,
+    TRAVEL_MM,
+)
+
+__all__ = [
+    "AXIAL_RMS_NM",
+    "CIRCLE_DIAMETER_MM",
+    "CONTOUR_RMS_NM",
+    "EQ9",
+    "FIELD_MM",
+    "FIG_TARGETS",
+    "GATE_PERIODS",
+    "LINE_WIDTH_UM",
+    "N_CIRCLES",
+    "SPOT_UM",
+    "TRAVEL_MM",
+    "WAVELENGTH_NM",
+]
 
 #: seed 001 eq. (9): identified transfer functions K / (s² + a1 s + a0), per axis.
 EQ9: dict[str, dict[str, float]] = {
@@ -13,20 +43,15 @@ EQ9: dict[str, dict[str, float]] = {
     "y": {"K": 319852.42, "a1": 18.52, "a0": 99664.23},
 }
 
-TRAVEL_MM = 1.5  # seed 001 §2: working range up to ±1.5 mm per axis
 WAVELENGTH_NM = 405.0  # seed 001 §2: blue laser diode
-SPOT_UM = 3.0  # seed 001 §2: "the focused spot size ... is around 3 microns"
-
-CIRCLE_DIAMETER_MM = 0.15  # seed 001 §4.2: circular contour of diameter 0.15 mm
-N_CIRCLES = 4  # seed 001 §4.2: four circle patterns in one operation
-FIELD_MM = 0.5  # seed 001 §4.2: working range of the manipulator about 0.5 mm
+SPOT_UM = SEED001_SPOT_DIAMETER_M * 1e6  # seed 001 §2: spot "around 3 microns"
 GATE_PERIODS = (3, 4)  # seed 001 §4.2: error reaches submicrons in 3-4 periods
 
 #: seed 001 §4.2 / Fig. 13a: axial tracking errors (not labelled RMS in the seed; read as
 #: RMS: the contour RMS agrees, sqrt((485.8² + 885.8²)/2) = 714 nm against 769.5 nm).
-AXIAL_RMS_NM = {"x": 485.8, "y": 885.8}
-CONTOUR_RMS_NM = 769.5  # seed 001 §4.2 / Fig. 13b: contour error, RMS over phase
-LINE_WIDTH_UM = 2.5  # seed 001 §4.2, Figs. 14-15: linewidth ~2.5 µm
+AXIAL_RMS_NM = dict(zip("xy", SEED_AXIAL_RMS_NM, strict=True))
+CONTOUR_RMS_NM = SEED_CONTOUR_RMS_NM  # seed 001 §4.2 / Fig. 13b: contour error, RMS over phase
+LINE_WIDTH_UM = SEED001_LINE_WIDTH_M * 1e6  # seed 001 §4.2, Figs. 14-15: linewidth ~2.5 µm
 
 #: Figs. 8-10 give curves only; these are the project's targets (issue 14), not seed data.
 FIG_TARGETS = {

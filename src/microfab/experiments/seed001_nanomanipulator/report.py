@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
-from microfab.experiments.seed001_nanomanipulator.cure import PRINTS, CircleCure
-from microfab.experiments.seed001_nanomanipulator.run import JobRun
+from microfab.machines.nanomanipulator_cure import PRINTS, CircleCure
+from microfab.machines.nanomanipulator_job import JobRun
 from microfab.report.canvas import new_figure
 
 if TYPE_CHECKING:

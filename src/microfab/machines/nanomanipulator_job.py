@@ -1,8 +1,10 @@
-"""Seed 001 §4.2 on the twin: four circles, RBF + plug-in RC, gated laser, cured lines.
+"""Seed 001 §4.2 on the twin: a circle field, RBF + plug-in RC, gated laser, resumable.
 
-`run_job` runs the whole pattern of `microfab.trajectory.circle_pattern.pattern_reference`
-on the nanomanipulator twin, one sample at a time (`microfab.sim.loop.LoopStepper`,
-compiled):
+The nanomanipulator-msl job's machinery (`microfab run`, `microfab calibrate
+nanomanipulator`): `run_job` runs the whole pattern of
+`microfab.trajectory.circle_pattern.pattern_reference` on the nanomanipulator twin
+(`microfab.machines.nanomanipulator.twin`), one sample at a time in period-long chunks
+(`microfab.machines.nanomanipulator_chunks`):
 
 * **Transfers** between circles (the move and the final hold) run under the PID of
   seed 001 Fig. 8 (`PID.tuned`, crossover ``pid_bandwidth_hz``): the seed does not say
@@ -19,9 +21,9 @@ compiled):
 Sensor noise is drawn once for the whole job from ``twin.seed`` (the disturbance phases
 use the same seed), so a run is reproducible to the bit.
 
-Interruption: the job runs in period-long chunks. With an ``out`` directory it saves
-the chunks run since the last save and the loop state after them (plant, RBF weights,
-RC memory, gate state) in one file ``run/chunks/NNNNN.npz``, atomically (`checkpoint`),
+Interruption: with an ``out`` directory `run_job` saves the chunks run since the last save
+and the loop state after them (plant, RBF weights, RC memory, gate state) in one file
+``run/chunks/NNNNN.npz``, atomically (`microfab.machines.nanomanipulator_chunks.save_chunks`),
 at most once per ``checkpoint_s`` of wall time and always when interrupted, on a worker
 thread while the next chunks run (`BackgroundWriter`; an interruption waits for the
 files handed over). Running the same config again resumes after the last saved chunk
@@ -31,7 +33,6 @@ and gives bit-identical results; a different config refuses to touch the saved r
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import math
 import time
@@ -42,29 +43,24 @@ from typing import Any
 
 import numpy as np
 
-from microfab.control.gate import GateConfig, run_gate
-from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
-from microfab.control.rbf_handover import feedback_gain, handover
 from microfab.control.rc_memory import RCMemory
-from microfab.control.repetitive import PluginRC, RCConfig
-from microfab.core.limits import MachineLimits, check_trajectory
+from microfab.control.repetitive import PluginRC
+from microfab.core.limits import check_trajectory
 from microfab.core.validate import check_int, check_nonnegative, check_positive
-from microfab.experiments.seed001_nanomanipulator.checkpoint import (
+from microfab.io.background import BackgroundWriter
+from microfab.machines import nanomanipulator
+from microfab.machines.nanomanipulator_chunks import (
     Chunk,
+    ChunkRunner,
     load_chunks,
     save_chunks,
 )
-from microfab.io.background import BackgroundWriter
-from microfab.machines import nanomanipulator
-from microfab.measure.circle_tracking import (
-    TrackingMetrics,
-    pattern_metrics,
-)
+from microfab.measure.circle_tracking import TrackingMetrics, pattern_metrics
 from microfab.plants.nanomanipulator import NanomanipulatorPlant
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
-from microfab.sim.loop import LoopState, LoopStepper
+from microfab.sim.loop import LoopState
 from microfab.trajectory.circle_pattern import (
     PatternConfig,
     PatternReference,
@@ -75,16 +71,16 @@ __all__ = [
     "CircleRun",
     "JobConfig",
     "JobRun",
+    "Progress",
     "RCSettings",
-    "Segment",
     "TwinSettings",
-    "job_segments",
+    "job_reference",
     "make_twin",
     "run_job",
 ]
 
+#: ``progress(task, done, total)``: called per chunk.
 Progress = Callable[[str, int, int | None], None]
-_HANDOVER_MEAN_S = 5e-3  # assumed: time averaged for the hand-over point (0.25 of the 50 Hz mode)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -147,7 +143,8 @@ class RCSettings:
     gain : float
         Learning gain in (0, 2] (seed: none; 1 taken).
     lead_samples : int
-        Phase lead, samples (assumed 20: the RBF loop lags; see `compare.py`).
+        Phase lead, samples (assumed 20: the RBF loop lags; as the seed 001 Fig. 10
+        comparison).
     carry : bool
         The memory of one circle seeds the next (same pattern phase); default False.
     """
@@ -155,7 +152,7 @@ class RCSettings:
     enabled: bool = True
     tau_s: float = 1.0 / (2.0 * math.pi * 100.0)  # assumed: Q cutoff 100 Hz
     gain: float = 1.0  # seed 001 §3.3 gives no gain; 1 taken
-    lead_samples: int = 20  # assumed (compare.py)
+    lead_samples: int = 20  # assumed (as the Fig. 10 comparison)
     carry: bool = False
 
     def __post_init__(self) -> None:
@@ -188,7 +185,8 @@ class JobConfig:
     twin : TwinSettings
         The twin.
     pid_bandwidth_hz : float
-        Crossover of the transfer PID, Hz (assumed 200 Hz, as `compare.py`).
+        Crossover of the transfer PID, Hz (assumed 200 Hz, as the seed 001 Fig. 8
+        comparison).
     handover_damping : float
         Damping ratio the RBF's hand-over weights inject (`rbf_handover`; assumed 1).
     log_every : int
@@ -203,7 +201,7 @@ class JobConfig:
     laser: LaserDiode = field(default_factory=LaserDiode)
     dose: DoseSettings = field(default_factory=DoseSettings)
     twin: TwinSettings = field(default_factory=TwinSettings)
-    pid_bandwidth_hz: float = 200.0  # assumed (compare.py)
+    pid_bandwidth_hz: float = 200.0  # assumed (as the Fig. 8 comparison)
     handover_damping: float = 1.0  # assumed (rbf_handover)
     log_every: int = 500
 
@@ -240,30 +238,18 @@ def make_twin(settings: TwinSettings) -> NanomanipulatorPlant:
     )  # built once per distinct settings (machines.nanomanipulator)
 
 
-@dataclass(frozen=True)
-class Segment:
-    """Samples ``[start, stop)`` under one controller: ``circle`` is None for a transfer."""
+def job_reference(config: JobConfig, plant: NanomanipulatorPlant) -> PatternReference:
+    """The job's reference at the twin's rate, checked against the stage.
 
-    start: int
-    stop: int
-    circle: int | None
-
-
-def job_segments(ref: PatternReference, config: PatternConfig) -> tuple[Segment, ...]:
-    """Transfer and circle segments of a pattern, in order, covering every sample."""
-    n_move = max(round(config.move_s / ref.dt), 1)
-    n_pause = max(round(config.pause_s / ref.dt), 1)
-    n_ramp = max(round(config.ramp_s / ref.dt), 1)
-    n_ring = 2 * n_ramp + ref.period_samples * ref.periods
-    segs: list[Segment] = []
-    pos = 0
-    for i in range(len(ref.starts)):
-        segs.append(Segment(pos, pos + n_move, None))
-        pos += n_move
-        segs.append(Segment(pos, pos + n_pause + n_ring, i))
-        pos += n_pause + n_ring
-    segs.append(Segment(pos, ref.n_samples, None))
-    return tuple(segs)
+    Raises
+    ------
+    ValueError
+        When the period is not a whole number of samples, or the path goes beyond the
+        stage's travel or limits (`microfab.machines.nanomanipulator.limits`).
+    """
+    ref = pattern_reference(config.pattern, plant.dt)
+    check_trajectory(ref.trajectory(), nanomanipulator.limits())
+    return ref
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -362,202 +348,6 @@ class JobRun:
         return pattern_metrics(self.reference, self.measured, self.laser)
 
 
-# ---------------------------------------------------------------------------- running
-def _chunks(segs: tuple[Segment, ...], n_period: int) -> list[tuple[int, int, int]]:
-    """``(segment index, start, stop)`` of every chunk: segments cut into periods."""
-    out = []
-    for k, sg in enumerate(segs):
-        a = sg.start
-        while a < sg.stop:
-            b = min(a + n_period, sg.stop)
-            out.append((k, a, b))
-            a = b
-    return out
-
-
-class _Runner:
-    """Builds the controllers of a job and runs its chunks."""
-
-    def __init__(self, config: JobConfig) -> None:
-        self.config = config
-        self.plant = make_twin(config.twin)
-        dt = self.plant.dt
-        self.ref = pattern_reference(config.pattern, dt)
-        self.segs = job_segments(self.ref, config.pattern)
-        self.N = self.ref.period_samples
-        self.chunks = _chunks(self.segs, self.N)
-        rms = self.plant.noise_level.array() if config.twin.noise else np.zeros(2)
-        self.noise_rms = np.asarray(rms, dtype=float)
-        rng = np.random.default_rng(config.twin.seed)
-        self.noise = rng.standard_normal(self.ref.position.shape) * self.noise_rms[None, :]
-        self.pid = PID.tuned(
-            self.plant.continuous_models(), bandwidth_hz=config.pid_bandwidth_hz, dt=dt
-        )
-        p = self.plant.config
-        self.ks = [
-            feedback_gain(
-                p.numerator_mm_per_v_s2[a], p.stiffness_per_s2[a], config.handover_damping
-            )
-            for a in range(2)
-        ]
-        self._ctrl: dict[int, Any] = {}
-
-    # -- controllers
-    def circle_rbf(self, i: int) -> RBFAdaptive:
-        s0, n = self.ref.starts[i], self.N
-        one = slice(s0, s0 + n)
-        r = self.ref
-        return RBFAdaptive.for_reference(
-            r.position[one], r.velocity[one], r.acceleration[one], r.dt, self.config.rbf
-        )
-
-    def rc_config(self, seg: Segment) -> RCConfig:
-        i = seg.circle
-        assert i is not None
-        rc = self.config.rc
-        return RCConfig(
-            period_s=self.config.pattern.period_s,
-            dt=self.ref.dt,
-            tau_s=rc.tau_s,
-            gain=rc.gain,
-            lead_samples=rc.lead_samples,
-            carry=rc.carry,  # keep a memory loaded from the last circle at the window start
-            windows=((self.ref.starts[i] - seg.start, self.ref.periods),),
-        )
-
-    def controller(self, k: int, measured: np.ndarray, command: np.ndarray) -> Any:
-        """Controller of segment ``k`` (built once; hand-over from the signals before it)."""
-        if k in self._ctrl:
-            return self._ctrl[k]
-        seg = self.segs[k]
-        if seg.circle is None:
-            ctrl: Any = self.pid
-        else:
-            rbf = self.circle_rbf(seg.circle)
-            a = seg.start
-            if a > 0:
-                lo = max(a - max(round(_HANDOVER_MEAN_S / self.ref.dt), 1), 0)
-                r = self.ref
-                rbf = handover(
-                    rbf,
-                    measured=measured[lo:a].mean(axis=0),
-                    reference=np.stack([r.position[a], r.velocity[a], r.acceleration[a]]),
-                    command=command[lo:a].mean(axis=0),
-                    gains=self.ks,
-                )
-            ctrl = PluginRC(rbf, self.rc_config(seg)) if self.config.rc.enabled else rbf
-        self._ctrl[k] = ctrl
-        return ctrl
-
-    def gate_config(self, seg: Segment) -> GateConfig:
-        i = seg.circle
-        assert i is not None
-        s0 = self.ref.starts[i] - seg.start
-        return GateConfig(
-            period_samples=self.N,
-            threshold_mm=self.config.gate_threshold_mm,
-            starts=tuple(s0 + j * self.N for j in range(self.ref.periods)),
-        )
-
-    def carried_state(
-        self,
-        ctrl: PluginRC,
-        k: int,
-        previous: np.ndarray,
-        measured: np.ndarray,
-        command: np.ndarray,
-    ) -> np.ndarray:
-        """Start state of circle segment ``k`` whose RC memory is the last circle's final one.
-
-        ``previous`` is the final controller state of the circle before; the memory keeps
-        its phase (every circle starts at the same angle), the RBF starts afresh.
-        """
-        j = max(i for i in range(k) if self.segs[i].circle is not None)
-        last = self.controller(j, measured, command)
-        memory = last.memory_of(previous)
-        return ctrl.state_from(
-            dataclasses.replace(memory, config=ctrl.config, samples=0, inner=ctrl.inner.init())
-        )
-
-    def rbf_of(self, ctrl: Any) -> RBFAdaptive:
-        return ctrl.inner if isinstance(ctrl, PluginRC) else ctrl
-
-    def inner_state(self, ctrl: Any, state: np.ndarray) -> np.ndarray:
-        if isinstance(ctrl, PluginRC):
-            return ctrl.inner_state(state)
-        return state
-
-    def run_chunk(
-        self,
-        c: int,
-        state: LoopState | None,
-        gate_state: np.ndarray | None,
-        signals: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-        finals: dict[int, np.ndarray],
-    ) -> Chunk:
-        """Simulate chunk ``c`` from ``state``; fill ``signals`` ``(Y, YM, U, laser)``.
-
-        ``finals`` maps each finished circle to its final controller state (for the RC
-        memory a circle may carry). The returned `Chunk` holds views of ``signals`` and
-        the loop state after the chunk.
-        """
-        Y, YM, U, laser = signals
-        ref, cfg = self.ref, self.config
-        k, a, b = self.chunks[c]
-        seg = self.segs[k]
-        ctrl = self.controller(k, YM, U)
-        if state is None or a == seg.start:  # a new controller takes over the plant
-            cst = ctrl.init()
-            if seg.circle is not None:
-                gate_state = None
-                if cfg.rc.carry and seg.circle > 0 and isinstance(ctrl, PluginRC):
-                    cst = self.carried_state(ctrl, k, finals[seg.circle - 1], YM, U)
-            plant0, cmd0 = (
-                (self.plant.init(), np.zeros(2)) if state is None else (state.plant, state.command)
-            )
-            state = LoopState(plant=plant0, controller=cst, observer=np.zeros(0), command=cmd0)
-        stepper = LoopStepper(
-            self.plant,
-            ctrl,
-            ref.position[a:b],
-            self.noise[a:b],
-            state,
-            derivatives=(ref.velocity[a:b], ref.acceleration[a:b]),
-        )
-        li, lw, ls = [], [], []
-        if seg.circle is None:
-            stepper.advance()
-        else:  # stop every log_every samples to log ‖Ŵ‖ and s
-            rbf = self.rbf_of(ctrl)
-            while stepper.position < stepper.n_samples:
-                q = stepper.advance(cfg.log_every)
-                inner = self.inner_state(ctrl, stepper.state.controller)
-                li.append(a + q - 1)
-                lw.append(np.linalg.norm(rbf.weights(inner), axis=1))
-                ls.append(rbf.error_function(inner))
-        res = stepper.result()
-        Y[a:b], YM[a:b], U[a:b] = res.output, res.measured, res.command
-        state = res.final_state
-        ends = seg.circle is not None and b == seg.stop
-        if seg.circle is not None:
-            gr = run_gate(ref.position[a:b] - YM[a:b], self.gate_config(seg), gate_state)
-            laser[a:b] = gr.laser
-            gate_state = gr.state
-        return Chunk(
-            output=Y[a:b],
-            measured=YM[a:b],
-            command=U[a:b],
-            laser=laser[a:b],
-            log_index=np.asarray(li, dtype=np.int64),
-            log_w=np.asarray(lw, dtype=float).reshape(-1, 2),
-            log_s=np.asarray(ls, dtype=float).reshape(-1, 2),
-            loop=state,
-            gate=gate_state,
-            final_circle=seg.circle if ends else None,
-            final_controller=state.controller.copy() if ends else None,
-        )
-
-
 def run_job(
     config: JobConfig | None = None,
     out: str | Path | None = None,
@@ -593,9 +383,9 @@ def run_job(
     """
     cfg = config or JobConfig()
     check_nonnegative("checkpoint_s", checkpoint_s, "s")
-    run = _Runner(cfg)
+    plant = make_twin(cfg.twin)
+    run = ChunkRunner(cfg, plant, job_reference(cfg, plant))
     ref = run.ref
-    check_trajectory(ref.trajectory(), MachineLimits.seed001_stage())
     n = ref.n_samples
     Y, YM, U = (np.zeros((n, 2)) for _ in range(3))
     laser = np.zeros(n, dtype=bool)
@@ -670,7 +460,7 @@ def run_job(
 
 
 def _circle_runs(
-    run: _Runner,
+    run: ChunkRunner,
     laser: np.ndarray,
     measured: np.ndarray,
     command: np.ndarray,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.experiments.seed001_nanomanipulator.checkpoint import (
+from microfab.machines.nanomanipulator_chunks import (
     Chunk,
     chunk_path,
     load_chunks,

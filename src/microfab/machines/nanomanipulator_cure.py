@@ -1,9 +1,10 @@
-"""Cured lines of a job (seed 001 §4.2, Figs. 14-15): gated, warm-up compensated, ungated.
+"""Cured lines of a nanomanipulator job (seed 001 §4.2, Figs. 14-15): three prints per circle.
 
-For every circle of a `run.JobRun` the spot follows the twin's *true* position (the
-resin sees the stage, not the sensor) and the laser diode of the job (dead time plus
-first-order rise, `microfab.process.laser.LaserDiode`) writes three prints, each one
-loop long:
+What the nanomanipulator-msl job (`microfab run`) prints. For every circle of a
+`microfab.machines.nanomanipulator_job.JobRun` the spot follows the twin's *true*
+position (the resin sees the stage, not the sensor) and the laser diode of the job (dead
+time plus first-order rise, `microfab.process.laser.LaserDiode`) writes three prints,
+each one loop long:
 
 * **gated**: the gate's own switch command (seed 001: the laser switches on at a
   contour start once the error is sub-micron) with the warm-up left as it is, the
@@ -24,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from microfab.experiments.seed001_nanomanipulator.run import JobRun
+from microfab.machines.nanomanipulator_job import JobRun
 from microfab.process.cured_line import LoopMeasures, measure_loop
 from microfab.process.dose import DoseMap, calibrate_threshold, exposure_map
 from microfab.process.laser import advance_gate

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from microfab.experiments.seed001_nanomanipulator import paper
-from microfab.experiments.seed001_nanomanipulator.cure import cure_circles
-from microfab.experiments.seed001_nanomanipulator.run import (
+from microfab.machines.nanomanipulator_chunks import job_segments
+from microfab.machines.nanomanipulator_cure import cure_circles
+from microfab.machines.nanomanipulator_job import (
     JobConfig,
     RCSettings,
     TwinSettings,
-    job_segments,
     run_job,
 )
 from microfab.trajectory.circle_pattern import PatternConfig
