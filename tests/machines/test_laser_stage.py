@@ -47,14 +47,3 @@ def test_controller_laws():
              for law in laser_stage.LAWS}  # fmt: skip
     assert names["contour"] == "ContourCompensator" and names["cross-coupled"] == "CrossCoupled"
     assert names["pd"] == names["preview"] == "PreviewDOB"
-
-
-def test_play_focus_is_reproducible_and_starts_off_focus():
-    a = laser_stage.play_focus(duration_s=0.3, noise=False)
-    b = laser_stage.play_focus(duration_s=0.3, noise=False)
-    np.testing.assert_array_equal(a.z, b.z)
-    assert a.z.shape == a.detector.shape == a.focus.shape == a.command.shape == (a.time.size,)
-    c = a.plant.config
-    assert a.z_output[0] - c.focus_position_m == pytest.approx(
-        c.start_position_m - c.focus_position_m, abs=1e-6
-    )

@@ -12,11 +12,11 @@ from typer.testing import CliRunner
 from microfab.cli import app
 from microfab.core.signals import Trace
 from microfab.experiments.catalog import load_job
-from microfab.experiments.seed004_laser.run import run_contour
 from microfab.io.trace import read_trace, write_trace
 from microfab.machines.laser_stage import ContourJob, ControlSettings
 from microfab.machines.laser_stage import controller as make_controller
 from microfab.machines.laser_stage import twin as make_stage
+from microfab.machines.laser_stage_contour import run_contour
 from microfab.machines.laser_stage_files import export_job, replay_trace
 from microfab.sim.replay import replay_controller
 from microfab.trajectory.contour_laps import ContourMotion

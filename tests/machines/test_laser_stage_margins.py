@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 import control
-from microfab.experiments.seed004_laser.results import margins_table
 from microfab.machines.laser_stage import ControlSettings, TwinSettings, axis_loop, axis_margins
 from microfab.machines.laser_stage import controller as make_controller
 from microfab.machines.laser_stage import twin as make_stage
+from microfab.report.contour import margins_table
 
 
 def _setup():

@@ -8,9 +8,9 @@ from typer.testing import CliRunner
 
 from microfab.cli import app
 from microfab.core.signals import Trace
-from microfab.experiments.seed004_laser.run import run_contour
 from microfab.io.trace import write_trace
 from microfab.machines.laser_stage import ContourJob, ControlSettings
+from microfab.machines.laser_stage_contour import run_contour
 from microfab.measure.contour_trace import analyze_file, analyze_trace
 from microfab.trajectory.contour_laps import ContourMotion, contour_path
 

@@ -14,10 +14,14 @@ The surface every job, study and command uses:
 `play_contour`
     A `ContourJob` end to end: the drawing's closed contour, its time-based spline
     (`microfab.trajectory.contour_laps`), refused beyond the stage's limits, then `play`.
-`play_focus`
-    The sliding-mode focus search (seed 004 §III.B) on the focus twin (`FocusTrace`).
-`axis_loop`, `axis_margins`
+`check_job`
+    Refuses a contour job before it runs: a drawing without its contour, an unstable loop,
+    a reference beyond the stage's limits at the job's speed or at any sweep speed.
+`axis_loop`, `axis_margins`, `law_margins`
     Each axis loop broken at the current reference, and its margins.
+
+What a contour run measures is `microfab.machines.laser_stage_contour`'s (`run_contour`);
+the focus search on the focus twin (`focus`) is `microfab.machines.laser_stage_focus`'s.
 
 Controller laws (`ControlSettings.law`; the seed gives no gains):
 
@@ -54,6 +58,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -61,7 +66,6 @@ import numpy as np
 
 from microfab.control.contour import ContourCompensator, ContourConfig
 from microfab.control.cross_coupled import CrossCoupled, CrossCoupledConfig
-from microfab.control.focus import SlidingModeFocus, focus_law
 from microfab.control.margins import AxisMargins, feedback_loop, loop_axis_margins
 from microfab.control.preview_dob import PreviewDOB
 from microfab.control.preview_dob_model import PreviewDOBConfig
@@ -69,6 +73,7 @@ from microfab.core.limits import MachineLimits
 from microfab.core.validate import check_int, check_positive
 from microfab.geometry.path import Path
 from microfab.machines.twins import TwinCache
+from microfab.measure.contour import AxisErrors, axis_errors
 from microfab.plants import lmw_focus, lmw_stage_params
 from microfab.plants.lmw_focus import LMWFocus, LMWFocusParams, lmw_focus_twin
 from microfab.plants.lmw_stage import LMWStage, lmw_stage_twin
@@ -91,17 +96,17 @@ __all__ = [
     "ContourJob",
     "ContourPlay",
     "ControlSettings",
-    "FocusTrace",
     "StageTrace",
     "TwinSettings",
     "axis_loop",
     "axis_margins",
+    "check_job",
     "controller",
     "focus",
+    "law_margins",
     "limits",
     "play",
     "play_contour",
-    "play_focus",
     "stage",
     "twin",
 ]
@@ -380,6 +385,13 @@ class ContourPlay:
         ref = self.reference
         return slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
 
+    def axis_errors(self) -> AxisErrors:
+        """Axis errors (reference − measured) over the full-speed laps (seed 004 Fig. 3)."""
+        full = self.full_laps
+        return axis_errors(
+            np.asarray(self.reference.trajectory.position)[full], self.trace.measured[full]
+        )
+
 
 def play_contour(job: ContourJob | None = None) -> ContourPlay:
     """Run a contour job on the stage twin (module notes).
@@ -407,6 +419,35 @@ def play_contour(job: ContourJob | None = None) -> ContourPlay:
     )
 
 
+def check_job(job: ContourJob, speeds_m_s: Sequence[float] = ()) -> None:
+    """Refuse a contour job before anything runs (what a job file is checked with).
+
+    Parameters
+    ----------
+    job : ContourJob
+        The job.
+    speeds_m_s : sequence of float
+        Further tangential speeds its reference must also keep within the limits, m/s (a
+        speed sweep's).
+
+    Raises
+    ------
+    ValueError
+        On a drawing without the closed contour asked for, or a law whose loop is unstable
+        on the twin.
+    LimitViolation
+        When the reference at the job's speed or at one of ``speeds_m_s`` exceeds the
+        stage's limits (seed 004 Table I).
+    """
+    path = contour_path(job.drawing, job.contour)  # refuses a drawing without it
+    plant = twin(job.twin)
+    controller(job.control, plant)  # refuses an unstable loop
+    masses = tuple(plant.config.mass_kg)
+    for v in (job.motion.speed_m_s, *speeds_m_s):
+        motion = dataclasses.replace(job.motion, speed_m_s=v)
+        check_reference(contour_reference(path, motion), limits(), masses)  # type: ignore[arg-type]
+
+
 # ---------------------------------------------------------------------------- margins
 def axis_loop(plant: LMWStage, ctrl: PreviewDOB, axis: int) -> DiscreteLTI:
     """``L = −C_fb P`` of axis ``axis`` (0: x, 1: y), broken at the current reference."""
@@ -425,84 +466,14 @@ def axis_margins(
     )
 
 
-# ---------------------------------------------------------------------------- focus
-@dataclass(frozen=True, kw_only=True, eq=False)
-class FocusTrace:
-    """A focus search played on the focus twin (all shape (n,)).
+def law_margins(
+    control: ControlSettings, settings: TwinSettings | None = None
+) -> tuple[AxisMargins, ...]:
+    """`axis_margins` of the axis controllers of ``control``'s law on the twin of ``settings``.
 
-    Attributes
-    ----------
-    plant : LMWFocus
-        The focus twin.
-    detector : numpy.ndarray
-        Measured detector output, V.
-    z : numpy.ndarray
-        z encoder as measured, m.
-    z_output : numpy.ndarray
-        z encoder as the twin output it (before the measurement noise), m.
-    focus : numpy.ndarray
-        Focus position at each sample, m (moves with ``surface_rate_m_s``).
-    command : numpy.ndarray
-        z velocity command, m/s.
+    The contour compensator and the cross-coupled controller act on top of preview + DOB
+    axes: for those laws the margins are the preview + DOB axes'.
     """
-
-    plant: LMWFocus
-    detector: np.ndarray
-    z: np.ndarray
-    z_output: np.ndarray
-    focus: np.ndarray
-    command: np.ndarray
-
-    @property
-    def time(self) -> np.ndarray:
-        """Sample times, s."""
-        return np.arange(self.z.size) * self.plant.dt
-
-
-def play_focus(
-    *,
-    continuous: bool = True,
-    duration_s: float = 2.0,
-    speed_m_s: float | None = None,
-    surface_rate_m_s: float = 0.0,
-    seed: int = 0,
-    noise: bool = True,
-) -> FocusTrace:
-    """Play the sliding-mode focus search on the focus twin from its start position.
-
-    The law is `microfab.control.focus.focus_law` of the twin (seed 004 eqs. 16-17 when
-    ``continuous``, else the discontinuous baseline).
-
-    Parameters
-    ----------
-    continuous : bool
-        Continuous sign and relay, or the discontinuous baseline.
-    duration_s : float
-        Simulated time, s.
-    speed_m_s : float or None
-        Search speed V, m/s (default: the stage's speed limit).
-    surface_rate_m_s : float
-        Drift of the focal plane, m/s (a tilted part moving under the beam; 0: fixed).
-    seed : int
-        Seed of the detector noise.
-    noise : bool
-        Detector noise on.
-    """
-    plant = focus(surface_rate_m_s=surface_rate_m_s)
-    c = plant.config
-    ctrl = SlidingModeFocus(focus_law(plant, continuous=continuous, speed_m_s=speed_m_s))
-    n = round(duration_s / plant.dt)
-    rng = np.random.default_rng(seed)
-    v = np.zeros((n, 2))
-    if noise:
-        v[:, 0] = rng.standard_normal(n) * plant.noise_level.rms[0]
-    res = simulate(plant, ctrl, np.zeros((n, 1)), v)
-    t = np.arange(n) * plant.dt
-    return FocusTrace(
-        plant=plant,
-        detector=res.measured[:, 0],
-        z=res.measured[:, 1],
-        z_output=res.output[:, 1],
-        focus=c.focus_position_m + c.surface_rate_m_s * t,
-        command=res.command[:, 0],
-    )
+    plant = twin(settings)
+    law = control.law if control.law in ("preview-dob", "preview", "pd") else "preview-dob"
+    return axis_margins(plant, controller(dataclasses.replace(control, law=law), plant))

@@ -5,9 +5,10 @@ Seed 004 §IV.A (Fig. 3): on the 30 µm circle the axis errors "are generally lo
 forces are assumed; one free magnitude, ``disturbance_scale`` (it multiplies all three),
 is fitted here so that the larger of the two axes' peak errors of the Fig. 3 run (preview
 + DOB, `laser_stage.play_contour` with `FIG3_JOB`'s settings: 1 mm/s, three laps, noise
-on; axis error ``r − y`` over the full-speed laps, as `microfab.measure.contour.axis_errors`
-takes it) is 0.8 µm. The peak grows about linearly with the scale (the disturbance dominates the
-noise), so the secant method on ``(scale, peak)`` converges in a few runs. The share of
+on; axis error ``r − y`` over the full-speed laps, `laser_stage.ContourPlay.axis_errors`,
+the same figures a contour run reports) is 0.8 µm. The peak grows about linearly with
+the scale (the disturbance dominates the noise), so the secant method on ``(scale,
+peak)`` converges in a few runs. The share of
 samples within ±0.5 µm is not fitted: it is the check (issue 15: ≥ 95 %).
 
 `write_scale` stores the fitted value in a copy of the twin's data file (or the packaged
@@ -21,18 +22,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from microfab.core.validate import check_in_range, check_int
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.laser_stage import ContourJob, ControlSettings, play_contour, twin
-from microfab.measure.contour import AxisErrors, axis_errors
+from microfab.measure.contour import AxisErrors
 from microfab.plants.sourced_toml import update_sourced
 
 __all__ = ["FIG3_JOB", "DisturbanceFit", "fit_disturbance_scale", "write_scale"]
 
 FIG3_PEAK_ERROR_M = 0.8e-6  # seed 004 §IV.A: "reaching 0.8 µm at the peak points" (paper.py)
-FIG3_TYPICAL_ERROR_M = 0.5e-6  # seed 004 §IV.A: "generally lower than 0.5 µm" (paper.py)
 
 #: The Fig. 3 run the fit uses: the seed's 30 µm circle under preview + DOB (the motion
 #: experiment of §IV.A has no contour compensator), at 1 mm/s (assumed), noise on.
@@ -98,10 +96,9 @@ def fit_disturbance_scale(
     last = None
 
     def run(s: float) -> tuple[float, AxisErrors]:
-        p = play_contour(job.with_(twin=dataclasses.replace(job.twin, disturbance_scale=s)))
-        full = p.full_laps
-        ref = np.asarray(p.reference.trajectory.position, dtype=float)[full]
-        e = axis_errors(ref, np.asarray(p.trace.measured, dtype=float)[full], FIG3_TYPICAL_ERROR_M)
+        e = play_contour(
+            job.with_(twin=dataclasses.replace(job.twin, disturbance_scale=s))
+        ).axis_errors()  # the band: seed 004's 0.5 µm (`microfab.measure.contour.AXIS_BAND_M`)
         peak = max(e.peak_m) * 1e6
         hist.append((s, peak))
         if progress:

@@ -1,16 +1,20 @@
 """Figures and the page of a contouring run: axis errors, ballbar, contour error in time.
 
 What ``microfab laser analyze`` writes for a measured trace (`write_analysis`, from
-`microfab.measure.contour_trace`), and the figures the seed 004 reproduction redraws on
-its twin runs (Figs. 3, 4 and 7). Only draws (matplotlib, through
-`microfab.report.canvas.new_figure`): the figures of merit come from
-`microfab.measure.contour`.
+`microfab.measure.contour_trace`), and the figures of a ``laser-micromachining`` job on
+the seed 004 twin (Figs. 3, 4, 6 and 7 redrawn; `fig_axis_errors` ... `fig_focus` of a
+`microfab.machines.laser_stage_contour.ContourRun` or a
+`microfab.machines.laser_stage_focus.FocusStudy`), with the speed sweep, the motor force,
+the DOB's load-force estimate and the table of the axis loops' margins. Only draws
+(matplotlib, through `microfab.report.canvas.new_figure`) and formats: the figures of
+merit come from `microfab.measure.contour` and the machine modules.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path as FilePath
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure as MplFigure
@@ -21,14 +25,30 @@ from microfab.measure.contour import AxisErrors, ContourErrors
 from microfab.measure.contour_trace import TraceAnalysis
 from microfab.report.canvas import new_figure
 from microfab.report.tables import Table
+from microfab.trajectory.contour_laps import CONTINUOUS_FORCE_N, PEAK_FORCE_N
+
+if TYPE_CHECKING:
+    from microfab.control.margins import AxisMargins
+    from microfab.machines.laser_stage_contour import ContourRun
+    from microfab.machines.laser_stage_focus import FocusStudy
 
 __all__ = [
     "AXIS_COLOURS",
     "analysis_table",
+    "fig_axis_errors",
+    "fig_ballbar",
+    "fig_contour_time",
+    "fig_disturbance",
+    "fig_focus",
+    "fig_force",
+    "fig_speed",
     "lap_span",
+    "margins_table",
     "plot_axis_errors",
     "plot_ballbar",
     "plot_contour_time",
+    "plot_disturbance",
+    "plot_focus",
     "write_analysis",
 ]
 
@@ -163,3 +183,151 @@ def write_analysis(a: TraceAnalysis, out: str | FilePath, title: str) -> FilePat
         tables=(analysis_table(a),),
     )
     return write_page(FilePath(out), text, figs)
+
+
+# ---------------------------------------------------------------------------- twin runs
+def fig_axis_errors(run: ContourRun) -> MplFigure:
+    """`plot_axis_errors` of a twin run."""
+    return plot_axis_errors(
+        run.time, run.reference.trajectory.position, run.measured, run.axis, run.span
+    )
+
+
+def fig_ballbar(run: ContourRun, magnify: float | None = None) -> MplFigure:
+    """`plot_ballbar` of a twin run's full-speed laps."""
+    ref = run.reference
+    sl = slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
+    return plot_ballbar(ref.path, run.measured[sl], magnify)
+
+
+def fig_contour_time(runs: Mapping[str, ContourRun]) -> MplFigure:
+    """Seed 004 Fig. 7 as a time plot: contour error of each run (label → run)."""
+    first = next(iter(runs.values()))
+    return plot_contour_time({k: (r.time, r.contour) for k, r in runs.items()}, first.span)
+
+
+def fig_speed(rows: Sequence[Mapping[str, float | str]]) -> MplFigure:
+    """Largest contour error after lap 1 against speed, one line per law.
+
+    ``rows``: dicts with ``law``, ``speed_mm_s`` and ``contour_max_nm``
+    (`microfab.machines.laser_stage_contour.speed_point`).
+    """
+    fig = new_figure(5.6, 3.6)
+    ax = fig.subplots()
+    for law in sorted({str(r["law"]) for r in rows}):
+        pts = sorted(
+            (float(r["speed_mm_s"]), float(r["contour_max_nm"])) for r in rows if r["law"] == law
+        )
+        ax.loglog(*zip(*pts, strict=True), "o-", label=law)
+    ax.set_xlabel("tangential speed [mm/s]")
+    ax.set_ylabel("max contour error after lap 1 [nm]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig
+
+
+def fig_force(run: ContourRun) -> MplFigure:
+    """Motor force of both axes against the 12 N peak; RMS against the 3 N continuous."""
+    fig = new_figure(7.0, 3.0)
+    ax = fig.subplots()
+    rms = np.sqrt(np.mean(run.force**2, axis=0))
+    for k, (name, col) in enumerate(AXIS_COLOURS):
+        ax.plot(run.time, run.force[:, k], lw=0.6, color=col,
+                label=f"{name} (RMS {rms[k]:.3g} N / {CONTINUOUS_FORCE_N:g} N)")  # fmt: skip
+    top = max(float(np.abs(run.force).max()) * 1.2, 1e-3)
+    if top > 0.5 * PEAK_FORCE_N:
+        for s in (-PEAK_FORCE_N, PEAK_FORCE_N):
+            ax.axhline(s, color="k", lw=0.6, ls="--")
+    ax.set_title(f"Motor force (Table I: {PEAK_FORCE_N:g} N peak)", fontsize=8)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("force [N]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig
+
+
+def plot_disturbance(time: np.ndarray, true: np.ndarray, estimate: np.ndarray) -> MplFigure:
+    """The DOB's estimate of the load force beside the twin's true ``F_l``, per axis.
+
+    ``time`` (s, (n,)), ``true`` and ``estimate`` (N, (n, 2)).
+    """
+    fig = new_figure(7.0, 4.2)
+    axes = fig.subplots(2, 1, sharex=True)
+    for k, (name, col) in enumerate(AXIS_COLOURS):
+        ax = axes[k]
+        ax.plot(time, true[:, k], lw=0.8, color="0.3", label="true F_l (twin)")
+        ax.plot(time, estimate[:, k], lw=0.6, color=col, label="DOB estimate K_fn î_d")
+        gap = float(np.sqrt(np.mean((estimate[:, k] - true[:, k]) ** 2)))
+        ax.set_ylabel(f"{name} force [N]")
+        ax.set_title(f"{name}: RMS of estimate − true {gap:.3g} N", fontsize=8)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    axes[-1].set_xlabel("time [s]")
+    return fig
+
+
+def fig_disturbance(run: ContourRun, estimate: np.ndarray) -> MplFigure:
+    """`plot_disturbance` of a run and its DOB estimate (``ContourRun.dob``)."""
+    return plot_disturbance(run.time, run.disturbance, estimate)
+
+
+def plot_focus(
+    runs: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+    depth_of_focus_m: float,
+) -> MplFigure:
+    """Seed 004 Fig. 6: detector output (a) and z against time (b), with the ±DOF/2 band.
+
+    ``runs``: label -> ``(time s, detector V, z m, focus m)``, each (n,).
+    """
+    fig = new_figure(7.0, 4.6)
+    ax_y, ax_z = fig.subplots(2, 1, sharex=True)
+    for label, (t, y, z, _f) in runs.items():
+        ax_y.plot(t, y, lw=0.7, label=label)
+        ax_z.plot(t, z * 1e6, lw=0.7, label=label)
+    t, _, _, f = next(iter(runs.values()))
+    half = 0.5 * depth_of_focus_m * 1e6
+    ax_z.fill_between(t, f * 1e6 - half, f * 1e6 + half, color="0.9", zorder=0,
+                      label=f"focus ± DOF/2 ({half:.1f} µm)")  # fmt: skip
+    ax_y.set_ylabel("detector [V]")
+    ax_y.set_title("(a) detector output (minimal at focus)", fontsize=8)
+    ax_z.set_ylabel("z [µm]")
+    ax_z.set_title("(b) z encoder", fontsize=8)
+    ax_z.set_xlabel("time [s]")
+    for ax in (ax_y, ax_z):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    return fig
+
+
+def fig_focus(study: FocusStudy) -> MplFigure:
+    """`plot_focus` of an autofocus study: both laws, and the tilted part if it ran."""
+    runs = {"continuous (eqs. 16-17)": study.continuous, "discontinuous": study.discontinuous}
+    if study.tilted is not None:
+        runs[f"continuous, tilted {study.tilt_rad * 1e3:g} mrad"] = study.tilted
+    return plot_focus(
+        {k: (r.time, r.detector, r.z, r.focus) for k, r in runs.items()},
+        study.continuous.depth_of_focus_m,
+    )
+
+
+def margins_table(margins: Sequence[AxisMargins]) -> Table:
+    """The axis loops' margins (`microfab.machines.laser_stage.axis_margins`) as a table."""
+    return Table(
+        title="Axis loops (preview + DOB on the twin's linear axis), broken at the current",
+        columns=("axis", "crossover [Hz]", "phase margin [°]", "gain margin [dB]",
+                 "at [Hz]", "max |S| [dB]", "at [Hz]"),
+        rows=[
+            (
+                m.axis,
+                f"{m.margins.pm_freq_hz:.1f}",
+                f"{m.margins.pm_deg:.1f}",
+                f"{m.margins.gm_db:.1f}",
+                f"{m.margins.gm_freq_hz:.0f}",
+                f"{m.sensitivity_peak_db:.2f}",
+                f"{m.sensitivity_peak_hz:.0f}",
+            )
+            for m in margins
+        ],
+        note="The plant is the twin's true axis (mass and force constant 10 % off the "
+        "controller's nominal) with its amplifier lag; friction and saturation left out.",
+    )  # fmt: skip

@@ -12,8 +12,8 @@ from microfab.core.limits import LimitViolation
 from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
 from microfab.experiments.kinds import no_progress
 from microfab.experiments.seed004_laser.job import LaserJob
-from microfab.experiments.seed004_laser.run import ContourJob
 from microfab.io.job import JobFileError
+from microfab.machines.laser_stage import ContourJob
 
 EXAMPLE = Path(__file__).parents[3] / "examples" / "laser_micromachining.toml"
 

@@ -16,39 +16,31 @@ Job file (``examples/laser_micromachining.toml``)::
 Every key, its unit and its range is in `SCHEMA`; unknown keys are refused. The speed
 sweep saves each point atomically under ``OUT/sweep/`` and skips finished points when the
 job runs again (`microfab.io.sweep.run_sweep`); the single runs are seconds long
-and are simply repeated.
+and are simply repeated. What runs is the machine's (`microfab.machines.laser_stage_contour`,
+`microfab.machines.laser_stage_focus`); here the job file becomes its settings, and its
+results are set beside seed 004.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.focus import focus_study
 from microfab.experiments.seed004_laser.results import (
     FocusSettings,
     LaserJob,
     LaserResult,
     focus_table,
 )
-from microfab.experiments.seed004_laser.run import run_contour
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
-from microfab.io.sweep import run_sweep
 from microfab.machines import laser_stage
-from microfab.machines.laser_stage import (
-    LAWS,
-    ContourJob,
-    ControlSettings,
-    TwinSettings,
-    axis_margins,
-)
+from microfab.machines.laser_stage import LAWS, ContourJob, ControlSettings, TwinSettings
+from microfab.machines.laser_stage_contour import run_contour, speed_sweep
+from microfab.machines.laser_stage_focus import focus_study
 from microfab.report.tables import Table, versus
 from microfab.trajectory.contour_laps import ContourMotion
 
@@ -58,9 +50,7 @@ __all__ = [
     "SCHEMA",
     "LaserJob",
     "LaserResult",
-    "SpeedPoint",
     "config_from_sections",
-    "speed_point",
 ]
 
 _F = "float"
@@ -170,64 +160,13 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> LaserJob:
 
 
 def _checked_config(sec: dict[str, dict[str, Any]]) -> LaserJob:
-    """`config_from_sections`, then the controller checks (stability with the twin)."""
-    from microfab.trajectory.contour_laps import (
-        check_reference,
-        contour_path,
-        contour_reference,
-    )
-
+    """`config_from_sections`, then `laser_stage.check_job` (drawing, stability, limits)."""
     cfg = config_from_sections(sec)
-    path = contour_path(cfg.run.drawing, cfg.run.contour)  # refuses a drawing without it
-    stage = laser_stage.twin(cfg.run.twin)
-    laser_stage.controller(cfg.run.control, stage)  # refuses an unstable loop
-    masses = tuple(stage.config.mass_kg)
-    for v in (cfg.run.motion.speed_m_s, *(s * 1e-3 for s in cfg.speeds_mm_s)):
-        motion = dataclasses.replace(cfg.run.motion, speed_m_s=v)  # refuses beyond Table I
-        check_reference(contour_reference(path, motion), laser_stage.limits(), masses)  # type: ignore[arg-type]
+    laser_stage.check_job(cfg.run, [v * 1e-3 for v in cfg.speeds_mm_s])
     return cfg
 
 
-# ---------------------------------------------------------------------------- sweep
-@dataclass(frozen=True)
-class SpeedPoint:
-    """One point of the speed sweep: the job's contour at one speed under one law."""
-
-    law: str
-    speed_mm_s: float
-
-
-def speed_point(job: ContourJob, point: SpeedPoint) -> dict[str, Any]:
-    """Run ``job`` at ``point``'s speed and law; the row of the sweep (JSON values)."""
-    run = run_contour(
-        job.with_(
-            motion=dataclasses.replace(job.motion, speed_m_s=point.speed_mm_s * 1e-3),
-            control=dataclasses.replace(job.control, law=point.law),
-        )
-    )
-    return {
-        "law": point.law,
-        "speed_mm_s": point.speed_mm_s,
-        "contour_max_nm": run.contour.steady_max() * 1e9,
-        "contour_rms_nm": float(np.sqrt(np.mean(run.contour.lap_rms_m**2)) * 1e9),
-        "axis_peak_um": max(run.axis.peak_m) * 1e6,
-        "force_peak_n": float(np.abs(run.force).max()),
-    }
-
-
-class _SpeedTask:
-    """Picklable sweep task: `speed_point` of one job."""
-
-    def __init__(self, job: ContourJob) -> None:
-        self.job = job
-
-    def __call__(self, point: SpeedPoint) -> dict[str, Any]:
-        return speed_point(self.job, point)
-
-
-# ---------------------------------------------------------------------------- result
-
-
+# ---------------------------------------------------------------------------- run
 def _run(config: LaserJob, out: Path, progress: Progress) -> LaserResult:
     progress("contour run", 0, None)
     main = run_contour(config.run)
@@ -240,14 +179,12 @@ def _run(config: LaserJob, out: Path, progress: Progress) -> LaserResult:
     failures: tuple[str, ...] = ()
     if config.speeds_mm_s:
         laws = [config.run.control.law] + (["preview-dob"] if base is not None else [])
-        points = [SpeedPoint(law=law, speed_mm_s=v) for law in laws for v in config.speeds_mm_s]
-        settings = {"job": repr(config.run)}
-        res = run_sweep(
-            _SpeedTask(config.run),
-            points,
+        res = speed_sweep(
+            config.run,
+            laws,
+            config.speeds_mm_s,
             results_dir=out / "sweep",
-            settings=settings,
-            progress=lambda done, total, _p, _loaded: progress("speed sweep", done, total),
+            progress=lambda done, total: progress("speed sweep", done, total),
             raise_on_failure=False,
         )
         rows = res.rows
@@ -263,17 +200,13 @@ def _run(config: LaserJob, out: Path, progress: Progress) -> LaserResult:
             seed=config.run.twin.seed,
             noise=config.run.twin.noise,
         )
-    stage = laser_stage.twin(config.run.twin)
-    law = config.run.control.law  # the axis controllers of the run (without the add-on)
-    axes_law = law if law in ("preview-dob", "preview", "pd") else "preview-dob"
-    inner = laser_stage.controller(dataclasses.replace(config.run.control, law=axes_law), stage)
     result = LaserResult(
         config=config,
         main=main,
         baseline=base,
         sweep=rows,
         sweep_failures=failures,
-        margins=axis_margins(stage, inner),
+        margins=laser_stage.law_margins(config.run.control, config.run.twin),
         focus=focus,
     )
     atomic_write_json(out / "summary.json", result.summary())

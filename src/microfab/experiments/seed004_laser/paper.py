@@ -16,11 +16,41 @@ Seed errors noted here once (the code that uses the numbers repeats the relevant
 
 from __future__ import annotations
 
+from microfab.machines.laser_stage_calibration import FIG3_PEAK_ERROR_M
+from microfab.measure.contour import AXIS_BAND_M as FIG3_TYPICAL_ERROR_M
+from microfab.trajectory.contour_laps import (
+    CONTINUOUS_FORCE_N,
+    MAX_ACCELERATION_M_S2,
+    PEAK_FORCE_N,
+)
+
+__all__ = [
+    "AVERAGE_POWER_W",
+    "CONTINUOUS_FORCE_N",
+    "DEPTH_OF_FOCUS_M",
+    "FIG3_PEAK_ERROR_M",
+    "FIG3_RADIUS_M",
+    "FIG3_TYPICAL_ERROR_M",
+    "FIG7_SIZE_M",
+    "FIG7_SPEED_M_S",
+    "MAX_ACCELERATION_M_S2",
+    "MAX_VELOCITY_M_S",
+    "PEAK_FORCE_N",
+    "POSITION_RESOLUTION_M",
+    "PROJECT_CHOICES",
+    "PULSE_RATE_HZ",
+    "PULSE_WIDTH_S",
+    "SINGLE_STAGE_MASS_KG",
+    "STATED_PULSE_ENERGY_J",
+    "WAIST_DIAMETER_M",
+    "WAVELENGTH_M",
+    "pulse_energy_j",
+]
+
 # ---------------------------------------------------------------- Table I: the stage
-MAX_ACCELERATION_M_S2 = 5.0  # seed 004 Table I
+# MAX_ACCELERATION_M_S2 (5 m/s²), PEAK_FORCE_N (12 N), CONTINUOUS_FORCE_N (3 N): seed 004
+# Table I, from microfab.trajectory.contour_laps (the reference's checks).
 MAX_VELOCITY_M_S = 0.1  # seed 004 Table I
-PEAK_FORCE_N = 12.0  # seed 004 Table I
-CONTINUOUS_FORCE_N = 3.0  # seed 004 Table I
 POSITION_RESOLUTION_M = 10e-9  # seed 004 Table I (and §II.C: 10 nm encoder)
 SINGLE_STAGE_MASS_KG = 0.6  # seed 004 Table I
 
@@ -31,8 +61,10 @@ DEPTH_OF_FOCUS_M = 54e-6  # seed 004 §II.A: "depth of focus is approximately 54
 
 # ---------------------------------------------------------------- §IV.A, Fig. 3
 FIG3_RADIUS_M = 30e-6  # seed 004 §IV.A: circle reference of radius 30 µm
-FIG3_TYPICAL_ERROR_M = 0.5e-6  # seed 004 §IV.A: "errors are generally lower than 0.5 µm"
-FIG3_PEAK_ERROR_M = 0.8e-6  # seed 004 §IV.A: "reaching 0.8 µm at the peak points"
+# FIG3_TYPICAL_ERROR_M (0.5 µm, seed 004 §IV.A: "errors are generally lower than 0.5 µm"):
+# the band of microfab.measure.contour.AXIS_BAND_M; FIG3_PEAK_ERROR_M (0.8 µm, §IV.A:
+# "reaching 0.8 µm at the peak points"): the fit target of
+# microfab.machines.laser_stage_calibration.
 
 # ---------------------------------------------------------------- §IV.D, Fig. 7
 FIG7_SIZE_M = 100e-6  # seed 004 §IV.D: "circle with 100 µm" (radius or diameter unsaid)

@@ -5,14 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from microfab.experiments.seed004_laser.figures import (
+from microfab.report.contour import (
     fig_axis_errors,
     fig_ballbar,
     fig_contour_time,
     fig_disturbance,
+    fig_focus,
     fig_force,
     fig_speed,
-    plot_focus,
 )
 
 if TYPE_CHECKING:
@@ -76,21 +76,14 @@ def write_report(result: LaserResult, out: Path, title: str) -> Path:
             )
         )
     if result.focus is not None:
-        st = result.focus
-        runs_f = {"continuous (eqs. 16-17)": st.continuous, "discontinuous": st.discontinuous}
-        if st.tilted is not None:
-            runs_f[f"continuous, tilted {st.tilt_rad * 1e3:g} mrad"] = st.tilted
         figs.append(
             Figure(
                 name="focus.png",
-                png=render_png(plot_focus(
-                    {k: (r.time, r.detector, r.z, r.focus) for k, r in runs_f.items()},
-                    st.continuous.depth_of_focus_m,
-                )),
+                png=render_png(fig_focus(result.focus)),
                 caption="Redraws seed 004 Fig. 6: detector output and z encoder of the focus "
                 "search from 500 µm off focus, both laws, band ±DOF/2 about the (fixed) focus.",
             )
-        )  # fmt: skip
+        )
     if result.sweep:
         figs.append(
             Figure(

@@ -13,12 +13,13 @@ import numpy as np
 
 from microfab.control.margins import AxisMargins
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.focus import FocusStudy
-from microfab.experiments.seed004_laser.run import ContourRun
 from microfab.machines.laser_stage import ContourJob
+from microfab.machines.laser_stage_contour import ContourRun
+from microfab.machines.laser_stage_focus import FocusStudy
+from microfab.report.contour import margins_table
 from microfab.report.tables import Table, versus
 
-__all__ = ["FocusSettings", "LaserJob", "LaserResult", "focus_table", "margins_table"]
+__all__ = ["FocusSettings", "LaserJob", "LaserResult", "focus_table"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -33,7 +34,7 @@ class LaserJob:
 
 @dataclass(frozen=True, kw_only=True)
 class FocusSettings:
-    """The autofocus study of a job (`microfab.experiments.seed004_laser.focus.focus_study`)."""
+    """The autofocus study of a job (`microfab.machines.laser_stage_focus.focus_study`)."""
 
     duration_s: float = 3.0
     tilt_mrad: float = 1.0
@@ -83,29 +84,6 @@ def focus_table(study: FocusStudy) -> Table:
         note=f"Start {s['start_um']:.0f} µm off focus (assumed); steady = last 1 s. The "
         "seed shows Fig. 6 without numbers; the targets are the project's (issue).",
     )
-
-
-def margins_table(margins: tuple[AxisMargins, ...]) -> Table:
-    """The margins as a report table."""
-    return Table(
-        title="Axis loops (preview + DOB on the twin's linear axis), broken at the current",
-        columns=("axis", "crossover [Hz]", "phase margin [°]", "gain margin [dB]",
-                 "at [Hz]", "max |S| [dB]", "at [Hz]"),
-        rows=[
-            (
-                m.axis,
-                f"{m.margins.pm_freq_hz:.1f}",
-                f"{m.margins.pm_deg:.1f}",
-                f"{m.margins.gm_db:.1f}",
-                f"{m.margins.gm_freq_hz:.0f}",
-                f"{m.sensitivity_peak_db:.2f}",
-                f"{m.sensitivity_peak_hz:.0f}",
-            )
-            for m in margins
-        ],
-        note="The plant is the twin's true axis (mass and force constant 10 % off the "
-        "controller's nominal) with its amplifier lag; friction and saturation left out.",
-    )  # fmt: skip
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -11,7 +11,7 @@ import pytest
 
 from microfab.control.focus import SlidingModeFocus, focus_law
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.focus import FocusJob, focus_study, run_focus
+from microfab.machines.laser_stage_focus import FocusJob, focus_study, play_focus, run_focus
 from microfab.plants.lmw_focus import lmw_focus_twin
 from microfab.sim.loop import simulate
 
@@ -118,3 +118,14 @@ def test_a_far_start_is_caught_despite_the_flat_detector(continuous):
     v[:, 0] = np.random.default_rng(0).standard_normal(n) * plant.config.noise_rms_v
     z = simulate(plant, SlidingModeFocus(cfg), np.zeros((n, 1)), v).output[:, 1]
     assert np.all(np.abs(z[-round(1.0 / plant.dt) :]) <= 0.5 * plant.depth_of_focus_m())
+
+
+def test_play_focus_is_reproducible_and_starts_off_focus():
+    a = play_focus(duration_s=0.3, noise=False)
+    b = play_focus(duration_s=0.3, noise=False)
+    np.testing.assert_array_equal(a.z, b.z)
+    assert a.z.shape == a.detector.shape == a.focus.shape == a.command.shape == (a.time.size,)
+    c = a.plant.config
+    assert a.z_output[0] - c.focus_position_m == pytest.approx(
+        c.start_position_m - c.focus_position_m, abs=1e-6
+    )

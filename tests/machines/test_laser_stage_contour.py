@@ -7,10 +7,10 @@ import pytest
 
 from microfab.core.limits import LimitViolation
 from microfab.experiments.seed004_laser import paper
-from microfab.experiments.seed004_laser.run import dob_estimate, run_contour
 from microfab.machines.laser_stage import ContourJob, ControlSettings, TwinSettings
 from microfab.machines.laser_stage import controller as make_controller
 from microfab.machines.laser_stage import twin as make_stage
+from microfab.machines.laser_stage_contour import dob_estimate, run_contour
 from microfab.trajectory.contour_laps import ContourMotion, contour_path
 
 

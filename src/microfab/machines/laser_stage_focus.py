@@ -1,12 +1,12 @@
-"""Seed 004 autofocus study on the focus twin: sliding-mode search, both laws, a tilted part.
+"""Autofocus on the seed 004 focus twin: the sliding-mode search, its figures, the study.
 
-`run_focus` plays `microfab.control.focus.SlidingModeFocus` on the focus twin
-(`microfab.machines.laser_stage.play_focus`; set-up assumed: the seed's [23] is
-undescribed) from its start position (500 µm off focus, assumed) and measures what seed
-004 Fig. 6 shows: the detector output falling to its minimum and the z encoder settling at
-the focus. Figures of merit: the time to enter the depth of focus (±DOF/2 about the focus,
-DOF from the beam: `LMWFocusParams.depth_of_focus_m`, 55 µm against the seed's ~54 µm) for
-good, and the steady peak-to-peak of z over the last ``settle_window_s``.
+`play_focus` plays `microfab.control.focus.SlidingModeFocus` on the focus twin
+(`microfab.machines.laser_stage.focus`; set-up assumed: the seed's [23] is undescribed)
+from its start position (500 µm off focus, assumed). `run_focus` measures on it what seed
+004 Fig. 6 shows: the detector output falling to its minimum and the z encoder settling
+at the focus. Figures of merit: the time to enter the depth of focus (±DOF/2 about the
+focus, DOF from the beam: `LMWFocusParams.depth_of_focus_m`, 55 µm against the seed's
+~54 µm) for good, and the steady peak-to-peak of z over the last ``settle_window_s``.
 
 The law runs on the log spot area of the twin's dark-field detector
 (`microfab.control.focus.dark_field_area`); its constants follow the design rule of
@@ -16,21 +16,113 @@ the slowest fall of the log spot area over the capture range, ``h = ρ τ``. A t
 moving under the beam is a focal plane drifting at ``tilt × part speed`` (1 mrad at 10
 mm/s: 10 µm/s).
 
-`focus_study` runs what the job and the reproduction report: both laws on a fixed part,
-and the continuous law on a tilted one.
+`focus_study` runs what the ``laser-micromachining`` job and its reproduction report: both
+laws on a fixed part, and the continuous law on a tilted one.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from microfab.control.focus import SlidingModeFocus, focus_law
 from microfab.core.validate import check_int, check_positive
-from microfab.machines import laser_stage
+from microfab.machines.laser_stage import focus as focus_twin
 from microfab.plants.lmw_focus import LMWFocus
+from microfab.sim.loop import simulate
 
-__all__ = ["FocusJob", "FocusRun", "FocusStudy", "focus_study", "run_focus"]
+__all__ = [
+    "FocusJob",
+    "FocusRun",
+    "FocusStudy",
+    "FocusTrace",
+    "focus_study",
+    "play_focus",
+    "run_focus",
+]
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class FocusTrace:
+    """A focus search played on the focus twin (all shape (n,)).
+
+    Attributes
+    ----------
+    plant : LMWFocus
+        The focus twin.
+    detector : numpy.ndarray
+        Measured detector output, V.
+    z : numpy.ndarray
+        z encoder as measured, m.
+    z_output : numpy.ndarray
+        z encoder as the twin output it (before the measurement noise), m.
+    focus : numpy.ndarray
+        Focus position at each sample, m (moves with ``surface_rate_m_s``).
+    command : numpy.ndarray
+        z velocity command, m/s.
+    """
+
+    plant: LMWFocus
+    detector: np.ndarray
+    z: np.ndarray
+    z_output: np.ndarray
+    focus: np.ndarray
+    command: np.ndarray
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times, s."""
+        return np.arange(self.z.size) * self.plant.dt
+
+
+def play_focus(
+    *,
+    continuous: bool = True,
+    duration_s: float = 2.0,
+    speed_m_s: float | None = None,
+    surface_rate_m_s: float = 0.0,
+    seed: int = 0,
+    noise: bool = True,
+) -> FocusTrace:
+    """Play the sliding-mode focus search on the focus twin from its start position.
+
+    The law is `microfab.control.focus.focus_law` of the twin (seed 004 eqs. 16-17 when
+    ``continuous``, else the discontinuous baseline).
+
+    Parameters
+    ----------
+    continuous : bool
+        Continuous sign and relay, or the discontinuous baseline.
+    duration_s : float
+        Simulated time, s.
+    speed_m_s : float or None
+        Search speed V, m/s (default: the stage's speed limit).
+    surface_rate_m_s : float
+        Drift of the focal plane, m/s (a tilted part moving under the beam; 0: fixed).
+    seed : int
+        Seed of the detector noise.
+    noise : bool
+        Detector noise on.
+    """
+    plant = focus_twin(surface_rate_m_s=surface_rate_m_s)
+    c = plant.config
+    ctrl = SlidingModeFocus(focus_law(plant, continuous=continuous, speed_m_s=speed_m_s))
+    n = round(duration_s / plant.dt)
+    rng = np.random.default_rng(seed)
+    v = np.zeros((n, 2))
+    if noise:
+        v[:, 0] = rng.standard_normal(n) * plant.noise_level.rms[0]
+    res = simulate(plant, ctrl, np.zeros((n, 1)), v)
+    t = np.arange(n) * plant.dt
+    return FocusTrace(
+        plant=plant,
+        detector=res.measured[:, 0],
+        z=res.measured[:, 1],
+        z_output=res.output[:, 1],
+        focus=c.focus_position_m + c.surface_rate_m_s * t,
+        command=res.command[:, 0],
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -77,21 +169,13 @@ class FocusJob:
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
-class FocusRun:
-    """A finished autofocus run.
+class FocusRun(FocusTrace):
+    """A finished autofocus run: its `FocusTrace` and its figures of merit.
 
     Attributes
     ----------
     job : FocusJob
-    plant : LMWFocus
-    detector : numpy.ndarray
-        Measured detector output, V, shape (n,).
-    z : numpy.ndarray
-        z encoder, m, shape (n,).
-    focus : numpy.ndarray
-        Focus position at each sample, m, shape (n,) (moves with ``surface_rate_m_s``).
-    command : numpy.ndarray
-        z velocity command, m/s, shape (n,).
+        What ran.
     depth_of_focus_m : float
         DOF of the beam (±5 % spot growth), m.
     entered_s : float or None
@@ -101,25 +185,15 @@ class FocusRun:
     """
 
     job: FocusJob
-    plant: LMWFocus
-    detector: np.ndarray
-    z: np.ndarray
-    focus: np.ndarray
-    command: np.ndarray
     depth_of_focus_m: float
     entered_s: float | None
     steady_ptp_m: float
 
-    @property
-    def time(self) -> np.ndarray:
-        """Sample times, s."""
-        return np.arange(self.z.size) * self.plant.dt
-
 
 def run_focus(job: FocusJob | None = None) -> FocusRun:
-    """Run the sliding-mode focus search on the focus twin (module notes)."""
+    """Run the sliding-mode focus search on the focus twin and measure it (module notes)."""
     job = job or FocusJob()
-    tr = laser_stage.play_focus(
+    tr = play_focus(
         continuous=job.continuous,
         duration_s=job.duration_s,
         speed_m_s=job.speed_m_s,
@@ -139,12 +213,8 @@ def run_focus(job: FocusJob | None = None) -> FocusRun:
         entered = float(tr.time[outside[-1] + 1])
     w = round(job.settle_window_s / plant.dt)
     return FocusRun(
+        **{f.name: getattr(tr, f.name) for f in fields(FocusTrace)},
         job=job,
-        plant=plant,
-        detector=tr.detector,
-        z=tr.z,
-        focus=tr.focus,
-        command=tr.command,
         depth_of_focus_m=dof,
         entered_s=entered,
         steady_ptp_m=float(np.ptp(err[-w:])),
