@@ -26,6 +26,8 @@ from pathlib import Path
 from microfab.core.validate import check_in_range, check_int
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.nanomanipulator_job import JobConfig, make_twin, run_job
+from microfab.measure.circle_tracking import SEED_AXIAL_RMS_NM as _SEED_AXIAL
+from microfab.measure.circle_tracking import SEED_CONTOUR_RMS_NM
 from microfab.plants.sourced_toml import update_sourced
 
 __all__ = [
@@ -37,10 +39,10 @@ __all__ = [
     "write_noise",
 ]
 
-#: seed 001 §4.2 / Fig. 13a (``shared/seeds/001_44fdd8e8f587fd7f.txt``): axial tracking
-#: errors (x, y), nm, read as RMS: the fit's target.
-SEED_AXIAL_RMS_NM = (485.8, 885.8)
-SEED_CONTOUR_RMS_NM = 769.5  # seed 001 §4.2 / Fig. 13b: contour error RMS, the check
+#: seed 001 §4.2 / Fig. 13a: axial tracking errors (x, y), nm, read as RMS: the fit's
+#: target (`microfab.measure.circle_tracking.SEED_AXIAL_RMS_NM`, as a pair). The contour
+#: RMS of Fig. 13b, `SEED_CONTOUR_RMS_NM` (769.5 nm), is the check.
+SEED_AXIAL_RMS_NM = (_SEED_AXIAL["x"], _SEED_AXIAL["y"])
 _TARGET = SEED_AXIAL_RMS_NM
 #: One run of the job: ``run(noise_nm) -> (axial RMS (x, y) nm, contour RMS nm)``.
 JobRunner = Callable[[tuple[float, float]], tuple[tuple[float, float], float]]

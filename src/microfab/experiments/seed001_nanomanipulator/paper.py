@@ -3,16 +3,17 @@
 Every value cites its equation or section in ``../shared/seeds/001_44fdd8e8f587fd7f.txt``.
 The values a lower module needs are written there, with their citation, and re-exported
 here: the pattern's (`microfab.trajectory.circle_pattern`), the spot and line width
-(`microfab.process.dose`) and the axial and contour RMS the noise fit aims at
-(`microfab.machines.nanomanipulator_calibration`). Figures 8-10 carry no numbers; the
+(`microfab.process.dose`), the axial and contour RMS and the gate periods
+(`microfab.measure.circle_tracking`). Figures 8-10 carry no numbers; the
 targets the project sets for them are in `FIG_TARGETS` and say so.
 """
 
 from __future__ import annotations
 
-from microfab.machines.nanomanipulator_calibration import (
+from microfab.measure.circle_tracking import (
     SEED_AXIAL_RMS_NM,
     SEED_CONTOUR_RMS_NM,
+    SEED_GATE_PERIODS,
 )
 from microfab.process.dose import SEED001_LINE_WIDTH_M, SEED001_SPOT_DIAMETER_M
 from microfab.trajectory.circle_pattern import (
@@ -45,11 +46,11 @@ EQ9: dict[str, dict[str, float]] = {
 
 WAVELENGTH_NM = 405.0  # seed 001 §2: blue laser diode
 SPOT_UM = SEED001_SPOT_DIAMETER_M * 1e6  # seed 001 §2: spot "around 3 microns"
-GATE_PERIODS = (3, 4)  # seed 001 §4.2: error reaches submicrons in 3-4 periods
+GATE_PERIODS = SEED_GATE_PERIODS  # seed 001 §4.2: error reaches submicrons in 3-4 periods
 
 #: seed 001 §4.2 / Fig. 13a: axial tracking errors (not labelled RMS in the seed; read as
 #: RMS: the contour RMS agrees, sqrt((485.8² + 885.8²)/2) = 714 nm against 769.5 nm).
-AXIAL_RMS_NM = dict(zip("xy", SEED_AXIAL_RMS_NM, strict=True))
+AXIAL_RMS_NM = SEED_AXIAL_RMS_NM
 CONTOUR_RMS_NM = SEED_CONTOUR_RMS_NM  # seed 001 §4.2 / Fig. 13b: contour error, RMS over phase
 LINE_WIDTH_UM = SEED001_LINE_WIDTH_M * 1e6  # seed 001 §4.2, Figs. 14-15: linewidth ~2.5 µm
 
