@@ -21,7 +21,6 @@ import typer
 
 from microfab.cli._kit import check_option, console, fail, print_table
 from microfab.process.slm.timing import RTCDelays
-from microfab.report.tables import Table
 
 if TYPE_CHECKING:
     from microfab.process.slm.estimate import ScanTimeComparison
@@ -113,6 +112,7 @@ def scan_time_cmd(
         SkyWriting,
         ticks,
     )
+    from microfab.report.slm_tables import scan_table
 
     check_option("--mark-speed", mark_speed, "m/s")
     check_option("--jump-speed", jump_speed, "m/s")
@@ -204,7 +204,7 @@ def scan_time_cmd(
         tolerance=tol,
         naive_jump_delay=naive_jump_delay,
     )
-    print_table(_scan_table(source, runs))
+    print_table(scan_table(runs, title=f"Scan time of {source}"))
     _print_scan_summary(path, runs)
     if json_path is not None:
         from microfab.io.atomic import atomic_write_json
@@ -223,26 +223,6 @@ def scan_time_cmd(
             data["shaper"] = shaper_to_dict(the_shaper)
         atomic_write_json(json_path, data)
         console.print(f"wrote {json_path}", highlight=False)
-
-
-def _scan_table(source: str, runs: dict[str, ScanTimeComparison]) -> Table:
-    from microfab.process.slm.timing import CATEGORIES
-
-    cols = ["category"]
-    ests = []
-    for name, c in runs.items():
-        tag = "" if name == "unshaped" else ", shaped"
-        for e in (c.naive, c.fixed, c.dynamics):
-            cols.append(f"{e.method}{tag} [s]")
-            ests.append(e)
-
-    def cell(e: Any, cat: str) -> str:
-        sec = e.total_s if cat == "total" else e.breakdown_s[cat]
-        share = 1.0 if cat == "total" else e.share(cat)
-        return f"{sec:.5g} ({100 * share:.1f} %)"
-
-    rows = [[cat, *(cell(e, cat) for e in ests)] for cat in (*CATEGORIES, "total")]
-    return Table(title=f"Scan time of {source}", columns=cols, rows=rows)
 
 
 def _print_scan_summary(path: Any, runs: dict[str, ScanTimeComparison]) -> None:

@@ -56,8 +56,8 @@ mode.
 * ``command_peak``: largest ``|command - start| / jump`` of the shaped step.
 * ``settling_s``: 2 % settling (``band`` of the jump) of the calibrated position after
   the step, `microfab.control.shaping_metrics.settling_time` on the sampled series (the
-  approach of ``reproduce slm-shaper``'s ``_settling_sampled``, with the shaped command
-  simulated through the twin's axis model by `scipy.signal.dlsim`).
+  approach of the sampled settling of `microfab.machines.slm_galvo_shaping`, with the
+  shaped command simulated through the twin's axis model by `scipy.signal.dlsim`).
 * ``lag_s``: the calibrated position's steady lag behind an unshaped ramp, read on the
   sampled series (``G``'s 453.9 µs plus the ZOH's half tick plus the shaper's delay).
 

@@ -1,15 +1,19 @@
-"""Tables of SLM galvo-scanner results (seed 003 part 2): a whole build, shapers compared.
+"""Tables of SLM galvo-scanner results (seed 003 part 2): scan times, a build, shapers.
 
 Each function reads a finished result and formats it as a `microfab.report.tables.Table`
-(printed by the CLI, written into a report); none computes physics. `build_table` reads a
-`microfab.process.slm.build.BuildResult` (``microfab slm build``, the ``slm-shaping``
-job); `comparison_table` a `microfab.machines.slm_galvo_shapers.ShaperComparison`
-(``microfab shaper compare``, the job).
+(printed by the CLI, written into a report); none computes physics. `scan_table` reads
+the scan-time estimates of one layer without and with a shaper
+(`microfab.process.slm.estimate.estimate_with_shaper`: ``microfab slm scan-time``, the
+``slm-shaping`` job); `build_table` a `microfab.process.slm.build.BuildResult`
+(``microfab slm build``, the job); `comparison_table` a
+`microfab.machines.slm_galvo_shapers.ShaperComparison` (``microfab shaper compare``, the
+job).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 from microfab.machines.slm_galvo_shapers import ShaperComparison
 from microfab.process.slm.build import ESTIMATES, LABELS, BuildResult
@@ -18,11 +22,52 @@ from microfab.process.slm.estimate import (
     SEED_JUMP_DELAY_UNSHAPED_S,
     SEED_TOTAL_SHAPED_S,
     SEED_TOTAL_UNSHAPED_S,
+    ScanTimeComparison,
+    ScanTimeEstimate,
 )
 from microfab.process.slm.timing import CATEGORIES
 from microfab.report.tables import DASH, Table
 
-__all__ = ["build_table", "comparison_table"]
+__all__ = ["build_table", "comparison_table", "scan_table"]
+
+
+def scan_table(
+    runs: Mapping[str, ScanTimeComparison], *, title: str, shaped: str = "shaped", note: str = ""
+) -> Table:
+    """A layer's naive, fixed-delay and dynamics-aware scan times by category, s and share.
+
+    Parameters
+    ----------
+    runs : mapping of str to ScanTimeComparison
+        ``"unshaped"`` and, if estimated, ``"shaped"`` (`estimate_with_shaper`).
+    title : str
+        The table's title (names the layer).
+    shaped : str
+        Tag of the shaped columns (``"naive, shaped [s]"``).
+    note : str
+        A line under the table.
+
+    Returns
+    -------
+    Table
+        One row per category of `microfab.process.slm.timing.CATEGORIES` and the total;
+        per estimate its time, s, and its share of the estimate's total.
+    """
+    cols = ["category"]
+    ests = []
+    for name, c in runs.items():
+        tag = "" if name == "unshaped" else f", {shaped}"
+        for e in (c.naive, c.fixed, c.dynamics):
+            cols.append(f"{e.method}{tag} [s]")
+            ests.append(e)
+
+    def cell(e: ScanTimeEstimate, cat: str) -> str:
+        sec = e.total_s if cat == "total" else e.breakdown_s[cat]
+        share = 1.0 if cat == "total" else e.share(cat)
+        return f"{sec:.5g} ({100 * share:.1f} %)"
+
+    rows = [[cat, *(cell(e, cat) for e in ests)] for cat in (*CATEGORIES, "total")]
+    return Table(title=title, columns=cols, rows=rows, note=note)
 
 
 def build_table(result: BuildResult) -> Table:

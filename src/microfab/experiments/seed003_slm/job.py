@@ -26,16 +26,7 @@ from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed003_slm.results import ShapingJob, ShapingResult
-from microfab.experiments.seed003_slm.run import (
-    DISCRETIZATIONS,
-    IdentifySettings,
-    LayerSettings,
-    ShaperSettings,
-    ShapingSettings,
-    TwinSettings,
-    run_shaping,
-)
-from microfab.experiments.seed003_slm.tables import NOTES, run_summary, scan_table, seed_table
+from microfab.experiments.seed003_slm.tables import NOTES, scan_table, seed_table
 from microfab.identify.chirp import ChirpDesign
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
@@ -44,6 +35,16 @@ from microfab.machines.slm_galvo_shapers import (
     CompareSettings,
     ShaperComparison,
     compare_shapers,
+)
+from microfab.machines.slm_galvo_shaping import (
+    DISCRETIZATIONS,
+    IdentifySettings,
+    LayerSettings,
+    ShaperSettings,
+    ShapingSettings,
+    TwinSettings,
+    design_shapers,
+    run_shaping,
 )
 from microfab.process.slm.build import BuildSettings, run_build
 from microfab.process.slm.estimate import SettleTolerance
@@ -232,8 +233,6 @@ def _checked_config(sec: dict[str, dict[str, Any]]) -> ShapingJob:
     The layer's source is read, and the shaper is designed on the twin's own model
     (refusing poles not faster than it).
     """
-    from microfab.experiments.seed003_slm.run import design_shapers
-
     cfg = config_from_sections(sec)
     tf = cfg.run.twin.twin().transfer_function()
     design_shapers((tuple(tf.num[0][0]), tuple(tf.den[0][0])), cfg.run.shaper)
@@ -296,7 +295,7 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
         progress,
     )
     return ReproductionResult(
-        tables=(seed_table(run), scan_table(run)), notes=NOTES, data=run_summary(run)
+        tables=(seed_table(run), scan_table(run)), notes=NOTES, data=run.summary()
     )
 
 

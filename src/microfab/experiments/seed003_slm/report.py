@@ -7,7 +7,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from microfab.experiments.seed003_slm.figures import (
+from microfab.experiments.seed003_slm.tables import NOTES
+from microfab.report.slm import (
     plot_build,
     plot_jump_position,
     plot_jump_speed,
@@ -15,7 +16,6 @@ from microfab.experiments.seed003_slm.figures import (
     plot_shaper_bode,
     plot_step_comparison,
 )
-from microfab.experiments.seed003_slm.tables import NOTES
 
 if TYPE_CHECKING:
     from microfab.experiments.seed003_slm.results import ShapingResult

@@ -9,14 +9,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from microfab.experiments.seed003_slm.run import (
-    ShapingRun,
-    ShapingSettings,
-)
-from microfab.experiments.seed003_slm.tables import run_summary, scan_table, seed_table
-from microfab.machines.slm_galvo_shapers import (
-    ShaperComparison,
-)
+from microfab.experiments.seed003_slm.tables import scan_table, seed_table
+from microfab.machines.slm_galvo_shapers import ShaperComparison
+from microfab.machines.slm_galvo_shaping import ShapingRun, ShapingSettings
 from microfab.process.slm.build import BuildResult, BuildSettings
 from microfab.report.slm_tables import build_table, comparison_table
 from microfab.report.tables import Table
@@ -60,7 +55,7 @@ class ShapingResult:
 
     def summary(self) -> dict[str, Any]:
         """The numbers of the tables, JSON-ready."""
-        out = run_summary(self.run)
+        out = self.run.summary()
         out["comparisons"] = [c.summary() for c in self.comparisons]
         if self.build is not None:
             out["build"] = self.build.summary()

@@ -1,18 +1,19 @@
-"""Tables and JSON of an ``slm-shaping`` run: the seed's numbers beside ours, scan times."""
+"""Tables of an ``slm-shaping`` run: the seed's numbers beside ours, the layer's scan times.
+
+The run's JSON is `microfab.machines.slm_galvo_shaping.ShapingRun.summary`.
+"""
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 
 from microfab.experiments.seed003_slm import paper
-from microfab.experiments.seed003_slm.run import ShapingRun
+from microfab.machines.slm_galvo_shaping import ShapingRun
 from microfab.process.slm.estimate import implied_jumps
-from microfab.process.slm.timing import CATEGORIES
+from microfab.report import slm_tables
 from microfab.report.tables import Table, versus
 
-__all__ = ["NOTES", "run_summary", "scan_table", "seed_table"]
+__all__ = ["NOTES", "scan_table", "seed_table"]
 
 #: What differs from the seed and why, one line each (report and ``reproduce``).
 NOTES = (
@@ -99,62 +100,13 @@ def seed_table(run: ShapingRun) -> Table:
 
 def scan_table(run: ShapingRun) -> Table:
     """The layer's three estimates per category, without and with the shaper, s."""
-    rows = []
-    for c in (*CATEGORIES, "total"):
-        cells = [c]
-        for key in ("unshaped", "shaped"):
-            cmp = run.scan[key]
-            for est in (cmp.naive, cmp.fixed, cmp.dynamics):
-                v = est.total_s if c == "total" else est.breakdown_s[c]
-                cells.append(f"{v:.4f}")
-        rows.append(tuple(cells))
-    d = run.settings.shaper.discretization.upper()
-    return Table(
+    return slm_tables.scan_table(
+        run.scan,
         title=f"Layer scan time by category [s] ({run.layer_vectors} vectors, "
         f"{run.settings.layer.source})",
-        columns=(
-            "category",
-            "naive",
-            "fixed delays",
-            "dynamics-aware",
-            f"naive, {d}",
-            f"fixed, {d}",
-            f"dynamics-aware, {d}",
-        ),
-        rows=rows,
+        shaped=run.settings.shaper.discretization.upper(),
         note="Naive: Σ L/v (PySLM-like). Fixed: the RTC's timing with the set delays (jump "
         f"{run.settings.rtc.delays.jump_s * 1e6:g} µs without the shaper, the shaper's "
         "derived delay with it). Dynamics-aware: per-vector delays from exact propagation "
         "of the twin.",
     )
-
-
-def run_summary(run: ShapingRun) -> dict[str, Any]:
-    """The run's numbers, JSON-ready (also ``microfab reproduce slm-shaper --json``)."""
-    met = run.metrics
-    m = run.identification.fit
-    return {
-        "fit": {
-            "coefficients": run.fit_coefficients().tolist(),
-            "seed": [paper.MODEL_NUM[0], *paper.MODEL_DEN[1:]],
-            "max_relative_error": run.fit_error(),
-            "model": m.to_dict(),
-        },
-        "lag_us": [v * 1e6 for v in met["lag"]],
-        "settling_us": [v * 1e6 for v in met["settling"]],
-        "settling_sampled_us": {k: v * 1e6 for k, v in met["settling_sampled"].items()},
-        "speed95_us": [v * 1e6 for v in met["speed95"]],
-        "speed95_loop_us": [v * 1e6 for v in met["speed95_loop"]],
-        "jump_delay_us": {k: v * 1e6 for k, v in run.jump_delay_s.items()},
-        "layer": {
-            "source": run.settings.layer.source,
-            "vectors": run.layer_vectors,
-            **{
-                k: {e.method: e.summary() for e in (c.naive, c.fixed, c.dynamics)}
-                for k, c in run.scan.items()
-            },
-        },
-        "layer_s": [run.scan[k].dynamics.total_s for k in ("unshaped", "shaped")],
-        "layer_cut": run.scan_cut,
-        "discretization": run.settings.shaper.discretization,
-    }

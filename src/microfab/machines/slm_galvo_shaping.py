@@ -1,6 +1,9 @@
-"""The ``slm-shaping`` experiment of seed 003 part 2 on the SLM galvo twin.
+"""Identification, input shaping and scan time on the SLM galvo twin: `run_shaping`.
 
-One run is the seed's procedure, end to end, on the twin (`microfab.plants.galvo_slm`):
+One run is seed 003 part 2's procedure, end to end, on the twin
+(`microfab.machines.slm_galvo.twin`, `microfab.plants.galvo_slm`), on the user's
+settings (`ShapingSettings`); the ``slm-shaping`` job kind (``microfab run``,
+`microfab.experiments.seed003_slm.job`) runs it:
 
 1. **Identify** (seed §1): play the chirp through the scanner's loop with the twin's
    seeded noise, estimate the FRF per period (`microfab.machines.slm_galvo.chirp_frf`)
@@ -15,10 +18,11 @@ One run is the seed's procedure, end to end, on the twin (`microfab.plants.galvo
    `process.slm.source.scan_program`): naive, fixed-delay and dynamics-aware estimates,
    without and with the shaper (the shaper's own derived jump delay).
 
-The side-by-side comparison of shapers (`microfab.machines.slm_galvo_shapers`) and the
-whole build (`microfab.process.slm.build`) are optional parts, run by the job
-(`job.py`). Every part is seconds long; only the build is long, and it is resumable
-(`microfab.io.sweep.run_sweep`).
+`ShapingRun` holds what it measured and its JSON summary (`ShapingRun.summary`, with the
+fit beside the seed's identified ``G``). The side-by-side comparison of shapers
+(`microfab.machines.slm_galvo_shapers`, ``microfab shaper compare``) and the whole build
+(`microfab.process.slm.build`, ``microfab slm build``) are the job's optional parts. Every
+part is seconds long. The figures are `microfab.report.slm`.
 """
 
 from __future__ import annotations
@@ -30,11 +34,11 @@ import numpy as np
 
 from microfab.control.shaping import InverseShaper, InverseShaperConfig, design_inverse_shaper
 from microfab.control.shaping_metrics import ramp_lag, ramp_speed_time, step_settling_time
-from microfab.experiments.seed003_slm import paper
 from microfab.identify.chirp import Chirp, ChirpDesign
 from microfab.identify.fit import FitResult, fit_tf
 from microfab.identify.frf import FRF
 from microfab.machines import slm_galvo
+from microfab.machines.slm_galvo import SEED_MODEL_DEN, SEED_MODEL_NUM
 from microfab.plants.galvo_slm import GalvoSLMPlant
 from microfab.process.slm.estimate import (
     ScanTimeComparison,
@@ -394,8 +398,38 @@ class ShapingRun:
         m = self.identification.fit.model
         if (m.n_poles, m.n_zeros) != (3, 0):
             return None
-        seed = np.array([paper.MODEL_NUM[0], *paper.MODEL_DEN[1:]])
+        seed = np.array([SEED_MODEL_NUM[0], *SEED_MODEL_DEN[1:]])
         return float(np.max(np.abs(self.fit_coefficients() / seed - 1.0)))
+
+    def summary(self) -> dict[str, Any]:
+        """The run's numbers, JSON-ready: times in µs, the fit beside the seed's ``G``."""
+        met = self.metrics
+        m = self.identification.fit
+        return {
+            "fit": {
+                "coefficients": self.fit_coefficients().tolist(),
+                "seed": [SEED_MODEL_NUM[0], *SEED_MODEL_DEN[1:]],
+                "max_relative_error": self.fit_error(),
+                "model": m.to_dict(),
+            },
+            "lag_us": [v * 1e6 for v in met["lag"]],
+            "settling_us": [v * 1e6 for v in met["settling"]],
+            "settling_sampled_us": {k: v * 1e6 for k, v in met["settling_sampled"].items()},
+            "speed95_us": [v * 1e6 for v in met["speed95"]],
+            "speed95_loop_us": [v * 1e6 for v in met["speed95_loop"]],
+            "jump_delay_us": {k: v * 1e6 for k, v in self.jump_delay_s.items()},
+            "layer": {
+                "source": self.settings.layer.source,
+                "vectors": self.layer_vectors,
+                **{
+                    k: {e.method: e.summary() for e in (c.naive, c.fixed, c.dynamics)}
+                    for k, c in self.scan.items()
+                },
+            },
+            "layer_s": [self.scan[k].dynamics.total_s for k in ("unshaped", "shaped")],
+            "layer_cut": self.scan_cut,
+            "discretization": self.settings.shaper.discretization,
+        }
 
 
 def run_shaping(settings: ShapingSettings | None = None, progress: Any = None) -> ShapingRun:
@@ -406,7 +440,7 @@ def run_shaping(settings: ShapingSettings | None = None, progress: Any = None) -
     settings : ShapingSettings, optional
         Default: the seed's procedure on the default twin.
     progress : callable, optional
-        ``progress(task, done, total)`` (`microfab.experiments.kinds.Progress`).
+        ``progress(task, done, total)`` (as `microfab.experiments.kinds.Progress`).
     """
     s = ShapingSettings() if settings is None else settings
     say = progress if progress is not None else (lambda *_a: None)
@@ -416,7 +450,7 @@ def run_shaping(settings: ShapingSettings | None = None, progress: Any = None) -
     m = ident.fit.model
     say("inverse shaper", 0, None)
     shapers = design_shapers((tuple(m.num), tuple(m.den)), s.shaper)
-    G = (paper.MODEL_NUM, paper.MODEL_DEN)
+    G = (SEED_MODEL_NUM, SEED_MODEL_DEN)
     overall = shapers["zoh"].overall()
     metrics: dict[str, Any] = {
         "lag": (ramp_lag(G), ramp_lag(overall)),
