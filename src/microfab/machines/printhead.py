@@ -18,7 +18,9 @@ it, so one point gives one answer whichever command runs it.
 
 A sweep saves every finished point at once (atomically) in its results directory; one
 started again with the same directory and settings skips the points already there, so an
-interrupted sweep loses at most the points in progress.
+interrupted sweep loses at most the points in progress. `model_sweep` runs the points
+once per jet model (the ``droplet-sweep`` job and the ``droplet-fig4`` reproduction),
+each model's points saved apart.
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ __all__ = [
     "SweepPoint",
     "droplet_sweep",
     "limits",
+    "model_sweep",
     "play",
     "run_point",
     "simulate_point",
@@ -385,3 +388,65 @@ def droplet_sweep(
         progress=progress,
         raise_on_failure=raise_on_failure,
     )
+
+
+def model_sweep(
+    points: Sequence[SweepPoint],
+    models: Sequence[str],
+    *,
+    settings: DropletSettings | None = None,
+    results_dir: str | Path | None = None,
+    workers: int = 1,
+    scheduler: str | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> tuple[list[dict[str, Any]], list[str]]:
+    """`droplet_sweep` of every point once per jet model; failed points do not stop it.
+
+    Parameters
+    ----------
+    points : sequence of SweepPoint
+        What to run (`sweep_points`).
+    models : sequence of str
+        Jet models (`microfab.process.inkjet.droplet.JET_MODELS`), run in this order.
+    settings : DropletSettings, optional
+        Shared by every point; its ``model`` is replaced by each of ``models``.
+    results_dir : str or Path, optional
+        Each model's points are saved (and resumed) under ``results_dir/sweep-<model>``.
+    workers, scheduler
+        As `droplet_sweep`.
+    progress : callable, optional
+        ``progress(model, done, total)``: once with ``done = 0`` before each model, then
+        as each of its points completes.
+
+    Returns
+    -------
+    rows : list of dict
+        The finished points' rows, ``jet_model`` added, model by model in point order.
+    failed : list of str
+        ``"<c> %, <v> V: <error>"`` per failed point, prefixed ``"<model>: "`` when more
+        than one model runs.
+    """
+    settings = settings or DropletSettings()
+    rows: list[dict[str, Any]] = []
+    failed: list[str] = []
+    for model in models:
+        if progress is not None:
+            progress(model, 0, len(points))
+        res = droplet_sweep(
+            points,
+            settings=dataclasses.replace(settings, model=model),
+            results_dir=None if results_dir is None else Path(results_dir) / f"sweep-{model}",
+            workers=workers,
+            scheduler=scheduler,
+            progress=None
+            if progress is None
+            else lambda done, total, p, ok, model=model: progress(model, done, total),
+            raise_on_failure=False,
+        )
+        rows += [{**r, "jet_model": model} for r in res.rows]
+        prefix = f"{model}: " if len(models) > 1 else ""
+        failed += [
+            f"{prefix}{f.point.concentration_pct:g} %, {f.point.voltage_v:g} V: {f.error}"
+            for f in res.failed
+        ]
+    return rows, failed

@@ -8,13 +8,10 @@ from typing import Any
 import pytest
 
 from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
-from microfab.experiments.seed003_inkjet import job as droplet_job
-from microfab.experiments.seed003_inkjet.job import (
-    DropletSweepConfig,
-    breakup_tables,
-)
+from microfab.experiments.seed003_inkjet.job import DropletSweepConfig
 from microfab.io.job import JobFileError
 from microfab.io.sweep import SweepResult
+from microfab.machines import printhead
 from microfab.machines.printhead import DropletSettings, SweepPoint
 
 EXAMPLES = Path(__file__).parents[3] / "examples"
@@ -66,23 +63,6 @@ def _row(c: float, v: float, t: float | None, mode: str | None = "exit") -> dict
     }
 
 
-def test_tables_put_the_seed_beside_ours_and_judge_the_trend() -> None:
-    rows = [_row(0.15, 50, 96e-6), _row(1.0, 50, 258e-6), _row(1.0, 60, 200e-6)]
-    first, trend, volts = breakup_tables(rows)
-    assert first.rows[0][:3] == ("0.15", "96 / 95", "exit / front")
-    assert first.rows[1][:3] == ("1", "258 / 230", "exit / exit")
-    assert trend.rows == (("breakup time rises with concentration", "yes", "yes"),)
-    assert [r[0] for r in volts.rows] == ["50", "60"]
-
-    falling = [_row(0.15, 50, 96e-6), _row(1.0, 50, 258e-6), _row(1.5, 50, 133e-6)]
-    assert breakup_tables(falling)[1].rows[0][1] == "no: falls from 1 % → 1.5 %"
-    missing = [_row(0.15, 50, 96e-6), _row(2.0, 50, None)]
-    tables = breakup_tables(missing)
-    assert tables[1].rows[0][1] == "no: no breakup at 2 %"
-    assert tables[0].rows[1][1] == "— / —"
-    assert len(tables) == 2  # no voltage series in these rows
-
-
 def test_run_writes_report_summary_and_resumes(tmp_path: Path) -> None:
     """A real one-point job: 0.15 % at 50 V (seed: 95 µs)."""
     job = load_job(
@@ -111,12 +91,12 @@ def test_a_failed_point_is_reported_and_the_rest_kept(
             raise RuntimeError("solver diverged")
         return _row(p.concentration_pct, p.voltage_v, 1e-4)
 
-    real = droplet_job.droplet_sweep
+    real = printhead.droplet_sweep
 
     def sweep(*args: Any, **kwargs: Any) -> SweepResult[SweepPoint]:
         return real(*args, simulate=flaky, **kwargs)
 
-    monkeypatch.setattr(droplet_job, "droplet_sweep", sweep)
+    monkeypatch.setattr(printhead, "droplet_sweep", sweep)
     job = load_job(_write(tmp_path, "concentrations_pct = [0.15, 2.0]\nvoltages_v = []"))
     result = job.kind.run(job.config, tmp_path / "out", lambda *a: None)
     assert [r["concentration_pct"] for r in result.rows] == [0.15]
@@ -143,12 +123,12 @@ def test_two_models_are_run_saved_apart_and_compared(
         row = _row(p.concentration_pct, p.voltage_v, t, "front")
         return {**row, "tail_length_at_breakup_m": 5e-5}
 
-    real = droplet_job.droplet_sweep
+    real = printhead.droplet_sweep
 
     def sweep(*args: Any, **kwargs: Any) -> SweepResult[SweepPoint]:
         return real(*args, simulate=fake, **kwargs)
 
-    monkeypatch.setattr(droplet_job, "droplet_sweep", sweep)
+    monkeypatch.setattr(printhead, "droplet_sweep", sweep)
     job = load_job(
         _write(
             tmp_path,

@@ -21,14 +21,15 @@ Job file (``examples/droplet_sweep.toml``)::
 Every finished point is saved under ``OUT/sweep-<model>/`` as it comes back; running the
 same job again skips them. The report puts the seed's two quoted breakups (0.15 % and 1 % at
 50 V, "Typical droplet formation process") and its Fig. 4 trend (breakup time rises
-with concentration) beside ours.
+with concentration) beside ours. What runs is the machine's
+(`microfab.machines.printhead.model_sweep`) and the tables are
+`microfab.report.inkjet_tables.breakup_tables`; here the job file becomes its settings,
+and the report and the reproduction are assembled.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import itertools
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,15 +45,15 @@ from microfab.experiments.seed003_inkjet.paper import (
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import printhead
-from microfab.machines.printhead import DropletSettings, SweepPoint, droplet_sweep, sweep_points
-from microfab.report.tables import DASH, Table, versus
+from microfab.machines.printhead import DropletSettings, SweepPoint, model_sweep, sweep_points
+from microfab.report.inkjet_tables import breakup_tables, breakup_trend, row_model
+from microfab.report.tables import Table
 
 __all__ = [
     "DROPLET_FIG4_REPRODUCTION",
     "DROPLET_SWEEP",
     "DropletSweepConfig",
     "DropletSweepResult",
-    "breakup_tables",
 ]
 
 #: Highest concentration of the property table, % w/v (seed 003 "Materials": 2 %).
@@ -64,86 +65,41 @@ VOLTAGE_RANGE_V = printhead.limits().voltage_v
 DURATION_RANGE_US = (10.0, 5000.0)
 MAX_WORKERS = 256  # assumed: more processes than any one machine here has cores
 
-_CONCENTRATIONS = Key(
-    name="concentrations_pct",
-    type="float_list",
-    default=SEED_CONCENTRATIONS_PCT,
-    low=0.0,
-    high=MAX_CONCENTRATION_PCT,
-    unit="% w/v",
-    help="concentrations of the 50 V series (seed Fig. 4)",
-)
-_DURATION = Key(
-    name="duration_us",
-    type="float",
-    default=400.0,
-    low=DURATION_RANGE_US[0],
-    high=DURATION_RANGE_US[1],
-    unit="µs",
-    help="simulated time per point",
-)
-_AFTER = Key(
-    name="after_breakup_us",
-    type="float",
-    default=20.0,
-    low=1.0,
-    high=DURATION_RANGE_US[1],
-    unit="µs",
-    help="how long the bodies are followed after the first breakup",
-)
-_MODELS = Key(
-    name="models",
-    type="str",
-    default="lagrangian",
-    help="jet models, comma-separated: lagrangian, eulerian (each runs every point)",
-)
+# fmt: off
+_CONCENTRATIONS = Key(name="concentrations_pct", type="float_list", default=SEED_CONCENTRATIONS_PCT,
+                     low=0.0, high=MAX_CONCENTRATION_PCT, unit="% w/v",
+                     help="concentrations of the 50 V series (seed Fig. 4)")
+_DURATION = Key(name="duration_us", type="float", default=400.0, low=DURATION_RANGE_US[0],
+                high=DURATION_RANGE_US[1], unit="µs", help="simulated time per point")
+_AFTER = Key(name="after_breakup_us", type="float", default=20.0, low=1.0,
+             high=DURATION_RANGE_US[1], unit="µs",
+             help="how long the bodies are followed after the first breakup")
+_MODELS = Key(name="models", type="str", default="lagrangian",
+              help="jet models, comma-separated: lagrangian, eulerian (each runs every point)")
 #: The reproduction shows both models beside the seed by default.
 _REPRO_MODELS = dataclasses.replace(_MODELS, default="lagrangian,eulerian")
-_WORKERS = Key(
-    name="workers",
-    type="int",
-    default=1,
-    low=1,
-    high=MAX_WORKERS,
-    help="worker processes of a local Dask cluster (1: in this process)",
-)
+_WORKERS = Key(name="workers", type="int", default=1, low=1, high=MAX_WORKERS,
+               help="worker processes of a local Dask cluster (1: in this process)")
 
 SCHEMA = {
     "sweep": (
         _CONCENTRATIONS,
-        Key(
-            name="voltages_v",
-            type="float_list",
-            default=SEED_VOLTAGES_V,
-            low=VOLTAGE_RANGE_V[0],
-            high=VOLTAGE_RANGE_V[1],
-            unit="V",
-            help="voltages of the voltage series (seed Table 1); [] for none",
-            allow_empty=True,
-        ),
-        Key(
-            name="voltage_concentration_pct",
-            type="float",
-            default=1.0,
-            low=0.0,
-            high=MAX_CONCENTRATION_PCT,
-            unit="% w/v",
-            help="concentration of the voltage series",
-        ),
+        Key(name="voltages_v", type="float_list", default=SEED_VOLTAGES_V,
+            low=VOLTAGE_RANGE_V[0], high=VOLTAGE_RANGE_V[1], unit="V", allow_empty=True,
+            help="voltages of the voltage series (seed Table 1); [] for none"),
+        Key(name="voltage_concentration_pct", type="float", default=1.0, low=0.0,
+            high=MAX_CONCENTRATION_PCT, unit="% w/v", help="concentration of the voltage series"),
         _DURATION,
         _AFTER,
         _MODELS,
     ),
     "run": (
         _WORKERS,
-        Key(
-            name="scheduler",
-            type="str",
-            default=None,
-            help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786",
-        ),
+        Key(name="scheduler", type="str", default=None,
+            help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786"),
     ),
 }
+# fmt: on
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -221,155 +177,6 @@ def parse_models(text: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys(m.strip() for m in text.split(",") if m.strip()))
 
 
-def _us(seconds: float | None) -> float | None:
-    return None if seconds is None else seconds * 1e6
-
-
-def _trend(at50: Sequence[dict[str, Any]]) -> str:
-    """Whether our breakup time rises with concentration at 50 V, in words."""
-    rows = sorted(at50, key=lambda r: r["concentration_pct"])
-    if len(rows) < 2:
-        return "needs two concentrations at 50 V"
-    missing = [r["concentration_pct"] for r in rows if r["breakup_time_s"] is None]
-    if missing:
-        return "no: no breakup at " + ", ".join(f"{c:g} %" for c in missing)
-    falls = [
-        f"{a['concentration_pct']:g} % → {b['concentration_pct']:g} %"
-        for a, b in itertools.pairwise(rows)
-        if b["breakup_time_s"] <= a["breakup_time_s"]
-    ]
-    return "yes" if not falls else "no: falls from " + ", ".join(falls)
-
-
-def _model_of(row: dict[str, Any]) -> str:
-    return str(row.get("jet_model", "lagrangian"))
-
-
-def breakup_tables(rows: Sequence[dict[str, Any]]) -> tuple[Table, ...]:
-    """Our breakups beside the seed's: the 50 V series, its trend, the voltage series.
-
-    With rows of more than one jet model, the tables come once per model (titled with
-    it) after a table that puts the models' 50 V breakups side by side.
-
-    Parameters
-    ----------
-    rows : sequence of dict
-        Sweep rows (`droplet_sweep`): ``concentration_pct``, ``voltage_v``,
-        ``breakup_time_s``, ``breakup_mode``, ``breakup_z_m``, ``head_speed_m_s``,
-        ``satellites``, ``drop_diameter_m`` and ``jet_model`` (default "lagrangian").
-
-    Returns
-    -------
-    tuple of Table
-        Two or three tables per model (the voltage series only when the rows hold one).
-    """
-    models = list(dict.fromkeys(_model_of(r) for r in rows))
-    if len(models) <= 1:
-        return _tables_of_one_model(rows, "")
-    out: list[Table] = [_model_comparison(rows, models)]
-    for m in models:
-        out += _tables_of_one_model([r for r in rows if _model_of(r) == m], f" ({m} model)")
-    return tuple(out)
-
-
-def _model_comparison(rows: Sequence[dict[str, Any]], models: Sequence[str]) -> Table:
-    at50 = [r for r in rows if r["voltage_v"] == FIG4_VOLTAGE_V]
-    cs = sorted({r["concentration_pct"] for r in at50})
-    table_rows = []
-    for c in cs:
-        cells = []
-        for m in models:
-            r = next((r for r in at50 if r["concentration_pct"] == c and _model_of(r) == m), None)
-            t = None if r is None else _us(r["breakup_time_s"])
-            tail = None if r is None else r.get("tail_length_at_breakup_m")
-            cells.append(
-                DASH if t is None else f"{t:.0f} µs {r['breakup_mode']}"  # type: ignore[index]
-            )
-            cells.append(DASH if tail is None else f"{tail * 1e6:.0f}")
-        seed_t, seed_mode = SEED_BREAKUP.get(c, (None, None))
-        seed = DASH if seed_t is None else f"{seed_t * 1e6:.0f} µs {seed_mode}"
-        table_rows.append((f"{c:g}", *cells, seed))
-    columns = ["NaAlg [% w/v]"]
-    for m in models:
-        columns += [f"{m}: first breakup", f"{m}: tail [µm]"]
-    return Table(
-        title=f"Jet models side by side at {FIG4_VOLTAGE_V:g} V, and the seed",
-        columns=(*columns, "seed 003"),
-        rows=table_rows,
-        note="tail: length of the ligament behind the head in the last 10 µs frame before "
-        "the first breakup (microfab.process.inkjet.head_tail); a plug has none.",
-    )
-
-
-def _tables_of_one_model(rows: Sequence[dict[str, Any]], label: str) -> tuple[Table, ...]:
-
-    def cells(r: dict[str, Any]) -> tuple[str, ...]:
-        z = r.get("breakup_z_m")
-        d = r.get("drop_diameter_m")
-        return (
-            DASH if z is None else f"{z * 1e6:.0f}",
-            f"{r['head_speed_m_s']:.2f}" if r.get("head_speed_m_s") is not None else DASH,
-            str(r.get("satellites", DASH)),
-            DASH if d is None or not math.isfinite(d) else f"{d * 1e6:.0f}",
-        )
-
-    at50 = sorted(
-        (r for r in rows if r["voltage_v"] == FIG4_VOLTAGE_V), key=lambda r: r["concentration_pct"]
-    )
-    series = []
-    for r in at50:
-        seed_t, seed_mode = SEED_BREAKUP.get(r["concentration_pct"], (None, None))
-        series.append(
-            (
-                f"{r['concentration_pct']:g}",
-                versus(_us(r["breakup_time_s"]), _us(seed_t), "{:.0f}".format),
-                f"{r['breakup_mode'] or DASH} / {seed_mode or DASH}",
-                *cells(r),
-            )
-        )
-    tail = ("z [µm]", "head speed [m/s]", "satellites", "drop Ø [µm]")
-    tables = [
-        Table(
-            title=f"First breakup at {FIG4_VOLTAGE_V:g} V, ours / seed 003 part 1{label}",
-            columns=("NaAlg [% w/v]", "time [µs]", "mode", *tail),
-            rows=series,
-            note="The seed quotes two breakups (0.15 % at 95 µs by front-pinching, 1 % at "
-            "230 µs by exit-pinching; 'Typical droplet formation process', Fig. 2); "
-            "Fig. 4's other points are drawn, not tabulated. z is measured from the "
-            "nozzle exit; a dash: no breakup within the simulated time.",
-        ),
-        Table(
-            title=f"Seed Fig. 4 trend: breakup time rises with concentration (50 V){label}",
-            columns=("claim", "ours", "seed"),
-            rows=[("breakup time rises with concentration", _trend(at50), "yes")],
-        ),
-    ]
-    by_c: dict[float, list[dict[str, Any]]] = {}
-    for r in rows:
-        by_c.setdefault(r["concentration_pct"], []).append(r)
-    longest = max(by_c.values(), key=len, default=[])
-    if len(longest) > 1:
-        vrows = sorted(longest, key=lambda r: r["voltage_v"])
-        tables.append(
-            Table(
-                title=f"Voltage series at {vrows[0]['concentration_pct']:g} % NaAlg (ours){label}",
-                columns=("voltage [V]", "time [µs]", "mode", *tail),
-                rows=[
-                    (
-                        f"{r['voltage_v']:g}",
-                        DASH if r["breakup_time_s"] is None else f"{r['breakup_time_s'] * 1e6:.0f}",
-                        r["breakup_mode"] or DASH,
-                        *cells(r),
-                    )
-                    for r in vrows
-                ],
-                note="Seed 003 Table 1 lists the voltages (40-70 V) but publishes no breakup "
-                "numbers for them.",
-            )
-        )
-    return tuple(tables)
-
-
 @dataclass(frozen=True, kw_only=True, eq=False)
 class DropletSweepResult:
     """Rows of a droplet sweep and the points that failed.
@@ -425,8 +232,8 @@ class DropletSweepResult:
                 for r in self.rows
             ],
             "trend_rises_with_concentration": {
-                m: _trend(
-                    [r for r in self.rows if _model_of(r) == m and r["voltage_v"] == FIG4_VOLTAGE_V]
+                m: breakup_trend(
+                    [r for r in self.rows if row_model(r) == m and r["voltage_v"] == FIG4_VOLTAGE_V]
                 )
                 for m in models
             },
@@ -443,29 +250,17 @@ class DropletSweepResult:
 def _sweep(
     config: DropletSweepConfig, out: Path | None, label: str, progress: Progress
 ) -> tuple[list[dict[str, Any]], list[str]]:
-    """Every point with every model: rows (``jet_model`` set) and failures, in order."""
-    points = config.points
-    rows: list[dict[str, Any]] = []
-    failed: list[str] = []
-    for model in config.models:
-        tag = f"{label} ({model})" if len(config.models) > 1 else label
-        progress(tag, 0, len(points))
-        res = droplet_sweep(
-            points,
-            settings=dataclasses.replace(config.settings, model=model),
-            results_dir=None if out is None else out / f"sweep-{model}",
-            workers=config.workers,
-            scheduler=config.scheduler,
-            progress=lambda done, total, p, ok, tag=tag: progress(tag, done, total),
-            raise_on_failure=False,
-        )
-        rows += [{**r, "jet_model": model} for r in res.rows]
-        prefix = f"{model}: " if len(config.models) > 1 else ""
-        failed += [
-            f"{prefix}{f.point.concentration_pct:g} %, {f.point.voltage_v:g} V: {f.error}"
-            for f in res.failed
-        ]
-    return rows, failed
+    """`printhead.model_sweep` of the job (``OUT/sweep-<model>/``), progress under ``label``."""
+    many = len(config.models) > 1
+    return model_sweep(
+        config.points,
+        config.models,
+        settings=config.settings,
+        results_dir=out,
+        workers=config.workers,
+        scheduler=config.scheduler,
+        progress=lambda m, done, total: progress(f"{label} ({m})" if many else label, done, total),
+    )
 
 
 def _run(config: DropletSweepConfig, out: Path, progress: Progress) -> DropletSweepResult:
@@ -483,11 +278,11 @@ def _findings(rows: Sequence[dict[str, Any]], model: str) -> str:
                   and r["voltage_v"] == FIG4_VOLTAGE_V), None)  # fmt: skip
         if r is None:
             continue
-        t = _us(r["breakup_time_s"])
-        ours = "no breakup" if t is None else f"{r['breakup_mode']} at {t:.0f} µs"
+        t = r["breakup_time_s"]
+        ours = "no breakup" if t is None else f"{r['breakup_mode']} at {t * 1e6:.0f} µs"
         parts.append(f"{c:g} %: {ours} (seed {mode_seed} at {t_seed * 1e6:.0f} µs)")
     at50 = [r for r in rows if r["voltage_v"] == FIG4_VOLTAGE_V]
-    parts.append(f"time rises with concentration: {_trend(at50)}")
+    parts.append(f"time rises with concentration: {breakup_trend(at50)}")
     return f"{model} model: " + "; ".join(parts) + "."
 
 
@@ -508,7 +303,7 @@ def _notes(result: DropletSweepResult) -> list[str]:
         )
         + ".",
         *(
-            _findings([r for r in result.rows if _model_of(r) == m], m)
+            _findings([r for r in result.rows if row_model(r) == m], m)
             for m in result.config.models
         ),
         "Finished points are saved under sweep-<model>/; running the job again resumes.",
@@ -524,7 +319,7 @@ def _write_report(result: DropletSweepResult, out: Path, title: str) -> Path:
 
     figures = []
     for m in result.config.models:
-        rows = [r for r in result.rows if _model_of(r) == m]
+        rows = [r for r in result.rows if row_model(r) == m]
         if not rows:
             continue
         single = len(result.config.models) == 1
