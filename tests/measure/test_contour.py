@@ -26,3 +26,11 @@ def test_axis_errors_band_and_peak():
     assert a.peak_m == (0.6e-6, 0.9e-6)
     with pytest.raises(ValueError, match="shaped"):
         axis_errors(r, y[:, :1])
+
+
+def test_rms_over_the_laps_is_the_rms_of_all_their_samples():
+    err = np.array([1.0, -1.0, 3.0, -3.0]) * 1e-9
+    laps = (slice(0, 2), slice(2, 4))
+    lap_rms = np.array([np.sqrt(np.mean(err[s] ** 2)) for s in laps])
+    ce = ContourErrors(error_m=err, lap_max_m=np.array([1e-9, 3e-9]), lap_rms_m=lap_rms)
+    assert ce.rms() == pytest.approx(np.sqrt(np.mean(err**2)))

@@ -195,7 +195,7 @@ def speed_point(job: ContourJob, point: SpeedPoint) -> dict[str, Any]:
         "law": point.law,
         "speed_mm_s": point.speed_mm_s,
         "contour_max_nm": run.contour.steady_max() * 1e9,
-        "contour_rms_nm": float(np.sqrt(np.mean(run.contour.lap_rms_m**2)) * 1e9),
+        "contour_rms_nm": run.contour.rms() * 1e9,
         "axis_peak_um": max(run.axis.peak_m) * 1e6,
         "force_peak_n": float(np.abs(run.force).max()),
     }

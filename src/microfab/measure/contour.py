@@ -113,6 +113,10 @@ class ContourErrors:
             return self.after_first_lap_max()
         return float(self.lap_max_m.max())
 
+    def rms(self) -> float:
+        """RMS over the laps: the root of the mean of the laps' mean squares, m."""
+        return float(np.sqrt(np.mean(self.lap_rms_m**2)))
+
     @property
     def steady_label(self) -> str:
         """How `steady_max` was taken, for labels."""

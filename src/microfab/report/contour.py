@@ -5,7 +5,8 @@ What ``microfab laser analyze`` writes for a measured trace (`write_analysis`, f
 the seed 004 twin (Figs. 3, 4, 6 and 7 redrawn; `fig_axis_errors` ... `fig_focus` of a
 `microfab.machines.laser_stage_contour.ContourRun` or a
 `microfab.machines.laser_stage_focus.FocusStudy`), with the speed sweep, the motor force,
-the DOB's load-force estimate and the table of the axis loops' margins. Only draws
+the DOB's load-force estimate, and the tables of the runs' contour errors, of the speed
+sweep and of the axis loops' margins. Only draws
 (matplotlib, through `microfab.report.canvas.new_figure`) and formats: the figures of
 merit come from `microfab.measure.contour` and the machine modules.
 """
@@ -14,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path as FilePath
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure as MplFigure
@@ -35,6 +36,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AXIS_COLOURS",
     "analysis_table",
+    "contour_table",
     "fig_axis_errors",
     "fig_ballbar",
     "fig_contour_time",
@@ -49,6 +51,7 @@ __all__ = [
     "plot_contour_time",
     "plot_disturbance",
     "plot_focus",
+    "speed_table",
     "write_analysis",
 ]
 
@@ -331,3 +334,39 @@ def margins_table(margins: Sequence[AxisMargins]) -> Table:
         note="The plant is the twin's true axis (mass and force constant 10 % off the "
         "controller's nominal) with its amplifier lag; friction and saturation left out.",
     )  # fmt: skip
+
+
+def contour_table(runs: Mapping[str, ContourRun]) -> Table:
+    """Contour error of twin runs (label → run) against the exact drawing, per run."""
+    return Table(
+        title="Contour error against the exact drawing (true position)",
+        columns=("run", "max after lap 1 (or of the only lap) [nm]", "RMS [nm]",
+                 "measured max [nm]"),
+        rows=[
+            (
+                name,
+                f"{r.contour.steady_max() * 1e9:.1f}",
+                f"{r.contour.rms() * 1e9:.1f}",
+                f"{r.contour_measured.lap_max_m.max() * 1e9:.1f}",
+            )
+            for name, r in runs.items()
+        ],
+    )  # fmt: skip
+
+
+def speed_table(rows: Sequence[Mapping[str, Any]]) -> Table:
+    """The speed sweep's rows (`microfab.machines.laser_stage_contour.speed_point`)."""
+    return Table(
+        title="Contour error against speed (max after lap 1)",
+        columns=("law", "speed [mm/s]", "max [nm]", "RMS [nm]", "force peak [N]"),
+        rows=[
+            (
+                r["law"],
+                f"{r['speed_mm_s']:g}",
+                f"{r['contour_max_nm']:.1f}",
+                f"{r['contour_rms_nm']:.1f}",
+                f"{r['force_peak_n']:.3g}",
+            )
+            for r in rows
+        ],
+    )

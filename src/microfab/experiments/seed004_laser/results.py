@@ -16,7 +16,7 @@ from microfab.experiments.seed004_laser import paper
 from microfab.machines.laser_stage import ContourJob
 from microfab.machines.laser_stage_contour import ContourRun
 from microfab.machines.laser_stage_focus import FocusStudy
-from microfab.report.contour import margins_table
+from microfab.report.contour import contour_table, margins_table, speed_table
 from microfab.report.tables import Table, versus
 
 __all__ = ["FocusSettings", "LaserJob", "LaserResult", "focus_table"]
@@ -120,49 +120,16 @@ class LaserResult:
             "peak points' (30 µm circle; speed not given). '95 %' is our reading of "
             "'generally'.",
         )
-        runs = [("main: " + m.job.control.law, m)]
+        runs = {"main: " + m.job.control.law: m}
         if self.baseline is not None:
-            runs.append(("without correction", self.baseline))
-        t2 = Table(
-            title="Contour error against the exact drawing (true position)",
-            columns=(
-                "run",
-                "max after lap 1 (or of the only lap) [nm]",
-                "RMS [nm]",
-                "measured max [nm]",
-            ),
-            rows=[
-                (
-                    name,
-                    f"{r.contour.steady_max() * 1e9:.1f}",
-                    f"{np.sqrt(np.mean(r.contour.lap_rms_m**2)) * 1e9:.1f}",
-                    f"{r.contour_measured.lap_max_m.max() * 1e9:.1f}",
-                )
-                for name, r in runs
-            ],
-        )
-        tables = [t1, t2]
+            runs["without correction"] = self.baseline
+        tables = [t1, contour_table(runs)]
         if self.margins:
             tables.append(margins_table(self.margins))
         if self.focus is not None:
             tables.append(focus_table(self.focus))
         if self.sweep:
-            tables.append(
-                Table(
-                    title="Contour error against speed (max after lap 1)",
-                    columns=("law", "speed [mm/s]", "max [nm]", "RMS [nm]", "force peak [N]"),
-                    rows=[
-                        (
-                            r["law"],
-                            f"{r['speed_mm_s']:g}",
-                            f"{r['contour_max_nm']:.1f}",
-                            f"{r['contour_rms_nm']:.1f}",
-                            f"{r['force_peak_n']:.3g}",
-                        )
-                        for r in self.sweep
-                    ],
-                )
-            )
+            tables.append(speed_table(self.sweep))
         return tuple(tables)
 
     def failures(self) -> tuple[str, ...]:
