@@ -97,7 +97,7 @@ def throughput(threads: int, n_steps: int) -> None:
 def real_run(total_s: float, max_epochs: int, threads: int, workers: int) -> None:
     """The ``stage-identify`` job's training (its data and epoch settings) on the twin."""
     from microfab.experiments.seed002_stage.job import EPOCH_WINDOWS, VAL_WINDOWS
-    from microfab.experiments.seed002_stage.run import AnnSettings, ann_records, train_networks
+    from microfab.machines.xy_stage_ann import AnnSettings, ann_records, train_networks
 
     settings = AnnSettings(
         total_s=total_s,

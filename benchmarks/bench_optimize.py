@@ -46,7 +46,7 @@ def _models(args: argparse.Namespace) -> tuple[Any, Any, str]:
 
         m = load_models(args.model, networks=not args.no_stage2)
         return m.linear, m.networks, f"models of {args.model}"
-    from microfab.experiments.seed002_stage.run import AnnSettings, ann_records, train_networks
+    from microfab.machines.xy_stage_ann import AnnSettings, ann_records, train_networks
     from microfab.machines.xy_stage_identify import linear_study
 
     t0 = time.perf_counter()

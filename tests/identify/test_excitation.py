@@ -33,6 +33,7 @@ from microfab.identify.excitation_random import (
     _brake_plan,
     _extrema,
 )
+from microfab.identify.excitation_signals import classic_runs
 from microfab.io.trace import read_trace
 
 SHORT = RandomDesign(run_s=(2.0, 4.0))  # short runs keep the tests fast
@@ -371,3 +372,13 @@ def test_the_twins_set_point_guard_passes_every_kind_untouched() -> None:
         guarded, counts = twin.guard(r.command)
         assert counts.limited == 0, r.name
         np.testing.assert_array_equal(guarded, r.command)
+
+
+def test_classic_runs_are_prbs_and_chirps_within_table_i():
+    runs = classic_runs(40.0, seed=1)
+    assert len(runs) == 20
+    assert {r.kind for r in runs} == {"prbs", "chirp"}
+    assert len({r.name for r in runs}) == 20
+    assert all(isinstance(r, ExcitationRun) for r in runs)  # each passed check_trajectory
+    total = sum(r.command.shape[0] * r.dt for r in runs)
+    assert total == pytest.approx(40.0, rel=0.1)

@@ -92,13 +92,12 @@ def ann_cmd(
     try:
         import torch
 
-        from microfab.identify.ann_train import CheckpointMismatchError, train_ann
+        from microfab.identify.ann_train import CheckpointMismatchError
         from microfab.identify.stage_ann import (
-            StageAnnModel,
             ann_config,
-            runs_of,
             save_ann_model,
             split_records,
+            train_stage_ann,
         )
     except ImportError as exc:
         fail(f"identify ann needs PyTorch (extra 'ann'): {exc}")
@@ -139,10 +138,9 @@ def ann_cmd(
                     f"{rec.val_loss:.3g}",
                 )
 
-            model = train_ann(
-                runs_of(train), runs_of(val), config, checkpoint_dir=ckdir, progress=report,
-                restart=restart,
-            )  # fmt: skip
+            fit = train_stage_ann(
+                train, val, config, checkpoint_dir=ckdir, progress=report, restart=restart
+            )
     except CheckpointMismatchError as exc:
         fail(renamed(str(exc), {"pass restart=True": "pass --restart"}))
     except ValueError as exc:
@@ -151,8 +149,8 @@ def ann_cmd(
         fail(
             f"interrupted: the checkpoints in {ckdir} are kept; run the same command to resume", 130
         )
+    model, errors = fit.model, fit.errors
     model.info["runs"] = {"training": [r.name for r in train], "validation": [r.name for r in val]}
-    errors = StageAnnModel(model).errors(val)
     print_table(_training_table(model.info, trained, train, val))
     title = "Prediction error on the validation runs"
     compared = ANN_COMPARED.format(rate=errors.rate_hz)

@@ -8,13 +8,16 @@
   of these proved adequate for the identification of the nonlinear system"). Within the
   limits they stay small: a one-sample position step must satisfy ``2A/dt² ≤ 40 m/s²``
   (A ≤ 0.2 µm), so the PRBS switches by quintic moves, and a chirp's amplitude is set by
-  its top frequency (``A (2π f₁)² ≤ a_max``: 3.2 µm at 200 Hz and 5 m/s²).
+  its top frequency (``A (2π f₁)² ≤ a_max``: 3.2 µm at 200 Hz and 5 m/s²);
+  `classic_runs` mixes both into one data set (the ``stage-identify`` job's networks
+  trained on them, `microfab.machines.xy_stage_ann.classic_records`).
 
 Every run starts at rest at the origin and ends at rest there (`ExcitationRun`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 
@@ -41,7 +44,14 @@ from microfab.identify.excitation_run import (
 )
 from microfab.trajectory.cruise import cruise
 
-__all__ = ["FIG1_SPIRAL_B", "chirp_runs", "prbs_runs", "shape_catalogue", "shape_runs"]
+__all__ = [
+    "FIG1_SPIRAL_B",
+    "chirp_runs",
+    "classic_runs",
+    "prbs_runs",
+    "shape_catalogue",
+    "shape_runs",
+]
 
 #: Seed 002 Fig. 1: the Archimedean spiral r = b θ, b = 50/(2π) mm/rad, θ ∈ [0, 4π].
 FIG1_SPIRAL_B = 50e-3 / (2 * math.pi)
@@ -333,3 +343,22 @@ def chirp_runs(
             )
         )
     return runs
+
+
+_CLASSIC_F1_HZ = (20.0, 50.0, 100.0, 200.0, 500.0)  # assumed: chirp tops, one per block
+
+
+def classic_runs(total_s: float, seed: int = 0) -> list[ExcitationRun]:
+    """PRBS and chirp runs, ``total_s`` in all (§III-C's classic signals).
+
+    Five blocks, each half PRBS (0.1 and 1 mm levels, its own seed, `prbs_runs`) and
+    half chirp (x then y from 0.5 Hz to one of ``_CLASSIC_F1_HZ``, `chirp_runs`), all
+    within 5 m/s²; twenty runs, so that an 80/20 split by runs leaves some to validate.
+    """
+    part = total_s / (4 * len(_CLASSIC_F1_HZ))
+    out: list[ExcitationRun] = []
+    for k, f1 in enumerate(_CLASSIC_F1_HZ):
+        chirps = chirp_runs(part, f1_hz=f1, fade_s=min(1.0, part / 4))
+        for r in (*prbs_runs(part, seed=seed + k), *chirps):
+            out.append(dataclasses.replace(r, name=f"{r.name}_b{k}"))
+    return out

@@ -8,6 +8,10 @@ What ``microfab identify ann`` and ``identify validate`` (`cli/identify_ann.py`,
   share that leaves either side empty, is refused.
 * `ann_config`: the `AnnConfig` for runs at a given rate (the window's run rate is the
   runs' own; 400 Hz and h = 200 as the seed).
+* `train_stage_ann`: the networks trained on training runs (resumable checkpoints,
+  `microfab.identify.ann_train.train_ann`) and scored on the validation runs, as a
+  `StageAnnFit`; what ``microfab identify ann`` runs on measured files and the
+  ``stage-identify`` job on the twin's runs (`microfab.machines.xy_stage_ann`).
 * `StageAnnModel`: an `AnnModel` as a stage model for ``identify validate`` (``kind``,
   ``input_rate_hz``, ``errors(records) -> RunErrors``); the errors are ``y - y_model``
   (the sign of the linear model's `run_errors`) at every run sample (10 kHz for the
@@ -31,7 +35,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -39,16 +43,19 @@ from typing import Any, ClassVar
 import numpy as np
 
 from microfab.core.validate import check_int
-from microfab.identify.ann import AnnConfig, AnnModel
+from microfab.identify.ann import AnnConfig, AnnModel, ErrorStats
 from microfab.identify.ann_data import HISTORY, MODEL_RATE_HZ, WindowSpec
+from microfab.identify.ann_train import EpochRecord, train_ann
 from microfab.identify.stage_runs import AXES, RunErrors, StageRecord
 
 __all__ = [
+    "StageAnnFit",
     "StageAnnModel",
     "ann_config",
     "read_ann_stage_model",
     "save_ann_model",
     "split_records",
+    "train_stage_ann",
 ]
 
 _WEIGHTS, _META = "weights.npz", "model.json"  # what `AnnModel.save` writes
@@ -167,6 +174,82 @@ class StageAnnModel:
         return RunErrors.of(
             ((r.name, error(r)) for r in recs), self.input_rate_hz, self.axes, keep=keep
         )
+
+
+@dataclass(frozen=True, eq=False)
+class StageAnnFit:
+    """Networks trained on stage runs and their errors on the validation runs.
+
+    Attributes
+    ----------
+    model : AnnModel
+        One network per modelled axis.
+    errors : RunErrors
+        ``y - y_model`` on the validation runs at every run sample (`StageAnnModel.errors`;
+        every sample kept when asked: histograms, seed 002 Fig. 8a).
+    train_names, validation_names : tuple of str
+        Which runs went where.
+    """
+
+    model: AnnModel
+    errors: RunErrors
+    train_names: tuple[str, ...]
+    validation_names: tuple[str, ...]
+
+    @property
+    def validation(self) -> dict[str, ErrorStats]:
+        """μ, σ (m) and samples per axis on the validation runs (Table II, ANN, column 1)."""
+        e = self.errors
+        return {
+            a: ErrorStats(float(e.mean[j]), float(e.std[j]), e.n_samples)
+            for j, a in enumerate(e.axes)
+        }
+
+
+def train_stage_ann(
+    train: Sequence[StageRecord],
+    val: Sequence[StageRecord],
+    config: AnnConfig,
+    *,
+    checkpoint_dir: str | os.PathLike[str] | None = None,
+    progress: Callable[[EpochRecord], None] | None = None,
+    restart: bool = False,
+    keep: bool = False,
+) -> StageAnnFit:
+    """Train the networks on ``train``, stopped early and scored on ``val``.
+
+    Parameters
+    ----------
+    train, val : sequence of StageRecord
+        Training and validation runs (`split_records`), at ``config``'s run rate.
+    config : AnnConfig
+        `ann_config`'s.
+    checkpoint_dir : path, optional
+        Checkpoints of `microfab.identify.ann_train.train_ann`: a rerun resumes there.
+    progress : callable, optional
+        Called after each epoch with an `microfab.identify.ann_train.EpochRecord`.
+    restart : bool
+        Discard the checkpoints and start afresh.
+    keep : bool
+        Keep every validation error sample (`RunErrors.samples`).
+
+    Raises
+    ------
+    ValueError
+        From the training (too little data) or the scoring.
+    microfab.identify.ann_train.CheckpointMismatchError
+        A checkpoint of another configuration or data set (and not ``restart``).
+    """
+    model = train_ann(
+        runs_of(train), runs_of(val), config, checkpoint_dir=checkpoint_dir,
+        progress=progress, restart=restart,
+    )  # fmt: skip
+    return StageAnnFit(
+        model=model,
+        errors=StageAnnModel(model).errors(val, keep=keep),
+        train_names=tuple(r.name for r in train),
+        validation_names=tuple(r.name for r in val),
+    )
 
 
 def read_ann_stage_model(path: str | os.PathLike[str]) -> StageAnnModel:

@@ -20,14 +20,19 @@ Sizes. The seed gives none. A documented step sets them (`case_sizes`):
 Both by a root find on the time-optimal duration (which grows like the square root of the
 size when acceleration limits it). The other letters' times are then checks, not fits.
 Each case is centred on the workspace's origin.
+
+`case_commands` makes every case's command at each ``a_max``; `play_cases` plays them on
+the twin and scores each identified model on them (`CaseRun`: Table II columns 2-3 and
+Fig. 9 of the ``stage-identify`` job).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +41,8 @@ from microfab.geometry.airfoil import airfoil_path
 from microfab.geometry.path import Path
 from microfab.geometry.text import SEED002_LETTERS, letters_seed002
 from microfab.identify.excitation_run import DT
+from microfab.identify.stage_data import RunErrors, StageRecord
+from microfab.machines.xy_stage import TwinSettings, play_runs
 from microfab.trajectory.optimal import time_optimal
 
 __all__ = [
@@ -44,10 +51,13 @@ __all__ = [
     "DATA_FILES",
     "R_TIME_S",
     "CaseCommand",
+    "CaseRun",
     "CaseSizes",
     "case_command",
+    "case_commands",
     "case_paths",
     "case_sizes",
+    "play_cases",
 ]
 
 R_TIME_S = 0.807  # seed 002 §V-A, Table III: letter "r" at a_max = 1 m/s² takes 0.807 s
@@ -177,3 +187,84 @@ def case_sizes(r_time_s: float = R_TIME_S, airfoil_time_s: float = AIRFOIL_TIME_
     c = _fit_size(lambda k: airfoil_path(chord=k, start="leading", direction="cw"),
                   airfoil_time_s, 0.1)  # fmt: skip
     return CaseSizes(letter_height_m=h, airfoil_chord_m=c)
+
+
+def case_commands(
+    sizes: CaseSizes,
+    a_values: Sequence[float],
+    names: Sequence[str] = CASES,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[CaseCommand]:
+    """`case_command` of each named case at each of ``a_values`` (m/s²), a_max by a_max.
+
+    ``progress(i, n)`` is called before the ``i``-th of the ``n`` accelerations.
+    """
+    paths = case_paths(sizes, names)
+    out: list[CaseCommand] = []
+    for i, a_max in enumerate(a_values):
+        if progress is not None:
+            progress(i, len(a_values))
+        out += [case_command(name, p, a_max) for name, p in paths.items()]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class CaseRun:
+    """One case at one a_max, played on the twin, and each model's errors there.
+
+    Attributes
+    ----------
+    case, a_max, duration_s
+        Which, m/s², and the command's length, s.
+    limited : int
+        Samples the set-point guard changed (0 within Table I).
+    record : StageRecord
+        Command and measured position.
+    errors : mapping of str to RunErrors or None
+        Each named model's errors ``y - y_model`` (every sample kept); None where the
+        model was not given.
+    """
+
+    case: str
+    a_max: float
+    duration_s: float
+    limited: int
+    record: StageRecord
+    errors: Mapping[str, RunErrors | None]
+
+    @property
+    def linear(self) -> RunErrors | None:
+        """The errors of the model named "linear"."""
+        return self.errors.get("linear")
+
+
+def play_cases(
+    commands: Sequence[CaseCommand], twin: TwinSettings, models: Mapping[str, Any]
+) -> tuple[CaseRun, ...]:
+    """Play each command on the twin and score each model on its run.
+
+    Parameters
+    ----------
+    commands : sequence of CaseCommand
+        `case_commands`'.
+    twin : TwinSettings
+        The twin and its noise seed (run ``k`` uses ``seed + k``).
+    models : mapping of str to stage model or None
+        Models with ``errors(records, keep=True) -> RunErrors``
+        (`microfab.identify.stage_data.StageLinearModel`,
+        `microfab.identify.stage_ann.StageAnnModel`); None: not scored.
+    """
+    played = play_runs(commands, twin)
+    return tuple(
+        CaseRun(
+            case=cmd.case,
+            a_max=cmd.a_max,
+            duration_s=cmd.duration_s,
+            limited=lim,
+            record=rec,
+            errors={
+                k: None if m is None else m.errors([rec], keep=True) for k, m in models.items()
+            },
+        )
+        for cmd, rec, lim in zip(commands, played.records, played.limited, strict=True)
+    )

@@ -20,7 +20,8 @@ each run simulated from the model's rest state under its first input
 (`stage_data.run_errors`); μ and σ are their mean and standard deviation per axis
 (seed 002 Table II). `linear_order_scan` fits every order of the order check (seed 002
 §III-A) from one R factor; `linear_checks` measures the twin's linear-model figures (σ,
-tracking error, slowest time constant, the order scan) for the calibration's checks.
+tracking error, slowest time constant, the order scan) for the calibration's checks;
+`order_check` scores each order of the scan from rest (the ``stage-identify`` job).
 """
 
 from __future__ import annotations
@@ -43,10 +44,12 @@ __all__ = [
     "LinearChecks",
     "LinearFit",
     "LinearSettings",
+    "OrderRow",
     "fit_linear",
     "linear_checks",
     "linear_order_scan",
     "linear_study",
+    "order_check",
 ]
 
 #: Random-run data of the linear model, s: seed 002 §III-C.1, 6×10⁶ points at the 10 kHz
@@ -118,6 +121,11 @@ class LinearFit:
     n_samples: int
     decimate: int
 
+    def stage_model(self) -> stage_data.StageLinearModel:
+        """The model as ``microfab identify linear`` writes and ``identify validate`` reads it."""
+        dt = self.model.dt / self.decimate
+        return stage_data.StageLinearModel(model=self.model, input_dt=dt, decimate=self.decimate)
+
 
 def fit_linear(played: Played, settings: LinearSettings | None = None) -> LinearFit:
     """Fit eq. (6) to the played runs and measure it on them (module doc).
@@ -165,6 +173,38 @@ def linear_order_scan(played: Played, settings: LinearSettings, orders: Sequence
     data = [(stage_data.decimate(r.u, q), stage_data.decimate(r.y, q)) for r in played.records]
     cfg = SubspaceConfig(feedthrough=settings.feedthrough)
     return order_scan(data, played.dt * q, tuple(orders), cfg)
+
+
+@dataclass(frozen=True)
+class OrderRow:
+    """One order of the order check: σ (x, y) from rest on the training data, m."""
+
+    order: int
+    singular_ratio: float
+    sigma_m: tuple[float, float]
+
+
+def order_check(
+    played: Played, settings: LinearSettings, orders: Sequence[int]
+) -> tuple[tuple[OrderRow, ...], np.ndarray]:
+    """Each order of ``orders`` fitted (`linear_order_scan`) and scored from rest.
+
+    Every model is simulated on the played runs from its rest state
+    (`microfab.identify.stage_data.run_errors`), as `fit_linear` scores the chosen order.
+
+    Returns
+    -------
+    (tuple of OrderRow, numpy.ndarray)
+        A row per order and the projection's singular values (both empty for no orders).
+    """
+    if not orders:
+        return (), np.zeros(0)
+    scan = linear_order_scan(played, settings, orders)
+    rows = []
+    for n, model, (_, ratio, _) in zip(scan.orders, scan.models, scan.rows(), strict=True):
+        err = stage_data.run_errors(model, played.records, settings.decimate)
+        rows.append(OrderRow(n, ratio, (float(err.std[0]), float(err.std[1]))))
+    return tuple(rows), np.asarray(scan.singular_values)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -11,8 +11,6 @@ import pytest
 from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
 from microfab.experiments.kinds import no_progress
 from microfab.experiments.seed002_stage.job import STAGE_IDENTIFY, config_from_sections
-from microfab.experiments.seed002_stage.study import classic_runs
-from microfab.identify.excitation_run import ExcitationRun
 from microfab.identify.stage_data import RunErrors, read_stage_model
 from microfab.io.job import JobFileError, parse_job
 
@@ -133,16 +131,6 @@ def test_a_rerun_resumes_the_trainings(ran, tmp_path):
     for name in ("ann", "coupled", "classic"):
         a, b = getattr(result.study, name), getattr(again, name)
         assert a.validation == b.validation  # the finished trainings are read back
-
-
-def test_classic_runs_are_prbs_and_chirps_within_table_i():
-    runs = classic_runs(40.0, seed=1)
-    assert len(runs) == 20
-    assert {r.kind for r in runs} == {"prbs", "chirp"}
-    assert len({r.name for r in runs}) == 20
-    assert all(isinstance(r, ExcitationRun) for r in runs)  # each passed check_trajectory
-    total = sum(r.command.shape[0] * r.dt for r in runs)
-    assert total == pytest.approx(40.0, rel=0.1)
 
 
 def test_run_errors_pooled_needs_kept_samples():

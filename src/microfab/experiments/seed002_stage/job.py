@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
-from microfab.experiments.seed002_stage.run import AnnSettings
 from microfab.experiments.seed002_stage.study import (
     MODEL_FOLDERS,
     SWEEP_A_MAX,
@@ -42,6 +41,7 @@ from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import xy_stage, xy_stage_cases
 from microfab.machines.xy_stage import TwinSettings
+from microfab.machines.xy_stage_ann import AnnSettings
 from microfab.machines.xy_stage_identify import LinearSettings
 from microfab.report.tables import Table
 
@@ -221,15 +221,10 @@ class IdentifyResult:
 
 def _run(config: StudySettings, out: Path, progress: Progress) -> IdentifyResult:
     from microfab.identify.stage_ann import save_ann_model
-    from microfab.identify.stage_data import StageLinearModel, write_stage_model
+    from microfab.identify.stage_data import write_stage_model
 
     study = run_study(config, out, progress)
-    lin = study.linear
-    write_stage_model(
-        out / "linear_model.json",
-        StageLinearModel(model=lin.model, input_dt=lin.model.dt / lin.decimate,
-                         decimate=lin.decimate),
-    )  # fmt: skip
+    write_stage_model(out / "linear_model.json", study.linear.stage_model())
     for name, folder in MODEL_FOLDERS.items():
         st = getattr(study, name)
         if st is not None:

@@ -45,7 +45,7 @@ def _figures(study: IdentifyStudy) -> list[tuple[str, object, str]]:
     sig: dict[str, np.ndarray] = {}
     for model, label in (("ann", "ANN"), ("linear", "linear")):
         let = [study.letters(a, model) for a in a_sweep]
-        air = [getattr(study.case("airfoil", a), model) for a in a_sweep]
+        air = [study.case("airfoil", a).errors.get(model) for a in a_sweep]
         if all(e is not None for e in let):
             sig[f"{label} letters"] = np.array([e.std for e in let])  # type: ignore[union-attr]
             sig[f"{label} airfoil"] = np.array([e.std for e in air])  # type: ignore[union-attr]

@@ -6,15 +6,17 @@ run. In order:
 1. **Linear model** (§III-A, §III-C.1): random runs (600 s), played on the twin, eq. (6)
    fitted (`microfab.machines.xy_stage_identify.fit_linear`); its error on its own
    training data is Table II column 1. The order check (n = 2…8, one R factor,
-   `microfab.machines.xy_stage_identify.linear_order_scan`) scores each order the same
-   way, from rest.
+   `microfab.machines.xy_stage_identify.order_check`) scores each order the same way,
+   from rest.
 2. **Networks** (§III-B, §III-C.2): about 60 % random runs and the rest regular shapes,
-   80/20 split by whole runs, one network per axis (`run.train_networks`); the error on
-   the validation runs is Table II column 1 of the non-linear model.
-3. **Test cases** (`cases`): the letters and the airfoil at each ``a_max`` as time-optimal
-   commands (the stand-in for the optimised inputs of part 2), played on the twin; both
-   models' errors there. Table II columns 2-3 pool the four letters at 1 and 3 m/s²;
-   Fig. 9 is the network's σ against ``a_max`` for the letters and the airfoil.
+   80/20 split by whole runs, one network per axis
+   (`microfab.machines.xy_stage_ann.train_networks`); the error on the validation runs
+   is Table II column 1 of the non-linear model.
+3. **Test cases** (`microfab.machines.xy_stage_cases.play_cases`): the letters and the
+   airfoil at each ``a_max`` as time-optimal commands (the stand-in for the optimised
+   inputs of part 2), played on the twin; both models' errors there. Table II columns
+   2-3 pool the four letters at 1 and 3 m/s²; Fig. 9 is the network's σ against
+   ``a_max`` for the letters and the airfoil.
 4. **Coupling** (promised in §III-B): the same data, each network fed both axes'
    commands; its validation σ beside the per-axis networks'.
 5. **Classic signals** (§III-C: PRBS and chirp "none of these proved adequate"): networks
@@ -36,47 +38,40 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from microfab.experiments.kinds import Progress, no_progress
-from microfab.experiments.seed002_stage.run import (
+from microfab.geometry.text import SEED002_LETTERS
+from microfab.identify.stage_data import RunErrors, StageRecord
+from microfab.machines.xy_stage import TwinSettings
+from microfab.machines.xy_stage_ann import (
     AnnSettings,
-    AnnStudy,
     ann_records,
-    play_split,
+    classic_records,
     train_networks,
 )
-from microfab.geometry.text import SEED002_LETTERS
-from microfab.identify import stage_data
-from microfab.identify.excitation import ANN_TOTAL_S, split_runs
-from microfab.identify.excitation_signals import chirp_runs, prbs_runs
-from microfab.identify.stage_data import RunErrors, StageRecord
-from microfab.machines.xy_stage import Played, TwinSettings, play_runs
 from microfab.machines.xy_stage_cases import (
     AIRFOIL_TIME_S,
-    CASES,
     R_TIME_S,
-    CaseCommand,
+    CaseRun,
     CaseSizes,
-    case_command,
-    case_paths,
+    case_commands,
     case_sizes,
+    play_cases,
 )
 from microfab.machines.xy_stage_identify import (
     LinearFit,
     LinearSettings,
-    linear_order_scan,
+    OrderRow,
     linear_study,
+    order_check,
 )
 
 if TYPE_CHECKING:
-    from microfab.identify.excitation import ExcitationRun
+    from microfab.identify.stage_ann import StageAnnFit
 
 __all__ = [
     "MODEL_FOLDERS",
-    "CaseRun",
     "CaseSettings",
     "IdentifyStudy",
-    "OrderRow",
     "StudySettings",
-    "classic_runs",
     "run_study",
 ]
 
@@ -163,42 +158,6 @@ class StudySettings:
             raise ValueError("the coupling and classic studies need the networks (ann)")
 
 
-@dataclass(frozen=True)
-class OrderRow:
-    """One order of the order check: σ from rest on the training data, m."""
-
-    order: int
-    singular_ratio: float
-    sigma_m: tuple[float, float]
-
-
-@dataclass(frozen=True, eq=False)
-class CaseRun:
-    """One case at one a_max, played on the twin, and each model's errors there.
-
-    Attributes
-    ----------
-    case, a_max, duration_s
-        Which, m/s², and the command's length, s.
-    limited : int
-        Samples the set-point guard changed (0 within Table I).
-    record : StageRecord
-        Command and measured position.
-    linear, ann, coupled, classic : RunErrors or None
-        Each model's errors (kept samples); None where not trained.
-    """
-
-    case: str
-    a_max: float
-    duration_s: float
-    limited: int
-    record: StageRecord
-    linear: RunErrors
-    ann: RunErrors | None = None
-    coupled: RunErrors | None = None
-    classic: RunErrors | None = None
-
-
 @dataclass(frozen=True, eq=False)
 class IdentifyStudy:
     """Everything `run_study` measured (see the module docstring).
@@ -213,12 +172,12 @@ class IdentifyStudy:
     orders : tuple of OrderRow
     singular_values : numpy.ndarray
         Of the order check's projection (empty without it).
-    ann : AnnStudy or None
+    ann : StageAnnFit or None
     ann_validation : RunErrors or None
         The networks' errors on the validation runs, samples kept (Fig. 8a).
     linear_on_validation : RunErrors or None
         The linear model on the same validation runs.
-    coupled, classic : AnnStudy or None
+    coupled, classic : StageAnnFit or None
         The both-axes and the PRBS/chirp-trained networks.
     sizes : CaseSizes
     cases : tuple of CaseRun
@@ -236,11 +195,11 @@ class IdentifyStudy:
     linear_limited: int
     orders: tuple[OrderRow, ...]
     singular_values: np.ndarray
-    ann: AnnStudy | None
+    ann: StageAnnFit | None
     ann_validation: RunErrors | None
     linear_on_validation: RunErrors | None
-    coupled: AnnStudy | None
-    classic: AnnStudy | None
+    coupled: StageAnnFit | None
+    classic: StageAnnFit | None
     sizes: CaseSizes
     cases: tuple[CaseRun, ...]
     example_runs: tuple[tuple[str, np.ndarray], ...]
@@ -256,7 +215,7 @@ class IdentifyStudy:
 
     def letters(self, a_max: float, model: str = "linear") -> RunErrors | None:
         """One model's errors pooled over the four letters at ``a_max`` (Table II)."""
-        parts = [getattr(self.case(ch, a_max), model) for ch in SEED002_LETTERS]
+        parts = [self.case(ch, a_max).errors.get(model) for ch in SEED002_LETTERS]
         if any(p is None for p in parts):
             return None
         return RunErrors.pooled(parts)
@@ -264,25 +223,6 @@ class IdentifyStudy:
     def durations(self, a_max: float) -> dict[str, float]:
         """Each case's command length at ``a_max``, s."""
         return {c.case: c.duration_s for c in self.cases if abs(c.a_max - a_max) < 1e-12}
-
-
-_CLASSIC_F1_HZ = (20.0, 50.0, 100.0, 200.0, 500.0)  # assumed: chirp tops, one per block
-
-
-def classic_runs(total_s: float, seed: int = 0) -> list[ExcitationRun]:
-    """PRBS and chirp runs, ``total_s`` in all (§III-C's classic signals).
-
-    Five blocks, each half PRBS (0.1 and 1 mm levels, its own seed, `prbs_runs`) and
-    half chirp (x then y from 0.5 Hz to one of `_CLASSIC_F1_HZ`, `chirp_runs`), all
-    within 5 m/s²; twenty runs, so that an 80/20 split by runs leaves some to validate.
-    """
-    part = total_s / (4 * len(_CLASSIC_F1_HZ))
-    out: list[ExcitationRun] = []
-    for k, f1 in enumerate(_CLASSIC_F1_HZ):
-        chirps = chirp_runs(part, f1_hz=f1, fade_s=min(1.0, part / 4))
-        for r in (*prbs_runs(part, seed=seed + k), *chirps):
-            out.append(dataclasses.replace(r, name=f"{r.name}_b{k}"))
-    return out
 
 
 #: Folder of each trained model (and of its checkpoints) under a study's output folder.
@@ -321,7 +261,9 @@ def run_study(
     lin_s = dataclasses.replace(s.linear, twin=s.twin)
     played, linear = linear_study(lin_s)
     seconds["linear"] = time.perf_counter() - t0
-    orders, sv = _order_check(played, lin_s, s.orders, progress)
+    if s.orders:
+        progress("linear model: order check", 0, None)
+    orders, sv = order_check(played, lin_s, s.orders)
     seconds["order check"] = time.perf_counter() - t0 - seconds["linear"]
     example_runs = tuple((r.name, r.u) for r in played.records[:6])
 
@@ -340,7 +282,7 @@ def run_study(
             progress=_ann_progress(progress, "networks", a.max_epochs),
         )  # fmt: skip
         ann_val = ann.errors
-        lin_val = stage_data.run_errors(linear.model, val.records, linear.decimate, keep=True)
+        lin_val = linear.stage_model().errors(val.records, keep=True)
         val_example = val.records[0]
         seconds["networks"] = time.perf_counter() - t1
         if s.coupling:
@@ -354,20 +296,27 @@ def run_study(
         if s.classic:
             t1 = time.perf_counter()
             progress("PRBS/chirp networks: data on the twin", 0, None)
-            total = ANN_TOTAL_S if a.total_s is None else a.total_s
-            c_runs = split_runs(classic_runs(total, a.seed), a.validation, seed=a.seed)
             classic = train_networks(
-                *play_split(*c_runs, s.twin),
-                a,
+                *classic_records(a), a,
                 checkpoint_dir=_train_dir(out_dir, "classic"),
                 progress=_ann_progress(progress, "PRBS/chirp networks", a.max_epochs),
-            )
+            )  # fmt: skip
             seconds["PRBS/chirp networks"] = time.perf_counter() - t1
 
     t1 = time.perf_counter()
     progress("test cases: sizes", 0, None)
     sizes = case_sizes(s.cases.r_time_s, s.cases.airfoil_time_s)
-    cases = _play_cases(s, sizes, linear, ann, coupled, classic, progress)
+    commands = case_commands(
+        sizes, s.cases.a_max_values,
+        progress=lambda i, n: progress("test cases: references", i, n),
+    )  # fmt: skip
+    progress("test cases: on the twin", 0, None)
+    cases = play_cases(
+        commands,
+        dataclasses.replace(s.twin, seed=s.twin.seed + 20_000),
+        {"linear": linear.stage_model(), "ann": _stage(ann), "coupled": _stage(coupled),
+         "classic": _stage(classic)},
+    )  # fmt: skip
     seconds["test cases"] = time.perf_counter() - t1
     return IdentifyStudy(
         settings=s,
@@ -396,57 +345,8 @@ def _fig6_commands(records: Sequence[StageRecord]) -> tuple[tuple[str, np.ndarra
     return tuple((r.name, r.u) for r in rand + spiral)
 
 
-def _order_check(
-    played: Played, s: LinearSettings, orders: Sequence[int], progress: Progress
-) -> tuple[tuple[OrderRow, ...], np.ndarray]:
-    if not orders:
-        return (), np.zeros(0)
-    progress("linear model: order check", 0, None)
-    q = s.decimate
-    scan = linear_order_scan(played, s, orders)
-    rows = []
-    for n, model, (_, ratio, _) in zip(scan.orders, scan.models, scan.rows(), strict=True):
-        err = stage_data.run_errors(model, played.records, q)
-        rows.append(OrderRow(n, ratio, (float(err.std[0]), float(err.std[1]))))
-    return tuple(rows), np.asarray(scan.singular_values)
-
-
-def _play_cases(
-    s: StudySettings,
-    sizes: CaseSizes,
-    linear: LinearFit,
-    ann: AnnStudy | None,
-    coupled: AnnStudy | None,
-    classic: AnnStudy | None,
-    progress: Progress,
-) -> tuple[CaseRun, ...]:
+def _stage(fit: StageAnnFit | None) -> Any:
+    """The networks of a training as a stage model, or None."""
     from microfab.identify.stage_ann import StageAnnModel
 
-    paths = case_paths(sizes, CASES)
-    commands: list[CaseCommand] = []
-    a_values = s.cases.a_max_values
-    for i, a_max in enumerate(a_values):
-        progress("test cases: references", i, len(a_values))
-        commands += [case_command(name, p, a_max) for name, p in paths.items()]
-    progress("test cases: on the twin", 0, None)
-    played = play_runs(commands, dataclasses.replace(s.twin, seed=s.twin.seed + 20_000))
-
-    def errs(study: AnnStudy | None, rec: StageRecord) -> RunErrors | None:
-        return None if study is None else StageAnnModel(study.model).errors([rec], keep=True)
-
-    out = []
-    for cmd, rec, lim in zip(commands, played.records, played.limited, strict=True):
-        out.append(
-            CaseRun(
-                case=cmd.case,
-                a_max=cmd.a_max,
-                duration_s=cmd.duration_s,
-                limited=lim,
-                record=rec,
-                linear=stage_data.run_errors(linear.model, [rec], linear.decimate, keep=True),
-                ann=errs(ann, rec),
-                coupled=errs(coupled, rec),
-                classic=errs(classic, rec),
-            )
-        )
-    return tuple(out)
+    return None if fit is None else StageAnnModel(fit.model)

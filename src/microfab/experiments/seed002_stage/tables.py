@@ -142,7 +142,7 @@ def fig9_table(study: IdentifyStudy) -> Table:
         row = [f"{a:g}"]
         for model in ("ann", "linear"):
             let = study.letters(a, model)
-            air = getattr(study.case("airfoil", a), model)
+            air = study.case("airfoil", a).errors.get(model)
             for e in (let, air):
                 row += [_um(None if e is None else e.std[0]), _um(None if e is None else e.std[1])]
         rows.append(row)
@@ -246,7 +246,7 @@ def study_summary(study: IdentifyStudy) -> dict[str, Any]:
                 "a_max": c.a_max,
                 "duration_s": c.duration_s,
                 "limited_samples": c.limited,
-                **{m: _stats(getattr(c, m)) for m in ("linear", "ann", "coupled", "classic")},
+                **{m: _stats(c.errors.get(m)) for m in ("linear", "ann", "coupled", "classic")},
             }
             for c in study.cases
         ],

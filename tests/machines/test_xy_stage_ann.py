@@ -1,4 +1,4 @@
-"""Seed 002 part 1's networks on the XY stage twin (the linear model: tests/machines)."""
+"""The seed 002 networks on the XY stage twin (machines.xy_stage_ann)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 
 
 def test_ann_study_splits_by_whole_runs_and_reports_validation_errors():
-    from microfab.experiments.seed002_stage.run import AnnSettings, ann_study
+    from microfab.machines.xy_stage_ann import AnnSettings, ann_study
 
     st = ann_study(AnnSettings(total_s=12.0, max_epochs=1))
     assert st.train_names and st.validation_names
