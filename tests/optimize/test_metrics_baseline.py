@@ -29,6 +29,23 @@ def test_deviation_of_points_off_a_circle():
         deviations(c, np.array([[np.nan, 0.0]]))
 
 
+def test_tail_scored_apart_pooled_and_read_back():
+    c = circle(5e-3)
+    th = np.linspace(0, 2 * np.pi, 10, endpoint=False)
+    d = np.array([10e-6] * 6 + [40e-6] * 4)
+    pts = np.column_stack([(5e-3 + d) * np.cos(th), (5e-3 + d) * np.sin(th)])
+    n = DeviationNorms.of(c, pts, tail_from=6)
+    assert n.n == 6 and n.linf == pytest.approx(10e-6) and n.tail_linf == pytest.approx(40e-6)
+    assert list(n.as_dict()) == ["l1", "l2", "linf", "tail_linf", "n"]
+    assert DeviationNorms.from_dict(n.as_dict()) == n
+    assert "tail_linf" not in DeviationNorms.of(c, pts).as_dict()
+    assert DeviationNorms.of(c, pts, tail_from=10).tail_linf == 0.0
+    both = DeviationNorms.pooled([n, DeviationNorms.of(c, pts[6:])])
+    whole = DeviationNorms.of(c, pts)
+    assert (both.n, both.linf) == (10, whole.linf) and both.tail_linf is None
+    assert both.l1 == pytest.approx(whole.l1) and both.l2 == pytest.approx(whole.l2)
+
+
 def test_constant_progress_and_projected_speed():
     sq = rectangle(8e-3, 6e-3)
     r = constant_progress(sq, 0.5, 400.0)

@@ -50,6 +50,7 @@ __all__ = [
     "CASES",
     "DATA_FILES",
     "R_TIME_S",
+    "SIZE_A_MAX",
     "CaseCommand",
     "CaseRun",
     "CaseSizes",
@@ -57,6 +58,7 @@ __all__ = [
     "case_commands",
     "case_paths",
     "case_sizes",
+    "centred",
     "play_cases",
 ]
 
@@ -105,9 +107,14 @@ def case_paths(sizes: CaseSizes, names: Sequence[str] = CASES) -> dict[str, Path
             p = airfoil_path(chord=sizes.airfoil_chord_m, start="leading", direction="cw")
         else:
             p = letters[n].contours[0]  # each letter is one closed contour (DejaVu Sans)
-        x0, y0, x1, y1 = p.bbox
-        out[n] = p.translated((-(x0 + x1) / 2, -(y0 + y1) / 2))
+        out[n] = centred(p)
     return out
+
+
+def centred(path: Path) -> Path:
+    """``path`` moved so that its bounding box is centred on the origin."""
+    x0, y0, x1, y1 = path.bbox
+    return path.translated((-(x0 + x1) / 2, -(y0 + y1) / 2))
 
 
 def _limits(a_max: float) -> MachineLimits:

@@ -10,12 +10,12 @@ pytest.importorskip("casadi")
 pytest.importorskip("torch")
 
 from microfab.experiments.catalog import KIND_ENTRIES, REPRODUCTIONS, load_job
-from microfab.experiments.seed002_reference import study as study_mod
 from microfab.experiments.seed002_reference.job import STAGE_REFERENCE_OPT
 from microfab.experiments.seed002_reference.study import (
     ReferenceSettings,
     run_reference,
 )
+from microfab.machines import xy_stage_reference
 from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_cases import CaseSizes
 
@@ -85,7 +85,7 @@ def test_a_rerun_skips_finished_points(small, monkeypatch):
     def boom(*a, **k):
         raise AssertionError("a finished point was run again")
 
-    monkeypatch.setattr(study_mod, "run_point", boom)
+    monkeypatch.setattr(xy_stage_reference, "run_point", boom)
     again = run_reference(settings, out)
     assert again.points[("r", 2.0)]["improvement"] == study.points[("r", 2.0)]["improvement"]
 

@@ -36,6 +36,7 @@ from microfab.io.job import Key
 from microfab.machines import xy_stage, xy_stage_cases
 from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_cases import CASES, CaseSizes
+from microfab.machines.xy_stage_reference import HOLD_S
 from microfab.report.tables import Table
 
 __all__ = [
@@ -47,7 +48,6 @@ __all__ = [
 ]
 
 _F = "float"
-HOLD_S = 0.51  # the 200-sample tail (500 ms at 400 Hz) and one 10 ms margin
 
 SCHEMA: dict[str, tuple[Key, ...]] = {
     "models": (

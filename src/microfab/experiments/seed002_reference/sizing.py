@@ -25,13 +25,18 @@ from microfab.geometry.airfoil import airfoil_path
 from microfab.geometry.path import Path
 from microfab.geometry.text import letters_seed002
 from microfab.identify.subspace_model import ContinuousModel
-from microfab.machines.xy_stage_cases import AIRFOIL_TIME_S, R_TIME_S, CaseSizes
+from microfab.machines.xy_stage_cases import (
+    AIRFOIL_TIME_S,
+    R_TIME_S,
+    SIZE_A_MAX,
+    CaseSizes,
+    centred,
+)
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Settings, solve_stage1
 
 __all__ = ["SIZE_A_MAX", "SizingResult", "reference_sizes"]
 
-SIZE_A_MAX = 1.0  # seed 002 Table III: both fitted times are at a_max = 1 m/s²
 _RTOL = 1e-3  # assumed: 0.1 % of the target time
 _MAX_STEPS = 8
 
@@ -52,11 +57,6 @@ class SizingResult:
     steps: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
 
 
-def _centred(p: Path) -> Path:
-    x0, y0, x1, y1 = p.bbox
-    return p.translated((-(x0 + x1) / 2, -(y0 + y1) / 2))
-
-
 def _fit(
     make: Callable[[float], Path],
     model: ContinuousModel,
@@ -66,7 +66,7 @@ def _fit(
     settings: Stage1Settings,
 ) -> tuple[float, list[tuple[float, float]]]:
     def duration(size: float) -> float:
-        p = ContourProblem(_centred(make(size)), a_max=SIZE_A_MAX, tolerance_m=tolerance_m)
+        p = ContourProblem(centred(make(size)), a_max=SIZE_A_MAX, tolerance_m=tolerance_m)
         return solve_stage1(p, model, settings).duration
 
     steps = [(guess, duration(guess))]

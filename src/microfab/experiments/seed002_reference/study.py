@@ -10,12 +10,13 @@ fingerprint is in the point's JSON):
    at 1 m/s²), or the sizes given;
 3. every case at every ``a_max`` of `ReferenceSettings.a_max` (Table III: 1 and 3) and the
    airfoil at `ReferenceSettings.airfoil_extra` (§V-A: 2 m/s²), each through
-   `run.run_point` (both stages, the twin, the networks, the baselines);
+   `microfab.machines.xy_stage_reference.run_point` (both stages, the twin, the networks,
+   the baselines; saved and resumed by `microfab.machines.xy_stage_reference.saved_point`);
 4. the trade-off (§V-B, Figs. 16-17): the letters at each of ``tradeoff_letters``
    (the four letters one after another, each from rest: times summed, deviations pooled)
    and the airfoil at each of ``tradeoff_airfoil``; the eq. (15) baseline also at longer
    times (``baseline_factors`` times the slowest optimised time) to find the baseline's
-   time at a given L2.
+   time at a given L2 (`microfab.machines.xy_stage_reference.baseline_l2`).
 
 Points are independent; a failed stage (infeasible, not converged) is recorded in the
 point's JSON with its message and the study goes on.
@@ -25,25 +26,18 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from microfab.experiments.seed002_reference.run import (
-    read_point_summary,
-    run_point,
-    write_point,
-)
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_cases import CASES, CaseSizes, case_paths
+from microfab.machines.xy_stage_reference import baseline_l2, saved_point
+from microfab.optimize.metrics import DeviationNorms
 from microfab.optimize.models import Models, load_models
 from microfab.optimize.problem import ContourProblem
-from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 
 __all__ = ["ReferenceSettings", "ReferenceStudy", "run_reference"]
 
@@ -110,7 +104,8 @@ class ReferenceStudy:
     sizing_steps : dict
         The sizing's stage-1 solves (empty when sizes were given).
     points : dict of (str, float) to dict
-        Every point's summary (`run.PointResult.summary`, or ``{"error": ...}``).
+        Every point's summary (`microfab.machines.xy_stage_reference.PointResult.summary`,
+        or ``{"error": ...}``).
     tradeoff : dict of str to list of dict
         "letters" and "airfoil": one row per a_max (time, pooled norms per output).
     baseline_curve : dict of str to list of dict
@@ -143,47 +138,12 @@ def _sizes(st: ReferenceSettings, models: Models, out: Path | None) -> tuple[Cas
     return res.sizes, res.steps
 
 
-def _point(
-    case: str, a: float, paths: dict[str, Any], models: Models, st: ReferenceSettings,
-    folder: Path | None,
-) -> dict[str, Any]:  # fmt: skip
-    from microfab.optimize.stage2 import Stage2Settings
-
-    if folder is not None:
-        saved = read_point_summary(folder, case, a)
-        if saved is not None and saved.get("fingerprint") == st.fingerprint():
-            return saved
-    problem = ContourProblem(paths[case], a_max=a, tolerance_m=st.tolerance_m)
-    ckpt = None if folder is None else str(folder / f"{case}_a{a:g}_stage2.ckpt.npz")
-    try:
-        s2 = Stage2Settings(max_iter=st.stage2_max_iter)
-        res = run_point(case, problem, models, twin=st.twin, stage1=Stage1Settings(),
-                        stage2=s2, checkpoint=ckpt)  # fmt: skip
-    except (Stage1Error, ValueError) as exc:
-        summary = {"case": case, "a_max": a, "error": f"{type(exc).__name__}: {exc}"}
-    else:
-        summary = res.summary()
-        if folder is not None:
-            write_point(res, folder)
-    summary["fingerprint"] = st.fingerprint()
-    if folder is not None:
-        from microfab.io.atomic import atomic_write_json
-
-        atomic_write_json(folder / f"{case}_a{a:g}.json", summary)
-    return summary
-
-
 def _pooled(points: Sequence[dict[str, Any]]) -> dict[str, float]:
     """Letters one after another: times summed, deviations pooled over the samples."""
     out: dict[str, float] = {"time_s": float(sum(p["duration_s"] for p in points))}
     for key in points[0]["scores"]:
-        n = np.array([p["scores"][key]["n"] for p in points], dtype=float)
-        l1 = np.array([p["scores"][key]["l1"] for p in points])
-        l2 = np.array([p["scores"][key]["l2"] for p in points])
-        linf = np.array([p["scores"][key]["linf"] for p in points])
-        out[f"{key}_l1"] = float(np.sum(n * l1) / n.sum())
-        out[f"{key}_l2"] = float(math.sqrt(np.sum(n * l2**2) / n.sum()))
-        out[f"{key}_linf"] = float(linf.max())
+        n = DeviationNorms.pooled([DeviationNorms.from_dict(p["scores"][key]) for p in points])
+        out.update({f"{key}_l1": n.l1, f"{key}_l2": n.l2, f"{key}_linf": n.linf})
     return out
 
 
@@ -209,7 +169,11 @@ def run_reference(
     points: dict[tuple[str, float], dict[str, Any]] = {}
     for k, (case, a) in enumerate(todo):
         report("points", k, len(todo))
-        points[(case, a)] = _point(case, a, paths, models, st, folder)
+        problem = ContourProblem(paths[case], a_max=a, tolerance_m=st.tolerance_m)
+        points[(case, a)] = saved_point(
+            case, problem, models, twin=st.twin, stage2_max_iter=st.stage2_max_iter,
+            folder=folder, fingerprint=st.fingerprint(),
+        )  # fmt: skip
     report("points", len(todo), len(todo))
     tradeoff: dict[str, list[dict[str, float]]] = {}
     if letters:
@@ -234,22 +198,15 @@ def _baseline_curves(
     letters: list[str],
 ) -> dict[str, list[dict[str, float]]]:  # fmt: skip
     """The eq. (15) baseline on the twin at longer times (pooled like the trade-off)."""
-    from microfab.experiments.seed002_reference.run import baseline_scores
-
     out: dict[str, list[dict[str, float]]] = {}
     for name, cases in (("letters", letters), ("airfoil", ["airfoil"])):
         rows = tradeoff.get(name)
         if not rows:
             continue
         slowest = max(r["time_s"] for r in rows)
-        curve = []
-        for f in st.baseline_factors:
-            total = f * slowest
-            length = sum(paths[c].length for c in cases)
-            per = [(c, total * paths[c].length / length) for c in cases]  # same path speed
-            scored = [baseline_scores(paths[c], t, st.twin) for c, t in per]
-            n = np.array([s.n for s in scored], dtype=float)
-            l2 = math.sqrt(float(np.sum(n * np.array([s.l2 for s in scored]) ** 2) / n.sum()))
-            curve.append({"time_s": total, "baseline_twin_l2": l2})
-        out[name] = curve
+        out[name] = [
+            {"time_s": f * slowest, "baseline_twin_l2": baseline_l2(
+                [paths[c] for c in cases], f * slowest, st.twin)}
+            for f in st.baseline_factors
+        ]  # fmt: skip
     return out

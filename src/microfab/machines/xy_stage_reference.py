@@ -1,9 +1,10 @@
-"""One point of seed 002 §V: a case at one ``a_max``, optimised, played on the twin, scored.
+"""Optimised references on the XY stage twin: one case optimised, played, scored (seed 002 §V).
 
-`run_point` takes a contour and ``a_max`` through both stages
-(`microfab.optimize.pipeline.optimize_reference`), then plays on the twin (the
-"experimental" output, seed 002 §V) and predicts with the networks (the "simulated"
-one):
+What the ``stage-reference-opt`` job (``microfab run``, and ``microfab reproduce
+reference-opt``) computes per point. `run_point` takes a contour and ``a_max`` through
+both stages (`microfab.optimize.pipeline.optimize_reference`, the function ``microfab
+optimize`` runs), then plays on the twin (the "experimental" output, seed 002 §V) and
+predicts with the networks (the "simulated" one):
 
 * the **optimised** command;
 * the **baseline** of eq. (15), ``r(t) = Ξ(t S / T)`` at the optimised ``T``, through the
@@ -12,9 +13,15 @@ one):
 * a **stronger baseline**: the time-optimal command along the contour under Table I,
   stretched uniformly to the same ``T`` (`microfab.optimize.baseline`).
 
-Deviations (eqs. 16-18, exact foot-point projection) are taken at the 400 Hz instants
-``t_1 … t_M`` of eq. (13), as the seed defines them over ``φ_1 … φ_M``; the ``h`` samples
-after ``T`` (the input held) are scored separately as the tail.
+Deviations (eqs. 16-18, `microfab.optimize.metrics.DeviationNorms`) are taken at the
+400 Hz instants ``t_1 … t_M`` of eq. (13), as the seed defines them over ``φ_1 … φ_M``;
+the ``TAIL`` samples after ``T`` (the input held) are scored separately as the tail.
+
+`saved_point` is the resumable form: a point's summary is written atomically
+(`write_point`: ``<case>_a<a_max>.json`` and ``.npz``) with the fingerprint of the
+settings that decide its numbers, and read back instead of rerun while it matches; a
+failed stage is recorded with its message. `baseline_l2` scores the eq. (15) baseline
+alone at a given time (the trade-off curves, Figs. 16-17).
 
 The models are the linear model and the networks of a ``stage-identify`` output
 (`microfab.optimize.models.load_models`).
@@ -25,15 +32,17 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from microfab.geometry.path import Path as Contour
 from microfab.machines.xy_stage import Played, TwinSettings, play_runs
 from microfab.optimize.command import LEAD
+from microfab.optimize.metrics import DeviationNorms
 from microfab.optimize.models import Models
 from microfab.optimize.pipeline import (
     MODEL_RATE_HZ,
@@ -42,64 +51,23 @@ from microfab.optimize.pipeline import (
     training_warning,
 )
 from microfab.optimize.problem import ContourProblem
-from microfab.optimize.stage1 import Stage1Settings
+from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 
 __all__ = [
+    "HOLD_S",
+    "RUN_RATE_HZ",
+    "TAIL",
     "PointResult",
-    "Scored",
-    "baseline_scores",
+    "baseline_l2",
+    "read_point_summary",
     "run_point",
+    "saved_point",
+    "write_point",
 ]
 
 RUN_RATE_HZ = 1e4  # seed 002 Table I: the 10 kHz loop
 TAIL = 200  # issue 18: after T the input is held for h = 200 samples (500 ms)
-
-
-@dataclass(frozen=True)
-class Scored:
-    """Deviations of one output (eqs. 16-18) at ``t_1 … t_M`` and in the tail, m.
-
-    Attributes
-    ----------
-    l1, l2, linf : float
-        Over ``t_1 … t_M``.
-    tail_linf : float
-        L∞ over the ``TAIL`` samples after ``T``.
-    n : int
-        ``M``.
-    """
-
-    l1: float
-    l2: float
-    linf: float
-    tail_linf: float
-    n: int
-
-    def as_dict(self) -> dict[str, float]:
-        """JSON form."""
-        return {"l1": self.l1, "l2": self.l2, "linf": self.linf, "tail_linf": self.tail_linf,
-                "n": self.n}  # fmt: skip
-
-
-def score(problem: ContourProblem, points: np.ndarray, m: int) -> tuple[Scored, np.ndarray]:
-    """`Scored` of an output sampled at ``t_1 …``, and the deviation of every row, m.
-
-    Rows ``0 … m-1`` are the run, the rest the tail.
-    """
-    from microfab.optimize.metrics import deviations
-
-    dev = deviations(problem.path, points)
-    run, tail = dev[:m], dev[m:]
-    return (
-        Scored(
-            l1=float(np.mean(run)),
-            l2=float(np.sqrt(np.mean(run**2))),
-            linf=float(np.max(run)),
-            tail_linf=float(np.max(tail)) if tail.size else 0.0,
-            n=m,
-        ),
-        dev,
-    )
+HOLD_S = TAIL / MODEL_RATE_HZ + 0.01  # the twin's hold: the tail and one 10 ms margin
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,22 +78,25 @@ class PointResult:
     ----------
     case : str
     a_max : float
+        m/s².
     reference : ReferenceResult
-    scores : dict of str to Scored
+    scores : dict of str to DeviationNorms
         Keys ``"<input>_<output>"``: input "optimised", "baseline", "stretched"; output
-        "twin" (experimental) or "ann" (simulated).
+        "twin" (experimental) or "ann" (simulated); with the tail's L∞.
     limited : dict of str to int
         Samples the twin's set-point guard changed, per input.
     outputs : dict of str to numpy.ndarray
         The outputs at ``t_1 … t_{M+TAIL}``, (M + TAIL, 2), m, per score key, and the
         inputs (``"<input>_input"``) at the same instants.
     wall_s : dict of str to float
+    reference_networks : AnnModel or None
+        The networks (the training-range warning of the summary).
     """
 
     case: str
     a_max: float
     reference: ReferenceResult
-    scores: dict[str, Scored]
+    scores: dict[str, DeviationNorms]
     limited: dict[str, int]
     outputs: dict[str, np.ndarray] = field(default_factory=dict)
     wall_s: dict[str, float] = field(default_factory=dict)
@@ -138,30 +109,25 @@ class PointResult:
 
     def improvement(self, output: str = "twin", baseline: str = "baseline") -> dict[str, float]:
         """Table III: ``100 (baseline - optimised) / baseline`` per norm, %."""
-        ours, base = self.scores[f"optimised_{output}"], self.scores[f"{baseline}_{output}"]
-        return {k: 100.0 * (getattr(base, k) - getattr(ours, k)) / getattr(base, k)
-                for k in ("l1", "l2", "linf")}  # fmt: skip
+        ours = self.scores[f"optimised_{output}"]
+        return ours.improvement_over(self.scores[f"{baseline}_{output}"])
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready."""
+        st2 = self.reference.stage2
         return {
             "case": self.case,
             "a_max": self.a_max,
             "duration_s": self.duration,
             "m": self.reference.m,
             "stage1": self.reference.stage1.summary(),
-            "stage2": None if self.reference.stage2 is None else _stage2_summary(
-                self.reference.stage2),
+            "stage2": None if st2 is None else st2.summary(),
             "scores": {k: v.as_dict() for k, v in self.scores.items()},
             "improvement": {"twin": self.improvement("twin"), "ann": self.improvement("ann")},
             "limited": self.limited,
             "wall_s": self.wall_s,
             "warning": training_warning(self.reference_networks, self.a_max),
-        }  # fmt: skip
-
-
-def _stage2_summary(st2: Any) -> dict[str, Any]:
-    return st2.summary()
+        }
 
 
 @dataclass(frozen=True)
@@ -179,6 +145,10 @@ def _at_model_rate(y: np.ndarray, m: int, lead: int = 0) -> np.ndarray:
     return y[idx]
 
 
+def _twin(twin: TwinSettings | None) -> TwinSettings:
+    return TwinSettings(hold_s=HOLD_S) if twin is None else twin
+
+
 def run_point(
     case: str,
     problem: ContourProblem,
@@ -190,10 +160,33 @@ def run_point(
     checkpoint: str | None = None,
     progress: Callable[[int, float], None] | None = None,
 ) -> PointResult:
-    """Optimise, play and score one case at one ``a_max`` (module docstring)."""
+    """Optimise, play and score one case at one ``a_max`` (module docstring).
+
+    Parameters
+    ----------
+    case : str
+        Its name (the twin runs' names).
+    problem : ContourProblem
+        Contour, ``a_max`` and tolerance.
+    models : Models
+        Linear model and networks.
+    twin : TwinSettings, optional
+        Default: noise seed 0 and `HOLD_S`.
+    stage1, stage2 : settings, optional
+        Of `microfab.optimize.pipeline.optimize_reference`.
+    checkpoint : str, optional
+        Stage 2's checkpoint file (a rerun resumes).
+    progress : callable, optional
+        Stage 2's ``progress(iteration, cost)``.
+
+    Raises
+    ------
+    microfab.optimize.stage1.Stage1Error, ValueError
+        A stage failed (infeasible, not converged, a command outside Table I).
+    """
+    from microfab.optimize.ann_torch import NetworkMap
     from microfab.optimize.baseline import constant_progress, stretched_time_optimal
 
-    tw = TwinSettings(hold_s=TAIL / MODEL_RATE_HZ + 0.01) if twin is None else twin
     wall: dict[str, float] = {}
     t0 = time.perf_counter()
     ref = optimize_reference(problem, models.linear, models.networks, stage1=stage1,
@@ -207,21 +200,19 @@ def run_point(
     played: Played = play_runs(
         [_Command(f"{case}_a{problem.a_max:g}_{k}", 1.0 / RUN_RATE_HZ, np.asarray(c))
          for k, c in commands.items()],
-        tw,
+        _twin(twin),
     )  # fmt: skip
     wall["twin"] = time.perf_counter() - t0
-    scores: dict[str, Scored] = {}
+    scores: dict[str, DeviationNorms] = {}
     outputs: dict[str, np.ndarray] = {}
     limited = {}
-    from microfab.optimize.ann_torch import NetworkMap
-
     net = NetworkMap(models.networks)
     step = round(RUN_RATE_HZ / MODEL_RATE_HZ)
     t0 = time.perf_counter()
     for (name, cmd), rec, lim in zip(commands.items(), played.records, played.limited, strict=True):
         lead = LEAD if name == "optimised" else 0  # the optimised command starts 2 Δt early
         y = _at_model_rate(rec.y, m, lead)
-        scores[f"{name}_twin"], _ = score(problem, y, m)
+        scores[f"{name}_twin"] = DeviationNorms.of(problem.path, y, tail_from=m)
         outputs[f"{name}_twin"] = y
         outputs[f"{name}_input"] = _at_model_rate(rec.u, m, lead)
         limited[name] = int(lim)
@@ -230,24 +221,12 @@ def run_point(
         if r400.shape[0] < m:
             r400 = np.vstack([r400, np.repeat(r400[-1:], m - r400.shape[0], axis=0)])
         phi = net.predict(r400, ref.rest)[: m + TAIL]
-        scores[f"{name}_ann"], _ = score(problem, phi, m)
+        scores[f"{name}_ann"] = DeviationNorms.of(problem.path, phi, tail_from=m)
         outputs[f"{name}_ann"] = phi
     wall["score"] = time.perf_counter() - t0
     return PointResult(case=case, a_max=problem.a_max, reference=ref, scores=scores,
                        limited=limited, outputs=outputs, wall_s=wall,
                        reference_networks=models.networks)  # fmt: skip
-
-
-def baseline_scores(path: Any, duration_s: float, twin: TwinSettings | None = None) -> Scored:
-    """The eq. (15) baseline at ``duration_s`` on the twin, scored at the 400 Hz instants."""
-    from microfab.optimize.baseline import constant_progress
-
-    tw = TwinSettings(hold_s=TAIL / MODEL_RATE_HZ + 0.01) if twin is None else twin
-    cmd = constant_progress(path, duration_s, RUN_RATE_HZ)
-    played = play_runs([_Command("baseline", 1.0 / RUN_RATE_HZ, np.asarray(cmd))], tw)
-    m = math.ceil(duration_s * MODEL_RATE_HZ - 1e-9)
-    problem = ContourProblem(path, a_max=1.0)
-    return score(problem, _at_model_rate(played.records[0].y, m), m)[0]
 
 
 def write_point(result: PointResult, directory: Path) -> None:
@@ -266,7 +245,7 @@ def write_point(result: PointResult, directory: Path) -> None:
 
 
 def read_point_summary(directory: Path, case: str, a_max: float) -> dict[str, Any] | None:
-    """The saved summary of a point, or None."""
+    """The saved summary of a point, or None (none there, or unreadable)."""
     p = directory / f"{case}_a{a_max:g}.json"
     if not p.is_file():
         return None
@@ -274,3 +253,70 @@ def read_point_summary(directory: Path, case: str, a_max: float) -> dict[str, An
         return json.loads(p.read_text())
     except (OSError, json.JSONDecodeError):
         return None
+
+
+def saved_point(
+    case: str,
+    problem: ContourProblem,
+    models: Models,
+    *,
+    twin: TwinSettings,
+    stage2_max_iter: int,
+    folder: Path | None,
+    fingerprint: str,
+) -> dict[str, Any]:
+    """`run_point`'s summary, saved under ``folder`` and read back on a rerun.
+
+    A summary saved there with the same ``fingerprint`` (the hash of what decides the
+    point's numbers) is returned as it is; otherwise the point is run (stage 2 checkpoints
+    to ``<case>_a<a_max>_stage2.ckpt.npz`` in ``folder``) and written (`write_point`). A
+    stage that fails (`Stage1Error`, ValueError) gives ``{"case", "a_max", "error"}``
+    instead, saved too. ``folder`` None: nothing is read or written.
+    """
+    from microfab.io.atomic import atomic_write_json
+    from microfab.optimize.stage2 import Stage2Settings
+
+    a = problem.a_max
+    if folder is not None:
+        saved = read_point_summary(folder, case, a)
+        if saved is not None and saved.get("fingerprint") == fingerprint:
+            return saved
+    ckpt = None if folder is None else str(folder / f"{case}_a{a:g}_stage2.ckpt.npz")
+    try:
+        s2 = Stage2Settings(max_iter=stage2_max_iter)
+        res = run_point(case, problem, models, twin=twin, stage1=Stage1Settings(), stage2=s2,
+                        checkpoint=ckpt)  # fmt: skip
+    except (Stage1Error, ValueError) as exc:
+        summary = {"case": case, "a_max": a, "error": f"{type(exc).__name__}: {exc}"}
+    else:
+        summary = res.summary()
+        if folder is not None:
+            write_point(res, folder)
+    summary["fingerprint"] = fingerprint
+    if folder is not None:
+        atomic_write_json(folder / f"{case}_a{a:g}.json", summary)
+    return summary
+
+
+def baseline_l2(
+    paths: Sequence[Contour], total_s: float, twin: TwinSettings | None = None
+) -> float:
+    """L2 of the eq. (15) baseline on the twin over ``paths`` traced in turn, m.
+
+    Each contour gets its share of ``total_s`` by its length (one path speed), is played
+    from rest and scored at the 400 Hz instants; the deviations are pooled
+    (`DeviationNorms.pooled`).
+    """
+    length = sum(p.length for p in paths)
+    parts = [_baseline_norms(p, total_s * p.length / length, twin) for p in paths]
+    return DeviationNorms.pooled(parts).l2
+
+
+def _baseline_norms(path: Contour, duration_s: float, twin: TwinSettings | None) -> DeviationNorms:
+    """The eq. (15) baseline at ``duration_s`` on the twin, scored at the 400 Hz instants."""
+    from microfab.optimize.baseline import constant_progress
+
+    cmd = constant_progress(path, duration_s, RUN_RATE_HZ)
+    played = play_runs([_Command("baseline", 1.0 / RUN_RATE_HZ, np.asarray(cmd))], _twin(twin))
+    m = math.ceil(duration_s * MODEL_RATE_HZ - 1e-9)
+    return DeviationNorms.of(path, _at_model_rate(played.records[0].y, m), tail_from=m)

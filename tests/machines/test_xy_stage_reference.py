@@ -1,0 +1,28 @@
+"""The reference job's scoring on the XY stage twin (machines.xy_stage_reference).
+
+`run_point` and `saved_point` run in the stage-reference-opt job's tests
+(tests/experiments/seed002_reference/test_job.py, tests/cli/test_run_store.py).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from microfab.geometry.shapes import circle, rectangle
+from microfab.machines.xy_stage import TwinSettings
+from microfab.machines.xy_stage_reference import HOLD_S, _baseline_norms, baseline_l2
+
+
+def test_baseline_pools_contours_traced_at_one_speed():
+    tw = TwinSettings(noise=False, hold_s=HOLD_S)
+    a, b = circle(4e-3), rectangle(6e-3, 4e-3)
+    one = _baseline_norms(a, 0.3, tw)
+    assert one.n == 120 and 0 < one.l1 <= one.l2 <= one.linf and one.tail_linf is not None
+    assert baseline_l2([a], 0.3, tw) == one.l2
+    total, length = 0.6, a.length + b.length
+    parts = [_baseline_norms(p, total * p.length / length, tw) for p in (a, b)]
+    pooled = baseline_l2([a, b], total, tw)
+    assert min(p.l2 for p in parts) <= pooled <= max(p.l2 for p in parts)
+    assert baseline_l2([a, b], 2 * total, tw) < pooled  # slower: closer to the contour
+    with pytest.raises(ValueError, match="duration"):
+        baseline_l2([a], 0.0, tw)
