@@ -16,7 +16,6 @@ from microfab.identify.stage_data import AXES, RunErrors
 from microfab.report.canvas import new_figure
 
 __all__ = [
-    "discrete_response",
     "plot_bode",
     "plot_excitation",
     "plot_fig9",
@@ -150,16 +149,6 @@ def plot_singular_values(sv: np.ndarray, order: int) -> MplFigure:
     ax.legend(fontsize=8)
     ax.set_title("Subspace identification: singular values")
     return fig
-
-
-def discrete_response(
-    a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, dt: float, f_hz: np.ndarray
-) -> np.ndarray:
-    """``C (zI - A)^-1 B + D`` at ``z = exp(j 2π f dt)``, shape (len(f), p, m)."""
-    z = np.exp(2j * np.pi * np.asarray(f_hz) * dt)
-    eye = np.eye(a.shape[0])
-    x = np.linalg.solve(z[:, None, None] * eye - a, np.broadcast_to(b, (z.size, *b.shape)))
-    return c @ x + d
 
 
 def plot_bode(f_hz: np.ndarray, responses: Mapping[str, np.ndarray]) -> MplFigure:

@@ -10,6 +10,7 @@ from microfab.experiments.seed002_stage import figures as f
 from microfab.experiments.seed002_stage.study import IdentifyStudy
 from microfab.experiments.seed002_stage.tables import NOTES, comparison_tables
 from microfab.identify.stage_data import AXES, decimate, rest_state
+from microfab.plants.lti import DiscreteLTI
 
 __all__ = ["write_report"]
 
@@ -97,8 +98,8 @@ def _bode(study: IdentifyStudy) -> object:
     return f.plot_bode(
         fs,
         {
-            "model": f.discrete_response(m.a, m.b, m.c, m.d, m.dt, fs),
-            "twin (linear)": f.discrete_response(twin.A, twin.B, twin.C, twin.D, twin.dt, fs),
+            "model": DiscreteLTI(A=m.a, B=m.b, C=m.c, D=m.d, dt=m.dt).frequency_response(fs),
+            "twin (linear)": twin.frequency_response(fs),
         },
     )
 
