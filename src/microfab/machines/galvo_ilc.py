@@ -29,10 +29,26 @@ from microfab.machines.base import Machine
 from microfab.machines.galvo import complementary_sensitivity, open_loop
 from microfab.machines.learning import learn
 from microfab.plants.galvo import GalvoAxis
+from microfab.process.exposure import (
+    ENVISIONTEC_R11_ASSUMED,
+    SEED000_BEAM,
+    BeamParams,
+    LineProfile,
+    ResinParams,
+    line_profile,
+)
 from microfab.process.velocity import BeamVelocityParams, beam_velocity
 from microfab.trajectory.periodic import square_scan
 
-__all__ = ["SAVE_EVERY_S", "MSLRunResult", "axis_margins", "run_msl_ilc", "square_reference"]
+__all__ = [
+    "SAVE_EVERY_S",
+    "BeamExposure",
+    "MSLRunResult",
+    "axis_margins",
+    "beam_exposure",
+    "run_msl_ilc",
+    "square_reference",
+]
 
 #: Least wall time between two saves of the learning state on the twin, s. Assumed: a
 #: killed run then replays at most 2 s of trials (bit-identical), and the state file,
@@ -279,3 +295,83 @@ def axis_margins(axes: Mapping[str, GalvoAxis]) -> dict[str, dict[str, float]]:
             "pm_freq_hz": m.pm_freq_hz,
         }
     return out
+
+
+#: Slowest speed passed to the exposure model, m/s: keeps the quasi-steady model finite
+#: if the beam ever stops (it then overestimates the width anyway, see process/exposure.py).
+_MIN_SPEED_M_S = 1e-6
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class BeamExposure:
+    """Beam speed and the predicted cured line of one run, FB and ILC (seed 000 §4.2-4.3).
+
+    Attributes
+    ----------
+    speed_mm_s : dict of str to numpy.ndarray
+        ``"fb"`` and ``"ilc"``: beam speed per sample over the period, mm/s, shape (N,).
+    stats : dict of str to float
+        Mean, std, min, max speed of each (seed Table 2 keys, `MSLRunResult.velocity_stats`).
+    line : dict of str to LineProfile
+        ``"fb"`` and ``"ilc"``: exposure, cure depth and width per sample.
+    target_speed_m_s : float
+        Constant speed of the desired path (its perimeter over one period), m/s.
+    target_width_m : float
+        Line width at that speed, m.
+    beam : BeamParams
+    resin : ResinParams
+    """
+
+    speed_mm_s: dict[str, np.ndarray]
+    stats: dict[str, float]
+    line: dict[str, LineProfile]
+    target_speed_m_s: float
+    target_width_m: float
+    beam: BeamParams
+    resin: ResinParams
+
+
+def beam_exposure(
+    result: MSLRunResult,
+    beam: BeamParams = SEED000_BEAM,
+    resin: ResinParams = ENVISIONTEC_R11_ASSUMED,
+) -> BeamExposure:
+    """The beam speed of a run's FB and ILC outputs and the line each would cure.
+
+    The speed is `microfab.process.velocity.beam_velocity` with the run's mm/V scales
+    (seed 000 §4.2); the width the quasi-steady Jacobs working curve
+    (`microfab.process.exposure.line_profile`, seed 000 §4.3).
+
+    Parameters
+    ----------
+    result : MSLRunResult
+        The run.
+    beam : BeamParams, optional
+        Writing beam (seed 000 §4.3: 30 mW; assumed spot radius).
+    resin : ResinParams, optional
+        Resin working curve (assumed Envisiontec R11 values).
+    """
+    params = result.velocity_params()
+    speed: dict[str, np.ndarray] = {}
+    stats: dict[str, float] = {}
+    line: dict[str, LineProfile] = {}
+    for tag, y in (("fb", result.fb_output), ("ilc", result.ilc_output)):
+        bv = beam_velocity(y, result.dt, params, periodic=True)
+        speed[tag] = bv.speed_mm_s
+        stats |= {f"{tag}_mean": bv.mean, f"{tag}_std": bv.std, f"{tag}_min": bv.min,
+                  f"{tag}_max": bv.max}  # fmt: skip
+        line[tag] = line_profile(np.maximum(bv.speed_mm_s * 1e-3, _MIN_SPEED_M_S), beam, resin)
+    ref_mm = result.to_mm(result.reference)
+    ref_mm = np.concatenate([ref_mm, ref_mm[:1]], axis=0)  # the closed path
+    perimeter_mm = float(np.sum(np.hypot(*np.diff(ref_mm[:, :2], axis=0).T)))
+    target_m_s = perimeter_mm * 1e-3 / result.period_s
+    target = line_profile(np.array([target_m_s]), beam, resin)
+    return BeamExposure(
+        speed_mm_s=speed,
+        stats=stats,
+        line=line,
+        target_speed_m_s=target_m_s,
+        target_width_m=float(target.width_m[0]),
+        beam=beam,
+        resin=resin,
+    )

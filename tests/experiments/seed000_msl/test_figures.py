@@ -7,7 +7,7 @@ import pytest
 from matplotlib.collections import LineCollection
 
 from microfab.experiments.seed000_msl.figures import fig_line_width, fig_velocity
-from microfab.machines.galvo_ilc import run_msl_ilc
+from microfab.machines.galvo_ilc import beam_exposure, run_msl_ilc
 
 
 @pytest.fixture(scope="module")
@@ -15,8 +15,20 @@ def result():
     return run_msl_ilc(400, 4)
 
 
-def test_fig_velocity_shared_colour_scale(result):
-    fig = fig_velocity(result)
+@pytest.fixture(scope="module")
+def exposure(result):
+    return beam_exposure(result)
+
+
+def test_exposure_computed_in_the_run_matches_table_2(result, exposure):
+    assert exposure.stats == result.velocity_stats()
+    n = result.reference.shape[0]
+    assert exposure.speed_mm_s["fb"].shape == exposure.line["ilc"].width_m.shape == (n,)
+    assert 1e-6 < exposure.target_width_m < 1e-4
+
+
+def test_fig_velocity_shared_colour_scale(result, exposure):
+    fig = fig_velocity(result, exposure)
     assert len(fig.axes) == 3  # FB, ILC, colour bar
     cols = [next(c for c in ax.collections if isinstance(c, LineCollection)) for ax in fig.axes[:2]]
     assert cols[0].norm.vmin == cols[1].norm.vmin
@@ -31,8 +43,8 @@ def test_fig_velocity_shared_colour_scale(result):
     assert "mm/s" in fig.axes[2].get_ylabel()
 
 
-def test_fig_line_width_legend_uniformity(result):
-    fig = fig_line_width(result)
+def test_fig_line_width_legend_uniformity(result, exposure):
+    fig = fig_line_width(result, exposure)
     assert len(fig.axes) == 1
     ax = fig.axes[0]
     assert len(ax.lines) == 3  # FB, ILC, width at target speed

@@ -7,7 +7,8 @@ import pytest
 from microfab.experiments.seed000_msl import figures
 from microfab.experiments.seed000_msl import paper as seed000
 from microfab.experiments.seed000_msl.report import FIGURE_FILES, fmt_mm_s, fmt_mv, write_report
-from microfab.machines.galvo_ilc import run_msl_ilc
+from microfab.machines.galvo import calibrated_axes, open_loop
+from microfab.machines.galvo_ilc import beam_exposure, run_msl_ilc
 from microfab.report import galvo_ilc
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -28,13 +29,23 @@ def tables(result):
 
 
 @pytest.fixture(scope="module")
-def report(result, tables, tmp_path_factory):
+def drawn(result, tables):
+    """What the job computes for the page besides the runs (the report only draws)."""
+    return {
+        "tables": tables,
+        "exposure": beam_exposure(result),
+        "open_loops": {n: open_loop(a) for n, a in calibrated_axes().items()},
+    }
+
+
+@pytest.fixture(scope="module")
+def report(result, drawn, tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "out"
     path = write_report(
         out,
         {400.0: result},
         main_rate=400,
-        tables=tables,
+        **drawn,
         title="Seed <000> report",
         notes=["first note", "a <b>bold</b> & raw note"],
     )
@@ -92,7 +103,7 @@ def test_text_is_escaped(report):
     assert html.escape("<000>") in text
 
 
-def test_without_tables_no_comparison(result, tmp_path, monkeypatch):
+def test_without_notes_no_notes_section(result, drawn, tmp_path, monkeypatch):
     # Figures are not under test here: substitute a cheap one to keep this fast.
     from matplotlib.figure import Figure
 
@@ -110,26 +121,25 @@ def test_without_tables_no_comparison(result, tmp_path, monkeypatch):
         (figures, "fig_line_width"),
     ):
         monkeypatch.setattr(module, name, tiny)
-    path = write_report(tmp_path, {400: result}, main_rate=400.0)
+    path = write_report(tmp_path, {400: result}, main_rate=400.0, **drawn)
     text = path.read_text(encoding="utf-8")
-    assert "Comparison with seed 000" not in text
     assert "<h2>Notes</h2>" not in text
     assert f">{fmt_mv(result.table1_row('y')['ilc_pp'])}<" in text
 
 
-def test_figure_failure_leaves_no_report(result, tmp_path, monkeypatch):
+def test_figure_failure_leaves_no_report(result, drawn, tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise RuntimeError("simulated figure failure")
 
     monkeypatch.setattr(galvo_ilc, "fig_psd", boom)
     out = tmp_path / "fresh"
     with pytest.raises(RuntimeError, match="simulated figure failure"):
-        write_report(out, {400.0: result}, main_rate=400)
+        write_report(out, {400.0: result}, main_rate=400, **drawn)
     assert not (out / "report.html").exists()
     assert not out.exists() or list(out.iterdir()) == []  # nothing half-written
 
 
-def test_figure_failure_keeps_previous_report(result, tmp_path, monkeypatch):
+def test_figure_failure_keeps_previous_report(result, drawn, tmp_path, monkeypatch):
     old = tmp_path / "report.html"
     old.write_text("old report", encoding="utf-8")
 
@@ -138,14 +148,14 @@ def test_figure_failure_keeps_previous_report(result, tmp_path, monkeypatch):
 
     monkeypatch.setattr(galvo_ilc, "fig_xy", boom)
     with pytest.raises(RuntimeError):
-        write_report(tmp_path, {400.0: result}, main_rate=400)
+        write_report(tmp_path, {400.0: result}, main_rate=400, **drawn)
     assert old.read_text(encoding="utf-8") == "old report"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
 
 
-def test_bad_main_rate(result, tmp_path):
+def test_bad_main_rate(result, drawn, tmp_path):
     with pytest.raises(ValueError, match="main_rate"):
-        write_report(tmp_path, {400.0: result}, main_rate=200)
+        write_report(tmp_path, {400.0: result}, main_rate=200, **drawn)
     with pytest.raises(ValueError):
-        write_report(tmp_path, {}, main_rate=400)
+        write_report(tmp_path, {}, main_rate=400, **drawn)
     assert not (tmp_path / "report.html").exists()

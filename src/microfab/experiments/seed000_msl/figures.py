@@ -17,40 +17,33 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from microfab.machines.galvo_ilc import MSLRunResult
-from microfab.process.exposure import (
-    ENVISIONTEC_R11_ASSUMED,
-    SEED000_BEAM,
-    BeamParams,
-    ResinParams,
-    line_profile,
-)
-from microfab.process.velocity import beam_velocity
+from microfab.machines.galvo_ilc import BeamExposure, MSLRunResult
 from microfab.report.canvas import new_figure
 from microfab.report.galvo_ilc import DESIRED_STYLE, FB_STYLE, ILC_STYLE, closed, rate_label
 
 __all__ = ["fig_line_width", "fig_velocity"]
 
-# Slowest speed passed to the exposure model, m/s: keeps the quasi-steady model finite
-# if the beam ever stops (it then overestimates the width anyway, see exposure.py).
-_MIN_SPEED_M_S = 1e-6
 
-
-def _speed_path(result: MSLRunResult, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Closed path in mm and beam speed (mm/s) per segment."""
-    bv = beam_velocity(signal, result.dt, result.velocity_params(), periodic=True)
+def _speed_path(
+    result: MSLRunResult, signal: np.ndarray, speed_mm_s: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Closed path in mm and beam speed (mm/s) per segment (the mean of its two ends)."""
     p = closed(result.to_mm(signal))
-    seg_speed = 0.5 * (bv.speed_mm_s + np.roll(bv.speed_mm_s, -1))
+    seg_speed = 0.5 * (speed_mm_s + np.roll(speed_mm_s, -1))
     return p, seg_speed
 
 
-def fig_velocity(result: MSLRunResult, *, cmap: str = "turbo", n_arrows: int = 4) -> Figure:
+def fig_velocity(
+    result: MSLRunResult, exposure: BeamExposure, *, cmap: str = "turbo", n_arrows: int = 4
+) -> Figure:
     """Beam path coloured by beam speed, FB left and ILC right (seed Fig. 7).
 
     Parameters
     ----------
     result : MSLRunResult
         Run to draw (the first two axes are x and y).
+    exposure : BeamExposure
+        Its beam speeds (`microfab.machines.galvo_ilc.beam_exposure`).
     cmap : str, optional
         Matplotlib colour map name.
     n_arrows : int, optional
@@ -65,10 +58,10 @@ def fig_velocity(result: MSLRunResult, *, cmap: str = "turbo", n_arrows: int = 4
     """
     if len(result.axes) < 2:
         raise ValueError(f"fig_velocity needs two axes, the result has {result.axes}")
-    stats = result.velocity_stats()
+    stats = exposure.stats
     paths = {
-        "fb": ("FB only", *_speed_path(result, result.fb_output)),
-        "ilc": ("ILC", *_speed_path(result, result.ilc_output)),
+        "fb": ("FB only", *_speed_path(result, result.fb_output, exposure.speed_mm_s["fb"])),
+        "ilc": ("ILC", *_speed_path(result, result.ilc_output, exposure.speed_mm_s["ilc"])),
     }
     lo = min(float(s.min()) for _, _, s in paths.values())
     hi = max(float(s.max()) for _, _, s in paths.values())
@@ -107,26 +100,19 @@ def fig_velocity(result: MSLRunResult, *, cmap: str = "turbo", n_arrows: int = 4
     return fig
 
 
-def fig_line_width(
-    result: MSLRunResult,
-    beam: BeamParams = SEED000_BEAM,
-    resin: ResinParams = ENVISIONTEC_R11_ASSUMED,
-) -> Figure:
+def fig_line_width(result: MSLRunResult, exposure: BeamExposure) -> Figure:
     """Predicted cured line width along one period, FB against ILC (seed Fig. 8 analogue).
 
-    The beam speed of :meth:`MSLRunResult.velocity_params` is turned into a width with the
-    quasi-steady Jacobs working curve (:func:`microfab.process.exposure.line_profile`).
-    The width at the constant target speed (perimeter of the desired path over one
-    period) is drawn for reference.
+    Draws `microfab.machines.galvo_ilc.beam_exposure`'s widths (the beam speed through the
+    quasi-steady Jacobs working curve) and the width at the constant target speed
+    (perimeter of the desired path over one period) for reference.
 
     Parameters
     ----------
     result : MSLRunResult
         Run to draw.
-    beam : BeamParams, optional
-        Writing beam (seed 000 §4.3: 30 mW; assumed spot radius).
-    resin : ResinParams, optional
-        Resin working curve (assumed Envisiontec R11 values).
+    exposure : BeamExposure
+        Its beam speeds and cured lines.
 
     Returns
     -------
@@ -134,31 +120,24 @@ def fig_line_width(
         One axes with three lines (FB, ILC, width at the target speed), width in µm
         against time in ms; the legend gives mean width and uniformity ``std/mean``.
     """
-    params = result.velocity_params()
+    beam = exposure.beam
     t_ms = np.arange(result.reference.shape[0]) * result.dt * 1e3
     fig = new_figure(7.0, 4.2)
     ax = fig.add_subplot()
-    for signal, tag, style in (
-        (result.fb_output, "FB", FB_STYLE),
-        (result.ilc_output, "ILC", ILC_STYLE),
-    ):
-        bv = beam_velocity(signal, result.dt, params, periodic=True)
-        prof = line_profile(np.maximum(bv.speed_mm_s * 1e-3, _MIN_SPEED_M_S), beam, resin)
+    for tag, label, style in (("fb", "FB", FB_STYLE), ("ilc", "ILC", ILC_STYLE)):
+        prof = exposure.line[tag]
         ax.plot(
             t_ms,
             prof.width_m * 1e6,
             label=(
-                f"{tag}: mean {prof.width_mean_m * 1e6:.2f} µm, "
+                f"{label}: mean {prof.width_mean_m * 1e6:.2f} µm, "
                 f"std/mean {prof.uniformity * 100:.1f} %"
             ),
             **style,
         )
-    ref_mm = closed(result.to_mm(result.reference))
-    perimeter_mm = float(np.sum(np.hypot(*np.diff(ref_mm[:, :2], axis=0).T)))
-    target_m_s = perimeter_mm * 1e-3 / result.period_s
-    target = line_profile(np.array([target_m_s]), beam, resin)
+    target_m_s = exposure.target_speed_m_s
     ax.axhline(
-        target.width_m[0] * 1e6,
+        exposure.target_width_m * 1e6,
         label=f"at target speed {target_m_s * 1e3:.0f} mm/s",
         **DESIRED_STYLE,
     )

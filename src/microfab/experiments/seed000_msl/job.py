@@ -41,8 +41,9 @@ from microfab.machines import galvo as galvo_machine
 from microfab.report.tables import Table, versus
 
 if TYPE_CHECKING:  # the learning run is imported when a job runs
-    from microfab.machines.galvo_ilc import MSLRunResult
+    from microfab.machines.galvo_ilc import BeamExposure, MSLRunResult
     from microfab.plants.galvo import GalvoAxis
+    from microfab.plants.lti import DiscreteLTI
 
 __all__ = [
     "MSL_ILC",
@@ -147,6 +148,8 @@ class MSLJobResult:
     config: MSLConfig
     runs: dict[int, MSLRunResult]
     numbers: dict[str, Any]
+    exposure: BeamExposure
+    open_loops: dict[str, DiscreteLTI]
 
     def comparison(self) -> tuple[Table, ...]:
         """Tables 1 and 2 and the margins, ours / seed 000 (`comparison_tables`)."""
@@ -175,7 +178,7 @@ class MSLJobResult:
 
 
 def _run(config: MSLConfig, out: Path, progress: Progress) -> MSLJobResult:
-    from microfab.machines.galvo_ilc import run_msl_ilc
+    from microfab.machines.galvo_ilc import beam_exposure, run_msl_ilc
 
     axes = galvo_machine.calibrated_axes()
     runs = {}
@@ -190,7 +193,13 @@ def _run(config: MSLConfig, out: Path, progress: Progress) -> MSLJobResult:
             state_dir=out / "state" / f"rate_{r}",
             progress=lambda done, total, lab=label: progress(lab, done, total),
         )
-    result = MSLJobResult(config=config, runs=runs, numbers=tables_from_runs(runs, axes))
+    result = MSLJobResult(
+        config=config,
+        runs=runs,
+        numbers=tables_from_runs(runs, axes),
+        exposure=beam_exposure(runs[config.features_per_s]),
+        open_loops={n: galvo_machine.open_loop(a) for n, a in axes.items()},
+    )
     atomic_write_json(out / "summary.json", result.summary())
     return result
 
@@ -205,7 +214,8 @@ def _notes(config: MSLConfig) -> list[str]:
         "Line width: quasi-steady working-curve model with the seed's 30 mW laser "
         "(seed 000 §4.3) and an assumed resin (D_p 100 um, E_c 10 mJ/cm^2) and spot "
         "radius 5 um; the seed gives neither (microfab/process/exposure.py).",
-        "Learning state is saved after every iteration under state/; re-running resumes.",
+        "Learning state is saved under state/ (at most every 2 s and after the last trial); "
+        "re-running resumes.",
     ]
 
 
@@ -217,6 +227,8 @@ def _write_report(result: MSLJobResult, out: Path, title: str) -> Path:
         result.runs,
         main_rate=result.config.features_per_s,
         tables=result.numbers,
+        exposure=result.exposure,
+        open_loops=result.open_loops,
         title=title,
         notes=_notes(result.config),
     )

@@ -23,10 +23,8 @@ from typing import Any
 
 from microfab.experiments.seed000_msl import figures
 from microfab.experiments.seed000_msl import paper as seed000
-from microfab.machines import galvo as galvo_machine
-from microfab.machines.galvo import open_loop
-from microfab.machines.galvo_ilc import MSLRunResult
-from microfab.plants.galvo import GalvoAxis
+from microfab.machines.galvo_ilc import BeamExposure, MSLRunResult
+from microfab.plants.lti import DiscreteLTI
 from microfab.report import galvo_ilc, loops
 from microfab.report.canvas import render_png, render_svg
 from microfab.report.page import Figure, page_html, write_page
@@ -96,7 +94,8 @@ def _th(text: str, **attrs: int) -> str:
 def _render_figures(
     runs: Mapping[float, MSLRunResult],
     main: MSLRunResult,
-    galvo_axes: Mapping[str, GalvoAxis],
+    exposure: BeamExposure,
+    open_loops: Mapping[str, DiscreteLTI],
 ) -> list[tuple[str, bytes, bytes]]:
     """Draw and render every figure to PNG and SVG bytes (nothing is written here)."""
     # Looked up on the module at call time so that tests can substitute a function.
@@ -105,10 +104,9 @@ def _render_figures(
         ("time.png", lambda: galvo_ilc.fig_time(main)),
         ("psd.png", lambda: galvo_ilc.fig_psd(main)),
         ("learning.png", lambda: galvo_ilc.fig_learning(runs)),
-        ("velocity.png", lambda: figures.fig_velocity(main)),
-        ("line_width.png", lambda: figures.fig_line_width(main)),
-        ("bode.png", lambda: loops.fig_bode({n: open_loop(a) for n, a in galvo_axes.items()},
-                                            title=_BODE_TITLE)),
+        ("velocity.png", lambda: figures.fig_velocity(main, exposure)),
+        ("line_width.png", lambda: figures.fig_line_width(main, exposure)),
+        ("bode.png", lambda: loops.fig_bode(dict(open_loops), title=_BODE_TITLE)),
         ("eq5.png", lambda: galvo_ilc.fig_eq5(main)),
     ]  # fmt: skip
     out = []
@@ -195,15 +193,16 @@ def _table1_ours(runs: Mapping[float, MSLRunResult]) -> str:
     )
 
 
-def _table2_ours(runs: Mapping[float, MSLRunResult]) -> str:
+def _table2_ours(runs: Mapping[float, MSLRunResult], table2: Mapping[str, Any]) -> str:
     head = (
         _th("Rate (features/s)")
         + _th("Controller")
         + "".join(_th(s.capitalize()) for s in _T2_STATS)
     )
+    by_rate = {float(k): v for k, v in table2.items()}
     rows = []
     for r in sorted(runs):
-        stats = runs[r].velocity_stats()
+        stats = by_rate[float(r)]
         for ctl in ("fb", "ilc"):
             cells = "".join(_td(stats[f"{ctl}_{s}"], fmt_mm_s) for s in _T2_STATS)
             rows.append(f"<tr><td>{_rate_str(r)}</td><td>{ctl.upper()}</td>{cells}</tr>")
@@ -334,10 +333,11 @@ def write_report(
     runs: Mapping[float, MSLRunResult],
     *,
     main_rate: float,
-    tables: dict[str, Any] | None = None,
+    tables: dict[str, Any],
+    exposure: BeamExposure,
+    open_loops: Mapping[str, DiscreteLTI],
     title: str = "microfab report",
     notes: Sequence[str] = (),
-    galvo_axes: Mapping[str, GalvoAxis] | None = None,
 ) -> Path:
     """Write the figures and an HTML report of seed 000 runs.
 
@@ -351,19 +351,22 @@ def write_report(
         Runs by rate, features/s. The learning figure and the tables use all of them.
     main_rate : float
         Rate whose run is drawn in the other figures; must be a key of ``runs``.
-    tables : dict, optional
+    tables : dict
         Our numbers as returned by
         `microfab.experiments.seed000_msl.job.tables_from_runs`: ``{"table1": {axis:
         {rate: {"fb_rms", "fb_pp", "ilc_rms", "ilc_pp"}}}, "table2": {rate: {...}},
-        "margins": {axis: {"gm_db", "pm_deg"}}}`` with string rate keys. When given,
-        they are shown beside the seed's values (:mod:`microfab.experiments.seed000_msl.paper`)
-        with the ratio ours/seed; missing parts are skipped.
+        "margins": {axis: {"gm_db", "pm_deg"}}}`` with string rate keys, shown beside the
+        seed's values (:mod:`microfab.experiments.seed000_msl.paper`) with the ratio
+        ours/seed; Table 2 (ours) is read from it.
+    exposure : BeamExposure
+        The main run's beam speed and cured lines
+        (`microfab.machines.galvo_ilc.beam_exposure`).
+    open_loops : mapping of str to DiscreteLTI
+        Each axis' open loop, for the Bode plot (`microfab.machines.galvo.open_loop`).
     title : str, optional
         Page title and heading.
     notes : sequence of str, optional
         Shown as a bulleted list.
-    galvo_axes : mapping of str to GalvoAxis, optional
-        The axis models the runs used, for the Bode plot (default: the calibrated twin's).
 
     Returns
     -------
@@ -383,8 +386,7 @@ def write_report(
     main = next((r for k, r in runs.items() if float(k) == float(main_rate)), None)
     if main is None:
         raise ValueError(f"main_rate {main_rate} is not among the runs' rates {sorted(runs)}")
-    axes = galvo_axes or galvo_machine.calibrated_axes()
-    rendered = _render_figures(runs, main, axes)  # draw first
+    rendered = _render_figures(runs, main, exposure, open_loops)  # draw first
     captions = _captions(main, runs)
     figs = [
         Figure(name=name, png=png, svg=svg, caption=captions[name]) for name, png, svg in rendered
@@ -396,8 +398,7 @@ def write_report(
         f"{rates} features/s; figures at {_rate_str(main.features_per_s)} features/s except the "
         f"learning transient. Trials per rate: {n_trials}."
     )
-    sections = ["<h2>Tables</h2>", _table1_ours(runs), _table2_ours(runs)]
-    if tables:
-        sections.append(_comparison(tables))
+    sections = ["<h2>Tables</h2>", _table1_ours(runs), _table2_ours(runs, tables["table2"])]
+    sections.append(_comparison(tables))
     text = page_html(title, intro=intro, notes=notes, figures=figs, sections=sections)
     return write_page(out_dir, text, figs)

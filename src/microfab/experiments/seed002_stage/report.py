@@ -9,8 +9,7 @@ import numpy as np
 from microfab.experiments.seed002_stage import figures as f
 from microfab.experiments.seed002_stage.study import IdentifyStudy
 from microfab.experiments.seed002_stage.tables import NOTES, comparison_tables
-from microfab.identify.stage_data import AXES, decimate, rest_state
-from microfab.plants.lti import DiscreteLTI
+from microfab.identify.stage_data import AXES
 
 __all__ = ["write_report"]
 
@@ -80,7 +79,7 @@ def _figures(study: IdentifyStudy) -> list[tuple[str, object, str]]:
                 for a, info in st.model.info.get("axes", {}).items():
                     hist[f"{name} {a}"] = info.get("history", [])
         out.append(("losses.png", f.plot_losses(hist), "Training and validation loss."))
-        if study.validation_example is not None:
+        if study.curves is not None and study.curves.time_s is not None:
             out.append(
                 (
                     "prediction.png",
@@ -92,31 +91,15 @@ def _figures(study: IdentifyStudy) -> list[tuple[str, object, str]]:
 
 
 def _bode(study: IdentifyStudy) -> object:
-    twin = study.settings.twin.twin().linear_model()
-    m = study.linear.model
-    fs = np.geomspace(0.5, 0.45 / m.dt, 300)
-    return f.plot_bode(
-        fs,
-        {
-            "model": DiscreteLTI(A=m.a, B=m.b, C=m.c, D=m.d, dt=m.dt).frequency_response(fs),
-            "twin (linear)": twin.frequency_response(fs),
-        },
-    )
+    c = study.curves
+    assert c is not None
+    return f.plot_bode(c.freq_hz, c.response)
 
 
 def _prediction(study: IdentifyStudy) -> object:
-    rec = study.validation_example
-    assert rec is not None and study.ann is not None
-    dt = study.linear.model.dt / study.linear.decimate
-    t = np.arange(rec.u.shape[0]) * dt
-    q = study.linear.decimate
-    ud = decimate(rec.u, q)
-    y_lin = study.linear.model.simulate(ud, rest_state(study.linear.model, ud[0]))
-    preds = {
-        "linear": (np.arange(ud.shape[0]) * dt * q, y_lin),
-        "ANN": (t, study.ann.model.predict(rec.u, at="10khz")),
-    }
-    return f.plot_prediction(t, rec.y, preds)
+    c = study.curves
+    assert c is not None and c.time_s is not None and c.measured is not None
+    return f.plot_prediction(c.time_s, c.measured, c.predictions)
 
 
 def write_report(study: IdentifyStudy, out: Path, title: str) -> Path:

@@ -39,7 +39,7 @@ import numpy as np
 
 from microfab.experiments.kinds import Progress, no_progress
 from microfab.geometry.text import SEED002_LETTERS
-from microfab.identify.stage_data import RunErrors, StageRecord
+from microfab.identify.stage_data import RunErrors, StageRecord, decimate, rest_state
 from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_ann import (
     AnnSettings,
@@ -63,6 +63,7 @@ from microfab.machines.xy_stage_identify import (
     linear_study,
     order_check,
 )
+from microfab.plants.lti import DiscreteLTI
 
 if TYPE_CHECKING:
     from microfab.identify.stage_ann import StageAnnFit
@@ -158,6 +159,63 @@ class StudySettings:
             raise ValueError("the coupling and classic studies need the networks (ann)")
 
 
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ModelCurves:
+    """What the report draws of the fitted models, computed in the run.
+
+    Attributes
+    ----------
+    freq_hz : numpy.ndarray
+        Frequencies of the responses, Hz, shape (k,).
+    response : dict of str to numpy.ndarray
+        ``"model"`` (the fitted linear model) and ``"twin (linear)"`` (the twin with its
+        nonlinear parts off): complex response, shape (k, 2, 2).
+    time_s : numpy.ndarray or None
+        Sample times of the validation example, s (None without networks).
+    measured : numpy.ndarray or None
+        Its measured output, m, shape (n, 2).
+    predictions : dict of str to (numpy.ndarray, numpy.ndarray)
+        Per model (``"linear"`` at its decimated rate, ``"ANN"`` at every sample): times,
+        s, and predicted output, m.
+    """
+
+    freq_hz: np.ndarray
+    response: dict[str, np.ndarray]
+    time_s: np.ndarray | None = None
+    measured: np.ndarray | None = None
+    predictions: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+
+
+def model_curves(
+    twin: TwinSettings, linear: LinearFit, ann: StageAnnFit | None, rec: StageRecord | None
+) -> ModelCurves:
+    """The fitted models' curves for the report (`ModelCurves`).
+
+    The frequency responses of the fitted model and of the linear twin; the validation
+    example predicted by the linear model (from rest, at its decimated rate) and by the
+    networks.
+    """
+    m = linear.model
+    fs = np.geomspace(0.5, 0.45 / m.dt, 300)
+    response = {
+        "model": DiscreteLTI(A=m.a, B=m.b, C=m.c, D=m.d, dt=m.dt).frequency_response(fs),
+        "twin (linear)": twin.twin().linear_model().frequency_response(fs),
+    }
+    if rec is None or ann is None:
+        return ModelCurves(freq_hz=fs, response=response)
+    q = linear.decimate
+    dt = m.dt / q
+    t = np.arange(rec.u.shape[0]) * dt
+    ud = decimate(rec.u, q)
+    y_lin = m.simulate(ud, rest_state(m, ud[0]))
+    preds = {
+        "linear": (np.arange(ud.shape[0]) * dt * q, y_lin),
+        "ANN": (t, ann.model.predict(rec.u, at="10khz")),
+    }
+    return ModelCurves(freq_hz=fs, response=response, time_s=t, measured=rec.y,
+                       predictions=preds)  # fmt: skip
+
+
 @dataclass(frozen=True, eq=False)
 class IdentifyStudy:
     """Everything `run_study` measured (see the module docstring).
@@ -188,6 +246,9 @@ class IdentifyStudy:
         One validation run (measured vs models figure).
     seconds : dict of str to float
         Wall time of each part.
+    curves : ModelCurves or None
+        The fitted models' frequency responses and their prediction of the validation
+        run, computed here so that the report only draws.
     """
 
     settings: StudySettings
@@ -205,6 +266,7 @@ class IdentifyStudy:
     example_runs: tuple[tuple[str, np.ndarray], ...]
     validation_example: StageRecord | None
     seconds: dict[str, float]
+    curves: ModelCurves | None = None
 
     def case(self, name: str, a_max: float) -> CaseRun:
         """The run of ``name`` at ``a_max``."""
@@ -334,6 +396,7 @@ def run_study(
         example_runs=example_runs,
         validation_example=val_example,
         seconds=seconds,
+        curves=model_curves(s.twin, linear, ann, val_example),
     )
 
 
