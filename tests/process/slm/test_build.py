@@ -60,6 +60,13 @@ def test_layers_rise_by_the_thickness_and_turn_the_hatch():
         ({"jump_speed_m_s": 0.0}, "jump speed"),
         ({"shaper": "zv"}, "shaper must be 'none', 'zoh'"),
         ({"mirror_mode": "yes"}, "mirror_mode must be true or false"),
+        # sizes checked before any layer is built (a wrong unit, or work that never ends)
+        ({"layer_m": 1e-300}, r"outside 1e-06 to 0\.001 m"),
+        ({"layer_m": 30.0}, r"outside 1e-06 to 0\.001 m"),
+        ({"n_layers": 10**8}, r"3000 m tall, taller than 1 m; choose at most 33333 layers"),
+        ({"hatch_spacing_m": 1e-300}, r"hatch lines across the 0\.016 m disc, more than 100000"),
+        ({"outline_radius_m": 1e-300}, "smaller than one hatch spacing"),
+        ({"mark_speed_m_s": 1e-300}, r"takes 1\.6e\+298 s, more than 3600 s"),
     ],
 )
 def test_bad_settings_are_refused(changes, match):

@@ -94,6 +94,19 @@ Shaper = Literal["none", "zoh", "zpetc"]
 #: ``factory(mirror_mode=bool) -> GalvoSLMPlant``: where the build's twin comes from.
 TwinFactory = Callable[..., GalvoSLMPlant]
 
+#: Layer thickness accepted, m. Assumed: SLM layers are tens of µm (seed 003 part 2 §1:
+#: "typically 20 to 40 µm"); a value outside 1 µm to 1 mm is a mistake in the unit.
+LAYER_RANGE_M = (1e-6, 1e-3)
+#: Tallest build accepted, m. Assumed: no SLM build volume is taller than about 1 m; it
+#: bounds the work one command is asked for before any layer is built.
+MAX_BUILD_HEIGHT_M = 1.0
+#: Most hatch lines across one layer. Assumed bound of one layer's work (a 16 mm disc at
+#: 0.16 µm); a finer hatch is a mistake in the unit and would not fit in memory.
+MAX_HATCH_LINES = 100_000
+#: Longest time one vector across the disc may take, s. Assumed: a mark speed that needs
+#: more than an hour for one vector is a mistake in the unit (its ticks overflow).
+MAX_VECTOR_S = 3600.0
+
 
 @dataclass(frozen=True, kw_only=True)
 class BuildSettings:
@@ -145,6 +158,38 @@ class BuildSettings:
         check_positive("hatch_spacing_m", self.hatch_spacing_m, "m")
         check_finite("hatch_angle_deg_per_layer", self.hatch_angle_deg_per_layer, "deg")
         ScanSpeeds(mark_m_s=self.mark_speed_m_s, jump_m_s=self.jump_speed_m_s)
+        lo, hi = LAYER_RANGE_M
+        if not lo <= self.layer_m <= hi:
+            raise ValueError(
+                f"layer thickness layer_m = {self.layer_m:g} m is outside {lo:g} to {hi:g} m "
+                "(SLM layers are tens of µm); check the unit"
+            )
+        height = self.n_layers * self.layer_m
+        if height > MAX_BUILD_HEIGHT_M:
+            raise ValueError(
+                f"{self.n_layers} layers of {self.layer_m:g} m make a part {height:g} m tall, "
+                f"taller than {MAX_BUILD_HEIGHT_M:g} m; choose at most "
+                f"{int(MAX_BUILD_HEIGHT_M / self.layer_m)} layers"
+            )
+        width = 2.0 * self.outline_radius_m
+        if self.outline_radius_m < self.hatch_spacing_m:
+            raise ValueError(
+                f"outline_radius_m = {self.outline_radius_m:g} m is smaller than one hatch "
+                f"spacing ({self.hatch_spacing_m:g} m): a layer would have nothing to mark"
+            )
+        if width / self.hatch_spacing_m > MAX_HATCH_LINES:
+            raise ValueError(
+                f"hatch_spacing_m = {self.hatch_spacing_m:g} m gives "
+                f"{width / self.hatch_spacing_m:.3g} hatch lines across the {width:g} m disc, "
+                f"more than {MAX_HATCH_LINES}; choose at least {width / MAX_HATCH_LINES:g} m"
+            )
+        slowest = min(self.mark_speed_m_s, self.jump_speed_m_s)
+        if width / slowest > MAX_VECTOR_S:
+            raise ValueError(
+                f"at {slowest:g} m/s one vector across the {width:g} m disc takes "
+                f"{width / slowest:.3g} s, more than {MAX_VECTOR_S:g} s; choose a speed of at "
+                f"least {width / MAX_VECTOR_S:g} m/s"
+            )
         if self.shaper not in ("none", "zoh", "zpetc"):
             raise ValueError(
                 f"shaper must be 'none', 'zoh' (the seed's discretisation) or 'zpetc', "
