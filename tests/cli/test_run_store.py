@@ -45,7 +45,7 @@ CASES = [
          "[twin]\nseed = 0\n", "seed = 0", "seed = 1", "twin.seed 0 -> 1"),
     Case("droplet-sweep", "[sweep]\nconcentrations_pct = [0.15, 0.5]\nvoltages_v = []\n"
          "duration_us = 110\n", "duration_us = 110", "duration_us = 100",
-         "sweep.duration_us 110.0 -> 100.0"),
+         "sweep.duration_us 110 -> 100"),
     Case("laser-micromachining", "[trajectory]\nlaps = 1\n[sweep]\nspeeds_mm_s = [0.5, 1.0]\n"
          "[focus]\nrun = false\n[twin]\nseed = 0\n", "seed = 0", "seed = 3",
          "twin.seed 0 -> 3"),

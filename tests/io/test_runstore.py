@@ -166,3 +166,8 @@ def test_settings_differ_exactly_when_they_are_not_equal(a: dict, b: dict) -> No
     assert (diff == []) == (a == b)
     gone = object()
     assert len(diff) == len([k for k in {*a, *b} if a.get(k, gone) != b.get(k, gone)])
+
+
+def test_floats_shown_short_unless_only_their_last_digits_differ() -> None:
+    diff = settings_difference({"h": 100 * 1e-6, "t": 0.1 + 0.2}, {"h": 120 * 1e-6, "t": 0.3})
+    assert diff == ["h 0.0001 -> 0.00012", "t 0.30000000000000004 -> 0.3"]

@@ -37,6 +37,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "OneLineErrors",
+    "check_output_path",
     "console",
     "err_console",
     "fail",
@@ -74,6 +75,43 @@ def fail(msg: str, code: int = 2) -> NoReturn:
         f"[bold red]error:[/] {escape(one_line(msg))}", highlight=False, soft_wrap=True
     )
     raise typer.Exit(code)
+
+
+def check_output_path(
+    option: str,
+    path: Path | None,
+    *,
+    kind: str = "file",
+    inputs: Sequence[Path] = (),
+) -> None:
+    """Refuse an output before any work: wrong kind, no parent folder, or one of the inputs.
+
+    Parameters
+    ----------
+    option : str
+        The option as the user typed it, e.g. ``"--json"``.
+    path : pathlib.Path or None
+        Where the command will write (``None``: not asked for, passes).
+    kind : {"file", "folder"}
+        What the command writes there: a file may replace a file, never a folder; a
+        folder may be reused (the command then resumes or refuses itself), never a file.
+    inputs : sequence of pathlib.Path
+        Files the command reads: an output that is one of them would overwrite it.
+    """
+    if path is None:
+        return
+    if path.exists():
+        if kind == "file" and path.is_dir():
+            fail(f"{option} {path} is a folder; give a file name")
+        if kind == "folder" and not path.is_dir():
+            fail(f"{option} {path} is a file; give a folder")
+    parent = path.resolve().parent
+    if not parent.is_dir():
+        fail(f"{option} {path}: its folder {parent} does not exist (or is a file)")
+    target = path.resolve()
+    for inp in inputs:
+        if inp.exists() and inp.resolve() == target:
+            fail(f"{option} {path} is one of the inputs; writing it would destroy that input")
 
 
 def check_option(

@@ -22,6 +22,7 @@ import typer
 
 from microfab.cli._kit import (
     check_option,
+    check_output_path,
     console,
     fail,
     input_output,
@@ -370,6 +371,7 @@ def compare_cmd(
     from microfab.report.slm_tables import comparison_table
 
     check_option("--band-pct", band_pct, "%", high=100.0)
+    check_output_path("--json", json_path)
     names = SHAPER_NAMES if shapers is None else tuple(n.strip() for n in shapers.split(","))
     try:
         settings = CompareSettings(

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import numpy as np
 import typer
 
-from microfab.cli._kit import check_option, console, fail, print_table
+from microfab.cli._kit import check_option, check_output_path, console, fail, print_table
 from microfab.process.slm.timing import RTCDelays
 
 if TYPE_CHECKING:
@@ -311,6 +311,8 @@ def build_cmd(
         ("--jump-speed", jump_speed, "m/s"),
     ):
         check_option(option, value, unit)
+    check_output_path("--results-dir", results_dir, kind="folder")
+    check_output_path("--json", json_path)
     try:
         settings = BuildSettings(
             n_layers=layers,

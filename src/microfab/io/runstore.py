@@ -161,10 +161,22 @@ def settings_difference(old: Mapping[str, Any], new: Mapping[str, Any]) -> list[
     """
     names = list(new) + [k for k in old if k not in new]
     return [
-        f"{k} {_shown(old.get(k, _MISSING))} -> {_shown(new.get(k, _MISSING))}"
+        f"{k} {_pair(old.get(k, _MISSING), new.get(k, _MISSING))}"
         for k in names
         if old.get(k, _MISSING) != new.get(k, _MISSING)
     ]
+
+
+def _pair(a: Any, b: Any) -> str:
+    """``a -> b``, floats with 12 significant digits where those tell them apart.
+
+    A value computed from a unit (100 µm as 9.999999999999999e-05 m) then reads 0.0001.
+    """
+    if isinstance(a, float) and isinstance(b, float):
+        short_a, short_b = f"{a:.12g}", f"{b:.12g}"
+        if short_a != short_b:
+            return f"{short_a} -> {short_b}"
+    return f"{_shown(a)} -> {_shown(b)}"
 
 
 def read_manifest(root: str | os.PathLike[str]) -> dict[str, Any] | None:
