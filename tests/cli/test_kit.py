@@ -49,3 +49,26 @@ def test_help_and_no_arguments_still_show_the_help() -> None:
     assert res.exit_code == 0 and "Usage" in res.output
     res = runner.invoke(app, ["path"])
     assert "show" in res.output and "error:" not in res.output
+
+
+def test_an_output_is_checked_before_any_work(tmp_path, capsys) -> None:
+    import typer
+
+    from microfab.cli._kit import check_output_path
+
+    (tmp_path / "d").mkdir()
+    (tmp_path / "f").write_text("measured")
+    refused = [
+        (("--json", tmp_path / "d"), {}, "is a folder; give a file name"),
+        (("--out", tmp_path / "f"), {"kind": "folder"}, "is a file; give a folder"),
+        (("--json", tmp_path / "no" / "x.json"), {}, "does not exist"),
+        (("--json", tmp_path / "f"), {"inputs": [tmp_path / "f"]}, "is one of the inputs"),
+    ]
+    for args, kw, says in refused:
+        with pytest.raises(typer.Exit):
+            check_output_path(*args, **kw)
+        assert says in capsys.readouterr().err.replace("\n", " ")
+    check_output_path("--json", tmp_path / "new.json")  # a new file in an existing folder
+    check_output_path("--out", tmp_path / "d", kind="folder")  # a folder to resume in
+    check_output_path("--json", None)
+    assert (tmp_path / "f").read_text() == "measured"
