@@ -61,14 +61,15 @@ def test_an_output_is_checked_before_any_work(tmp_path, capsys) -> None:
     refused = [
         (("--json", tmp_path / "d"), {}, "is a folder; give a file name"),
         (("--out", tmp_path / "f"), {"kind": "folder"}, "is a file; give a folder"),
-        (("--json", tmp_path / "no" / "x.json"), {}, "does not exist"),
-        (("--json", tmp_path / "f"), {"inputs": [tmp_path / "f"]}, "is one of the inputs"),
+        (("--json", tmp_path / "f" / "x.json"), {}, "is a file, not a folder"),
+        (("--json", tmp_path / "f"), {"inputs": [tmp_path / "f"]}, "is also an input"),
     ]
     for args, kw, says in refused:
         with pytest.raises(typer.Exit):
             check_output_path(*args, **kw)
         assert says in capsys.readouterr().err.replace("\n", " ")
     check_output_path("--json", tmp_path / "new.json")  # a new file in an existing folder
+    check_output_path("--json", tmp_path / "new" / "sub" / "x.json")  # folders to create
     check_output_path("--out", tmp_path / "d", kind="folder")  # a folder to resume in
     check_output_path("--json", None)
     assert (tmp_path / "f").read_text() == "measured"

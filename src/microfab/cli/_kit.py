@@ -77,14 +77,27 @@ def fail(msg: str, code: int = 2) -> NoReturn:
     raise typer.Exit(code)
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file: the same resolved path, or the same inode."""
+    if a.resolve() == b.resolve():
+        return True
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
 def check_output_path(
     option: str,
     path: Path | None,
     *,
     kind: str = "file",
-    inputs: Sequence[Path] = (),
+    inputs: Sequence[Path | None] = (),
 ) -> None:
-    """Refuse an output before any work: wrong kind, no parent folder, or one of the inputs.
+    """Refuse an output before any work: wrong kind, not writable, or one of the inputs.
+
+    Every command calls it for each path it will write, before it reads or computes
+    anything, so that a refusal is one ``error:`` line (exit 2) and nothing is created.
 
     Parameters
     ----------
@@ -95,8 +108,10 @@ def check_output_path(
     kind : {"file", "folder"}
         What the command writes there: a file may replace a file, never a folder; a
         folder may be reused (the command then resumes or refuses itself), never a file.
-    inputs : sequence of pathlib.Path
-        Files the command reads: an output that is one of them would overwrite it.
+    inputs : sequence of pathlib.Path or None
+        What the command reads (files or folders; ``None`` entries are skipped): an
+        output file that is one of them (the same path, or a link or hard link to it)
+        would destroy it, and so would an output folder that is an input folder.
     """
     if path is None:
         return
@@ -105,13 +120,18 @@ def check_output_path(
             fail(f"{option} {path} is a folder; give a file name")
         if kind == "folder" and not path.is_dir():
             fail(f"{option} {path} is a file; give a folder")
-    parent = path.resolve().parent
-    if not parent.is_dir():
-        fail(f"{option} {path}: its folder {parent} does not exist (or is a file)")
-    target = path.resolve()
     for inp in inputs:
-        if inp.exists() and inp.resolve() == target:
-            fail(f"{option} {path} is one of the inputs; writing it would destroy that input")
+        if inp is not None and _same_file(path, inp):
+            fail(f"{option} {path} is also an input ({inp}); writing it would destroy that input")
+    # The folders the writer will create: the nearest one that exists must be a writable
+    # folder (not a file).
+    parent = path.resolve().parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        fail(f"{option} {path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        fail(f"{option} {path}: the folder {parent} is not writable")
 
 
 def check_option(

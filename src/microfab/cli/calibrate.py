@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import console
+from microfab.cli._kit import check_output_path, console
 
 __all__ = ["calibrate_app"]
 
@@ -19,6 +19,7 @@ def calibrate_galvo_cmd(
     write: Annotated[Path | None, typer.Option(help="Write the calibration TOML here.")] = None,
 ) -> None:
     """Refit the galvo twin (rigid-body pole, gain ratio, noise) to seed 000 Table 1."""
+    check_output_path("--write", write)
     from microfab.machines.galvo_calibration import calibrate_galvo
 
     cal = calibrate_galvo(write)
@@ -43,6 +44,7 @@ def calibrate_nanomanipulator_cmd(
     ] = None,
 ) -> None:
     """Fit the nanomanipulator twin's sensor noise to seed 001 §4.2's axial RMS."""
+    check_output_path("--write", write, inputs=[job])
     from microfab.cli._kit import fail
     from microfab.machines.nanomanipulator_calibration import fit_noise, write_noise
     from microfab.machines.nanomanipulator_job import JobConfig
@@ -88,6 +90,7 @@ def calibrate_laser_cmd(
     ] = None,
 ) -> None:
     """Fit the seed 004 stage twin's disturbance scale to Fig. 3's 0.8 µm peak error."""
+    check_output_path("--write", write)
     from microfab.cli._kit import fail
     from microfab.machines.laser_stage_calibration import fit_disturbance_scale, write_scale
 
@@ -127,6 +130,8 @@ def calibrate_xy_stage_cmd(
     ] = False,
 ) -> None:
     """Fit the XY stage twin's friction + cogging per axis to seed 002 Table II column 1."""
+    check_output_path("--write", write)
+    check_output_path("--json", json_out, inputs=[write])
     from microfab.cli._kit import fail
     from microfab.machines.xy_stage_calibration import (
         CalibrationSettings,

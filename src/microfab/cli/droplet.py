@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_option, console, fail, progress
+from microfab.cli._kit import check_option, check_output_path, console, fail, progress
 from microfab.io.atomic import atomic_write_text
 
 __all__ = ["MAX_DURATION_US", "droplet_app"]
@@ -56,6 +56,8 @@ def simulate_cmd(
     the printhead machine) with the same defaults, so both give the same answer for the
     same point.
     """
+    check_output_path("--out", out, kind="folder")
+    check_output_path("--json", json_out)
     from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.process.inkjet.fluids import naalg
 
@@ -153,6 +155,7 @@ def render_cmd(
     model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
 ) -> None:
     """Simulate a droplet and write shadowgraph frames that droplet analyze can read."""
+    check_output_path("OUT", out, kind="folder")
     from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.measure.shadowgraph import render_sequence, write_frames
     from microfab.process.inkjet.fluids import naalg
@@ -211,6 +214,8 @@ def analyze_cmd(
     json_out: Annotated[Path | None, typer.Option("--json", help="Write JSON here.")] = None,
 ) -> None:
     """Measure head speed, breakup frame and mode, satellites and drop volume from frames."""
+    check_output_path("--out", out, inputs=[frames_dir])
+    check_output_path("--json", json_out, inputs=[frames_dir, out])
     from microfab.measure.imaging import (
         SIDECAR_NAME,
         MissingSettingError,
@@ -294,6 +299,7 @@ def sweep_cmd(
     again resumes. microfab run examples/droplet_sweep.toml runs the same sweep as a
     job and writes a report with the seed's numbers beside ours.
     """
+    check_output_path("--out", out, kind="folder")
     from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
     from microfab.machines.printhead import DropletSettings, droplet_sweep, sweep_points
     from microfab.process.inkjet.fluids import naalg
@@ -367,6 +373,7 @@ def calibrate_cmd(
     about 15 s with the Eulerian one). A law belongs to the jet model it was fitted with:
     --write stores it as that model's law ([relaxation] or [relaxation_<model>]).
     """
+    check_output_path("--write", write)
     from microfab.machines.printhead_calibration import (
         calibrate_relaxation,
         model_breakup,
@@ -417,6 +424,7 @@ def sensitivity_cmd(
     measurement of this alginate was found); this shows which of them the breakup times
     hang on. Points are kept in OUT/points/ as they finish; a rerun resumes.
     """
+    check_output_path("--out", out, kind="folder")
     from microfab.machines.printhead import DropletSettings
     from microfab.machines.printhead_sensitivity import (
         markdown,

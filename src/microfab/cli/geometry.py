@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from microfab.cli._kit import check_option, console, err_console, fail
+from microfab.cli._kit import check_option, check_output_path, console, err_console, fail
 
 __all__ = ["MAX_GRID", "MAX_RATE_HZ", "path_app", "trajectory_cmd"]
 
@@ -60,6 +60,7 @@ def path_show_cmd(
     text_height: HeightOpt = 0.01,
 ) -> None:
     """Picture of the contours (start dots, direction arrows) and a summary."""
+    check_output_path("--out", out, inputs=[Path(drawing)])
     from microfab.report.canvas import save_figure
     from microfab.report.geometry import fig_layer
 
@@ -142,6 +143,8 @@ def trajectory_cmd(
     limit); each option overrides one. Nothing is written if the reference would break
     a limit.
     """
+    check_output_path("--out", out, inputs=[Path(drawing)])
+    check_output_path("--plot", plot, inputs=[Path(drawing), out])
     from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
     from microfab.io.trace import write_columns
     from microfab.report.canvas import save_figure

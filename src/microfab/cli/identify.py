@@ -24,6 +24,7 @@ import typer
 
 from microfab.cli._kit import (
     check_option,
+    check_output_path,
     console,
     fail,
     input_output,
@@ -99,6 +100,8 @@ def chirp_cmd(
     data. Prints the coefficients, poles, bandwidth and fit error; writes the model JSON
     (``shaper design`` reads it).
     """
+    check_output_path("--json", json_path, inputs=[trace])
+    check_output_path("--plot", plot, inputs=[trace, json_path])
     from microfab.identify.chirp import ChirpDesign
     from microfab.identify.fit import fit_tf
     from microfab.identify.frf import frf_h1, frf_periodic
@@ -332,6 +335,7 @@ def linear_cmd(
     μ, σ per axis on the training runs (Table II's layout); writes the model file that
     ``identify validate`` reads.
     """
+    check_output_path("--out", out, inputs=runs)
     from microfab.identify.stage_data import (
         StageLinearModel,
         check_decimate,
@@ -385,6 +389,7 @@ def validate_cmd(
     networks predict every run sample (10 kHz for the seed's runs), each 400 Hz start
     offset in turn; a model of another format version, model rate or history is refused.
     """
+    check_output_path("--json", json_path, inputs=[model, *runs])
     from microfab.identify.stage_data import read_stage_model
 
     try:

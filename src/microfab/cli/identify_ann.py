@@ -19,7 +19,15 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_option, console, fail, print_table, progress, renamed
+from microfab.cli._kit import (
+    check_option,
+    check_output_path,
+    console,
+    fail,
+    print_table,
+    progress,
+    renamed,
+)
 from microfab.cli.identify import _RUN_HELP, ANN_COMPARED, _error_table, _read_runs, identify_app
 from microfab.report.tables import Table
 
@@ -80,6 +88,7 @@ def ann_cmd(
     every epoch to DIR/checkpoints, so running the same command again resumes it. Prints
     μ, σ per axis on the validation runs at every run sample, beside seed 002 Table II.
     """
+    check_output_path("--out", out, kind="folder", inputs=runs)
     if axis not in _AXES:
         fail(f"--axis must be x, y or both, got {axis!r}")
     if device not in ("auto", "cpu", "cuda"):

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_option, console, fail
+from microfab.cli._kit import check_option, check_output_path, console, fail
 
 __all__ = ["ilc_app"]
 
@@ -58,6 +58,8 @@ def ilc_step_cmd(
     The first call takes the inverse model from the trial (seed 000 eq. 7). Limits default to
     the galvo twin's (10 V, 5e4 V/s, 2e10 V/s^2) on the first call and are kept in the state.
     """
+    check_output_path("--state", state, kind="folder", inputs=[trial, frf])
+    check_output_path("--out", out, inputs=[trial, frf, state / "ilc_state.npz"])
     from microfab.control.ilc import ILCConfig
     from microfab.core.limits import AxisLimits
     from microfab.machines import galvo

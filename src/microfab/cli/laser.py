@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import console, fail, print_table
+from microfab.cli._kit import check_output_path, console, fail, print_table
 
 __all__ = ["laser_app"]
 
@@ -49,6 +49,8 @@ def analyze_cmd(
     With --replay the trace must also hold current_x, current_y (A) and, for an exact
     comparison, the exported reference derivatives ref_vx, ref_vy, ref_ax, ref_ay.
     """
+    check_output_path("--out", out, kind="folder", inputs=[trace, job])
+    check_output_path("--json", json_path, inputs=[trace, job, Path(drawing)])
     from microfab.io.atomic import atomic_write_json
     from microfab.measure.contour_trace import analyze_file
     from microfab.report.contour import analysis_table, write_analysis
@@ -112,6 +114,7 @@ def export_cmd(
     out: Annotated[Path, typer.Option(help="Folder for reference.csv and controller.json.")],
 ) -> None:
     """Write a job's reference and discrete controller for a real-time target (seed 004)."""
+    check_output_path("--out", out, kind="folder", inputs=[job])
     from microfab.machines.laser_stage_files import export_job
 
     cfg = _laser_job(job)

@@ -22,7 +22,7 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_option, console, fail
+from microfab.cli._kit import check_option, check_output_path, console, fail
 
 __all__ = ["optimize_cmd"]
 
@@ -71,6 +71,7 @@ def optimize_cmd(
     ] = None,
 ) -> None:
     """Optimise the reference of a contour on a black-box stage (seed 002 §IV)."""
+    check_output_path("--out", out, kind="folder", inputs=[Path(drawing), model])
     from microfab.optimize.problem import ContourProblem
     from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_option, console, fail
+from microfab.cli._kit import check_option, check_output_path, console, fail
 
 __all__ = ["rc_app"]
 
@@ -47,6 +47,8 @@ def rc_step_cmd(
     The first call creates the state (the trial must have run on the plain contour); the
     state is the simulated RC's (PluginRC.save_state), so a twin run can be continued.
     """
+    check_output_path("--state", state, kind="folder", inputs=[trial])
+    check_output_path("--out", out, inputs=[trial, *state.glob("*")])
     from microfab.machines.nanomanipulator_files import rc_file_step
 
     check_option("--tau-ms", tau_ms, "ms")

@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import console, fail, print_table, progress, reporter
+from microfab.cli._kit import check_output_path, console, fail, print_table, progress, reporter
 
 __all__ = ["kinds_cmd", "reproduce_cmd", "run_cmd"]
 
@@ -40,6 +40,7 @@ def run_cmd(
     refused, naming the first difference, unless --fresh is given. With --check the job
     file is read and checked and nothing runs or is written.
     """
+    check_output_path("--out", out, kind="folder", inputs=[job_file])
     from microfab.experiments.catalog import default_job, load_job
     from microfab.io.runstore import check_run, open_run
 
@@ -203,6 +204,7 @@ def reproduce_cmd(
     them when rerun with the same settings, and refuses a folder saved with other settings
     (naming the first difference) unless --fresh is given.
     """
+    check_output_path("--json", json_path)
     from microfab.experiments.catalog import reproduction
     from microfab.io.atomic import atomic_write_json
     from microfab.io.runstore import open_run

@@ -228,6 +228,7 @@ def design_cmd(
     |MODEL|² when MODEL is given: what the model does not explain) or --psd (columns
     freq_hz [Hz] and psd), as Klipper's calibrate_shaper, scored by added delay.
     """
+    check_output_path("--out", out, inputs=[model, frf, psd])
     from microfab.control.shaper_io import shaper_to_dict
     from microfab.control.shapers import SHAPER_NAMES
     from microfab.io.atomic import atomic_write_json

@@ -101,6 +101,7 @@ def scan_time_cmd(
     twin is driven through the shaper (a ZPETC shaper's look-ahead counts as delay) and
     the fixed estimate uses --shaped-jump-delay-us.
     """
+    check_output_path("--json", json_path, inputs=[Path(source), shaper])
     from microfab.control.shaper_io import read_shaper, shaper_lti, shaper_to_dict
     from microfab.machines import slm_galvo
     from microfab.process.slm.estimate import SettleTolerance, estimate_with_shaper

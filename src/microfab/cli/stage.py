@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_option, console, fail, print_table
+from microfab.cli._kit import check_option, check_output_path, console, fail, print_table
 from microfab.report.tables import Table
 
 __all__ = ["stage_app"]
@@ -65,6 +65,7 @@ def excite_cmd(
     Table I before anything is written. Play each file on the machine, record time,
     input_x, input_y, output_x, output_y (m), then fit with ``microfab identify linear``.
     """
+    check_output_path("--out", out, kind="folder")
     from microfab.identify import excitation as ex
 
     if kind not in _KINDS:
