@@ -254,3 +254,38 @@ def test_a_wrong_output_is_refused_before_any_work(
     assert says in lines[0], lines[0]
     assert _files(tmp_path) == before  # nothing changed, nothing created
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d", "j.toml", "m.json", "t.csv"]
+
+
+@pytest.mark.parametrize("damage", ["empty", "cut", "folder"])
+def test_a_damaged_state_is_refused_on_one_line(tmp_path: Path, damage: str) -> None:
+    """Class 5: an empty, cut-short or misplaced ILC state names the file and the fix.
+
+    (The plug-in RC state is read by the same `microfab.io.checkpoint.read_state`;
+    tests/cli/test_rc.py refuses a damaged one.)
+    """
+    import numpy as np
+
+    from microfab.io.checkpoint import save_state
+    from microfab.io.trace import write_columns
+
+    command, name = "ilc", "ilc_state.npz"
+    state = tmp_path / "st"
+    path = save_state(state / name, kind="x", version=1, arrays={"a": np.arange(1000.0)})
+    if damage == "empty":
+        path.write_bytes(b"")
+    elif damage == "cut":
+        path.write_bytes(path.read_bytes()[:300])
+    else:
+        path.unlink()
+        path.mkdir()
+    n = 1000  # 10 ms at 10 µs: harmonics below the 8 kHz cutoff
+    ref = np.sin(2 * np.pi * np.arange(n) / n)
+    write_columns(tmp_path / "t.csv", {"time": np.arange(n) * 1e-5, "reference_x": ref,
+                                       "input_x": ref, "output_x": 0.9 * ref})  # fmt: skip
+    before = _files(tmp_path)
+    res = runner.invoke(app, [command, "step", str(tmp_path / "t.csv"), "--state", str(state),
+                              "--out", str(tmp_path / "next.csv")])  # fmt: skip
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert res.exit_code == 2 and len(lines) == 1 and lines[0].startswith("error: "), res.output
+    assert name in lines[0] and "state" in lines[0], lines[0]
+    assert _files(tmp_path) == before and not (tmp_path / "next.csv").exists()

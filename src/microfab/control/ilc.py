@@ -600,8 +600,20 @@ class FrequencyILC:
 
     @classmethod
     def exists(cls, directory: str | Path) -> bool:
-        """True when ``directory`` holds a saved learning state."""
-        return (Path(directory) / STATE_FILE).is_file()
+        """True when ``directory`` holds a saved learning state.
+
+        Raises
+        ------
+        microfab.io.checkpoint.StateFileError
+            When something that is not a file stands where the state goes.
+        """
+        path = Path(directory) / STATE_FILE
+        if path.exists() and not path.is_file():
+            raise StateFileError(
+                f"{path}: expected an ILC state file, found a folder; remove it, or give a "
+                "new state folder, to start learning again"
+            )
+        return path.is_file()
 
     @classmethod
     def load(cls, directory: str | Path, true_frf: FRFModel | None = None) -> FrequencyILC:
@@ -619,8 +631,8 @@ class FrequencyILC:
             path,
             kind=STATE_KIND,
             versions=(1, 2, 3, STATE_VERSION),
-            fix="finish that run with the microfab that wrote it, or start a new state "
-            "directory (--fresh)",
+            fix="remove it, or give a new state folder, to start learning again (a job: "
+            "microfab run --fresh)",
         )
         if saved is None:
             raise FileNotFoundError(f"no ILC state in {directory} (expected {STATE_FILE})")

@@ -139,7 +139,12 @@ class RCMemory:
             version (`microfab.io.runstore.RunRefusedError`), or inconsistent.
         """
         p = Path(path)
-        saved = read_state(p, kind=RC_KIND, versions=(RC_VERSION,), fix="start a new state")
+        saved = read_state(
+            p,
+            kind=RC_KIND,
+            versions=(RC_VERSION,),
+            fix="remove it, or give a new state folder, to start learning again",
+        )
         if saved is None:
             raise FileNotFoundError(f"no RC state at {p}")
         try:
