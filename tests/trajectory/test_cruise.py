@@ -91,3 +91,18 @@ def test_a_corner_within_rounding_of_a_grid_node_keeps_the_time_finite(turn: flo
     # six sides from rest to rest at 2.5 m/s² tangential: each at most 2 sqrt(L / a)
     assert traj.duration < 6 * 2 * np.sqrt(0.03 / 2.5) + 0.01
     assert traj.meta["corner_stops"] == 5
+
+
+@pytest.mark.parametrize("radius", [0.15, 0.05, 0.18])
+@pytest.mark.parametrize("speed", [1.5, 2.0, 1.4999])
+def test_asked_for_the_limit_or_above_it_stays_within_it_with_no_allowance(
+    radius: float, speed: float
+) -> None:
+    """Issue 32 class 7: a circle at (or above) 1.5 m/s was refused by the guard at 1.5 m/s:
+    the bounds held at the grid nodes, an axis' share of the tangent grew between them."""
+    traj = cruise(circle(radius), LIMITS, speed=speed, sample_rate_hz=FS)
+    check_trajectory(traj, LIMITS, rtol=0.0)  # no rounding allowance on the analytic values
+    vmax = np.max(np.abs(traj.velocity), axis=0)
+    assert np.all(vmax <= np.asarray(LIMITS.velocity))
+    if radius == 0.15:  # where the velocity limit, not the curvature, sets the speed
+        assert np.max(vmax) > 0.999 * min(speed, 1.5)  # slowed by a hair, not by a factor

@@ -36,6 +36,9 @@ __all__ = ["cruise"]
 #: Share of each axis's acceleration limit given to the tangential part (the rest is for
 #: the centripetal part). Assumed: an even split keeps both bounds simple.
 TANGENTIAL_SHARE = 0.5
+#: Relative room left below a limit when the sampled profile had to be slowed (assumed:
+#: far above rounding, far below anything a user would notice, 1 ppm).
+SLOWDOWN_MARGIN = 1e-6
 
 
 def _bounds(
@@ -80,6 +83,45 @@ def _profile(s: np.ndarray, v_cap: np.ndarray, a_tan: np.ndarray) -> np.ndarray:
     bwd = np.concatenate([np.cumsum(step[::-1])[::-1], [0.0]])  # sum of the steps from k on
     w = bwd + np.minimum.accumulate((w - bwd)[::-1])[::-1]
     return np.sqrt(np.maximum(w, 0.0))
+
+
+def _sample(
+    path: Path, s: np.ndarray, v: np.ndarray, sample_rate_hz: float
+) -> tuple[np.ndarray, ...]:
+    """Sample the speed profile ``v`` at the knots ``s`` (constant s̈ between knots)."""
+    ds = np.diff(s)
+    dt_seg = 2.0 * ds / np.maximum(v[:-1] + v[1:], 1e-300)  # constant s̈ on each piece
+    t_knots = np.concatenate([[0.0], np.cumsum(dt_seg)])
+    acc = np.where(dt_seg > 0, (v[1:] - v[:-1]) / np.where(dt_seg > 0, dt_seg, 1.0), 0.0)
+    duration = float(t_knots[-1])
+    n = max(math.ceil(duration * sample_rate_hz) + 1, 2)
+    dt = duration / (n - 1)
+    t = np.arange(n) * dt
+    k = np.clip(np.searchsorted(t_knots, t, side="right") - 1, 0, ds.size - 1)
+    tau = t - t_knots[k]
+    sd = np.clip(v[k] + acc[k] * tau, 0.0, None)
+    ss = np.minimum(s[k] + v[k] * tau + 0.5 * acc[k] * tau**2, s[k + 1])
+    ss[-1] = s[-1]
+    sd[-1] = 0.0
+    sdd = acc[k]
+    q, d1, d2, d3 = path.evaluate(ss, 3)
+    return ss, sd, sdd, dt, q, d1, d2, d3
+
+
+def _excess(vel: np.ndarray, acc: np.ndarray, jerk: np.ndarray, limits: MachineLimits) -> float:
+    """The time scaling ``k >= 0`` that brings every axis within its limits (<= 1: none)."""
+    k = 0.0
+    for arr, bound, power in (
+        (vel, limits.velocity, 1.0),
+        (acc, limits.acceleration, 2.0),
+        (jerk, limits.jerk, 3.0),
+    ):
+        b = np.asarray(bound, dtype=float)
+        peak = np.max(np.abs(arr), axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(np.isfinite(b) & (b > 0), peak / b, 0.0)
+        k = max(k, float(np.max(ratio)) ** (1.0 / power))
+    return k
 
 
 def cruise(
@@ -158,29 +200,28 @@ def cruise(
     v_cap[0] = v_cap[-1] = 0.0
     v_cap[np.isin(s, stops)] = 0.0
     v = _profile(s, v_cap, a_tan)
-    ds = np.diff(s)
-    dt_seg = 2.0 * ds / np.maximum(v[:-1] + v[1:], 1e-300)  # constant s̈ on each piece
-    t_knots = np.concatenate([[0.0], np.cumsum(dt_seg)])
-    acc = np.where(dt_seg > 0, (v[1:] - v[:-1]) / np.where(dt_seg > 0, dt_seg, 1.0), 0.0)
-    duration = float(t_knots[-1])
-    n = max(math.ceil(duration * sample_rate_hz) + 1, 2)
-    dt = duration / (n - 1)
-    t = np.arange(n) * dt
-    k = np.clip(np.searchsorted(t_knots, t, side="right") - 1, 0, ds.size - 1)
-    tau = t - t_knots[k]
-    sd = np.clip(v[k] + acc[k] * tau, 0.0, None)
-    ss = np.minimum(s[k] + v[k] * tau + 0.5 * acc[k] * tau**2, s[k + 1])
-    ss[-1] = s[-1]
-    sd[-1] = 0.0
-    sdd = acc[k]
-    q, d1, d2, d3 = path.evaluate(ss, 3)
+    # The bounds hold at the grid nodes; between two nodes an axis' share of the tangent
+    # (and the curvature) may be a little larger. Sample, measure the largest ratio of an
+    # axis' velocity, acceleration or jerk to its limit, and if it is above 1 slow the
+    # whole profile by it (a time scaling: velocity / k, acceleration / k², jerk / k³):
+    # what is emitted is within the limits by construction, not by the guard's rounding
+    # allowance.
+    for _ in range(4):
+        ss, sd, sdd, dt, q, d1, d2, d3 = _sample(path, s, v, sample_rate_hz)
+        vel = sd[:, None] * d1
+        acc = sdd[:, None] * d1 + (sd**2)[:, None] * d2
+        jerk = (3.0 * sd * sdd)[:, None] * d2 + (sd**3)[:, None] * d3
+        k = _excess(vel, acc, jerk, limits)
+        if k <= 1.0:
+            break
+        v = v / (k * (1.0 + SLOWDOWN_MARGIN))
     at_speed = float(np.mean(sd >= 0.999 * speed))
     return Trajectory(
         dt=dt,
         position=q,
-        velocity=sd[:, None] * d1,
-        acceleration=sdd[:, None] * d1 + (sd**2)[:, None] * d2,
-        jerk=(3.0 * sd * sdd)[:, None] * d2 + (sd**3)[:, None] * d3,
+        velocity=vel,
+        acceleration=acc,
+        jerk=jerk,
         s=ss,
         at_rest=True,
         meta={
