@@ -73,3 +73,26 @@ def test_an_output_is_checked_before_any_work(tmp_path, capsys) -> None:
     check_output_path("--out", tmp_path / "d", kind="folder")  # a folder to resume in
     check_output_path("--json", None)
     assert (tmp_path / "f").read_text() == "measured"
+
+
+@pytest.mark.parametrize(
+    ("argv", "target", "says"),
+    [
+        (["path", "show", "circle:radius=1e-3"], "microfab.cli.geometry._load",
+         "no file is left half-written"),
+        (["run", "examples/galvo_msl_default.toml"], "microfab.experiments.catalog.load_job",
+         "rerun the same command to resume"),
+    ],
+)  # fmt: skip
+def test_ctrl_c_is_one_line_and_exit_130(monkeypatch, argv, target, says) -> None:
+    """Issue 32 class 9: Ctrl-C exits 130 with one line saying what to do."""
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(target, interrupted)
+    res = CliRunner().invoke(app, argv)
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert res.exit_code == 130, res.output
+    assert len(lines) == 1 and lines[0].startswith("interrupted; "), res.output
+    assert says in lines[0]

@@ -36,12 +36,14 @@ if TYPE_CHECKING:
     from microfab.report.tables import Table
 
 __all__ = [
+    "RESUMING_COMMANDS",
     "OneLineErrors",
     "check_output_path",
     "console",
     "err_console",
     "fail",
     "input_output",
+    "interrupted_hint",
     "one_line",
     "parse_range",
     "print_table",
@@ -169,6 +171,39 @@ def check_option(
     fail(f"{name} must be {lower}{upper}{unit}, got {value:g}{unit}")
 
 
+#: Commands that save their work as they go and resume it when run again (the first
+#: word, or the first two for a group's command).
+RESUMING_COMMANDS = frozenset(
+    {
+        "run",
+        "reproduce",
+        "optimize",
+        "droplet sweep",
+        "droplet sensitivity",
+        "slm build",
+        "identify ann",
+    }
+)
+
+
+def interrupted_hint(words: Sequence[str]) -> str:
+    """What to tell a user who pressed Ctrl-C during the command named by ``words``.
+
+    Parameters
+    ----------
+    words : sequence of str
+        The command line's words that are not options (``["droplet", "sweep", ...]``).
+    """
+    one = words[0] if words else ""
+    two = " ".join(words[:2])
+    if one in RESUMING_COMMANDS or two in RESUMING_COMMANDS:
+        return "what was saved is kept: rerun the same command to resume"
+    return (
+        "no file is left half-written (every file is written whole or not at all); "
+        "rerun the same command"
+    )
+
+
 #: click's base exception, whether typer vendors click or uses it (``BadParameter``'s base).
 _CLICK_ERROR: type[Exception] = next(
     c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException"
@@ -182,6 +217,21 @@ class OneLineErrors(TyperGroup):
     value, an unknown option or a missing argument is refused as ``error: <what>
     (see 'microfab CMD --help')`` with click's exit code (2), on one line.
     """
+
+    def invoke(self, ctx: Any) -> Any:
+        """Run the command; Ctrl-C is one line saying what to do, and exit code 130."""
+        # the command's words, read before the group hands them to the subcommand
+        given = [*getattr(ctx, "_protected_args", getattr(ctx, "protected_args", [])), *ctx.args]
+        words = [str(a) for a in given if str(a)[:1] != "-"]
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            err_console.print(
+                f"[bold red]interrupted[/]; {escape(interrupted_hint(words))}",
+                highlight=False,
+                soft_wrap=True,
+            )
+            raise typer.Exit(130) from None
 
     def main(  # type: ignore[override]
         self,
