@@ -11,8 +11,10 @@ from pathlib import Path
 
 import pytest
 
+from microfab.experiments.seed000_msl.job import tables_from_runs
 from microfab.experiments.seed000_msl.report import FIGURE_FILES, write_report
-from microfab.machines.galvo_ilc import run_msl_ilc
+from microfab.machines.galvo import calibrated_axes, open_loop
+from microfab.machines.galvo_ilc import beam_exposure, run_msl_ilc
 
 BROWSER = next(
     (b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None
@@ -31,7 +33,15 @@ window.addEventListener("load", () => {
 @pytest.mark.skipif(BROWSER is None, reason="no Chromium on this machine (apt install chromium)")
 def test_report_renders_in_headless_chromium(tmp_path: Path) -> None:
     run = run_msl_ilc(400, 3)
-    page = write_report(tmp_path, {400: run}, main_rate=400)
+    axes = calibrated_axes()
+    page = write_report(
+        tmp_path,
+        {400: run},
+        main_rate=400,
+        tables=tables_from_runs({400: run}, axes),
+        exposure=beam_exposure(run),
+        open_loops={n: open_loop(a) for n, a in axes.items()},
+    )
     probe = tmp_path / "probe.html"
     probe.write_text(page.read_text(encoding="utf-8") + PROBE, encoding="utf-8")
     res = subprocess.run(
