@@ -8,6 +8,11 @@ optimisation's mechanics, not the seed's numbers.
 
 from __future__ import annotations
 
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.signal
@@ -71,3 +76,52 @@ def tiny_models(tmp_path_factory):
     write_stage_model(d / "linear_model.json",
                       StageLinearModel(model=sub, input_dt=1e-4, decimate=10))  # fmt: skip
     return d, model
+
+
+# --- report pages in a real browser (issue 32) -------------------------------------------
+
+BROWSER = next(
+    (b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None
+)
+
+# Added to a copy of the page only: counts the images that decoded.
+_PROBE = """<script>
+window.addEventListener("load", () => {
+  const imgs = [...document.images];
+  const ok = imgs.filter(i => i.complete && i.naturalWidth > 0).length;
+  document.body.setAttribute("data-images", ok + "/" + imgs.length);
+});
+</script>"""
+
+
+def check_page_in_browser(page: Path) -> None:
+    """Open a written report page in headless Chromium and check what a reader sees.
+
+    Every image decodes, the console stays silent, and a table puts the seed's numbers
+    beside ours (a table that mentions the seed).
+    """
+    html = page.read_text(encoding="utf-8")
+    tables = re.findall(r"<table.*?</table>", html, flags=re.S | re.I)
+    assert any("seed" in t.lower() for t in tables), f"{page}: no table with the seed's numbers"
+    probe = page.with_name(f".probe-{page.name}")
+    probe.write_text(html + _PROBE, encoding="utf-8")
+    try:
+        res = subprocess.run(
+            [str(BROWSER), "--headless=new", "--no-sandbox", "--disable-gpu",
+             "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000", "--dump-dom",
+             probe.as_uri()],
+            capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+    finally:
+        probe.unlink()
+    assert res.returncode == 0, res.stderr[-2000:]
+    found = re.findall(r'data-images="(\d+)/(\d+)"', res.stdout)
+    assert found and found[0][0] == found[0][1] and int(found[0][1]) > 0, (page, found)
+    console = [ln for ln in res.stderr.splitlines() if ":CONSOLE" in ln]
+    assert console == [], console
+
+
+@pytest.fixture
+def page_check():
+    """`check_page_in_browser`, or ``None`` where no browser is installed."""
+    return None if BROWSER is None else check_page_in_browser
