@@ -45,3 +45,24 @@ def test_run_check_reads_the_job_and_runs_nothing(tmp_path: Path) -> None:
     job.write_text("[scan]\niterations = 2.7\n")
     res = runner.invoke(app, ["run", str(job), "--check"])
     assert res.exit_code == 2 and "expected an integer" in res.output
+
+
+def test_check_refuses_a_reference_job_without_its_models(tmp_path) -> None:
+    """Issue 32: `run --check` called blackbox_stage_reference.toml valid, running it refused."""
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    from microfab.cli import app
+
+    example = Path(__file__).parents[2] / "examples" / "blackbox_stage_reference.toml"
+    job = tmp_path / "j.toml"
+    text = example.read_text(encoding="utf-8")
+    job.write_text(text.replace('dir = "report/stage_identify"', f'dir = "{tmp_path / "none"}"'))
+    assert str(tmp_path / "none") in job.read_text()
+    for extra in (["--check"], []):
+        res = CliRunner().invoke(app, ["run", str(job), *extra, "--out", str(tmp_path / "o")])
+        lines = [ln for ln in res.output.splitlines() if ln.strip()]
+        assert res.exit_code == 2 and len(lines) == 1, res.output
+        assert "does not exist; run `microfab run examples/blackbox_stage_identify" in lines[0]
+    assert not (tmp_path / "o").exists()

@@ -16,3 +16,20 @@ def test_the_linear_model_alone_for_stage_1(tiny_models):
     m = load_models(tiny_models[0], networks=False)
     assert m.networks is None and m.linear is not None
     assert m.source == str(tiny_models[0])
+
+
+def test_a_models_folder_is_checked_before_any_work(tmp_path) -> None:
+    """Issue 32: `run --check` called a reference job valid although it had no models."""
+    from microfab.optimize.models import check_models_dir
+
+    with pytest.raises(ValueError, match="does not exist; run `microfab run"):
+        check_models_dir(tmp_path / "none")
+    with pytest.raises(ValueError, match=r"holds no linear_model\.json and no ann/model"):
+        check_models_dir(tmp_path)
+    (tmp_path / "linear_model.json").write_text("{}")
+    check_models_dir(tmp_path, networks=False)
+    with pytest.raises(ValueError, match=r"holds no ann/model/model\.json"):
+        check_models_dir(tmp_path)
+    (tmp_path / "ann" / "model").mkdir(parents=True)
+    (tmp_path / "ann" / "model" / "model.json").write_text("{}")
+    check_models_dir(tmp_path)

@@ -47,8 +47,11 @@ def run_cmd(
     try:
         job = load_job(job_file) if job_file is not None else default_job()
         settings = job.fingerprint()
+        if job.kind.preflight is not None:
+            job.kind.preflight(job.config)
     except (OSError, ValueError) as exc:
-        fail(str(exc))
+        fail(f"{job_file}: {exc}" if job_file is not None and str(job_file) not in str(exc)
+             else str(exc))  # fmt: skip
     out_dir = out or job.out
     if check:
         try:

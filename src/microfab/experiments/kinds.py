@@ -113,6 +113,10 @@ class JobKind:
     version : str
         The model version: change it when the same settings would give other results
         (physics, solver or saved-state layout), so that older runs are not resumed.
+    preflight : callable, optional
+        ``(config) -> None``: checks of what a run needs besides its job file (an input
+        folder another job writes), made by ``microfab run`` and ``run --check`` before any
+        work; raises ValueError naming what is missing. Loading a job file does not call it.
     """
 
     name: str
@@ -123,6 +127,7 @@ class JobKind:
     default_title: str
     data_files: tuple[str, ...] = ()
     version: str = "1"
+    preflight: Callable[[Any], None] | None = None
 
     def config(self, job: JobFile) -> Any:
         """The kind's config from a parsed job file (every key checked).

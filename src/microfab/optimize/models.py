@@ -17,7 +17,7 @@ from typing import Any
 
 from microfab.identify.subspace_model import ContinuousModel
 
-__all__ = ["Models", "load_models"]
+__all__ = ["Models", "check_models_dir", "load_models"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,6 +37,29 @@ class Models:
     linear: ContinuousModel
     networks: Any
     source: str = ""
+
+
+def check_models_dir(directory: str | Path, *, networks: bool = True) -> None:
+    """Refuse, before any work, a folder that does not hold a stage-identify job's models.
+
+    Only the presence of ``linear_model.json`` (and of ``ann/model/model.json`` with
+    ``networks``) is checked, so that ``microfab run --check`` can tell; `load_models`
+    reads and checks them.
+
+    Raises
+    ------
+    ValueError
+        Naming the folder, what is missing and the job that writes it.
+    """
+    d = Path(directory)
+    how = "run `microfab run examples/blackbox_stage_identify.toml` and give its output folder"
+    if not d.is_dir():
+        raise ValueError(f"models folder {d} does not exist; {how}")
+    missing = [] if (d / "linear_model.json").is_file() else ["linear_model.json"]
+    if networks and not (d / "ann" / "model" / "model.json").is_file():
+        missing.append("ann/model/model.json")
+    if missing:
+        raise ValueError(f"models folder {d} holds no {' and no '.join(missing)}; {how}")
 
 
 def load_models(directory: str | Path, *, networks: bool = True) -> Models:

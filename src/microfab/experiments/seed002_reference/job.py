@@ -174,6 +174,13 @@ def _write_report(result: ReferenceResult, out: Path, title: str) -> Path:
     return write_report(result.study, out, title)
 
 
+def _preflight(settings: ReferenceSettings) -> None:
+    """The models folder holds a stage-identify job's models (checked before any work)."""
+    from microfab.optimize.models import check_models_dir
+
+    check_models_dir(settings.models_dir)
+
+
 def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
     from microfab.experiments.seed002_reference.tables import NOTES, study_summary
 
@@ -183,6 +190,9 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
             "examples/blackbox_stage_identify.toml` (about 20 min) and pass its output folder "
             "with --set models=FOLDER"
         )
+    from microfab.optimize.models import check_models_dir
+
+    check_models_dir(options["models"])
     folder = options["checkpoints"]
     settings = ReferenceSettings(
         models_dir=options["models"],
@@ -204,6 +214,7 @@ STAGE_REFERENCE_OPT = JobKind(
     write_report=_write_report,
     default_title="Black-box XY stage: optimised references",
     data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES,
+    preflight=_preflight,
 )
 
 REFERENCE_OPT_REPRODUCTION = Reproduction(
