@@ -77,6 +77,11 @@ def test_scan_time_with_and_without_a_shaper(model_file: Path, tmp_path: Path, s
         (["SOURCE=lattice:radius=3e-3,strut=1e-5"], "strut nodes in the outline, more than 5000"),
         (["SOURCE=lattice:strut=1e308"], "strut_m = 1e+308 m is too large"),  # OverflowError
         (["SHAPER=model"], "not a shaper file of format 1"),
+        # issue 32: a ValueError and an OverflowError traceback before
+        (["--mark-speed", "1e-300"], "--mark-speed = 1e-300 m/s is outside 0.0001 to 1000"),
+        (["--jump-speed", "1e308"], "--jump-speed = 1e+308 m/s is outside"),
+        (["SOURCE=lattice:z=1e308"], "lattice z = 1e+308 m is outside the build, 0 to 1 m"),
+        (["SOURCE=lattice:z=-1e-3"], "lattice z = -0.001 m is outside the build"),
         (["SHAPER=deep"], "not a shaper file: its JSON is nested too deeply"),  # fuzz
         (["SHAPER=dt"], "designed for dt = 2e-05 s"),
     ],

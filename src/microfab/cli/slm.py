@@ -19,7 +19,14 @@ from typing import TYPE_CHECKING, Annotated, Any
 import numpy as np
 import typer
 
-from microfab.cli._kit import check_option, check_output_path, console, fail, print_table
+from microfab.cli._kit import (
+    check_option,
+    check_output_path,
+    console,
+    fail,
+    print_table,
+    renamed,
+)
 from microfab.process.slm.timing import RTCDelays
 
 if TYPE_CHECKING:
@@ -141,8 +148,13 @@ def scan_time_cmd(
         sky = SkyWriting(mode=sky_writing, n_prev=sky_prev, n_post=sky_post)
     except ValueError as exc:
         fail(f"--sky-writing: {exc}")
+    try:
+        speeds = ScanSpeeds(mark_m_s=mark_speed, jump_m_s=jump_speed)
+    except ValueError as exc:
+        fail(renamed(str(exc), {"mark speed mark_m_s": "--mark-speed",
+                                "jump speed jump_m_s": "--jump-speed"}))  # fmt: skip
     settings = RTCSettings(
-        speeds=ScanSpeeds(mark_m_s=mark_speed, jump_m_s=jump_speed),
+        speeds=speeds,
         delays=RTCDelays(
             **{k: v * 1e-6 for k, (_, v) in delays.items() if k != "shaped"},
             variable_polygon=variable_polygon,

@@ -65,6 +65,7 @@ from microfab.process.slm.estimate import (
     series,
 )
 from microfab.process.slm.lattice import LatticeSpec, lattice_layer
+from microfab.process.slm.source import MAX_HEIGHT_M
 from microfab.process.slm.timing import CATEGORIES, TICK_S, RTCSettings, ScanSpeeds
 
 __all__ = [
@@ -97,15 +98,12 @@ TwinFactory = Callable[..., GalvoSLMPlant]
 #: Layer thickness accepted, m. Assumed: SLM layers are tens of µm (seed 003 part 2 §1:
 #: "typically 20 to 40 µm"); a value outside 1 µm to 1 mm is a mistake in the unit.
 LAYER_RANGE_M = (1e-6, 1e-3)
-#: Tallest build accepted, m. Assumed: no SLM build volume is taller than about 1 m; it
-#: bounds the work one command is asked for before any layer is built.
-MAX_BUILD_HEIGHT_M = 1.0
+#: Tallest build accepted, m: `microfab.process.slm.source.MAX_HEIGHT_M` (assumed: no SLM
+#: build volume is taller than about 1 m); it bounds the work before any layer is built.
+MAX_BUILD_HEIGHT_M = MAX_HEIGHT_M
 #: Most hatch lines across one layer. Assumed bound of one layer's work (a 16 mm disc at
 #: 0.16 µm); a finer hatch is a mistake in the unit and would not fit in memory.
 MAX_HATCH_LINES = 100_000
-#: Longest time one vector across the disc may take, s. Assumed: a mark speed that needs
-#: more than an hour for one vector is a mistake in the unit (its ticks overflow).
-MAX_VECTOR_S = 3600.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -182,13 +180,6 @@ class BuildSettings:
                 f"hatch_spacing_m = {self.hatch_spacing_m:g} m gives "
                 f"{width / self.hatch_spacing_m:.3g} hatch lines across the {width:g} m disc, "
                 f"more than {MAX_HATCH_LINES}; choose at least {width / MAX_HATCH_LINES:g} m"
-            )
-        slowest = min(self.mark_speed_m_s, self.jump_speed_m_s)
-        if width / slowest > MAX_VECTOR_S:
-            raise ValueError(
-                f"at {slowest:g} m/s one vector across the {width:g} m disc takes "
-                f"{width / slowest:.3g} s, more than {MAX_VECTOR_S:g} s; choose a speed of at "
-                f"least {width / MAX_VECTOR_S:g} m/s"
             )
         if self.shaper not in ("none", "zoh", "zpetc"):
             raise ValueError(

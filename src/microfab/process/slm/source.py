@@ -63,6 +63,10 @@ LATTICE_KEYS: dict[str, str] = {
 CHORD_TOL_M = 0.5e-6
 
 
+#: Highest layer accepted, m. Assumed: no SLM build volume is taller than about 1 m.
+MAX_HEIGHT_M = 1.0
+
+
 def _lattice_values(text: str) -> dict[str, float | int]:
     """The ``key: value`` pairs of a lattice source, checked (`parse_lattice_source`)."""
     src = text.strip()
@@ -131,6 +135,10 @@ def parse_lattice_source(text: str) -> tuple[float, LatticeSpec]:
     """
     values = _lattice_values(text)
     z = check_finite("lattice z", float(values.get("z", 0.0)), "m")
+    if not 0.0 <= z <= MAX_HEIGHT_M:
+        raise ValueError(
+            f"lattice z = {z:g} m is outside the build, 0 to {MAX_HEIGHT_M:g} m; check the unit"
+        )
     return z, _spec(values)
 
 

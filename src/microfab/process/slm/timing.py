@@ -122,6 +122,12 @@ def ticks(name: str, value_s: float, tick_s: float = TICK_S) -> int:
     return int(near)
 
 
+#: Speeds accepted at the work plane, m/s. Assumed: galvo scanners mark and jump at mm/s to
+#: tens of m/s; outside 0.1 mm/s to 1 km/s the value is in the wrong unit (and at 1e-300
+#: m/s one vector's ticks overflow).
+SPEED_RANGE_M_S = (1e-4, 1e3)
+
+
 @dataclass(frozen=True, kw_only=True)
 class ScanSpeeds:
     """Mark and jump speeds at the work plane.
@@ -138,8 +144,15 @@ class ScanSpeeds:
     jump_m_s: float = 5.0  # assumed, see above
 
     def __post_init__(self) -> None:
-        check_positive("mark speed mark_m_s", self.mark_m_s, "m/s")
-        check_positive("jump speed jump_m_s", self.jump_m_s, "m/s")
+        lo, hi = SPEED_RANGE_M_S
+        for name, v in (("mark speed mark_m_s", self.mark_m_s), ("jump speed jump_m_s",
+                                                                  self.jump_m_s)):  # fmt: skip
+            check_positive(name, v, "m/s")
+            if not lo <= v <= hi:
+                raise ValueError(
+                    f"{name} = {v:g} m/s is outside {lo:g} to {hi:g} m/s (galvo scanners mark "
+                    "and jump at mm/s to tens of m/s); check the unit"
+                )
 
 
 @dataclass(frozen=True, kw_only=True)
