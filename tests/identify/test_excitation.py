@@ -382,3 +382,12 @@ def test_classic_runs_are_prbs_and_chirps_within_table_i():
     assert all(isinstance(r, ExcitationRun) for r in runs)  # each passed check_trajectory
     total = sum(r.command.shape[0] * r.dt for r in runs)
     assert total == pytest.approx(40.0, rel=0.1)
+
+
+def test_random_runs_are_sized_before_they_are_made() -> None:
+    """Issue 32: a total of 1e308 s is refused before any sample is drawn."""
+    from microfab.identify.excitation import MAX_TOTAL_S, random_runs
+
+    with pytest.raises(ValueError, match=r"total_s = 1e\+308 s of random runs is more than 3600"):
+        random_runs(1e308)
+    assert MAX_TOTAL_S == 3600.0

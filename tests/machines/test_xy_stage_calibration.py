@@ -139,8 +139,14 @@ def test_cli_calibrate_xy_stage(tmp_path):
     assert "capped: y" in res.output and "Coulomb" in res.output
     d = json.loads(js.read_text(encoding="utf-8"))
     assert scales_of(load_params(out)) == pytest.approx(d["scales"], rel=1e-4)
-    bad = CliRunner().invoke(app, ["calibrate", "xy-stage", "--duration", "-1"])
-    assert bad.exit_code == 2 and "total_s" in bad.output
+    for argv, says in (
+        (["--duration", "-1"], "--duration must be positive"),
+        # issue 32: --duration 1e308 ran until killed (it sized 1e312 samples at the end)
+        (["--duration", "1e308"], "--duration = 1e+308 s is more than 3600 s"),
+        (["--duration", "60", "--search", "600"], "--search = 600 s is longer than --duration"),
+    ):
+        bad = CliRunner().invoke(app, ["calibrate", "xy-stage", *argv])
+        assert bad.exit_code == 2 and says in bad.output, bad.output
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_output_path, console
+from microfab.cli._kit import check_output_path, console, fail, renamed
 
 __all__ = ["calibrate_app"]
 
@@ -45,7 +45,6 @@ def calibrate_nanomanipulator_cmd(
 ) -> None:
     """Fit the nanomanipulator twin's sensor noise to seed 001 §4.2's axial RMS."""
     check_output_path("--write", write, inputs=[job])
-    from microfab.cli._kit import fail
     from microfab.machines.nanomanipulator_calibration import fit_noise, write_noise
     from microfab.machines.nanomanipulator_job import JobConfig
 
@@ -91,7 +90,6 @@ def calibrate_laser_cmd(
 ) -> None:
     """Fit the seed 004 stage twin's disturbance scale to Fig. 3's 0.8 µm peak error."""
     check_output_path("--write", write)
-    from microfab.cli._kit import fail
     from microfab.machines.laser_stage_calibration import fit_disturbance_scale, write_scale
 
     try:
@@ -132,7 +130,6 @@ def calibrate_xy_stage_cmd(
     """Fit the XY stage twin's friction + cogging per axis to seed 002 Table II column 1."""
     check_output_path("--write", write)
     check_output_path("--json", json_out, inputs=[write])
-    from microfab.cli._kit import fail
     from microfab.machines.xy_stage_calibration import (
         CalibrationSettings,
         fit_scales,
@@ -146,6 +143,9 @@ def calibrate_xy_stage_cmd(
 
     try:
         settings = CalibrationSettings(total_s=duration, search_s=search, seed=seed)
+    except ValueError as exc:
+        fail(renamed(str(exc), {"total_s": "--duration", "search_s": "--search"}))
+    try:
         fit = fit_scales(
             settings,
             progress=lambda k, s, g: console.print(

@@ -31,7 +31,6 @@ _FORMATS = ("csv", "h5", "mat")
 #: (assumed: 60 s per amplitude or axis, enough to show they are inadequate).
 _DEFAULT_S = {"random": 600.0, "shapes": 210.0, "prbs": 120.0, "chirp": 120.0}
 _FADE_S = 1.0  # chirp fade in / out, s (chirp_runs' default), at most a quarter of a sweep
-_MAX_S = 3600.0  # assumed: one hour of 10 kHz commands (3.6e7 samples, ~0.6 GB of CSV)
 
 
 @stage_app.command("excite")
@@ -73,7 +72,7 @@ def excite_cmd(
     if fmt not in _FORMATS:
         fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
     total = _DEFAULT_S[kind] if duration is None else duration
-    check_option("--duration", total, "s", high=_MAX_S)
+    check_option("--duration", total, "s", high=ex.MAX_TOTAL_S)
     check_option("--amax", amax, "m/s²", high=ex.LIMITS.acceleration[0])
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a directory")

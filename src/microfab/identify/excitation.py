@@ -100,6 +100,9 @@ __all__ = [
 #: of history per training run (≈40 of them: ≈12 random, the rest shorter shapes):
 #: (3.99e6 + 40 × 5000) / 0.8 / 10 kHz ≈ 524 s.
 ANN_TOTAL_S = 525.0
+#: Most excitation asked for at once, s. Assumed: one hour of 10 kHz commands (3.6e7
+#: samples, ~0.6 GB of CSV), six times the seed's 600 s; more is a unit mistake.
+MAX_TOTAL_S = 3600.0
 #: The index file `write_runs` writes next to the run files.
 INDEX_FILE = "runs.json"
 _FORMAT = 1
@@ -145,6 +148,11 @@ def random_runs(
         Named ``random_000``, ``random_001``, …; ``params`` hold the levels.
     """
     total = check_positive("total_s", total_s, "s")
+    if total > MAX_TOTAL_S:
+        raise ValueError(
+            f"total_s = {total:g} s of random runs is more than {MAX_TOTAL_S:g} s "
+            f"({MAX_TOTAL_S * 1e4:.3g} samples at 10 kHz); ask for less"
+        )
     a_max = check_a_max(a_max)
     design = design if design is not None else RandomDesign()
     master = np.random.default_rng(spawn_seeds(seed, 1)[0])

@@ -78,7 +78,7 @@ from typing import Any
 import numpy as np
 
 from microfab.core.validate import check_in_range, check_int, check_positive
-from microfab.identify.excitation import random_runs
+from microfab.identify.excitation import MAX_TOTAL_S, random_runs
 from microfab.io.atomic import atomic_write_json, atomic_write_text
 from microfab.machines.xy_stage import TwinSettings, play_runs
 from microfab.machines.xy_stage_identify import (
@@ -227,8 +227,17 @@ class CalibrationSettings:
 
     def __post_init__(self) -> None:
         check_positive("total_s", self.total_s, "s")
+        if self.total_s > MAX_TOTAL_S:
+            raise ValueError(
+                f"total_s = {self.total_s:g} s is more than {MAX_TOTAL_S:g} s of random runs"
+            )
         if self.search_s is not None:
             check_positive("search_s", self.search_s, "s")
+            if self.search_s > self.total_s:
+                raise ValueError(
+                    f"search_s = {self.search_s:g} s is longer than total_s = "
+                    f"{self.total_s:g} s: the search runs on a shorter data set"
+                )
         check_positive("a_max", self.a_max, "m/s^2")
         check_int("seed", self.seed, 0)
         check_in_range("rtol", self.rtol, 0.0, TARGET_BAND, low_closed=False)
