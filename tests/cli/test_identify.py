@@ -272,6 +272,9 @@ def test_identify_linear_refuses_bad_runs_and_writes_nothing(tmp_path, one_error
         (["--decimate", "0"], "--decimate"),
         (["--decimate", "26"], "below 400 Hz"),
         (["--weighting", "pca"], "--weighting must be"),
+        # issue 32: ran until killed (an R factor of 8 GB and more)
+        (["--order", "1000"], "--order 1000 is above 100"),
+        (["--block-rows", "100000"], "--block-rows 100000 is above 256"),
     ]:
         res = runner.invoke(app, ["identify", "linear", good, *args, "--out", str(out)])
         one_error_line(res, says)

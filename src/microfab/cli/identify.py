@@ -348,6 +348,12 @@ def linear_cmd(
         fail(f"--weighting must be moesp, n4sid or cva, got {weighting!r}")
     if block_rows is not None and order > block_rows:
         fail(f"--order {order} is above --block-rows {block_rows}: use --block-rows >= {order}")
+    from microfab.identify.subspace import SubspaceConfig
+
+    try:  # the options alone, before any run is read
+        SubspaceConfig(order=order, block_rows=block_rows, weighting=weighting)
+    except ValueError as exc:
+        fail(renamed(str(exc), {"block_rows": "--block-rows", "order": "--order"}))
     records, dt = _read_runs(runs)
     if decimate is None:
         decimate = default_decimate(1.0 / dt)

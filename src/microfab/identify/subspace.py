@@ -91,6 +91,14 @@ def default_block_rows(max_order: int) -> int:
     return 2 * int(max_order) + 2
 
 
+#: Highest model order accepted. Assumed bound of the work: the R factor grows as
+#: (2 i (m + p))² with i = 2 n + 2 block rows; at n = 100 and two inputs and outputs it is
+#: 3.2e3 wide (80 MB); order 1000 would be 8 GB. Seed 002 §III-A fits order 4.
+MAX_ORDER = 100
+#: Most block rows accepted (the same bound: 2 i (m + p) = 2 x 256 x 4 = 2048 columns).
+MAX_BLOCK_ROWS = 2 * MAX_ORDER + 56
+
+
 @dataclass(frozen=True, kw_only=True)
 class SubspaceConfig:
     """Settings of `identify_subspace` and `order_scan`.
@@ -137,8 +145,18 @@ class SubspaceConfig:
 
     def __post_init__(self) -> None:
         check_int("order", self.order, 1)
+        if self.order > MAX_ORDER:
+            raise ValueError(
+                f"order {self.order} is above {MAX_ORDER}: its R factor would not fit in "
+                f"memory (seed 002 §III-A fits 4 states; more add nothing)"
+            )
         if self.block_rows is not None:
             check_int("block_rows", self.block_rows, 2)
+            if self.block_rows > MAX_BLOCK_ROWS:
+                raise ValueError(
+                    f"block_rows {self.block_rows} is above {MAX_BLOCK_ROWS}: the R factor of "
+                    f"the Hankel matrices would not fit in memory"
+                )
             if self.order > self.block_rows:
                 raise ValueError(
                     f"order {self.order} is above block_rows {self.block_rows}: the "
