@@ -148,3 +148,16 @@ def test_shaper_lti_filters_as_the_shaper_does():
     one = ImpulseShaper(name="none", freq_hz=1.0, damping=0.0, amplitudes=[1.0], times=[0.0])
     gain = shaper_lti(one, dt)
     assert gain.D[0, 0] == 1.0 and not gain.C.any()
+
+
+def test_a_shaper_too_long_for_its_filter_is_refused_before_allocation() -> None:
+    """Issue 32: a 10 s shaper at 10 µs asked for a 7.28 TiB state matrix."""
+    from microfab.control.shaper_io import MAX_FIR_TAPS, shaper_lti
+
+    long = ImpulseShaper(name="zv", freq_hz=0.05, damping=0.0, amplitudes=[0.5, 0.5],
+                         times=[0.0, 10.0])  # fmt: skip
+    with pytest.raises(ValueError, match=r"10 s long at dt = 1e-05 s is 1e\+06 taps"):
+        shaper_lti(long, 1e-5)
+    ok = ImpulseShaper(name="zv", freq_hz=1.0, damping=0.0, amplitudes=[0.5, 0.5],
+                       times=[0.0, (MAX_FIR_TAPS - 1) * 1e-5])  # fmt: skip
+    assert shaper_lti(ok, 1e-5).A.shape[0] <= MAX_FIR_TAPS

@@ -72,3 +72,12 @@ def test_a_sharp_corner_is_refused_at_speed():
             MachineLimits.seed004_stage(),
             (1.2, 0.6),
         )
+
+
+def test_knots_are_counted_before_they_are_made() -> None:
+    """Issue 32: knot_spacing_um = 1e-9 asked for a 149 GiB array."""
+    from microfab.trajectory.contour_laps import MAX_KNOTS
+
+    with pytest.raises(ValueError, match=r"spline knots over the laps and ramps; the most"):
+        contour_reference(circle(1e-3), ContourMotion(knot_spacing_m=1e-15))
+    assert MAX_KNOTS == 1_000_000

@@ -73,6 +73,11 @@ _IMPULSE_REQUIRED = ("name", "freq_hz", "damping", "amplitudes", "times_s")
 _CONFIG_KEYS = ("pole_hz", "order", "dt", "discretization")
 
 
+#: Most FIR taps an impulse shaper may have at the command's sample time. Assumed bound of
+#: the work: its state-space filter is taps × taps (2000: 32 MB); at 10 µs it allows a
+#: shaper 20 ms long, a ZV shaper for modes above 25 Hz (the galvos' modes are kHz).
+MAX_FIR_TAPS = 2000
+
 def _floats(a: np.ndarray) -> list[float]:
     return [float(v) for v in np.asarray(a, dtype=float)]
 
@@ -281,6 +286,13 @@ def shaper_lti(shaper: Shaper, dt: float) -> DiscreteLTI:
                 f"sampled every {dt:g} s: design it for {dt:g} s"
             )
         return shaper.to_lti()
+    n_taps = shaper.duration / dt + 1 if np.isfinite(shaper.duration) else np.inf
+    if not n_taps <= MAX_FIR_TAPS:
+        raise ValueError(
+            f"a shaper {shaper.duration:g} s long at dt = {dt:g} s is {n_taps:.3g} taps; the "
+            f"most is {MAX_FIR_TAPS} (its filter has as many states): a shaper for a mode "
+            f"above {1.0 / (2.0 * MAX_FIR_TAPS * dt):.3g} Hz, or check its times_s"
+        )
     h = shaper.taps(dt)
     if h.size == 1:  # a pure gain: one state that the output ignores
         return DiscreteLTI(

@@ -59,6 +59,9 @@ __all__ = [
 ]
 
 _MIN_KNOTS_PER_LAP = 64  # assumed: a coarser lap would show the spline's polygon
+#: Most spline knots of one reference. Assumed bound of the work (the spline's banded solve
+#: and its arrays grow with it; 1e6 knots: tens of MB): 1 µm knots allow 1 m of laps.
+MAX_KNOTS = 1_000_000
 MAX_ACCELERATION_M_S2 = 5.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
 PEAK_FORCE_N = 12.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
 CONTINUOUS_FORCE_N = 3.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
@@ -162,6 +165,15 @@ def _time_law(motion: ContourMotion, length: float) -> tuple[np.ndarray, np.ndar
     t1 = t0 + tr  # lap 1 starts (s = 0)
     t2 = t1 + cruise
     t3 = t2 + tr
+    with np.errstate(over="ignore"):
+        n_knots = 2 * tr / dt_k + cruise / dt_k
+    if not n_knots <= MAX_KNOTS:
+        least = (2 * tr * v + motion.laps * length) / MAX_KNOTS
+        raise ValueError(
+            f"knot_spacing_m = {motion.knot_spacing_m:g} m gives {n_knots:.3g} spline knots "
+            f"over the laps and ramps; the most is {MAX_KNOTS:.0e}: choose at least "
+            f"{least:.3g} m (knot_spacing_um = {least * 1e6:.3g} in a job file)"
+        )
     n_r = max(math.ceil(tr / dt_k), 3)
     n_c = max(math.ceil(cruise / dt_k), 2)
 
