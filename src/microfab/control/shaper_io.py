@@ -78,6 +78,7 @@ _CONFIG_KEYS = ("pole_hz", "order", "dt", "discretization")
 #: shaper 20 ms long, a ZV shaper for modes above 25 Hz (the galvos' modes are kHz).
 MAX_FIR_TAPS = 2000
 
+
 def _floats(a: np.ndarray) -> list[float]:
     return [float(v) for v in np.asarray(a, dtype=float)]
 
