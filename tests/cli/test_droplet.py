@@ -86,9 +86,16 @@ def test_analyze_errors(tmp_path: Path) -> None:
     assert "pixel_size_m=" not in res.output
     res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f"), "--pixel-size", "2"])
     assert res.exit_code == 2 and "error: --frame-interval is required (µs)" in res.output
-    for opt, unit in (("--pixel-size", "µm"), ("--frame-interval", "µs")):
-        res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f"), opt, "-1"])
-        assert res.exit_code == 2 and f"error: {opt} must be more than 0 {unit}" in res.output
+    for opt, value, says in (
+        ("--pixel-size", "-1", "--pixel-size must be at least 0.1 and at most 100 µm"),
+        ("--frame-interval", "-1", "--frame-interval must be at least 0.1 and at most 1000 µs"),
+        # issue 32: an OverflowError traceback, and a negative row recorded as given
+        ("--pixel-size", "1e308", "--pixel-size must be at least 0.1 and at most 100 µm"),
+        ("--frame-interval", "1e-300", "--frame-interval must be at least 0.1"),
+        ("--nozzle-row", "-1", "--nozzle-row must be 0 or more"),
+    ):
+        res = runner.invoke(app, ["droplet", "analyze", str(tmp_path / "f"), opt, value])
+        assert res.exit_code == 2 and f"error: {says}" in res.output, res.output
 
 
 def test_sweep_writes_figure_and_resumable_results(tmp_path: Path) -> None:

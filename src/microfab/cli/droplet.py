@@ -22,6 +22,12 @@ droplet_app = typer.Typer(
 )
 
 
+#: Camera settings accepted, as the render command's (assumed: a shadowgraph of a 10-100 µm
+#: nozzle has pixels of 0.1-100 µm and frames 0.1-1000 µs apart; outside, the unit is wrong).
+_PIXEL_RANGE_UM = (0.1, 100.0)
+_INTERVAL_RANGE_US = (0.1, 1000.0)
+
+
 def _json(data: dict[str, Any], path: Path | None) -> None:
     text = json.dumps(data, indent=2, default=float)
     if path is None:
@@ -163,8 +169,8 @@ def render_cmd(
     _check_voltage("--voltage", voltage)
     for name, value, low, high, unit in (
         ("--duration", duration, 10.0, 5000.0, "µs"),
-        ("--frame-interval", frame_interval, 0.1, 1000.0, "µs"),
-        ("--pixel-size", pixel_size, 0.1, 100.0, "µm"),
+        ("--frame-interval", frame_interval, *_INTERVAL_RANGE_US, "µs"),
+        ("--pixel-size", pixel_size, *_PIXEL_RANGE_UM, "µm"),
     ):
         check_option(name, value, unit, low=low, high=high, low_closed=True)
     model = _model(model)
@@ -229,8 +235,13 @@ def analyze_cmd(
         "pixel_size_m": ("--pixel-size", "µm"),
         "frame_interval_s": ("--frame-interval", "µs"),
     }
-    for (name, unit), value in zip(options.values(), (pixel_size, frame_interval), strict=True):
-        check_option(name, value, unit)
+    ranges = (_PIXEL_RANGE_UM, _INTERVAL_RANGE_US)
+    for (name, unit), value, (low, high) in zip(
+        options.values(), (pixel_size, frame_interval), ranges, strict=True
+    ):
+        check_option(name, value, unit, low=low, high=high, low_closed=True)
+    if nozzle_row is not None and nozzle_row < 0:
+        fail(f"--nozzle-row must be 0 or more (an image row), got {nozzle_row}")
     try:
         res = analyze_folder(
             frames_dir,
