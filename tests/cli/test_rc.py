@@ -172,6 +172,8 @@ def test_refusals_are_one_line_and_write_nothing(tmp_path: Path) -> None:
     _write_trial(trial, pos, y)
     _refused(tmp_path, trial, "--period-s", "0.01005", says=("whole number",))
     _refused(tmp_path, trial, "--period-s", "0.02", says=("holds 100 samples", "200 samples"))
+    # issue 32: an OverflowError traceback (1e308 s / dt samples)
+    _refused(tmp_path, trial, "--period-s", "1e308", says=("samples; the most is 1e+08",))
     _refused(tmp_path, trial, "--gain", "3", says=("--gain must be more than 0 and at most 2",))
     _refused(tmp_path, trial, "--tau-ms", "0", says=("--tau-ms must be more than 0 ms",))
     _refused(tmp_path, trial, "--lead-samples", "-1", says=("--lead-samples must be at least 0",))

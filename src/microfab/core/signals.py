@@ -440,6 +440,10 @@ class Trace:
         return cls(dt=dt, values=values, axes=tuple(columns), unit=unit, t0=t0)
 
 
+#: Most samples one period may hold. Assumed bound of the work (a period is held in
+#: memory per axis, with its memory of errors): 1e8 samples, 100 s at 1 MHz.
+MAX_PERIOD_SAMPLES = 1e8
+
 def period_samples(period_s: float, dt: float) -> int:
     """Samples in one period, refusing a period that is not a whole number of samples.
 
@@ -463,7 +467,13 @@ def period_samples(period_s: float, dt: float) -> int:
     """
     check_positive("period_s", period_s, "s")
     check_positive("dt", dt, "s")
-    n_float = period_s / dt
+    with np.errstate(over="ignore"):
+        n_float = period_s / dt
+    if not n_float <= MAX_PERIOD_SAMPLES:
+        raise ValueError(
+            f"period_s = {period_s:g} s at dt = {dt:g} s is {n_float:.3g} samples; the most "
+            f"is {MAX_PERIOD_SAMPLES:.0e}: check the unit"
+        )
     n = round(n_float)
     if n < 2 or abs(n - n_float) > 1e-9 * n_float:
         raise ValueError(
