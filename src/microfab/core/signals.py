@@ -444,6 +444,7 @@ class Trace:
 #: memory per axis, with its memory of errors): 1e8 samples, 100 s at 1 MHz.
 MAX_PERIOD_SAMPLES = 1e8
 
+
 def period_samples(period_s: float, dt: float) -> int:
     """Samples in one period, refusing a period that is not a whole number of samples.
 
