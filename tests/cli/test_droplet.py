@@ -49,7 +49,8 @@ def test_simulate_refuses_bad_input() -> None:
     "argv, says",
     [
         (["--after-breakup", "inf"], "--after-breakup must be more than 0 and at most 5000"),
-        (["--duration", "1e308"], "--duration must be more than 0 and at most 5000"),
+        (["--duration", "1e308"], "--duration must be at least 1 and at most 5000"),
+        (["--duration", "1e-300"], "--duration must be at least 1 and at most 5000"),
         (["--duration", "1e9"], "--duration"),  # was a MemoryError (149 GiB)
         (["--duration", "5e-324"], "--duration"),  # 0 s once in seconds: a ValueError
         (["--duration", "nan"], "--duration"),

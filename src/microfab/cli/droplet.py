@@ -68,10 +68,11 @@ def simulate_cmd(
     from microfab.process.inkjet.fluids import naalg
 
     _check_voltage("--voltage", voltage)
-    for name, value in (("--duration", duration), ("--after-breakup", after_breakup)):
-        check_option(name, value, "µs", high=MAX_DURATION_US)
-        if not value * 1e-6 > 0.0:  # a subnormal count of µs is 0 s
-            fail(f"{name} must be more than 0 µs, got {value:g} µs")
+    # at least 1 µs, a few solver steps (1e-300 ran 0 steps and wrote a report)
+    check_option("--duration", duration, "µs", low=1.0, high=MAX_DURATION_US, low_closed=True)
+    check_option("--after-breakup", after_breakup, "µs", high=MAX_DURATION_US)
+    if not after_breakup * 1e-6 > 0.0:  # a subnormal count of µs is 0 s
+        fail(f"--after-breakup must be more than 0 µs, got {after_breakup:g} µs")
     try:
         fluid = naalg(concentration)
     except ValueError as exc:
