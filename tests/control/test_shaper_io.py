@@ -161,3 +161,13 @@ def test_a_shaper_too_long_for_its_filter_is_refused_before_allocation() -> None
     ok = ImpulseShaper(name="zv", freq_hz=1.0, damping=0.0, amplitudes=[0.5, 0.5],
                        times=[0.0, (MAX_FIR_TAPS - 1) * 1e-5])  # fmt: skip
     assert shaper_lti(ok, 1e-5).A.shape[0] <= MAX_FIR_TAPS
+
+
+def test_a_shaper_file_whose_amplitudes_do_not_sum_to_one_is_refused(tmp_path) -> None:
+    """Issue 32: slm scan-time took a shaper whose amplitudes sum to 0.6 (40 % short)."""
+    zv = design_shaper("zv", 2000.0, 0.05)
+    d = shaper_to_dict(zv)
+    assert shaper_from_dict(d).amplitudes.sum() == pytest.approx(1.0)
+    d["amplitudes"] = [0.3, 0.3]
+    with pytest.raises(ValueError, match=r"amplitudes sum to 0\.6, not 1"):
+        shaper_from_dict(d)

@@ -198,11 +198,18 @@ def _impulse(d: dict[str, Any]) -> ImpulseShaper:
     if not isinstance(numeric, bool):
         raise ValueError(f"impulse shaper 'numeric' must be true or false, got {numeric!r}")
     extra = {k: _number(d, k, "impulse shaper") for k in ("v_tol", "constraint_miss") if k in d}
+    amplitudes = _numbers(d, "amplitudes")
+    total = float(np.sum(amplitudes))
+    if not abs(total - 1.0) <= 1e-6:
+        raise ValueError(
+            f"impulse shaper amplitudes sum to {total:.6g}, not 1: a shaped command would not "
+            f"reach its target (it would end at {total:.6g} of it)"
+        )
     return ImpulseShaper(
         name=d["name"],
         freq_hz=_number(d, "freq_hz", "impulse shaper"),
         damping=_number(d, "damping", "impulse shaper"),
-        amplitudes=_numbers(d, "amplitudes"),
+        amplitudes=amplitudes,
         times=_numbers(d, "times_s"),
         numeric=numeric,
         **extra,
