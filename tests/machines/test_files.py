@@ -349,3 +349,20 @@ def test_a_constant_reference_learns_its_mean(tmp_path):
     write_columns(trial, cols)
     rep = ilc_step(trial, tmp_path / "st", tmp_path / "n.csv")
     assert rep.harmonics == {"x": 1, "y": 1}
+
+
+def test_an_axis_without_its_reference_is_refused_not_dropped(tmp_path) -> None:
+    """Issue 32: a trial with input_x, output_x but no reference_x lost axis x silently."""
+    from microfab.machines.files import TrialFileError, read_trial_file
+
+    n = 16
+    t = np.arange(n) * 1e-5
+    r = np.sin(2 * np.pi * np.arange(n) / n)
+    cols = {"time": t, "reference_y": r, "input_y": r, "output_y": r, "input_x": r,
+            "output_x": r}  # fmt: skip
+    write_columns(tmp_path / "t.csv", cols)
+    with pytest.raises(TrialFileError, match="axis 'x' has no 'reference_x' column"):
+        read_trial_file(tmp_path / "t.csv")
+    cols["reference_x"] = r
+    write_columns(tmp_path / "t.csv", cols)
+    assert set(read_trial_file(tmp_path / "t.csv").axes) == {"x", "y"}

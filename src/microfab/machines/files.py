@@ -90,18 +90,23 @@ def read_trial_file(path: str | Path) -> Trial:
         raise TrialFileError(f"{p}: {exc}") from exc
     if "time" not in cols:
         raise TrialFileError(f"{p}: no 'time' column (found: {', '.join(cols) or 'none'})")
-    axes = tuple(k[len("reference_") :] for k in cols if k.startswith("reference_"))
-    if not axes:
+    if not any(k.startswith("reference_") for k in cols):
         raise TrialFileError(f"{p}: no 'reference_<axis>' column (found: {', '.join(cols)})")
+    # every axis any column names (an axis with an input and an output but no reference
+    # was dropped without a word; now it is refused below)
+    prefixes = ("reference_", "input_", "output_")
+    named = (k.split("_", 1)[1] for k in cols if k.startswith(prefixes))
+    axes = tuple(dict.fromkeys(named))
     for a in axes:
         if not _AXIS.fullmatch(a):
+            col = next(k for k in cols if k.startswith(prefixes) and k.split("_", 1)[1] == a)
             raise TrialFileError(
-                f"{p}: column {'reference_' + a!r} names no valid axis: write "
+                f"{p}: column {col!r} names no valid axis: write "
                 "reference_<axis> with an axis name of letters, digits and underscores, "
                 "e.g. reference_x"
             )
     for a in axes:
-        for kind in ("input", "output"):
+        for kind in ("reference", "input", "output"):
             if f"{kind}_{a}" not in cols:
                 raise TrialFileError(f"{p}: axis {a!r} has no '{kind}_{a}' column")
     t = cols["time"]
