@@ -174,6 +174,12 @@ def test_refusals_are_one_line_and_write_nothing(tmp_path: Path) -> None:
     _refused(tmp_path, trial, "--period-s", "0.02", says=("holds 100 samples", "200 samples"))
     # issue 32: an OverflowError traceback (1e308 s / dt samples)
     _refused(tmp_path, trial, "--period-s", "1e308", says=("samples; the most is 1e+08",))
+    # issue 32: learned from a 2-row period, or from a reference that does not move
+    _write_trial(trial, pos[:2], y[:2])
+    _refused(tmp_path, trial, says=("a period of 2 samples is too short",))
+    _write_trial(trial, np.zeros_like(pos), np.zeros_like(y))
+    _refused(tmp_path, trial, says=("the reference does not move",))
+    _write_trial(trial, pos, y)
     _refused(tmp_path, trial, "--gain", "3", says=("--gain must be more than 0 and at most 2",))
     _refused(tmp_path, trial, "--tau-ms", "0", says=("--tau-ms must be more than 0 ms",))
     _refused(tmp_path, trial, "--lead-samples", "-1", says=("--lead-samples must be at least 0",))

@@ -61,6 +61,11 @@ class RCStepReport:
 _OUT_SUFFIXES = (".csv", ".mat", ".h5", ".hdf5")
 
 
+#: Fewest samples a measured period may hold: as the learning loop's trials (a period
+#: below it holds no harmonic to learn; assumed, as `microfab.machines.files`' 8).
+MIN_PERIOD_SAMPLES = 8
+
+
 def _same(a: float, b: float) -> bool:
     return math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
 
@@ -152,6 +157,16 @@ def rc_file_step(
         )
     tr = read_measured(trial)
     n, dt = tr.n_samples, tr.dt
+    if n < MIN_PERIOD_SAMPLES:
+        raise ValueError(
+            f"{tr.path}: a period of {n} samples is too short to learn from; record one "
+            f"whole period of at least {MIN_PERIOD_SAMPLES} samples"
+        )
+    if not np.ptp(tr.reference, axis=0).max() > 0.0:
+        raise ValueError(
+            f"{tr.path}: the reference does not move (every ref_x, ref_y sample is the same): "
+            "there is no contour to learn; record a period of the contour"
+        )
     if period_s is not None:
         n_p = period_samples(period_s, dt)
         if n_p != n:
