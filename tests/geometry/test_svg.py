@@ -351,3 +351,16 @@ def test_subpaths_shorter_than_a_nanometre_are_skipped(tmp_path):
     assert len(layer) == 1
     assert [s.kind for s in layer.skipped] == ["subpath"]
     assert "shorter than 1e-09 m" in layer.skipped[0].reason
+
+
+@pytest.mark.parametrize(
+    ("width", "says"),
+    [("nanmm", "is not a length"), ("wide", "is not a length"), ("1e999mm", "finite length")],
+)
+def test_a_width_that_is_no_length_is_refused_not_read_as_pixels(tmp_path, width, says):
+    """Issue 32: width="nanmm" was read silently, as CSS pixels."""
+    f = write(
+        tmp_path, '<line x1="0" y1="0" x2="100" y2="0"/>', f'width="{width}" viewBox="0 0 100 50"'
+    )
+    with pytest.raises(ValueError, match=says):
+        read_svg(f)

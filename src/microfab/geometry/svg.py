@@ -306,6 +306,14 @@ def _user_unit(root: ET.Element) -> tuple[float, tuple[float, float, float, floa
             )
         vb = (nums[0], nums[1], nums[2], nums[3])
     w = _length(root.get("width"))
+    raw = root.get("width")
+    if w is None and raw is not None and raw.strip() not in ("", "auto"):
+        raise ValueError(
+            f"SVG width {raw!r} is not a length: give a number and a unit (e.g. '120mm'), "
+            "or remove it"
+        )
+    if w is not None and not np.isfinite(w[0]):
+        raise ValueError(f"SVG width must be a finite length, got {raw!r}")
     if w is None or w[1] == "%" or vb is None:
         # no physical size, a percentage, or no viewBox: user units are CSS px
         return PX, vb
