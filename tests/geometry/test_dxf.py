@@ -77,10 +77,15 @@ def test_unitless_raises_and_override_works(tmp_path):
     assert read_dxf(p, units="m")[0].length == pytest.approx(8.0)
 
 
-def test_override_beats_header(tmp_path):
-    doc, msp = new_doc(1)
+def test_units_that_contradict_the_header_are_refused(tmp_path):
+    """Issue 32: units= used to override a header that gives other units, rescaling the
+    drawing silently (x 25.4 for inch on mm); the units apply where the header has none."""
+    doc, msp = new_doc(1)  # $INSUNITS 1: inches
     add_square(msp)
-    assert read_dxf(save(doc, tmp_path), units="mm")[0].length == pytest.approx(4 * MM)
+    p = save(doc, tmp_path)
+    with pytest.raises(ValueError, match=r"\$INSUNITS = 1, 0\.0254 m\); units 'mm'"):
+        read_dxf(p, units="mm")
+    assert read_dxf(p, units="inch")[0].length == read_dxf(p)[0].length  # the same: accepted
 
 
 def test_unknown_units_code_and_name(tmp_path):

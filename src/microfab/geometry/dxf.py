@@ -168,16 +168,24 @@ class _SkipEntityError(Exception):
 def _unit_factor(doc: object, units: str | None, name: str) -> float:
     """Metres per drawing unit, from the override or the header's ``$INSUNITS``."""
     accepted = ", ".join(repr(u) for u in UNITS_M)
-    if units is not None:
-        key = str(units).strip().lower()
-        if key not in UNITS_M:
-            raise ValueError(f"unknown units {units!r}; accepted units are {accepted}")
-        return UNITS_M[key]
     raw = doc.header.get("$INSUNITS", 0)  # type: ignore[attr-defined]
     try:
         code = int(raw if raw is not None else 0)
     except (TypeError, ValueError):
         code = -1
+    if units is not None:
+        key = str(units).strip().lower()
+        if key not in UNITS_M:
+            raise ValueError(f"unknown units {units!r}; accepted units are {accepted}")
+        given = UNITS_M[key]
+        header = INSUNITS_M.get(code)
+        if header is not None and not math.isclose(given, header, rel_tol=1e-12):
+            raise ValueError(
+                f"{name}: the drawing's header gives its units ($INSUNITS = {code}, "
+                f"{header:g} m); units {units!r} ({given:g} m) would scale it by "
+                f"{given / header:.6g}: leave the units out, or correct the header"
+            )
+        return given
     if code in INSUNITS_M:
         return INSUNITS_M[code]
     what = (
@@ -527,7 +535,8 @@ def read_dxf(
     path : str or os.PathLike
         The DXF file (ASCII or binary, any version ezdxf reads).
     units : str, optional
-        The drawing unit, overriding the header's ``$INSUNITS``: one of ``"m"``,
+        The drawing unit where the header's ``$INSUNITS`` gives none (a header that gives
+        another unit is refused, never silently rescaled): one of ``"m"``,
         ``"cm"``, ``"mm"``, ``"um"`` (``"µm"``, ``"micron"``), ``"nm"``, ``"in"``
         (``"inch"``), ``"mil"``, ``"ft"`` (``"foot"``). Needed when the drawing is
         unitless.
