@@ -82,3 +82,11 @@ def test_config_refusals():
         ShaperFitConfig(freq_range_hz=(5000.0, 1000.0))
     with pytest.raises(ValueError, match="baseline"):
         fit_shaper(FREQ, MODE, kind="frf", baseline=np.zeros(FREQ.size), config=CFG)
+
+
+def test_a_design_range_beyond_the_data_is_refused() -> None:
+    """Issue 32: --freq-range 6000:7000 designed from FRF data that end at 5000 Hz."""
+    top = float(FREQ[-1])
+    cfg = ShaperFitConfig(names=("zv",), freq_range_hz=(top + 1000.0, top + 2000.0))
+    with pytest.raises(ValueError, match="reaches beyond the data, which span"):
+        fit_shaper(FREQ, np.abs(MODE) ** 2, kind="psd", config=cfg)

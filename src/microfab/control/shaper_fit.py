@@ -283,6 +283,12 @@ def fit_shaper(
     f, w = _weights(freq_hz, response, kind, baseline)
     thr = float(w.max()) / cfg.vibration_reduction
     lo, hi = cfg.freq_range_hz if cfg.freq_range_hz is not None else (float(f[0]), float(f[-1]))
+    if lo < float(f[0]) or hi > float(f[-1]):
+        raise ValueError(
+            f"the design range {lo:g}-{hi:g} Hz reaches beyond the data, which span "
+            f"{float(f[0]):g}-{float(f[-1]):g} Hz: a shaper there would be scored against "
+            "vibration nobody measured; choose a range within the data"
+        )
     design_freqs = np.linspace(lo, hi, cfg.n_freqs)
     scans: dict[str, tuple[ShaperCandidate, ...]] = {}
     per_type: dict[str, ShaperCandidate] = {}
