@@ -37,7 +37,7 @@ from microfab.process.exposure import (
     ResinParams,
     line_profile,
 )
-from microfab.process.velocity import BeamVelocityParams, beam_velocity
+from microfab.process.velocity import BeamVelocity, BeamVelocityParams, beam_velocity
 from microfab.trajectory.periodic import square_scan
 
 __all__ = [
@@ -131,18 +131,17 @@ class MSLRunResult:
         """Seed 000 §4.2 beam-velocity settings with this run's mm/V scales."""
         return BeamVelocityParams(scale_mm_per_v=self.scale_mm_per_v)
 
+    def beam_velocities(self) -> dict[str, BeamVelocity]:
+        """Beam velocity of the FB (``"fb"``) and ILC (``"ilc"``) outputs (seed 000 §4.2)."""
+        params = self.velocity_params()
+        return {
+            tag: beam_velocity(y, self.dt, params, periodic=True)
+            for tag, y in (("fb", self.fb_output), ("ilc", self.ilc_output))
+        }
+
     def velocity_stats(self) -> dict[str, float]:
         """Mean, std, min, max beam speed (mm/s) for FB and ILC (seed Table 2 keys)."""
-        out: dict[str, float] = {}
-        for tag, y in (("fb", self.fb_output), ("ilc", self.ilc_output)):
-            bv = beam_velocity(y, self.dt, self.velocity_params(), periodic=True)
-            out |= {
-                f"{tag}_mean": bv.mean,
-                f"{tag}_std": bv.std,
-                f"{tag}_min": bv.min,
-                f"{tag}_max": bv.max,
-            }
-        return out
+        return _speed_stats(self.beam_velocities())
 
     def table1_row(self, axis: str) -> dict[str, float]:
         """RMS and PP (mV) of FB and ILC for one axis (seed Table 1 keys)."""
@@ -351,16 +350,13 @@ def beam_exposure(
     resin : ResinParams, optional
         Resin working curve (assumed Envisiontec R11 values).
     """
-    params = result.velocity_params()
-    speed: dict[str, np.ndarray] = {}
-    stats: dict[str, float] = {}
-    line: dict[str, LineProfile] = {}
-    for tag, y in (("fb", result.fb_output), ("ilc", result.ilc_output)):
-        bv = beam_velocity(y, result.dt, params, periodic=True)
-        speed[tag] = bv.speed_mm_s
-        stats |= {f"{tag}_mean": bv.mean, f"{tag}_std": bv.std, f"{tag}_min": bv.min,
-                  f"{tag}_max": bv.max}  # fmt: skip
-        line[tag] = line_profile(np.maximum(bv.speed_mm_s * 1e-3, _MIN_SPEED_M_S), beam, resin)
+    velocities = result.beam_velocities()
+    speed = {tag: bv.speed_mm_s for tag, bv in velocities.items()}
+    line = {
+        tag: line_profile(np.maximum(v * 1e-3, _MIN_SPEED_M_S), beam, resin)
+        for tag, v in speed.items()
+    }
+    stats = _speed_stats(velocities)
     ref_mm = result.to_mm(result.reference)
     ref_mm = np.concatenate([ref_mm, ref_mm[:1]], axis=0)  # the closed path
     perimeter_mm = float(np.sum(np.hypot(*np.diff(ref_mm[:, :2], axis=0).T)))
@@ -375,3 +371,12 @@ def beam_exposure(
         beam=beam,
         resin=resin,
     )
+
+
+def _speed_stats(velocities: Mapping[str, BeamVelocity]) -> dict[str, float]:
+    """``<tag>_mean``, ``_std``, ``_min``, ``_max`` beam speed, mm/s (seed Table 2 keys)."""
+    out: dict[str, float] = {}
+    for tag, bv in velocities.items():
+        out |= {f"{tag}_mean": bv.mean, f"{tag}_std": bv.std, f"{tag}_min": bv.min,
+                f"{tag}_max": bv.max}  # fmt: skip
+    return out

@@ -98,9 +98,6 @@ TwinFactory = Callable[..., GalvoSLMPlant]
 #: Layer thickness accepted, m. Assumed: SLM layers are tens of µm (seed 003 part 2 §1:
 #: "typically 20 to 40 µm"); a value outside 1 µm to 1 mm is a mistake in the unit.
 LAYER_RANGE_M = (1e-6, 1e-3)
-#: Tallest build accepted, m: `microfab.process.slm.source.MAX_HEIGHT_M` (assumed: no SLM
-#: build volume is taller than about 1 m); it bounds the work before any layer is built.
-MAX_BUILD_HEIGHT_M = MAX_HEIGHT_M
 #: Most hatch lines across one layer. Assumed bound of one layer's work (a 16 mm disc at
 #: 0.16 µm); a finer hatch is a mistake in the unit and would not fit in memory.
 MAX_HATCH_LINES = 100_000
@@ -163,11 +160,11 @@ class BuildSettings:
                 "(SLM layers are tens of µm); check the unit"
             )
         height = self.n_layers * self.layer_m
-        if height > MAX_BUILD_HEIGHT_M:
+        if height > MAX_HEIGHT_M:
             raise ValueError(
                 f"{self.n_layers} layers of {self.layer_m:g} m make a part {height:g} m tall, "
-                f"taller than {MAX_BUILD_HEIGHT_M:g} m; choose at most "
-                f"{int(MAX_BUILD_HEIGHT_M / self.layer_m)} layers"
+                f"taller than {MAX_HEIGHT_M:g} m; choose at most "
+                f"{int(MAX_HEIGHT_M / self.layer_m)} layers"
             )
         width = 2.0 * self.outline_radius_m
         if self.outline_radius_m < self.hatch_spacing_m:
