@@ -269,9 +269,29 @@ class OneLineErrors(TyperGroup):
         sys.exit(code if isinstance(code, int) else 0)
 
 
+class _Bars(Progress):
+    """A `Progress` that ends honestly: full bars on success, none left on failure.
+
+    Leaving the ``with`` block normally completes every task (a task without a total gets
+    its count as total), so a bar never stays at ``8/9`` or ``0/?`` after the work is
+    done; leaving it with an exception (a refusal, Ctrl-C) clears the bars, so that the
+    ``error:`` or ``interrupted`` line that follows stands alone on stderr.
+    """
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        if exc_type is None:
+            for task in self.tasks:
+                total = task.completed if task.total is None else task.total
+                self.update(task.id, total=total, completed=total)
+            super().__exit__(exc_type, exc, tb)
+        elif not self.disable:
+            self.live.transient = True
+            self.live.stop()  # not `stop`: it adds an empty line on a non-terminal stream
+
+
 def progress() -> Progress:
-    """A rich progress bar on stderr (quiet in non-interactive CI)."""
-    return Progress(
+    """A rich progress bar on stderr (quiet in non-interactive CI); see `_Bars`."""
+    return _Bars(
         TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),

@@ -34,9 +34,13 @@ import hashlib
 import itertools
 import json
 import logging
+import os
 import pickle
 import re
-from collections.abc import Callable, Iterable, Mapping
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
@@ -418,15 +422,23 @@ def _run_on_cluster(
         elif client is None:
             # No dashboard, the scheduler's HTTP server on a free port (not a warning that
             # 8787 is taken), no worker logs: SweepError reports the failures.
-            cluster = LocalCluster(
-                n_workers=workers,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                scheduler_kwargs={"dashboard_address": ":0"},
-                silence_logs=logging.CRITICAL,
-            )
+            with _quiet_workers() as held:
+                try:
+                    cluster = LocalCluster(
+                        n_workers=workers,
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=None,
+                        scheduler_kwargs={"dashboard_address": ":0"},
+                        silence_logs=logging.CRITICAL,
+                    )
+                except Exception:
+                    if held:  # the workers' start was cut by the Ctrl-C they heard too
+                        raise KeyboardInterrupt from None
+                    raise
             client = stack.enter_context(Client(stack.enter_context(cluster)))
+            if held:  # Ctrl-C while the cluster started: taken now that it closes cleanly
+                raise KeyboardInterrupt
         # pure=False: never reuse a result cached by the scheduler (a failed point retried
         # on the same client must run again).
         running = {client.submit(_run_pickled, blob, payloads[p], pure=False): p for p in todo}
@@ -442,6 +454,46 @@ def _run_on_cluster(
         finally:
             if running:  # interrupted (e.g. Ctrl-C or a progress callback raised)
                 client.cancel(list(running))
+
+
+@contextlib.contextmanager
+def _quiet_workers() -> Iterator[list[int]]:
+    """Start worker processes whose standard error goes nowhere; hold Ctrl-C meanwhile.
+
+    A terminal's Ctrl-C goes to every process of its group, and each worker would print
+    its own ``KeyboardInterrupt`` traceback under this process's one-line message. A
+    spawned process inherits its standard error from this one, so file descriptor 2
+    points at the null device while the cluster starts its workers and is restored after.
+    Nothing of a worker's is lost that the sweep reports: a task's error, a lost worker or
+    a cancelled point comes back to this process as a `SweepFailure`.
+
+    A cluster interrupted half-way through its start cannot be closed cleanly (Dask
+    asserts on a worker still starting), so a Ctrl-C in those seconds is held: the list
+    yielded gets the signal's number, and the caller raises `KeyboardInterrupt` once the
+    cluster is up and in its ``with`` block. This process's own lines in those seconds (a
+    progress bar's redraw) are dropped.
+    """
+    held: list[int] = []
+    handler = None
+    if threading.current_thread() is threading.main_thread():
+        handler = signal.signal(signal.SIGINT, lambda signum, _frame: held.append(signum))
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no file descriptor 2 to redirect: leave it
+        saved = -1
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        if saved >= 0:
+            os.dup2(null, 2)
+        yield held
+    finally:
+        if saved >= 0:
+            os.dup2(saved, 2)
+            os.close(saved)
+        os.close(null)
+        if handler is not None:
+            signal.signal(signal.SIGINT, handler)
 
 
 def _run_pickled(task: bytes, point: bytes) -> Any:
