@@ -66,3 +66,41 @@ def test_check_refuses_a_reference_job_without_its_models(tmp_path) -> None:
         assert res.exit_code == 2 and len(lines) == 1, res.output
         assert "does not exist; run `microfab run examples/blackbox_stage_identify" in lines[0]
     assert not (tmp_path / "o").exists()
+
+
+def _reproduce(tmp_path: Path, *args: str) -> tuple[int, str]:
+    import os
+
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        res = runner.invoke(app, ["reproduce", *args])
+    finally:
+        os.chdir(cwd)
+    return res.exit_code, res.output
+
+
+def test_reproduce_check_runs_nothing_and_writes_nothing(tmp_path: Path) -> None:
+    code, out = _reproduce(tmp_path, "stage-models", "--set", "checkpoints=cp", "--check")
+    assert code == 0, out
+    assert "valid settings" in out and "cp" in out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_reproduce_check_refuses_what_a_run_would_refuse(tmp_path: Path) -> None:
+    (tmp_path / "afile").write_text("kept\n")
+    (tmp_path / "models").mkdir()
+    cases = {
+        ("reference-opt",): "needs identified models",
+        ("reference-opt", "--set", "models=nowhere"): "does not exist",
+        ("stage-models", "--set", "checkpoints=afile"): "is a file",
+        ("stage-models", "--set", "magnitudes=foo"): "magnitudes",
+        ("msl-ilc", "--set", "seed=-1"): "seed",
+        ("reference-opt", "--set", "models=models", "--set", "checkpoints=models"): "input",
+    }
+    for args, words in cases.items():
+        for check in ((), ("--check",)):
+            code, out = _reproduce(tmp_path, *args, *check)
+            assert code == 2 and words in out and len(out.splitlines()) == 1, (args, out)
+    assert (tmp_path / "afile").read_text() == "kept\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "models"]

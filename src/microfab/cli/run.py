@@ -153,6 +153,8 @@ def _settings_of(name: str) -> None:
 
 def _allowed(key: Any) -> str:
     """A key's type or range and unit, e.g. ``[1, 125000] features/s``."""
+    if key.choices is not None:
+        return " | ".join(key.choices)
     if key.type not in ("int", "float", "int_list", "float_list"):
         return key.type
     lo = "-inf" if key.low is None else _shown(key.low)
@@ -200,17 +202,22 @@ def reproduce_cmd(
             "_previous/ folder and start clean.",
         ),
     ] = False,
+    check: Annotated[
+        bool,
+        typer.Option("--check", help="Check the settings, inputs and outputs only; run nothing."),
+    ] = False,
 ) -> None:
     """A seed paper's published numbers beside ours, run on the twin (--json keeps them).
 
     A reproduction that saves checkpoints (a --set checkpoints=FOLDER option) resumes from
     them when rerun with the same settings, and refuses a folder saved with other settings
-    (naming the first difference) unless --fresh is given.
+    (naming the first difference) unless --fresh is given. With --check the settings,
+    required inputs and outputs are checked as a run would check them, and nothing runs.
     """
     check_output_path("--json", json_path)
     from microfab.experiments.catalog import reproduction
     from microfab.io.atomic import atomic_write_json
-    from microfab.io.runstore import open_run
+    from microfab.io.runstore import check_run, open_run
 
     try:
         rep = reproduction(name)
@@ -219,6 +226,27 @@ def reproduce_cmd(
     try:
         options = rep.parse_options(_settings(settings or []))
         folder = options.get(rep.run_folder_option or "") or None
+        inputs = [Path(options[k.name]) for k in rep.options if k.path and options[k.name]]
+        if folder:
+            check_output_path(
+                f"--set {rep.run_folder_option}", Path(folder), kind="folder", inputs=inputs
+            )
+        check_output_path("--json", json_path, inputs=inputs)
+        if rep.preflight is not None:
+            rep.preflight(options)
+        if check:
+            plan = check_run(folder, rep.fingerprint(options), fresh=fresh) if folder else None
+            what = {
+                None: "save nothing to resume from",
+                "start": f"save its checkpoints in {folder}",
+                "resume": f"resume from {folder}",
+            }.get(plan, f"start fresh in {folder}")
+            console.print(
+                f"reproduce {name}: valid settings; it would {what}",
+                highlight=False,
+                soft_wrap=True,
+            )
+            return
         store = (
             open_run(
                 folder,

@@ -206,6 +206,10 @@ class Reproduction:
         The option that names a folder where the reproduction saves what it resumes from;
         ``microfab reproduce`` opens it as a run store (`microfab.io.runstore`) keyed on
         the other options, so a rerun with other settings is refused, not resumed.
+    preflight : callable, optional
+        ``preflight(options)``: raises ``ValueError`` for what a run would refuse only
+        once started (a required input folder missing); called by ``microfab reproduce``
+        (with or without ``--check``) before any work.
     """
 
     name: str
@@ -214,6 +218,7 @@ class Reproduction:
     data_files: tuple[str, ...] = ()
     version: str = "1"
     run_folder_option: str | None = None
+    preflight: Callable[[dict[str, Any]], None] | None = None
 
     def fingerprint(self, options: Mapping[str, Any]) -> dict[str, Any]:
         """The settings a resumable reproduction depends on (see `JobKind.fingerprint`).

@@ -37,10 +37,10 @@ import numpy as np
 from microfab.core.arrays import readonly
 from microfab.core.validate import check_int, check_positive
 
-__all__ = ["Chirp", "ChirpDesign", "Sweep"]
+__all__ = ["SWEEPS", "Chirp", "ChirpDesign", "Sweep"]
 
 Sweep = Literal["linear", "log"]
-_SWEEPS: tuple[str, ...] = ("linear", "log")
+SWEEPS: tuple[str, ...] = ("linear", "log")
 _PERIOD_TOL = 1e-9  # relative tolerance of "period_s is a whole number of samples"
 
 
@@ -101,8 +101,8 @@ class ChirpDesign:
         check_positive("amplitude", self.amplitude, self.unit)
         n_per = check_int("n_periods", self.n_periods, 1)
         n_drop = check_int("n_dropped", self.n_dropped, 0)
-        if self.sweep not in _SWEEPS:
-            raise ValueError(f"sweep must be one of {', '.join(_SWEEPS)}, got {self.sweep!r}")
+        if self.sweep not in SWEEPS:
+            raise ValueError(f"sweep must be one of {', '.join(SWEEPS)}, got {self.sweep!r}")
         ratio = period / dt
         n = round(ratio)
         if n < 2 or abs(ratio - n) > _PERIOD_TOL * ratio:

@@ -62,6 +62,8 @@ class Key:
         The value may name an input file or folder (relative to the working directory);
         when it names one that exists, its content is part of a run's fingerprint
         (`microfab.io.runstore`), so a run resumed on changed data is refused.
+    choices : tuple of str, optional
+        The values a ``str`` key takes (any non-empty string when not given).
     """
 
     name: str
@@ -74,6 +76,7 @@ class Key:
     alias: str | None = None
     allow_empty: bool = False
     path: bool = False
+    choices: tuple[str, ...] | None = None
 
     def _range(self) -> str:
         lo = "-inf" if self.low is None else f"{self.low:g}"
@@ -102,6 +105,8 @@ class Key:
         if self.type == "str":
             if not isinstance(value, str) or not value.strip():
                 raise JobFileError(f"{what}: expected a non-empty string")
+            if self.choices is not None and value not in self.choices:
+                raise JobFileError(f"{what}: expected one of {', '.join(self.choices)}")
             return value
         if self.type == "bool":
             if not isinstance(value, bool):

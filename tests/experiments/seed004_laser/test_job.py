@@ -41,7 +41,7 @@ def test_example_and_empty_sections_are_the_defaults(tmp_path):
     [
         ("[control]\nspeed = 1\n", r"unknown key"),
         ("[focusing]\n", r"unknown section"),
-        ('[control]\nlaw = "fuzzy"\n', r"law must be one of"),
+        ('[control]\nlaw = "fuzzy"\n', r"law = .fuzzy.: expected one of preview-dob, contour"),
         ("[control]\nbandwidth_hz = 0.0\n", r"bandwidth_hz"),
         ("[control]\ndob_bandwidth_hz = 6000.0\n", r"Nyquist"),
         ('[drawing]\nsource = "circle:radius=1e-4"\ncontour = 2\n', r"contour = 2"),

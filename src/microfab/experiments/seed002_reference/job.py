@@ -181,9 +181,8 @@ def _preflight(settings: ReferenceSettings) -> None:
     check_models_dir(settings.models_dir)
 
 
-def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
-    from microfab.experiments.seed002_reference.tables import NOTES, study_summary
-
+def _reproduce_preflight(options: dict[str, Any]) -> None:
+    """The ``models`` option names a stage-identify job's output (before any work)."""
     if not options["models"]:
         raise ValueError(
             "reference-opt needs identified models: run `microfab run "
@@ -193,6 +192,12 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
     from microfab.optimize.models import check_models_dir
 
     check_models_dir(options["models"])
+
+
+def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
+    from microfab.experiments.seed002_reference.tables import NOTES, study_summary
+
+    _reproduce_preflight(options)  # also when called as a library, not only by the CLI
     folder = options["checkpoints"]
     settings = ReferenceSettings(
         models_dir=options["models"],
@@ -232,4 +237,5 @@ REFERENCE_OPT_REPRODUCTION = Reproduction(
     ),
     data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES,
     run_folder_option="checkpoints",
+    preflight=_reproduce_preflight,
 )  # fmt: skip

@@ -61,13 +61,15 @@ _F = "float"
 EPOCH_WINDOWS = 262_144
 VAL_WINDOWS = 131_072
 
+MAGNITUDES = ("calibrated", "assumed")
+
 SCHEMA: dict[str, tuple[Key, ...]] = {
     "twin": (
         Key(name="seed", type="int", default=0, low=0, help="noise seed (run k uses seed + k)"),
         Key(name="noise", type="bool", default=True, help="2 µm output noise (seed eq. 3)"),
         Key(name="hold_s", type=_F, default=0.5, low=0.0, high=10.0, unit="s",
             help="hold after each command so the stage settles (assumed 0.5 s)"),
-        Key(name="magnitudes", type="str", default="calibrated",
+        Key(name="magnitudes", type="str", default="calibrated", choices=MAGNITUDES,
             help="friction and cogging: 'calibrated' (the twin file's, fitted to Table II "
             "column 1) or 'assumed' (the magnitudes before calibration)"),
     ),
@@ -122,9 +124,6 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="networks trained on PRBS and chirp runs (seed §III-C)"),
     ),
 }  # fmt: skip
-
-
-MAGNITUDES = ("calibrated", "assumed")
 
 
 def _magnitudes(tw: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
@@ -280,7 +279,7 @@ STAGE_MODELS_REPRODUCTION = Reproduction(
     options=(
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),
         Key(name="noise", type="bool", default=True, help="2 µm output noise on"),
-        Key(name="magnitudes", type="str", default="calibrated",
+        Key(name="magnitudes", type="str", default="calibrated", choices=MAGNITUDES,
             help="twin friction and cogging: 'calibrated' or 'assumed'"),
         Key(name="networks", type="bool", default=True,
             help="train the networks (about 10 min per training on one CPU thread)"),

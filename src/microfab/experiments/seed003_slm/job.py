@@ -27,7 +27,7 @@ from typing import Any
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed003_slm.results import ShapingJob, ShapingResult
 from microfab.experiments.seed003_slm.tables import NOTES, scan_table, seed_table
-from microfab.identify.chirp import ChirpDesign
+from microfab.identify.chirp import SWEEPS, ChirpDesign
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import slm_galvo
@@ -74,14 +74,15 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="sweeps played (assumed 4)"),
         Key(name="dropped", type="int", default=1, low=0, high=99,
             help="leading sweeps left out (assumed 1)"),
-        Key(name="sweep", type="str", default="linear", help="linear or log (assumed linear)"),
+        Key(name="sweep", type="str", default="linear", choices=SWEEPS,
+            help="linear or log (assumed linear)"),
         Key(name="poles", type="int", default=3, low=1, high=8, help="model poles (seed: 3)"),
         Key(name="zeros", type="int", default=0, low=0, high=8, help="model zeros (seed: 0)"),
         Key(name="band_hz", type="float_list", default=(), low=0.0, unit="Hz",
             allow_empty=True, help="[low, high] band fitted (empty: the chirp's)"),
     ),
     "shaper": (
-        Key(name="discretization", type="str", default="zpetc",
+        Key(name="discretization", type="str", default="zpetc", choices=DISCRETIZATIONS,
             help=f"filter used for the jump and the layer: {' or '.join(DISCRETIZATIONS)}"),
         Key(name="pole_hz", type=_F, default=4000.0, low=0.0, unit="Hz",
             help="added poles (seed §2: 2π·4000 rad/s by its coefficients)"),

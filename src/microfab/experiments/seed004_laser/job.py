@@ -70,7 +70,7 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="arc length between spline knots"),
     ),
     "control": (
-        Key(name="law", type="str", default="contour",
+        Key(name="law", type="str", default="contour", choices=LAWS,
             help=f"controller: one of {', '.join(LAWS)}"),
         Key(name="compare", type="bool", default=True,
             help="also run preview + DOB without the correction (seed Fig. 7 'Response1')"),
