@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-from matplotlib.path import Path as MplPath
 
+from microfab.geometry import nesting
 from microfab.geometry.path import Path
 from microfab.geometry.segments import LineSegment, Segment, segment_reach
 
@@ -82,23 +82,39 @@ class Layer:
         return tuple(c for c in self.contours if not c.closed)
 
     @cached_property
+    def containers(self) -> tuple[tuple[int, ...], ...]:
+        """The closed contours containing each contour, ascending indices; ``()`` if open.
+
+        Contour ``j`` contains closed contour ``i`` when the polygon of ``j``
+        (:meth:`Path.flatten <microfab.geometry.path.Path.flatten>`) contains a point of
+        ``i`` just inside its first segment (the midpoint, away from shared vertices).
+        Found through a grid of the polygons' boxes (:func:`~microfab.geometry.nesting.
+        containers`), not by testing every pair.
+        """
+        closed_idx = np.array([i for i, c in enumerate(self.contours) if c.closed], dtype=int)
+        out: list[tuple[int, ...]] = [()] * len(self.contours)
+        if closed_idx.size == 0:
+            return tuple(out)
+        closed = [self.contours[i] for i in closed_idx]
+        probes = np.array([c.first_midpoint for c in closed])
+        ptr, idx = nesting.containers(
+            [c.flatten() for c in closed], probes, own=np.arange(closed_idx.size)
+        )
+        found = closed_idx[idx].tolist()
+        for k, i in enumerate(closed_idx.tolist()):
+            out[i] = tuple(found[ptr[k] : ptr[k + 1]])
+        return tuple(out)
+
+    @cached_property
     def depth(self) -> tuple[int, ...]:
         """Nesting depth of each contour: 0 outer, 1 hole, 2 island in a hole, …; -1 open.
 
         A closed contour's depth is the number of other closed contours containing a
-        point of it (the even–odd rule decides what is material).
+        point of it (:attr:`containers`; the even–odd rule decides what is material).
         """
-        closed_idx = [i for i, c in enumerate(self.contours) if c.closed]
-        polys = {i: MplPath(self.contours[i].flatten()) for i in closed_idx}
-        depth = [-1] * len(self.contours)
-        for i in closed_idx:
-            # a point just inside the contour's first segment, away from shared vertices
-            c = self.contours[i]
-            probe = c.point([0.5 * c.segments[0].length])
-            depth[i] = sum(
-                1 for j in closed_idx if j != i and polys[j].contains_point(tuple(probe[0]))
-            )
-        return tuple(depth)
+        return tuple(
+            len(k) if c.closed else -1 for c, k in zip(self.contours, self.containers, strict=True)
+        )
 
     def oriented(self) -> Layer:
         """Outer contours counter-clockwise, holes clockwise.

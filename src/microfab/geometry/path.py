@@ -438,7 +438,19 @@ class Path:
         `MAX_FLATTEN` vertices; a curve that would need more deviates by more than ``tol``.
         """
         if tol is None:
-            tol = 1e-4 * max(float(np.max(np.ptp(self._coarse, axis=0))), 1e-12)
+            return self._flat.copy()
+        return self._flatten(tol)
+
+    @cached_property
+    def _flat(self) -> np.ndarray:
+        """`flatten` at its default tolerance, computed once (read-only)."""
+        tol = 1e-4 * max(float(np.max(np.ptp(self._coarse, axis=0))), 1e-12)
+        flat = self._flatten(tol)
+        flat.setflags(write=False)
+        return flat
+
+    def _flatten(self, tol: float) -> np.ndarray:
+        """`flatten` at tolerance ``tol``, m."""
         check_positive("tol", tol, "m")
         counts = np.ones(len(self.segments), dtype=np.int64)
         for i, seg in enumerate(self.segments):
@@ -471,6 +483,17 @@ class Path:
             assert isinstance(seg, CurveSegment)
             pts[start[i] : start[i + 1]] = seg.point(frac[start[i] : start[i + 1]])
         return np.vstack([pts, self.end[None, :] if not self.closed else pts[:1]])
+
+    @cached_property
+    def first_midpoint(self) -> np.ndarray:
+        """The point half-way along the first segment, shape (2,), m (read-only).
+
+        Away from the vertices that contours may share: :attr:`Layer.containers
+        <microfab.geometry.layer.Layer.containers>` asks which contours contain it.
+        """
+        p = self.point([0.5 * self.segments[0].length])[0]
+        p.setflags(write=False)
+        return p
 
     @cached_property
     def _coarse(self) -> np.ndarray:
