@@ -3,20 +3,30 @@
 from __future__ import annotations
 
 import json
+from collections import Counter
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
 import typer
 
-from microfab.cli._kit import check_option, check_output_path, console, err_console, fail
+from microfab.cli._kit import (
+    check_option,
+    check_output_path,
+    console,
+    err_console,
+    fail,
+    progress,
+)
 
-__all__ = ["MAX_GRID", "MAX_RATE_HZ", "path_app", "trajectory_cmd"]
+__all__ = ["LISTED", "MAX_GRID", "MAX_RATE_HZ", "path_app", "trajectory_cmd"]
 
 #: Largest ``--n-grid`` (the linear programs grow with it; 20000 points take a minute).
 MAX_GRID = 20_000
 #: Largest ``--rate``, Hz.
 MAX_RATE_HZ = 1e8
+#: Contours (and skipped items) ``path show`` lists one per line; ``--json`` gives all.
+LISTED = 20
 
 path_app = typer.Typer(no_args_is_help=True, help="Inspect drawings: contours, lengths, holes.")
 
@@ -54,39 +64,80 @@ def path_show_cmd(
     out: Annotated[
         Path | None, typer.Option(help="PNG picture (default: DRAWING-stem.png).")
     ] = None,
-    json_out: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+    json_out: Annotated[
+        bool, typer.Option("--json", help="Print the summary of every contour as JSON.")
+    ] = False,
     units: UnitsOpt = None,
     chord: ChordOpt = 0.1,
     text_height: HeightOpt = 0.01,
 ) -> None:
-    """Picture of the contours (start dots, direction arrows) and a summary."""
+    """Picture of the contours (start dots, direction arrows) and a summary.
+
+    The summary lists the first 20 contours, one line each (kind, length, box, segments),
+    then how many more there are and of which kinds; --json prints every contour. A
+    progress bar on stderr follows reading, nesting, drawing and writing.
+    """
     check_output_path("--out", out, inputs=[Path(drawing)])
     from microfab.report.canvas import save_figure
     from microfab.report.geometry import fig_layer
 
-    layer = _load(drawing, units, chord, text_height)
     target = out or Path(_stem(drawing) + ".png")
-    try:
-        save_figure(fig_layer(layer), target)
-    except OSError as exc:
-        fail(f"cannot write {target}: {exc}")
-    summary = layer.summary()
+    with progress() as prog:
+        task = prog.add_task("reading the drawing", total=4)
+        layer = _load(drawing, units, chord, text_height)
+        prog.update(task, advance=1, description=f"nesting {len(layer)} contours")
+        depth = layer.depth
+        summary = layer.summary()
+        prog.update(task, advance=1, description="drawing")
+        fig = fig_layer(layer)
+        prog.update(task, advance=1, description="writing the picture")
+        try:
+            save_figure(fig, target)
+        except OSError as exc:
+            fail(f"cannot write {target}: {exc}")
+        prog.update(task, advance=1, description=f"{len(layer)} contours")
     if json_out:
-        console.print_json(json.dumps(summary))
-        err_console.print(f"wrote {target}")
+        text = json.dumps(summary, indent=2, ensure_ascii=False)
+        if console.is_terminal and len(layer) <= LISTED:
+            console.print_json(text)  # coloured; a long one would take seconds
+        else:
+            print(text)
+        err_console.print(f"wrote {target}", highlight=False)
         return
-    for i, (c, d) in enumerate(zip(summary["contours"], layer.depth, strict=True)):  # type: ignore[arg-type]
-        kind = "open" if d < 0 else ("outer" if d % 2 == 0 else "hole")
+    _print_contours(summary["contours"], depth)  # type: ignore[arg-type]
+    for s in layer.skipped[:LISTED]:
+        err_console.print(f"skipped {s.kind} {s.ref}: {s.reason}", highlight=False)
+    if len(layer.skipped) > LISTED:
+        err_console.print(
+            f"... and {len(layer.skipped) - LISTED} more skipped; --json lists them all",
+            highlight=False,
+        )
+    console.print(f"wrote {target}", highlight=False)
+
+
+def _kind(depth: int) -> str:
+    """What a contour of this nesting depth is: ``open``, ``outer`` or ``hole``."""
+    return "open" if depth < 0 else ("outer" if depth % 2 == 0 else "hole")
+
+
+def _print_contours(contours: list[dict[str, Any]], depth: tuple[int, ...]) -> None:
+    """One line for each of the first `LISTED` contours, then a count of the rest."""
+    for i, (c, d) in enumerate(zip(contours[:LISTED], depth, strict=False)):
         x0, y0, x1, y1 = (v * 1e3 for v in c["bbox_m"])
         console.print(
-            f"#{i} {kind:5s} {'closed' if c['closed'] else 'open  '} "
+            f"#{i} {_kind(d):5s} {'closed' if c['closed'] else 'open  '} "
             f"length {c['length_m'] * 1e3:.4f} mm, bbox [{x0:.3f}, {y0:.3f}] - [{x1:.3f}, "
             f"{y1:.3f}] mm, {c['n_segments']} segments",
             highlight=False,
         )
-    for s in layer.skipped:
-        err_console.print(f"skipped {s.kind} {s.ref}: {s.reason}", highlight=False)
-    console.print(f"wrote {target}")
+    if len(contours) > LISTED:
+        kinds = Counter(_kind(d) for d in depth)
+        console.print(
+            f"... and {len(contours) - LISTED} more contours (of {len(contours)}: "
+            f"{kinds['outer']} outer, {kinds['hole']} holes, {kinds['open']} open); "
+            "--json lists them all",
+            highlight=False,
+        )
 
 
 def _stem(drawing: str) -> str:
