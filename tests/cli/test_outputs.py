@@ -289,3 +289,17 @@ def test_a_damaged_state_is_refused_on_one_line(tmp_path: Path, damage: str) -> 
     assert res.exit_code == 2 and len(lines) == 1 and lines[0].startswith("error: "), res.output
     assert name in lines[0] and "state" in lines[0], lines[0]
     assert _files(tmp_path) == before and not (tmp_path / "next.csv").exists()
+
+
+def test_calibrate_xy_stage_check_on_too_little_data_is_one_line(tmp_path: Path) -> None:
+    """The order scan of --check on 2 s of data cannot fit every order: one error line
+    (it was a traceback), the progress of the fit cleared, nothing written."""
+    out = tmp_path / "twin.toml"
+    res = runner.invoke(
+        app,
+        ["calibrate", "xy-stage", "--duration", "2", "--search", "1", "--check",
+         "--write", str(out)],
+    )  # fmt: skip
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert res.exit_code == 2 and len(lines) == 1, res.output
+    assert "--duration" in lines[0] and not out.exists()

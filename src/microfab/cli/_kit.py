@@ -6,10 +6,11 @@ file readers more than one command group uses (``LOW:HIGH`` ranges, measured tra
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import typer
@@ -51,6 +52,7 @@ __all__ = [
     "read_trace_file",
     "renamed",
     "reporter",
+    "status",
 ]
 
 #: Standard output; piped or redirected, lines are never wrapped (rich's default would
@@ -299,6 +301,19 @@ def progress() -> Progress:
         console=err_console,
         disable=not err_console.is_terminal and "CI" in os.environ,
     )
+
+
+@contextlib.contextmanager
+def status(what: str) -> Iterator[Callable[[str], None]]:
+    """A progress line on stderr that each call of the yielded function rewrites.
+
+    For work counted in runs of unknown number (a fit): ``show("run 3: ...")`` replaces
+    the line and counts one more run. Cleared if the work fails (see `_Bars`), so that a
+    refusal stays one line.
+    """
+    with progress() as bar:
+        task = bar.add_task(what, total=None)
+        yield lambda text: bar.update(task, advance=1, description=text)
 
 
 def reporter(prog: Progress) -> Callable[[str, int, int | None], None]:

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_output_path, console, fail, renamed
+from microfab.cli._kit import check_output_path, console, fail, renamed, status
 
 __all__ = ["calibrate_app"]
 
@@ -60,12 +60,14 @@ def calibrate_nanomanipulator_cmd(
             fail(f"{job}: not a nanomanipulator-msl job (kind {loaded.kind.name!r})")
         config = loaded.config
     try:
-        fit = fit_noise(
-            config,
-            progress=lambda k, s, a: console.print(
-                f"run {k}: noise {s[0]:.1f} / {s[1]:.1f} nm -> axial RMS {a[0]:.1f} / {a[1]:.1f} nm"
-            ),
-        )
+        with status("fitting the sensor noise") as show:
+            fit = fit_noise(
+                config,
+                progress=lambda k, s, a: show(
+                    f"run {k}: noise {s[0]:.1f} / {s[1]:.1f} nm -> axial RMS "
+                    f"{a[0]:.1f} / {a[1]:.1f} nm"
+                ),
+            )
     except ValueError as exc:
         fail(str(exc))
     ex, ey = fit.axial_error_pct
@@ -93,11 +95,12 @@ def calibrate_laser_cmd(
     from microfab.machines.laser_stage_calibration import fit_disturbance_scale, write_scale
 
     try:
-        fit = fit_disturbance_scale(
-            progress=lambda k, s, p: console.print(
-                f"run {k}: disturbance scale {s:.4g} -> peak {p:.3f} µm"
+        with status("fitting the disturbance scale") as show:
+            fit = fit_disturbance_scale(
+                progress=lambda k, s, p: show(
+                    f"run {k}: disturbance scale {s:.4g} -> peak {p:.3f} µm"
+                )
             )
-        )
     except ValueError as exc:
         fail(str(exc))
     fx, fy = (v * 100 for v in fit.fraction_below)
@@ -146,13 +149,24 @@ def calibrate_xy_stage_cmd(
     except ValueError as exc:
         fail(renamed(str(exc), {"total_s": "--duration", "search_s": "--search"}))
     try:
-        fit = fit_scales(
-            settings,
-            progress=lambda k, s, g: console.print(
-                f"run {k}: scales {s[0]:.4g} / {s[1]:.4g} -> sigma {g[0] * 1e6:.1f} / "
-                f"{g[1] * 1e6:.1f} µm"
-            ),
-        )
+        with status("fitting the friction and cogging scales") as show:
+            fit = fit_scales(
+                settings,
+                progress=lambda k, s, g: show(
+                    f"run {k}: scales {s[0]:.4g} / {s[1]:.4g} -> sigma {g[0] * 1e6:.1f} / "
+                    f"{g[1] * 1e6:.1f} µm"
+                ),
+            )
+            changes = scaled_changes(fit.scales)
+            checks = None
+            if check:  # before anything is printed: a refusal here stays one line
+                show("checks: order scan and time constants")
+                try:
+                    checks = linear_checks(fit.total_s, seed=seed, changes=changes)
+                except ValueError as exc:
+                    raise ValueError(
+                        f"--check on {fit.total_s:g} s of data: {exc}; give a longer --duration"
+                    ) from exc
     except ValueError as exc:
         fail(str(exc))
     capped = [ax for ax, c in zip("xy", fit.capped, strict=True) if c]
@@ -161,12 +175,9 @@ def calibrate_xy_stage_cmd(
         f"{fit.sigma_m[0] * 1e6:.1f} / {fit.sigma_m[1] * 1e6:.1f} µm on {fit.total_s:g} s "
         "(seed 48.0 / 156.3)" + (f"; capped: {', '.join(capped)}" if capped else "")
     )
-    changes = scaled_changes(fit.scales)
     for b in force_budget(load_params().with_(**dict(changes))):
         console.print(b.line())
-    checks = None
-    if check:
-        checks = linear_checks(fit.total_s, seed=seed, changes=changes)
+    if checks is not None:
         d = checks.to_dict()
         console.print(
             f"checks: sigma(y-u) {d['tracking_sigma_um'][0]:.1f} / "
