@@ -199,3 +199,44 @@ def test_path_show_of_a_dxf_cut_after_insunits_is_one_error_line(tmp_path: Path)
     assert res.exit_code == 2, res.output
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and "trunc.dxf: not a readable DXF file" in lines[0]
+
+
+def test_path_show_lists_the_first_contours_and_counts_the_rest(tmp_path: Path) -> None:
+    from microfab.cli.geometry import LISTED
+
+    # 225 squares, every fourth (57) with a square hole in it
+    body = "".join(
+        f'<path d="M {3 * (i % 20)} {3 * (i // 20)} h 2 v 2 h -2 z"/>'
+        + (
+            f'<path d="M {3 * (i % 20) + 0.5} {3 * (i // 20) + 0.5} h 1 v 1 h -1 z"/>'
+            if i % 4 == 0
+            else ""
+        )
+        for i in range(225)
+    )
+    svg = tmp_path / "many.svg"
+    svg.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="60mm" height="60mm" '
+        f'viewBox="0 0 60 60">{body}</svg>'
+    )
+    png = tmp_path / "many.png"
+    res = runner.invoke(app, ["path", "show", str(svg), "--out", str(png)])
+    assert res.exit_code == 0, res.output
+    rows = [ln for ln in res.stdout.splitlines() if ln.startswith("#")]
+    assert (
+        len(rows) == LISTED
+        and rows[0].startswith("#0 outer closed")
+        and rows[1].startswith("#1 hole")
+    )
+    (more,) = [ln for ln in res.stdout.splitlines() if ln.startswith("...")]
+    assert more == (
+        f"... and {282 - LISTED} more contours (of 282: 225 outer, 57 holes, 0 open); "
+        "--json lists them all"
+    )
+    assert res.stdout.splitlines()[-1] == f"wrote {png}"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    res = runner.invoke(app, ["path", "show", str(svg), "--out", str(png), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert len(data["contours"]) == 282 and data["skipped"] == []
+    assert all(c["closed"] and c["n_segments"] == 4 for c in data["contours"])
