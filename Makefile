@@ -32,6 +32,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_cli.py
 	$(BIN)/python benchmarks/bench_sim.py
 	$(BIN)/python benchmarks/bench_dxf.py
+	$(BIN)/python benchmarks/bench_drawings.py
 	$(BIN)/python benchmarks/bench_topp.py
 	$(BIN)/python benchmarks/bench_droplet.py
 	$(BIN)/python benchmarks/bench_sweep.py
