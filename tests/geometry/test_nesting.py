@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from matplotlib.path import Path as MplPath
 
+from microfab.geometry import nesting
 from microfab.geometry.layer import Layer
 from microfab.geometry.nesting import containers
 from microfab.geometry.shapes import circle, square
@@ -45,6 +46,18 @@ def test_random_polygons_match_the_pairwise_test(seed: int) -> None:
     got = _as_lists(*containers(polygons, probes, own=own))
     assert got == _pairwise(polygons, probes, own)
     assert sum(map(len, got)) > 100  # the case nests a lot
+
+
+def test_clustered_polygons_in_small_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A dense cluster and a far outlier: quantile cells, pairs made a few at a time."""
+    monkeypatch.setattr(nesting, "_CHUNK", 7)
+    rng = np.random.default_rng(9)
+    polygons = [_regular(5, *rng.uniform(0, 0.01, 2), 2e-3) for _ in range(400)]
+    polygons += [_regular(4, 100.0, 100.0, 1.0), _regular(4, 0.005, 0.005, 50.0)]
+    probes = np.vstack([0.5 * (p[0] + p[1]) for p in polygons] + [rng.uniform(0, 0.01, (50, 2))])
+    own = np.r_[np.arange(len(polygons)), np.full(50, -1)]
+    got = _as_lists(*containers(polygons, probes, own=own))
+    assert got == _pairwise(polygons, probes, own)
 
 
 def test_probes_on_edges_and_vertices_match_the_pairwise_test() -> None:

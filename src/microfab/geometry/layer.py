@@ -88,8 +88,8 @@ class Layer:
         Contour ``j`` contains closed contour ``i`` when the polygon of ``j``
         (:meth:`Path.flatten <microfab.geometry.path.Path.flatten>`) contains a point of
         ``i`` just inside its first segment (the midpoint, away from shared vertices).
-        Found through a grid of the polygons' boxes (:func:`~microfab.geometry.nesting.
-        containers`), not by testing every pair.
+        Found through a grid of the polygons' boxes
+        (:func:`~microfab.geometry.nesting.containers`), not by testing every pair.
         """
         closed_idx = np.array([i for i, c in enumerate(self.contours) if c.closed], dtype=int)
         out: list[tuple[int, ...]] = [()] * len(self.contours)

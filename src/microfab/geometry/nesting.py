@@ -7,9 +7,10 @@ which other contours contain it. Testing every point against every polygon is qu
 the same answers from far fewer tests:
 
 1. the candidates of a probe are the polygons whose vertex bounding box holds it (a point
-   outside a polygon's vertex box cannot be inside the polygon), found through a uniform
-   grid of about one cell per polygon: each box is registered in the cells it overlaps,
-   each probe looks only at its own cell's boxes;
+   outside a polygon's vertex box cannot be inside the polygon), found through a grid of
+   about one cell per polygon, its cell edges at quantiles of the box centres (so that a
+   dense cluster beside a far outlier still spreads over many cells): each box is
+   registered in the cells it overlaps, each probe looks only at its own cell's boxes;
 2. each polygon then tests its candidates in one call of matplotlib's
    :meth:`~matplotlib.path.Path.contains_points`, the same point-in-polygon routine (and
    so the same answer, to the bit) as :meth:`~matplotlib.path.Path.contains_point` on one
@@ -34,6 +35,8 @@ __all__ = ["containers"]
 
 #: Most grid cells along one axis.
 _MAX_CELLS = 2048
+#: About how many candidate pairs are made at once, before the box test.
+_CHUNK = 1 << 20
 
 
 def containers(
@@ -124,7 +127,6 @@ def _candidates(lo: np.ndarray, hi: np.ndarray, pts: np.ndarray) -> tuple[np.nda
     finite_pt = np.all(np.isfinite(pts), axis=1)
     finite_box = np.all(np.isfinite(lo) & np.isfinite(hi), axis=1)
     empty = np.any(lo > hi, axis=1)
-    gridded = finite_box & ~empty
     out_i: list[np.ndarray] = []
     out_j: list[np.ndarray] = []
     # a probe with a non-finite coordinate: every polygon is a candidate
@@ -133,53 +135,76 @@ def _candidates(lo: np.ndarray, hi: np.ndarray, pts: np.ndarray) -> tuple[np.nda
         out_i.append(np.full(some.size, i, dtype=np.int64))
         out_j.append(some)
     fin = np.flatnonzero(finite_pt)
-    wide = list(np.flatnonzero(~finite_box & ~empty))
-    if np.any(gridded):
-        x0, y0 = lo[gridded].min(axis=0)
-        x1, y1 = hi[gridded].max(axis=0)
-        g = int(min(max(np.ceil(np.sqrt(np.count_nonzero(gridded))), 1), _MAX_CELLS))
-        wx = (x1 - x0) / g if x1 > x0 else 1.0
-        wy = (y1 - y0) / g if y1 > y0 else 1.0
-
-        def cell(v: np.ndarray, v0: float, w: float) -> np.ndarray:
-            return np.clip(np.floor((v - v0) / w), 0, g - 1).astype(np.int64)
-
-        ix0, ix1 = cell(lo[:, 0], x0, wx), cell(hi[:, 0], x0, wx)
-        iy0, iy1 = cell(lo[:, 1], y0, wy), cell(hi[:, 1], y0, wy)
-        nx, ny = ix1 - ix0 + 1, iy1 - iy0 + 1
-        # a box over many cells is cheaper tested against every probe than registered
-        big = gridded & (nx * ny > max(64, g * g // 16))
-        wide.extend(np.flatnonzero(big))
-        reg = np.flatnonzero(gridded & ~big)
-        k = nx[reg] * ny[reg]
-        owner = np.repeat(reg, k)
-        off = np.arange(owner.size) - np.repeat(np.cumsum(k) - k, k)
-        cells = (iy0[owner] + off // nx[owner]) * g + ix0[owner] + off % nx[owner]
-        order = np.argsort(cells, kind="stable")
-        members = owner[order]
-        first = np.searchsorted(cells[order], np.arange(g * g + 1))
-        # the probes inside the grid's extent, in their cells
-        p = pts[fin]
-        inside = (p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0) & (p[:, 1] <= y1)
-        q = fin[inside]
-        c = cell(pts[q, 1], y0, wy) * g + cell(pts[q, 0], x0, wx)
-        count = first[c + 1] - first[c]
-        qi = np.repeat(q, count)
-        at = np.arange(qi.size) - np.repeat(np.cumsum(count) - count, count)
-        qj = members[np.repeat(first[c], count) + at]
-        hit = _in_box(pts[qi], lo[qj], hi[qj])
-        out_i.append(qi[hit])
-        out_j.append(qj[hit])
-    for j in wide:
-        if np.all(np.isfinite(lo[j])) and np.all(np.isfinite(hi[j])):
-            i = fin[_in_box(pts[fin], lo[j], hi[j])]
-        else:
-            i = fin
+    wide = np.flatnonzero(~finite_box & ~empty)
+    gridded = np.flatnonzero(finite_box & ~empty)
+    if gridded.size:
+        big, pairs = _grid_pairs(lo, hi, gridded, pts, fin)
+        wide = np.r_[wide, big]
+        for qi, qj in pairs:
+            out_i.append(qi)
+            out_j.append(qj)
+    for j in wide.tolist():
+        i = fin[_in_box(pts[fin], lo[j], hi[j])] if finite_box[j] else fin
         out_i.append(i)
         out_j.append(np.full(i.size, j, dtype=np.int64))
     if not out_i:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     return np.concatenate(out_i).astype(np.int64), np.concatenate(out_j).astype(np.int64)
+
+
+def _grid_pairs(
+    lo: np.ndarray, hi: np.ndarray, boxes: np.ndarray, pts: np.ndarray, probes: np.ndarray
+) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+    """Candidate pairs of the finite ``boxes`` (indices) and finite ``probes`` (indices).
+
+    The grid's cell edges are quantiles of the box centres along each axis (about
+    ``sqrt(len(boxes))`` cells a side), so that clustered contours spread over many
+    cells; a box is registered in every cell it overlaps, a probe looks in its own cell.
+    Cells are found by `numpy.searchsorted` on the edges, which is monotone: a probe in a
+    box lies in one of the box's cells. The pairs are made a chunk of probes at a time,
+    at most about `_CHUNK` before the box test, so memory stays bounded.
+
+    Returns
+    -------
+    big : numpy.ndarray
+        The boxes over too many cells, left out of the grid: test them directly.
+    pairs : list of (numpy.ndarray, numpy.ndarray)
+        Probe and box indices of the candidate pairs, chunk by chunk.
+    """
+    g = int(min(max(np.ceil(np.sqrt(boxes.size)), 1), _MAX_CELLS))
+    centre = 0.5 * (lo[boxes] + hi[boxes])
+    q = np.linspace(0.0, 1.0, g + 1)[1:-1]
+    edges = [np.unique(np.quantile(centre[:, k], q)) for k in range(2)]
+    gx, gy = edges[0].size + 1, edges[1].size + 1
+
+    def cell(v: np.ndarray, k: int) -> np.ndarray:
+        return np.searchsorted(edges[k], v, side="right").astype(np.int64)
+
+    ix0, ix1 = cell(lo[boxes, 0], 0), cell(hi[boxes, 0], 0)
+    iy0, iy1 = cell(lo[boxes, 1], 1), cell(hi[boxes, 1], 1)
+    nx, ny = ix1 - ix0 + 1, iy1 - iy0 + 1
+    # a box over many cells is cheaper tested against every probe than registered
+    over = nx * ny > max(64, gx * gy // 16)
+    reg = np.flatnonzero(~over)
+    k = nx[reg] * ny[reg]
+    row = np.repeat(reg, k)
+    off = np.arange(row.size) - np.repeat(np.cumsum(k) - k, k)
+    cells = (iy0[row] + off // nx[row]) * gx + ix0[row] + off % nx[row]
+    order = np.argsort(cells, kind="stable")
+    members = boxes[row[order]]
+    first = np.searchsorted(cells[order], np.arange(gx * gy + 1))
+    c = cell(pts[probes, 1], 1) * gx + cell(pts[probes, 0], 0)
+    count = first[c + 1] - first[c]
+    pairs = []
+    cut = np.searchsorted(np.cumsum(count), np.arange(_CHUNK, int(count.sum()), _CHUNK))
+    for sel in np.split(np.arange(probes.size), np.unique(cut + 1)):
+        n_sel = count[sel]
+        qi = np.repeat(probes[sel], n_sel)
+        at = np.arange(qi.size) - np.repeat(np.cumsum(n_sel) - n_sel, n_sel)
+        qj = members[np.repeat(first[c[sel]], n_sel) + at]
+        hit = _in_box(pts[qi], lo[qj], hi[qj])
+        pairs.append((qi[hit], qj[hit]))
+    return boxes[over], pairs
 
 
 def _in_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
