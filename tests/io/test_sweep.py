@@ -338,3 +338,29 @@ def test_runner_starts_and_closes_its_own_local_cluster(tmp_path: Path) -> None:
     assert [r["sq"] for r in res.rows] == [1, 4, 9]
     assert os.getpid() not in {r["pid"] for r in res.rows}
     assert set(multiprocessing.active_children()) <= before  # its workers are gone
+
+
+@pytest.mark.parametrize(
+    "address",
+    ["tcp://10.0.0.5:8786", "10.0.0.5:8786", "tls://host.example:1", "[::1]:8786",
+     "tcp://[fe80::1]:65535", " localhost:8786 "],
+)  # fmt: skip
+def test_scheduler_addresses_of_dask_s_form_are_accepted(address: str) -> None:
+    from microfab.io.sweep import check_scheduler_address
+
+    assert check_scheduler_address(address) == address.strip()
+
+
+@pytest.mark.parametrize(
+    "address",
+    ["", " ", "0", "-5:-1", "x=1e308", "host", "host:", ":8786", "host:0", "host:70000",
+     "http://host:8786", "1:2:3", "a b:1", "tcp://host:8786/extra"],
+)  # fmt: skip
+def test_scheduler_addresses_that_are_no_address_are_refused_before_any_file(
+    address: str, tmp_path: Path
+) -> None:
+    from microfab.io.sweep import run_sweep
+
+    with pytest.raises(ValueError, match="not a Dask scheduler address"):
+        run_sweep(square, [Pt(1)], results_dir=tmp_path / "r", scheduler=address)
+    assert list(tmp_path.iterdir()) == []

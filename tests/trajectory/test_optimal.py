@@ -418,3 +418,13 @@ def test_limits_too_small_to_time_a_motion_are_a_planning_error() -> None:
     )
     with pytest.raises(PlanningError, match="allow no motion that can be timed"):
         time_optimal(LinePath((0.0, 0.0), (0.01, 0.0)), tiny, n_grid=20)
+
+
+def test_start_time_with_a_jerk_so_large_the_ramp_rounds_away() -> None:
+    """σ of 1e12-1e20: the root lies at the constant-acceleration end, where the excess
+    rounds to zero or below (brentq refused 'f(a) and f(b) must have different signs')."""
+    from microfab.trajectory.optimal import _start_time
+
+    for sigma in (1e12, 1e16, 1e20):
+        t, tau = _start_time(1e-4, 0.1, sigma)
+        assert t == pytest.approx(2e-3, rel=1e-6) and 0 <= tau < 1e-9

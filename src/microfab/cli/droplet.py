@@ -187,9 +187,9 @@ def render_cmd(
             frame_interval_s=frame_interval / 1e6,
             progress=lambda t: bar.update(task, completed=round(t * 1e6)),
         )
-    sil = [s for s in res.silhouettes if s.bodies]
-    if not sil:
-        fail("the simulation produced no liquid outside the nozzle to photograph")
+        sil = [s for s in res.silhouettes if s.bodies]
+        if not sil:  # inside the bar's block: a refusal clears it
+            fail("the simulation produced no liquid outside the nozzle to photograph")
     cam = _camera(sil, pixel_size / 1e6)
     frames = render_sequence(sil, cam, seed=seed)
     try:
@@ -388,6 +388,7 @@ def calibrate_cmd(
     check_output_path("--write", write)
     from microfab.machines.printhead_calibration import (
         calibrate_relaxation,
+        check_property_table,
         model_breakup,
         write_relaxation,
     )
@@ -395,6 +396,11 @@ def calibrate_cmd(
     model = _model(model)
     if write is not None and not write.is_file():
         fail(f"--write {write}: no such property table (copy src/microfab/data/naalg.toml)")
+    if write is not None:
+        try:
+            check_property_table(write)  # before minutes of runs, not after them
+        except ValueError as exc:
+            fail(f"--write {exc}")
     with progress() as bar:
         task = bar.add_task("calibration runs", total=None)
         fit = calibrate_relaxation(

@@ -19,12 +19,21 @@ from microfab.cli._kit import (
     progress,
 )
 
-__all__ = ["LISTED", "MAX_GRID", "MAX_RATE_HZ", "path_app", "trajectory_cmd"]
+__all__ = ["LIMIT_RANGES", "LISTED", "MAX_GRID", "MAX_RATE_HZ", "path_app", "trajectory_cmd"]
 
 #: Largest ``--n-grid`` (the linear programs grow with it; 20000 points take a minute).
 MAX_GRID = 20_000
 #: Largest ``--rate``, Hz.
 MAX_RATE_HZ = 1e8
+#: Accepted range of each limit option by unit (assumed physical bounds of the machines
+#: microfab drives: galvo scanners reach ~10 m/s, 1e6 m/s², 1e10 m/s³ at the image plane,
+#: stages a metre of travel; outside them a planner only meets overflows).
+LIMIT_RANGES: dict[str, tuple[float, float]] = {
+    "m/s": (1e-6, 1e3),
+    "m/s²": (1e-6, 1e8),
+    "m/s³": (1e-6, 1e13),
+    "m": (1e-6, 10.0),
+}
 #: Contours (and skipped items) ``path show`` lists one per line; ``--json`` gives all.
 LISTED = 20
 
@@ -213,7 +222,8 @@ def trajectory_cmd(
         ("--jmax", jmax, "m/s³"),
         ("--workspace", workspace, "m"),
     ):
-        check_option(name, value, unit)
+        low, high = LIMIT_RANGES[unit]
+        check_option(name, value, unit, low=low, high=high, low_closed=True)
     if feed is not None and not time_optimal:
         fail("--feed caps the speed of --time-optimal; with --speed, the speed is already set")
     base = MachineLimits.seed002_stage()

@@ -48,19 +48,28 @@ def ann_cmd(
     ],
     axis: Annotated[str, typer.Option(help="x, y or both (one network per axis).")] = "both",
     epochs: Annotated[
-        int, typer.Option(min=1, help="Most epochs per axis (early stopping may end sooner).")
+        int,
+        typer.Option(
+            min=1,
+            max=10_000,
+            help="Most epochs per axis (early stopping may end sooner; seed 002: 200).",
+        ),
     ] = 200,
     device: Annotated[str, typer.Option(help="auto (CUDA if present), cpu or cuda.")] = "auto",
     restart: Annotated[
         bool, typer.Option("--restart", help="Discard the checkpoints and train from scratch.")
     ] = False,
     threads: Annotated[
-        int, typer.Option(min=1, help="CPU threads of PyTorch (1: best on a shared 2-core box).")
+        int,
+        typer.Option(
+            min=1, max=256, help="CPU threads of PyTorch (1: best on a shared 2-core box)."
+        ),
     ] = 1,
     workers: Annotated[
         int,
         typer.Option(
             min=1,
+            max=2,
             help="Axes trained at once, each in its own process (2: x and y "
             "side by side, half the time on 2 cores; same networks).",
         ),

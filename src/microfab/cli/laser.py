@@ -57,36 +57,37 @@ def analyze_cmd(
 
     if not reference_tol_um > 0:
         fail(f"--reference-tol-um must be positive, got {reference_tol_um:g} µm")
+    cfg = _laser_job(job) if job is not None else None  # before any work or output
     try:
         a = analyze_file(trace, drawing, contour, reference_tol_m=reference_tol_um * 1e-6)
     except (OSError, ValueError) as exc:
         fail(f"{trace}: {exc}")
-    print_table(analysis_table(a))
     summary = a.summary()
+    replayed = None
     if replay:
         from microfab.io.trace import read_trace
         from microfab.machines.laser_stage_files import replay_trace
 
-        control = twin = None
-        if job is not None:
-            cfg = _laser_job(job)
-            control, twin = cfg.run.control, cfg.run.twin
+        control = None if cfg is None else cfg.run.control
+        twin = None if cfg is None else cfg.run.twin
         try:
-            r = replay_trace(read_trace(trace), control, twin)
+            replayed = replay_trace(read_trace(trace), control, twin)
         except (OSError, ValueError) as exc:
             fail(f"{trace}: {exc}")
-        rx, ry = (v * 1e3 for v in r.rms_difference_a)
-        mx, my = (v * 1e3 for v in r.max_difference_a)
-        how = "exported derivatives" if r.exact_derivatives else "differenced derivatives"
+        summary["replay"] = {
+            "rms_difference_a": list(replayed.rms_difference_a),
+            "max_difference_a": list(replayed.max_difference_a),
+            "exact_derivatives": replayed.exact_derivatives,
+        }
+    print_table(analysis_table(a))
+    if replayed is not None:
+        rx, ry = (v * 1e3 for v in replayed.rms_difference_a)
+        mx, my = (v * 1e3 for v in replayed.max_difference_a)
+        how = "exported derivatives" if replayed.exact_derivatives else "differenced derivatives"
         console.print(
             f"replay ({how}): our current against the recorded one, RMS {rx:.4g} / {ry:.4g} "
             f"mA, max {mx:.4g} / {my:.4g} mA (x / y)"
         )
-        summary["replay"] = {
-            "rms_difference_a": list(r.rms_difference_a),
-            "max_difference_a": list(r.max_difference_a),
-            "exact_derivatives": r.exact_derivatives,
-        }
     if json_path is not None:
         atomic_write_json(json_path, summary)
         console.print(f"wrote {json_path}")

@@ -29,6 +29,13 @@ __all__ = ["optimize_cmd"]
 _FORMATS = ("csv", "h5", "mat")
 _STAGES = ("1", "both")
 _A_MAX = 40.0  # seed 002 Table I: the machine's acceleration limit, m/s²
+#: Assumed floors: below 1 mm/s² a contour of millimetres takes minutes and stage 2's M
+#: (400 Hz) grows past 1e5 samples; a tolerance under 1 nm is 2000x below the twin's 2 µm
+#: noise (seed 002 eq. 3) and only makes the solvers meet infinities.
+_A_MIN = 1e-3
+_TOL_MIN = 1e-9
+#: Most stage-1 points: 2.5x the largest default (seed 002 §IV-A: spacing μ, 200-2000).
+_N_MAX = 5000
 
 
 def optimize_cmd(
@@ -48,17 +55,18 @@ def optimize_cmd(
     ],
     out: Annotated[Path, typer.Option("--out", help="Directory for the results.")],
     amax: Annotated[
-        float, typer.Option(help="Output acceleration bound a_max, m/s² (0-40; seed 002: 1-3).")
+        float, typer.Option(help="Output acceleration bound a_max, m/s² (0.001-40; seed 002: 1-3).")
     ] = 1.0,
     tolerance: Annotated[
-        float, typer.Option(help="Tolerance μ around the contour, m (seed 002: 20e-6).")
+        float,
+        typer.Option(help="Tolerance μ around the contour, m (1e-9 to 1e-3; seed 002: 20e-6)."),
     ] = 20e-6,
     stage: Annotated[
         str, typer.Option(help="'both' (default) or '1' (stage 1 only, no networks).")
     ] = "both",
     n: Annotated[
         int | None,
-        typer.Option(help="Stage-1 points N (default: spacing μ, 200-2000; at least 10)."),
+        typer.Option(help="Stage-1 points N (default: spacing μ, 200-2000; 10 to 5000)."),
     ] = None,
     contour: Annotated[
         int | None, typer.Option(help="The contour to trace when the drawing has several.")
@@ -79,10 +87,10 @@ def optimize_cmd(
         fail(f"--stage must be 1 or both, got {stage!r}")
     if fmt not in _FORMATS:
         fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
-    check_option("--amax", amax, "m/s²", high=_A_MAX)
-    check_option("--tolerance", tolerance, "m", high=1e-3)
-    if n is not None and n < 10:
-        fail(f"--n must be at least 10 points, got {n}")
+    check_option("--amax", amax, "m/s²", low=_A_MIN, high=_A_MAX, low_closed=True)
+    check_option("--tolerance", tolerance, "m", low=_TOL_MIN, high=1e-3, low_closed=True)
+    if n is not None and not 10 <= n <= _N_MAX:
+        fail(f"--n must be 10 to {_N_MAX} points, got {n}")
     if out.exists() and not out.is_dir():
         fail(f"--out {out} exists and is not a directory")
     from microfab.cli.geometry import _load
@@ -102,6 +110,7 @@ def optimize_cmd(
     models = _models(model, need_networks=stage == "both")
     from microfab.core.limits import LimitViolation
     from microfab.optimize.pipeline import optimize_reference
+    from microfab.trajectory.optimal import PlanningError
 
     checkpoint = str(out / "stage2_checkpoint.npz") if stage == "both" else None
     try:
@@ -116,7 +125,7 @@ def optimize_cmd(
         )
         out.mkdir(parents=True, exist_ok=True)  # only now: a refusal above writes nothing
         res = _stage2(problem, models, st1, stage, checkpoint, optimize_reference)
-    except Stage1Error as exc:
+    except (Stage1Error, PlanningError) as exc:
         fail(str(exc))
     except LimitViolation as exc:
         fail(f"{exc}; the optimised input breaks Table I: raise the tolerance or lower --amax")

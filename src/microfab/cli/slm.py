@@ -291,7 +291,8 @@ def build_cmd(
         typer.Option(help="Save each layer here; a rerun skips the finished layers."),
     ] = None,
     workers: Annotated[
-        int, typer.Option(help="1: in this process; more: a local Dask cluster.")
+        int,
+        typer.Option(min=1, max=256, help="1: in this process; more: a local Dask cluster."),
     ] = 1,
     scheduler: Annotated[
         str | None, typer.Option(help="Address of a running Dask scheduler.")

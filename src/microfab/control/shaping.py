@@ -98,6 +98,7 @@ from microfab.plants.lti import DiscreteLTI
 from microfab.trajectory.base import Trajectory
 
 __all__ = [
+    "MAX_ADDED_POLES",
     "Bounds",
     "Discretization",
     "InverseShaper",
@@ -111,6 +112,11 @@ __all__ = [
 
 #: How the continuous design becomes a filter at ``dt`` (see the module).
 Discretization: TypeAlias = Literal["zoh", "zpetc"]
+
+#: Most poles the inverse shaper may add (assumed: 4x the seed's four, seed 003 §2; the
+#: coefficients of (s/p + 1)^n in double precision lose the low-frequency gain well before
+#: n = 100 and overflow near n = 1000).
+MAX_ADDED_POLES = 16
 
 _TAIL_TOL = 1e-9  # a shaped command held at its end has settled to this fraction of a step
 #: Most samples `InverseShaper.tail_samples` looks through (assumed 2**22: 42 s at the seed's
@@ -153,6 +159,11 @@ class InverseShaperConfig:
             )
         check_positive("pole_hz", self.pole_hz, "Hz")
         check_int("order", self.order, 1, "poles")
+        if self.order > MAX_ADDED_POLES:
+            raise ValueError(
+                f"order must be at most {MAX_ADDED_POLES} added poles, got {self.order} (seed "
+                "003 §2 adds four)"
+            )
         check_positive("dt", self.dt, "s")
         nyquist = 0.5 / self.dt
         if self.pole_hz >= nyquist:

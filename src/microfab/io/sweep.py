@@ -52,9 +52,11 @@ if TYPE_CHECKING:
     from distributed import Client
 
 __all__ = [
+    "CONNECT_TIMEOUT_S",
     "SweepError",
     "SweepFailure",
     "SweepResult",
+    "check_scheduler_address",
     "grid",
     "load_results",
     "point_key",
@@ -334,6 +336,17 @@ def run_sweep(
         raise ValueError(f"workers must be at least 1, got {workers}")
     if scheduler is not None and client is not None:
         raise ValueError(f"pass scheduler or client, not both (got {scheduler!r} and a client)")
+    if scheduler is not None:  # connected before the results folder is touched
+        with _connect(check_scheduler_address(scheduler)) as connected:
+            return run_sweep(
+                task,
+                points,
+                results_dir=results_dir,
+                settings=settings,
+                client=connected,
+                progress=progress,
+                raise_on_failure=raise_on_failure,
+            )
     unique = _unique_points(points)
     fields = {p: _fields(p) for p in unique}
     keys = {p: _key(f) for p, f in fields.items()}
@@ -389,6 +402,60 @@ def run_sweep(
     if failed and raise_on_failure:
         raise SweepError(result, path)
     return result
+
+
+#: Seconds to wait for a Dask scheduler to answer before the sweep is refused.
+CONNECT_TIMEOUT_S = 10.0
+
+_ADDRESS = re.compile(
+    r"(?:(?P<scheme>tcp|tls|ws|wss|ucx)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)"
+    r":(?P<port>[0-9]{1,5})/?"
+)
+
+
+def check_scheduler_address(address: str) -> str:
+    """``address`` if it names a Dask scheduler as ``[tcp://]host:port``, else ValueError.
+
+    Parameters
+    ----------
+    address : str
+        E.g. ``"tcp://10.0.0.5:8786"`` or ``"10.0.0.5:8786"``; a scheme of ``tcp``,
+        ``tls``, ``ws``, ``wss`` or ``ucx``; an IPv6 host in brackets; a port 1-65535.
+
+    Raises
+    ------
+    ValueError
+        Naming the address and the form expected (checked before any connection).
+    """
+    m = _ADDRESS.fullmatch(address.strip()) if isinstance(address, str) else None
+    if m is None or not 1 <= int(m["port"]) <= 65535:
+        raise ValueError(
+            f"scheduler {address!r} is not a Dask scheduler address; give "
+            "[tcp://]HOST:PORT with a port 1-65535, e.g. tcp://10.0.0.5:8786"
+        )
+    return address.strip()
+
+
+@contextlib.contextmanager
+def _connect(address: str) -> Iterator[Client]:
+    """A client of the scheduler at ``address``, or ValueError if it does not answer."""
+    try:
+        from distributed import Client
+    except ImportError as exc:
+        raise ImportError(
+            "running a sweep on a Dask scheduler needs dask.distributed; install it with "
+            "`pip install microfab[sweep]`"
+        ) from exc
+    try:
+        client = Client(address, timeout=f"{CONNECT_TIMEOUT_S:g}s")
+    except Exception as exc:  # whatever answers there (or nothing) is input
+        # (a port of another service sends bytes Dask reads as a frame length of EiB)
+        raise ValueError(
+            f"no Dask scheduler answered at {address} (waited up to {CONNECT_TIMEOUT_S:g} s; "
+            f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
+        ) from exc
+    with client:
+        yield client
 
 
 def _run_on_cluster(

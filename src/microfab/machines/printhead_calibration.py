@@ -287,6 +287,32 @@ def calibrate_relaxation(
 _BLOCK = re.compile(r"^\[relaxation\]\n(.*?)(?=^\[relaxation\.bounds\])", re.S | re.M)
 
 
+def check_property_table(path: str | Path) -> None:
+    """Refuse, before a calibration runs, a file `write_relaxation` could not update.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``--write`` file: a readable TOML property table with the layout of
+        ``microfab/data/naalg.toml`` (a ``[relaxation]`` table followed by
+        ``[relaxation.bounds]``) that loads as one.
+
+    Raises
+    ------
+    ValueError
+        Naming the file and what is wrong with it.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+        table = tomllib.loads(text)
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ValueError(f"{p}: not a readable property table ({exc})") from exc
+    if not _BLOCK.search(text):
+        raise ValueError(f"{p}: no [relaxation] table followed by [relaxation.bounds]")
+    _parse_table(table, str(p))
+
+
 def write_relaxation(
     fit: RelaxationFit, path: str | Path, *, command: str, model: str = "lagrangian"
 ) -> None:

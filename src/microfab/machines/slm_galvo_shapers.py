@@ -405,8 +405,11 @@ def _step(
             settle = math.inf
         if settle <= 0.5 * n * dt:
             return (np.arange(n + 1) - 1.0) * dt, cmd, pos, settle
-        if n >= _MAX_RECORD:  # pragma: no cover - every row of both twins settles
-            raise RuntimeError(f"the step has not settled within {n * dt:g} s")
+        if n >= _MAX_RECORD:  # a band below the twin's noise, or a jump of a fraction of a bit
+            raise ValueError(
+                f"the {s.jump_bit:g}-bit step has not settled into its {s.band * 100:g} % band "
+                f"within {n * dt:g} s: give a larger jump or band"
+            )
         n *= 2
 
 

@@ -25,7 +25,17 @@ from microfab.core.signals import period_samples
 from microfab.core.validate import check_in_range, check_int, check_positive
 from microfab.trajectory.base import Trajectory
 
-__all__ = ["PatternConfig", "PatternReference", "circle_centres", "pattern_reference"]
+__all__ = [
+    "MAX_PATTERN_SAMPLES",
+    "PatternConfig",
+    "PatternReference",
+    "circle_centres",
+    "pattern_reference",
+]
+
+#: Most samples a whole pattern may hold (1e8: about 3 h at 10 kHz, 12 GiB of position,
+#: velocity and acceleration); checked from the durations before anything is allocated.
+MAX_PATTERN_SAMPLES = 1e8
 
 N_CIRCLES = 4  # seed 001 §4.2: four circle patterns in one operation
 CIRCLE_DIAMETER_MM = 0.15  # seed 001 §4.2: circular contour of diameter 0.15 mm
@@ -207,6 +217,16 @@ def pattern_reference(config: PatternConfig, dt: float) -> PatternReference:
     """
     check_positive("dt", dt, "s")
     n_period = period_samples(config.period_s, dt)  # the RC's memory needs whole samples
+    per_circle = (config.move_s + config.pause_s + 2 * config.ramp_s) / dt + (
+        n_period * config.periods
+    )
+    total = config.n_circles * per_circle
+    if not total <= MAX_PATTERN_SAMPLES:
+        raise ValueError(
+            f"the pattern would be {total:.3g} samples ({config.n_circles} circles of "
+            f"{per_circle:.3g}); the most is {MAX_PATTERN_SAMPLES:.0e}: fewer circles or "
+            "periods, or shorter moves, pauses and ramps"
+        )
     n_move = max(round(config.move_s / dt), 1)
     n_pause = max(round(config.pause_s / dt), 1)
     n_ramp = max(round(config.ramp_s / dt), 1)

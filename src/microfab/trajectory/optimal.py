@@ -514,7 +514,10 @@ def _start_time(ds: float, v1: float, sigma: float) -> tuple[float, float]:
 
     if a_lo >= a_hi or excess(a_hi) >= 0:
         return 3 * ds / v1, 3 * ds / v1
-    a = float(brentq(excess, a_lo, a_hi, xtol=1e-14 * a_hi, rtol=1e-12))
+    if excess(a_lo) <= 0:  # σ so large that the ramp is lost in rounding: constant a
+        a = a_lo
+    else:
+        a = float(brentq(excess, a_lo, a_hi, xtol=1e-14 * a_hi, rtol=1e-12))
     t = min(v1 / a + a / (2 * sigma), 3 * ds / v1)
     return t, min(a / sigma, t)
 

@@ -168,7 +168,7 @@ def _make_config(sec: dict[str, dict[str, Any]]) -> DropletSweepConfig:
         ),
         models=parse_models(sweep["models"]),
         workers=run["workers"],
-        scheduler=run["scheduler"],
+        scheduler=_scheduler(run["scheduler"]),
     )
 
 
@@ -378,3 +378,10 @@ DROPLET_FIG4_REPRODUCTION = Reproduction(
     options=(_DURATION, _REPRO_MODELS, _WORKERS),
     data_files=printhead.DATA_FILES,
 )
+
+
+def _scheduler(address: str | None) -> str | None:
+    """A job's scheduler address, checked when the job is read (``run --check`` too)."""
+    from microfab.io.sweep import check_scheduler_address
+
+    return None if address is None else check_scheduler_address(address)

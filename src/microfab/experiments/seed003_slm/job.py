@@ -224,7 +224,7 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> ShapingJob:
         compare=sh["compare"],
         build=build,
         workers=bu["workers"],
-        scheduler=bu["scheduler"],
+        scheduler=_scheduler(bu["scheduler"]),
     )
 
 
@@ -319,3 +319,10 @@ SLM_SHAPER_REPRODUCTION = Reproduction(
     ),
     data_files=slm_galvo.DATA_FILES,
 )
+
+
+def _scheduler(address: str | None) -> str | None:
+    """A job's scheduler address, checked when the job is read (``run --check`` too)."""
+    from microfab.io.sweep import check_scheduler_address
+
+    return None if address is None else check_scheduler_address(address)
