@@ -1101,3 +1101,9 @@ KINDS: dict[str, tuple[Callable[[], st.SearchStrategy[Case]], float]] = {
 from fuzz_slm import SLM_KINDS  # noqa: E402
 
 KINDS.update(SLM_KINDS)
+
+# every option of every command, enumerated from the CLI (output aliasing, wrong-kind
+# paths, extreme magnitudes, --set, damaged state)
+from fuzz_options import OPTION_KINDS  # noqa: E402
+
+KINDS.update(OPTION_KINDS)

@@ -17,7 +17,10 @@ every file in that folder before and after, and returns an `Outcome`:
 ``dirty``
     a clean refusal that changed, created or deleted a file in the working folder;
 ``hang``
-    the case ran longer than the per-case timeout.
+    the case ran longer than the per-case timeout;
+``clobbered``
+    whatever the exit, a file the case names in ``keep`` (an input: measured data, a
+    drawing, a job file) was changed or deleted — an output that was also an input.
 
 `run_pool` runs many cases in worker processes, so that a case stuck in compiled code
 is killed and reported as a hang without stopping the run.
@@ -54,8 +57,8 @@ __all__ = [
 ]
 
 #: Every outcome, in table order; those after ``accepted`` are failures.
-OUTCOMES = ("refused", "accepted", "uncaught", "hang", "messy", "dirty")
-FAILURES = ("uncaught", "hang", "messy", "dirty")
+OUTCOMES = ("refused", "accepted", "uncaught", "hang", "messy", "dirty", "clobbered")
+FAILURES = ("uncaught", "hang", "messy", "dirty", "clobbered")
 TIMEOUT_S = 20.0
 
 
@@ -77,6 +80,12 @@ class Case:
         Named fixtures copied into the folder (see `FIXTURES`).
     note : str
         What was done to the input, for reports.
+    damage : tuple of (str, str)
+        After the fixtures and files: (relative path, how) with ``how`` one of `DAMAGE`
+        (a state file cut or emptied, an input replaced by a folder...).
+    keep : tuple of str
+        Relative paths that must be byte-identical after the command whatever its exit
+        (inputs: an accepted command that overwrote one is ``clobbered``).
     """
 
     kind: str
@@ -84,6 +93,8 @@ class Case:
     files: tuple[tuple[str, bytes], ...] = ()
     setup: tuple[str, ...] = ()
     note: str = ""
+    damage: tuple[tuple[str, str], ...] = ()
+    keep: tuple[str, ...] = ()
 
     def describe(self) -> str:
         """One line: kind, note and command."""
@@ -184,6 +195,35 @@ def _in_folder(path: Path) -> Iterator[None]:
         os.chdir(old)
 
 
+def _damage(path: Path, how: str) -> None:
+    """Damage one file (or every file under a folder) of the working folder."""
+    if path.is_dir() and how not in ("remove", "file"):
+        for f in sorted(q for q in path.rglob("*") if q.is_file()):
+            _damage(f, how)
+        return
+    data = path.read_bytes() if path.is_file() else b""
+    if how == "empty":
+        path.write_bytes(b"")
+    elif how == "half":
+        path.write_bytes(data[: len(data) // 2])
+    elif how == "junk":
+        path.write_bytes(bytes(range(256)) * 4)
+    elif how == "remove":
+        shutil.rmtree(path) if path.is_dir() else path.unlink(missing_ok=True)
+    elif how == "folder":  # a folder where a file was
+        path.unlink(missing_ok=True)
+        path.mkdir(parents=True, exist_ok=True)
+    elif how == "file":  # a file where a folder (or file) was
+        shutil.rmtree(path) if path.is_dir() else path.unlink(missing_ok=True)
+        path.write_bytes(b"not a folder\n")
+    else:
+        raise ValueError(f"unknown damage {how!r}; known: {', '.join(DAMAGE)}")
+
+
+#: The ways `Case.damage` can damage an input.
+DAMAGE = ("empty", "half", "junk", "remove", "folder", "file")
+
+
 def _prepare(case: Case, work: Path) -> None:
     for name in case.setup:
         FIXTURES[name](work)
@@ -191,6 +231,18 @@ def _prepare(case: Case, work: Path) -> None:
         p = work / rel
         p.parent.mkdir(parents=True, exist_ok=True)
         p.write_bytes(content)
+    for rel, how in case.damage:
+        _damage(work / rel, how)
+
+
+def _kept(case: Case, work: Path, before: dict[str, str]) -> tuple[str, ...]:
+    """The ``keep`` files that are no longer as they were."""
+    after = _hashes(work)
+    lost = []
+    for rel in case.keep:
+        names = [k for k in before if k == rel or k.startswith(rel.rstrip("/") + "/")]
+        lost += [k for k in names if after.get(k) != before[k]]
+    return tuple(sorted(lost))
 
 
 def classify(exit_code: int | None, output: str, exception: BaseException | None) -> str:
@@ -264,6 +316,10 @@ def run_case(case: Case, timeout_s: float = TIMEOUT_S) -> Outcome:
             last = f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:300]
             return Outcome(case, outcome, code, seconds, f"{last}\n{tb}")
         changed: tuple[str, ...] = ()
+        lost = _kept(case, work, before) if case.keep else ()
+        if lost:
+            detail = " | ".join(ln for ln in output.splitlines() if ln.strip())[:500]
+            return Outcome(case, "clobbered", code, seconds, detail, lost)
         if outcome == "refused":
             after = _hashes(work)
             changed = tuple(
@@ -392,8 +448,9 @@ def format_table(results: Sequence[Outcome]) -> str:
         "hangs >20 s",
         "messy refusals",
         "refusals that changed files",
+        "inputs overwritten",
     )
-    keys = ("refused", "accepted", "uncaught", "hang", "messy", "dirty")
+    keys = ("refused", "accepted", "uncaught", "hang", "messy", "dirty", "clobbered")
     rows = [
         (kind, str(sum(c.values())), *(str(c[k]) for k in keys))
         for kind, c in tally(results).items()

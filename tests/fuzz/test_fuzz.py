@@ -17,6 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from fuzz_cases import KINDS
 from fuzz_driver import Case, run_case
+from fuzz_options import cases_of, missing_generators
 from hypothesis import HealthCheck, given, settings
 
 #: Cases per kind: 1000 in all, weighted to the cheap kinds (a drawing that is read is
@@ -27,14 +28,22 @@ SUBSET = {
     "dat": 40,
     "shape": 50,
     "traj": 30,
-    "job": 300,
-    "trial": 270,
+    "job": 200,
+    "trial": 170,
     "droplet": 60,
     "frames": 50,
     # seed 003 part 2 (fuzz_slm): a run accepted costs 0.1 to 1 s, so a few each
     "identify-chirp": 15,
     "shaper-design": 15,
     "slm-scan-time": 15,
+    # every option of every command (fuzz_options): a case accepted runs a cheap recipe
+    "opt-number": 60,
+    "opt-text": 30,
+    "opt-flag": 10,
+    "out-path": 40,
+    "in-path": 40,
+    "state": 10,
+    "set": 40,
 }
 
 
@@ -70,8 +79,28 @@ test_frames = _fuzz_test("frames")
 test_identify_chirp = _fuzz_test("identify-chirp")
 test_shaper_design = _fuzz_test("shaper-design")
 test_slm_scan_time = _fuzz_test("slm-scan-time")
+test_opt_number = _fuzz_test("opt-number")
+test_opt_text = _fuzz_test("opt-text")
+test_opt_flag = _fuzz_test("opt-flag")
+test_out_path = _fuzz_test("out-path")
+test_in_path = _fuzz_test("in-path")
+test_state = _fuzz_test("state")
+test_set = _fuzz_test("set")
 
 
 def test_the_subset_covers_every_kind_with_about_1000_cases() -> None:
     assert set(SUBSET) == set(KINDS)
     assert 900 <= sum(SUBSET.values()) <= 1100
+
+
+def test_every_option_of_every_command_has_a_generator() -> None:
+    """A new command, or a path option nobody told the generator about, fails here."""
+    assert missing_generators() == []
+
+
+def test_the_option_kinds_attack_every_command() -> None:
+    from fuzz_options import OPTION_KINDS, commands
+
+    attacked = {c.note.split(":")[0] for kind in OPTION_KINDS for c in cases_of(kind)}
+    attacked |= {"reproduce"} if cases_of("set") else set()
+    assert set(commands()) <= attacked

@@ -1,0 +1,99 @@
+"""Cases the option fuzz (`fuzz_options`) found, kept as regressions: each is refused
+cleanly now (exit 2, one ``error:`` line, every file as it was).
+
+Before the fixes: tracebacks (MemoryError of PiB, OverflowError, HiGHS and settling
+errors), hangs (a pattern of 2**31 circles, 2**31 stage-1 points, 1e30 worker processes,
+a scheduler address that never answers), refusals after a table or a progress bar had
+been printed, and refusals that had already written the sweep's settings.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import fuzz_cases  # noqa: F401  (registers the workspace fixture through fuzz_options)
+from fuzz_driver import Case, run_case
+from fuzz_workspace import RECIPES
+
+NANO = RECIPES["nanomanipulator analyze"].argv
+OPT = ("optimize", "circle:radius=0.002", "--model", "models", "--out", "optimized",
+       "--stage", "1", "--n", "20")  # fmt: skip
+TRAJ = ("trajectory", "part.dxf", "--time-optimal", "--n-grid", "50", "--rate", "2000",
+        "--out", "reference.csv", "--plot", "profile.png")  # fmt: skip
+SWEEP = ("droplet", "sweep", "--concentrations", "0.15", "--voltages", "50", "--duration",
+         "10", "--out", "sweep")  # fmt: skip
+SLM = ("slm", "build", "--layers", "1", "--outline-radius-mm", "1", "--results-dir",
+       "slm_layers")  # fmt: skip
+LASER = ("laser", "analyze", "laser_trace.h5", "--drawing", "circle:radius=30e-6",
+         "--replay", "--out", "laser_report", "--json", "laser.json")  # fmt: skip
+
+FOUND: dict[str, tuple[tuple[str, ...], str]] = {
+    "pattern of 2**31 circles": ((*NANO, "--circles", "2147483648"), "the pattern would be"),
+    "pattern of 1e30 circles": ((*NANO, "--circles", "1" + "0" * 30), "the pattern would be"),
+    "pattern with 1e12 s moves": ((*NANO, "--move-s", "1e12"), "the pattern would be"),
+    "stage-1 points 2**31": ((*OPT, "--n", "2147483648"), "--n must be"),
+    "a_max 1e-12": ((*OPT, "--amax", "1e-12"), "--amax must be"),
+    "tolerance 5e-324": ((*OPT, "--tolerance", "5e-324"), "--tolerance must be"),
+    "inverse shaper of 1e30 poles": (
+        (
+            "shaper",
+            "design",
+            "model.json",
+            "--kind",
+            "inverse",
+            "--out",
+            "d.json",
+            "--order",
+            "1" + "0" * 30,
+        ),
+        "--order must be at most",
+    ),
+    "settling band 1e-12 %": (
+        ("shaper", "compare", "--json", "c.json", "--band-pct", "1e-12"),
+        "has not settled",
+    ),
+    "a_max 1e-308": ((*TRAJ, "--amax", "1e-308"), "--amax must be"),
+    "jerk 1e308": ((*TRAJ, "--jmax", "1e308"), "--jmax must be"),
+    "1e30 slm workers": ((*SLM, "--workers", "1" + "0" * 30), "--workers"),
+    "sweep scheduler ' '": ((*SWEEP, "--scheduler", " "), "not a Dask scheduler address"),
+    "sweep scheduler '10:1'": ((*SWEEP, "--scheduler", "10:1"), "no Dask scheduler answered"),
+    "sweep scheduler '-5:-1'": ((*SWEEP, "--scheduler", "-5:-1"), "not a Dask scheduler"),
+    "slm scheduler 'x=1e308'": ((*SLM, "--scheduler", "x=1e308"), "not a Dask scheduler"),
+    "laser --job not TOML": ((*LASER, "--job", "chirp.csv"), "chirp.csv"),
+    "laser --job of another kind": ((*LASER, "--job", "job.toml"), "not a laser"),
+    "droplet render of no liquid": (
+        (
+            "droplet",
+            "render",
+            "rendered",
+            "--duration",
+            "100",
+            "--frame-interval",
+            "25",
+            "--concentration",
+            "1e-12",
+        ),
+        "no liquid outside the nozzle",
+    ),
+}
+
+
+@pytest.mark.parametrize("name", list(FOUND))
+def test_found_case_is_refused_cleanly(name: str) -> None:
+    argv, says = FOUND[name]
+    out = run_case(Case(kind="found", argv=argv, setup=("workspace",), note=name))
+    assert out.outcome == "refused", f"{out.outcome}: {out.detail}"
+    assert says in out.detail, out.detail
+
+
+def test_a_calibration_refuses_a_property_table_it_could_not_update_before_running() -> None:
+    out = run_case(
+        Case(kind="found", argv=("droplet", "calibrate", "--model", "eulerian", "--write",
+                                 "afile"), files=(("afile", b"kept?\n"),), setup=("workspace",))
+    )  # fmt: skip
+    assert out.outcome == "refused" and out.seconds < 5, out.detail
