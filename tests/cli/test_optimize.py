@@ -57,10 +57,13 @@ def test_stage_one_needs_only_the_linear_model(tiny_models, tmp_path):
 @pytest.mark.parametrize(
     ("extra", "says"),
     [
-        (["--amax", "0"], "--amax must be more than 0"),
+        (["--amax", "0"], "--amax must be at least 0.001"),
+        (["--amax", "1e-12"], "--amax must be at least 0.001"),
         (["--amax", "41"], "at most 40"),
-        (["--tolerance", "-1e-6"], "--tolerance must be more than 0"),
-        (["--n", "5"], "--n must be at least 10"),
+        (["--tolerance", "-1e-6"], "--tolerance must be at least 1e-09"),
+        (["--tolerance", "5e-324"], "--tolerance must be at least 1e-09"),
+        (["--n", "5"], "--n must be 10 to 5000"),
+        (["--n", "2147483648"], "--n must be 10 to 5000"),
         (["--stage", "3"], "--stage must be 1 or both"),
         (["--format", "xls"], "--format must be one of"),
     ],

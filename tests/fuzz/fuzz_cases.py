@@ -846,10 +846,7 @@ def trial_columns(
         if not names:
             break
         name = draw(st.sampled_from(names))
-        try:
-            col = np.array(np.atleast_1d(cols[name]), dtype=float, copy=True)
-        except (TypeError, ValueError):  # a column made odd by an earlier defect
-            col = np.zeros(3)
+        col = _vector(cols[name])
         if op == "value" and col.size:
             col[draw(st.integers(0, col.size - 1))] = draw(st.sampled_from(SPECIAL_FLOATS))
             cols[name] = col
@@ -862,18 +859,18 @@ def trial_columns(
             cols = {(new if k == name else k): v for k, v in cols.items()}
         elif op == "extra":
             cols[draw(st.sampled_from(("reference_z", "input_z", "output_x", "note")))] = col
-        elif op == "jitter" and "time" in cols and cols["time"].size > 2:
-            t = np.array(cols["time"], dtype=float)
+        elif op == "jitter" and "time" in cols and _vector(cols["time"]).size > 2:
+            t = _vector(cols["time"])
             t[draw(st.integers(1, t.size - 2))] += draw(st.sampled_from((1e-7, 3e-6, -2e-5)))
             cols["time"] = t
         elif op == "decreasing" and "time" in cols:
-            cols["time"] = np.array(cols["time"], dtype=float)[::-1]
+            cols["time"] = _vector(cols["time"])[::-1]
         elif op == "rate" and "time" in cols:
-            cols["time"] = np.array(cols["time"], dtype=float) * draw(
+            cols["time"] = _vector(cols["time"]) * draw(
                 st.sampled_from((2.0, 0.5, 1.0 + 1e-9, 1e-9, 1e6, 0.0))
             )
         elif op == "t0" and "time" in cols:
-            cols["time"] = np.array(cols["time"], dtype=float) + draw(floats_any())
+            cols["time"] = _vector(cols["time"]) + draw(floats_any())
         elif op == "short":
             k = draw(st.sampled_from((0, 1, 2, 7, 8, 9, 12)))
             cols = {key: np.atleast_1d(v)[:k] for key, v in cols.items()}
@@ -900,6 +897,19 @@ def trial_columns(
             )
         notes.append(f"{op}({name})")
     return cols, "+".join(notes) or "valid"
+
+
+def _vector(value: Any) -> np.ndarray:
+    """A column as a fresh 1-D float array; one made odd by an earlier defect (text, a
+    matrix, a scalar, complex numbers, a dict) becomes three zeros or its real part."""
+    try:
+        with np.errstate(all="ignore"):
+            arr = np.atleast_1d(np.asarray(value))
+            if np.iscomplexobj(arr):
+                arr = arr.real
+            return np.array(arr, dtype=float, copy=True).ravel()
+    except (TypeError, ValueError):
+        return np.zeros(3)
 
 
 def _serialise(cols: dict[str, Any], suffix: str, style: int) -> bytes:

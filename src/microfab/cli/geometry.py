@@ -222,8 +222,11 @@ def trajectory_cmd(
         ("--jmax", jmax, "m/s³"),
         ("--workspace", workspace, "m"),
     ):
-        low, high = LIMIT_RANGES[unit]
-        check_option(name, value, unit, low=low, high=high, low_closed=True)
+        if name in ("--speed", "--feed"):  # requests, capped by the limits; the sample
+            check_option(name, value, unit)  # budget refuses one too slow to sample
+        else:
+            low, high = LIMIT_RANGES[unit]
+            check_option(name, value, unit, low=low, high=high, low_closed=True)
     if feed is not None and not time_optimal:
         fail("--feed caps the speed of --time-optimal; with --speed, the speed is already set")
     base = MachineLimits.seed002_stage()
