@@ -106,3 +106,18 @@ def test_asked_for_the_limit_or_above_it_stays_within_it_with_no_allowance(
     assert np.all(vmax <= np.asarray(LIMITS.velocity))
     if radius == 0.15:  # where the velocity limit, not the curvature, sets the speed
         assert np.max(vmax) > 0.999 * min(speed, 1.5)  # slowed by a hair, not by a factor
+
+
+def test_corner_stops_closer_than_the_grid_spacing_are_planned() -> None:
+    """A long run then a zigzag of 10 µm teeth: on a 0.5 mm grid the stops sit next to
+    each other, and an interval from rest to rest had an infinite time (numpy then refused
+    'Maximum allowed size exceeded'); a node between two stops plans it."""
+    from microfab.geometry.path import Path
+
+    teeth = [(0.05 + 1e-5 * k, 1e-5 * (k % 2)) for k in range(1, 201)]
+    path = Path.polyline([(0.0, 0.0), (0.05, 0.0), *teeth])
+    limits = MachineLimits.seed002_stage()
+    traj = cruise(path, limits, speed=0.05, sample_rate_hz=2000.0)
+    check_trajectory(traj, limits)
+    assert np.isfinite(traj.duration) and traj.meta["corner_stops"] >= 150
+    assert traj.s is not None and traj.s[-1] == pytest.approx(path.length, rel=1e-9)

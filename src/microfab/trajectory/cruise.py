@@ -194,6 +194,14 @@ def cruise(
         keep[[0, -1]] = True
         s = s[keep]
     s = np.unique(np.concatenate([s, stops]))
+    # two stops (or a stop and an end) next to each other on the grid would leave an
+    # interval that starts and ends at rest, whose time is infinite (stops closer than the
+    # grid's spacing: a drawing of thousands of small contours): a node between them
+    rest = np.isin(s, stops)
+    rest[[0, -1]] = True
+    both = np.flatnonzero(rest[:-1] & rest[1:])
+    if both.size:
+        s = np.unique(np.concatenate([s, 0.5 * (s[both] + s[both + 1])]))
     if path.closed:
         s[-1] = np.nextafter(length, 0.0)  # stay on the last segment
     v_cap, a_tan = _bounds(path, s, limits, speed)
