@@ -66,7 +66,7 @@ INT_TEXT = (
 TEXT = (
     "", " ", "nan", "inf", "-1", "0", "1e308", "abc", "a,b", ",", ":", "1:2:3", "10:1",
     "nan:nan", "0:1e308", "-5:-1", "=", "x=1e308", "1,nan,3", "1e308,1e308", "é",
-    "W" * 10_000, "../../../x",
+    "W" * 10_000, "../../../x", "a\x00b", "text:\x00",
 )  # fmt: skip
 OUTPUT_DAMAGE = ("empty", "half", "junk", "file", "remove")
 INPUT_DAMAGE = ("empty", "half", "junk", "remove")

@@ -81,11 +81,25 @@ def main(argv: list[str] | None = None) -> int:
     share = sum(KINDS[k][1] for k in kinds)
     t0 = time.monotonic()
     cases: list[Case] = []
+    dry: set[str] = set()
     for i, k in enumerate(kinds):
         n = max(1, round(args.cases * KINDS[k][1] / share))
         made = generate(k, n, args.seed * 1000 + i)
         print(f"generated {len(made):5d} {k} cases", file=sys.stderr, flush=True)
         cases += made
+        if len(made) < n:  # a kind of finitely many cases (every option's values) ran dry
+            dry.add(k)
+    # what the dry kinds could not make, the others make (another seed), so that the run
+    # holds the number of cases asked for
+    rich = [k for k in kinds if k not in dry]
+    for j, k in enumerate(rich):
+        short = args.cases - len(cases)
+        if short <= 0:
+            break
+        n = max(1, round(short * KINDS[k][1] / sum(KINDS[r][1] for r in rich[j:])))
+        more = generate(k, n, args.seed * 1000 + 500 + j)
+        print(f"generated {len(more):5d} more {k} cases", file=sys.stderr, flush=True)
+        cases += more
     # warm the parent's imports once, so that every forked worker starts with them
     import microfab.cli  # noqa: F401
 

@@ -66,6 +66,10 @@ FOUND: dict[str, tuple[tuple[str, ...], str]] = {
     "slm scheduler 'x=1e308'": ((*SLM, "--scheduler", "x=1e308"), "not a Dask scheduler"),
     "laser --job not TOML": ((*LASER, "--job", "chirp.csv"), "chirp.csv"),
     "laser --job of another kind": ((*LASER, "--job", "job.toml"), "not a laser"),
+    "a text of a NUL byte as a drawing": (
+        ("path", "show", "text:\x00", "--out", "part.png"),
+        "not a printable character",
+    ),
     "droplet render of no liquid": (
         (
             "droplet",

@@ -82,12 +82,16 @@ def fail(msg: str, code: int = 2) -> NoReturn:
 
 
 def _same_file(a: Path, b: Path) -> bool:
-    """Whether two paths name one file: the same resolved path, or the same inode."""
-    if a.resolve() == b.resolve():
-        return True
+    """Whether two paths name one file: the same resolved path, or the same inode.
+
+    A path no file system can hold (a NUL byte: a ``text:`` specification taken for a
+    path) names no file, so it is nobody's alias.
+    """
     try:
+        if a.resolve() == b.resolve():
+            return True
         return a.exists() and b.exists() and os.path.samefile(a, b)
-    except OSError:
+    except (OSError, ValueError):
         return False
 
 
@@ -119,6 +123,8 @@ def check_output_path(
     """
     if path is None:
         return
+    if "\x00" in str(path):
+        fail(f"{option} {str(path)!r}: a path cannot hold a NUL byte")
     if path.exists():
         if kind == "file" and path.is_dir():
             fail(f"{option} {path} is a folder; give a file name")
