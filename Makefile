@@ -26,7 +26,7 @@ test: $(STAMP)
 # 10 000 generated bad (and some good) inputs through every command that reads a file or
 # parameters; prints the table and fails on a traceback, a hang, or an untidy refusal
 fuzz: $(STAMP)
-	$(BIN)/python tests/fuzz/run_fuzz.py --cases 10000
+	$(BIN)/python tests/fuzz/run_fuzz.py --cases 14000
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_cli.py

@@ -425,11 +425,11 @@ def _strategy(kind: str) -> Callable[[], st.SearchStrategy[Case]]:
 
 #: The kinds of this module, with their share of ``make fuzz`` (as `fuzz_cases.KINDS`).
 OPTION_KINDS: dict[str, tuple[Callable[[], st.SearchStrategy[Case]], float]] = {
-    "opt-number": (_strategy("opt-number"), 0.10),
-    "opt-text": (_strategy("opt-text"), 0.05),
-    "opt-flag": (_strategy("opt-flag"), 0.01),
-    "out-path": (_strategy("out-path"), 0.04),
-    "in-path": (_strategy("in-path"), 0.06),
-    "state": (_strategy("state"), 0.01),
-    "set": (_strategy("set"), 0.03),
+    "opt-number": (_strategy("opt-number"), 0.19),
+    "opt-text": (_strategy("opt-text"), 0.095),
+    "opt-flag": (_strategy("opt-flag"), 0.002),
+    "out-path": (_strategy("out-path"), 0.025),
+    "in-path": (_strategy("in-path"), 0.055),
+    "state": (_strategy("state"), 0.002),
+    "set": (_strategy("set"), 0.02),
 }
