@@ -48,12 +48,23 @@ __all__ = ["StateFile", "StateFileError", "read_state", "save_state"]
 
 #: The archive member holding the JSON metadata.
 META = "meta"
-_RESERVED = ("kind", "version", "settings")
+_RESERVED = ("kind", "version", "settings", "members")
 #: How many differing settings a refusal names (the first one first).
 _SHOWN = 3
 #: What a state file that cannot be read may raise while it is read (a truncated archive
-#: raises `zipfile.BadZipFile` or `EOFError`, a damaged member `zlib.error`).
-_UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
+#: raises `zipfile.BadZipFile` or `EOFError`, a damaged member `zlib.error`; a damaged
+#: member header names a compression method zipfile lacks, `NotImplementedError`, or sets
+#: the encryption flag, `RuntimeError` "password required").
+_UNREADABLE = (
+    OSError,
+    ValueError,
+    KeyError,
+    EOFError,
+    zipfile.BadZipFile,
+    zlib.error,
+    NotImplementedError,
+    RuntimeError,
+)
 
 
 class StateFileError(ValueError):
@@ -130,7 +141,9 @@ def save_state(
     clash = [k for k in _RESERVED if k in user]
     if clash:
         raise ValueError(f"a state file's metadata may not use the names {clash}")
-    doc: dict[str, Any] = {"kind": kind, "version": int(version), **user}
+    # the member names: a zip archive's checksums cover each member's bytes, not its name
+    doc: dict[str, Any] = {"kind": kind, "version": int(version), "members": sorted(arrays)}
+    doc.update(user)
     if settings is not None:
         doc["settings"] = canonical_settings(settings)
     text = json.dumps(doc, default=_json_default, allow_nan=True)
@@ -206,6 +219,12 @@ def read_state(
         raise StateFileError(
             f"{p}: not a readable {kind} file ({reason}; cut short or damaged?); {fix}"
         ) from None
+    members = doc.pop("members", None)
+    if members is not None and sorted(arrays) != members:
+        raise StateFileError(
+            f"{p}: not a readable {kind} file (it holds {sorted(arrays)}, it was saved with "
+            f"{members}: damaged?); {fix}"
+        )
     saved_kind = doc.pop("kind", kind)
     if saved_kind != kind:
         raise RunRefusedError(f"{p}: a {saved_kind} file where a {kind} was expected; {fix}")
