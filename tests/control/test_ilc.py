@@ -387,7 +387,7 @@ def test_a_meta_array_missing_from_the_file_is_refused(ref_1k, tmp_path):
     with np.load(tmp_path / STATE_FILE) as z:
         data = {k: z[k] for k in z.files if not k.startswith("meta_array_")}
     np.savez(tmp_path / STATE_FILE, **data)
-    with pytest.raises(ValueError, match=r"ILC state without member"):
+    with pytest.raises(ValueError, match=r"without .*meta_array_"):  # named, however refused
         FrequencyILC.load(tmp_path)
 
 

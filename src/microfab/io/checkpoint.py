@@ -221,9 +221,16 @@ def read_state(
         ) from None
     members = doc.pop("members", None)
     if members is not None and sorted(arrays) != members:
+        lost = sorted(set(members) - set(arrays))
+        odd = sorted(set(arrays) - set(members))
+        what = "; ".join(
+            w
+            for w in (f"without {lost}" if lost else "", f"with unknown {odd}" if odd else "")
+            if w
+        )
         raise StateFileError(
-            f"{p}: not a readable {kind} file (it holds {sorted(arrays)}, it was saved with "
-            f"{members}: damaged?); {fix}"
+            f"{p}: not a readable {kind} file ({what} of the members it was saved with: "
+            f"cut short or damaged?); {fix}"
         )
     saved_kind = doc.pop("kind", kind)
     if saved_kind != kind:
