@@ -81,3 +81,51 @@ def test_knots_are_counted_before_they_are_made() -> None:
     with pytest.raises(ValueError, match=r"spline knots over the laps and ramps; the most"):
         contour_reference(circle(1e-3), ContourMotion(knot_spacing_m=1e-15))
     assert MAX_KNOTS == 1_000_000
+
+
+# ------------------------------------------------ corners by slowing down (profile="limited")
+STAR = "star:points=5,radius=1.5e-3"  # 3 mm across, ten sharp corners, no fillets
+
+
+def test_a_sharp_star_at_20_mm_s_is_refused_at_constant_speed() -> None:
+    from microfab.core.limits import LimitViolation
+    from microfab.trajectory.contour_laps import contour_path
+
+    path = contour_path(STAR)
+    motion = ContourMotion(speed_m_s=0.02, laps=2)
+    with pytest.raises(LimitViolation, match="acceleration"):
+        check_reference(contour_reference(path, motion), MachineLimits.seed004_stage(), (1.2, 0.6))
+
+
+def test_a_sharp_star_at_20_mm_s_runs_limited_and_slows_only_at_its_corners() -> None:
+    from microfab.trajectory.contour_laps import contour_path
+
+    path = contour_path(STAR)
+    ref = contour_reference(path, ContourMotion(speed_m_s=0.02, laps=2, profile="limited"))
+    check_reference(ref, MachineLimits.seed004_stage(), (1.2, 0.6))  # the seed's masses
+    tr = ref.trajectory
+    s = np.asarray(tr.s)
+    for i in range(2):  # each lap covers the contour once
+        lap = s[ref.lap(i)]
+        assert lap[0] == pytest.approx(i * path.length, abs=1e-6)
+        assert lap[-1] == pytest.approx((i + 1) * path.length, abs=2e-6)
+    v = np.hypot(*np.asarray(tr.velocity).T)
+    assert v.max() <= 0.02 * 1.05  # the speed is a cap (the spline's overshoot: < 5 %)
+    # it keeps the speed between the corners and slows at each of the ten
+    slow = ref.slowdowns()
+    assert len(slow) == 10
+    corners = np.sort(path.corners(1e-3))
+    for where, speed in slow:
+        assert np.min(np.abs(corners - where)) < 0.05 * path.length / 10
+        assert speed < 0.2 * 0.02
+    assert np.mean(v[ref.lap(1)] > 0.97 * 0.02) > 0.2
+
+
+def test_a_circle_limited_keeps_its_speed_after_the_start() -> None:
+    from microfab.trajectory.contour_laps import contour_path
+
+    path = contour_path("circle:radius=1e-3")
+    ref = contour_reference(path, ContourMotion(speed_m_s=0.005, laps=2, profile="limited"))
+    check_reference(ref, MachineLimits.seed004_stage(), (1.2, 0.6))  # the seed's masses
+    v = np.hypot(*np.asarray(ref.trajectory.velocity)[ref.lap(1)].T)
+    assert np.mean(np.abs(v - 0.005) < 1e-4) > 0.9  # at speed on lap 2 but its slow-down

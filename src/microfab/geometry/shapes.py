@@ -32,6 +32,7 @@ __all__ = [
     "spiral",
     "spiral_length",
     "square",
+    "star",
 ]
 
 
@@ -112,6 +113,33 @@ def regular_polygon(
     r = check_positive("radius", radius, "m")
     th = theta0 + 2 * np.pi * np.arange(n) / n
     pts = np.column_stack([center[0] + r * np.cos(th), center[1] + r * np.sin(th)])
+    return Path.polyline(pts, closed=True)
+
+
+def star(
+    points: int,
+    radius: float,
+    *,
+    inner_radius: float | None = None,
+    center: tuple[float, float] = (0.0, 0.0),
+) -> Path:
+    """A star of ``points`` sharp tips on a circle of ``radius`` (m), no fillets.
+
+    The inner corners lie on ``inner_radius`` (default ``0.4 radius``, a star whose
+    edges run tip to tip for five points, about); the first tip points along +y.
+    """
+    if not (3 <= points <= MAX_SIDES // 2 and int(points) == points):
+        raise ValueError(f"points must be an integer from 3 to {MAX_SIDES // 2}, got {points}")
+    r_out = check_positive("radius", radius, "m")
+    r_in = (
+        0.4 * r_out if inner_radius is None else check_positive("inner_radius", inner_radius, "m")
+    )
+    if not r_in < r_out:
+        raise ValueError(f"inner_radius must be below radius ({r_out:g} m), got {r_in:g} m")
+    n = 2 * int(points)
+    th = np.pi / 2 + np.pi * np.arange(n) / points
+    rad = np.where(np.arange(n) % 2 == 0, r_out, r_in)
+    pts = np.column_stack([center[0] + rad * np.cos(th), center[1] + rad * np.sin(th)])
     return Path.polyline(pts, closed=True)
 
 
@@ -229,6 +257,7 @@ SHAPES: dict[str, Callable[..., Path]] = {
     "square": square,
     "circle": circle,
     "polygon": regular_polygon,
+    "star": star,
     "spiral": spiral,
     "ellipse": ellipse,
     "lissajous": lissajous,

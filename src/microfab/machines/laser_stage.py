@@ -383,7 +383,7 @@ class ContourPlay:
     def full_laps(self) -> slice:
         """Samples of the full-speed laps, first to last."""
         ref = self.reference
-        return slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
+        return ref.laps
 
     def axis_errors(self) -> AxisErrors:
         """Axis errors (reference − measured) over the full-speed laps (seed 004 Fig. 3)."""

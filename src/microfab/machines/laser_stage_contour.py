@@ -93,7 +93,7 @@ class ContourRun:
     def span(self) -> tuple[float, float]:
         """Start and end of the full-speed laps, s."""
         ref = self.reference
-        return ref.lap_starts[0] * self.dt, (ref.lap_starts[-1] + ref.lap_samples) * self.dt
+        return ref.lap_starts[0] * self.dt, ref.lap_ends[-1] * self.dt
 
 
 def run_contour(job: ContourJob | None = None) -> ContourRun:

@@ -199,7 +199,7 @@ def fig_axis_errors(run: ContourRun) -> MplFigure:
 def fig_ballbar(run: ContourRun, magnify: float | None = None) -> MplFigure:
     """`plot_ballbar` of a twin run's full-speed laps."""
     ref = run.reference
-    sl = slice(int(ref.lap_starts[0]), int(ref.lap_starts[-1]) + ref.lap_samples)
+    sl = ref.laps
     return plot_ballbar(ref.path, run.measured[sl], magnify)
 
 
@@ -352,6 +352,21 @@ def contour_table(runs: Mapping[str, ContourRun]) -> Table:
             for name, r in runs.items()
         ],
     )  # fmt: skip
+
+
+def slowdown_table(slowdowns: Sequence[tuple[float, float]], speed_m_s: float) -> Table:
+    """Where a limited profile slowed on lap 1 (`ContourReference.slowdowns`), and how much."""
+    return Table(
+        title=f"Slowed below 90 % of {speed_m_s * 1e3:g} mm/s on lap 1 (the v/a/j planner, "
+        "seed 004 Table I)",
+        columns=("at [mm from the start point]", "slowest [mm/s]", "of the speed [%]"),
+        rows=[
+            (f"{where * 1e3:.4f}", f"{v * 1e3:.4g}", f"{100 * v / speed_m_s:.1f}")
+            for where, v in slowdowns
+        ],
+        note="The requested speed is kept where the limits allow it; a sharp corner is taken "
+        "from rest.",
+    )
 
 
 def speed_table(rows: Sequence[Mapping[str, Any]]) -> Table:

@@ -23,7 +23,14 @@ The seed gives no speed, knot spacing or start-up; ours (assumed, stated here an
 
 Corners: a time-based spline through a sharp corner at constant speed rounds it and needs
 a large acceleration there; the limit check (`check_reference`) refuses what the stage
-cannot do, naming axis, time, value and limit. Lower the speed or round the corners. The
+cannot do, naming axis, time, value and limit. Lower the speed or round the corners, or
+run ``profile="limited"``: the laps are then planned by the project's time-optimal v/a/j
+planner (`microfab.trajectory.optimal.time_optimal`) on the same path under Table I's
+limits with the speed as a cap, so the stage keeps the requested speed where the limits
+allow it and slows where they do not (at a sharp corner, to rest); it starts lap 1 from
+rest at the contour's start point and rests after the last lap (no ramps over the
+contour), and `ContourReference.slowdowns` says where and how much it slowed. The seed's
+own set-up (constant tangential speed, eq. (6)) stays ``profile="constant"``. The
 rounding is the reference's own contour error, which no controller removes: on a 4 x 2 mm
 rectangle at 1 mm/s it is 1.7 µm with 20 µm knots and 85 nm with 1 µm knots (the run's
 largest contour error then 219 nm), so keep the knot spacing fine on drawings with
@@ -40,6 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -50,6 +58,7 @@ from microfab.trajectory.base import Trajectory
 from microfab.trajectory.spline import TimeSpline
 
 __all__ = [
+    "PROFILES",
     "ContourMotion",
     "ContourReference",
     "check_force",
@@ -65,6 +74,12 @@ MAX_KNOTS = 1_000_000
 MAX_ACCELERATION_M_S2 = 5.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
 PEAK_FORCE_N = 12.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
 CONTINUOUS_FORCE_N = 3.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
+#: How the laps are timed: "constant" (seed 004 eq. (6): constant tangential speed on the
+#: time-based spline) or "limited" (the v/a/j planner, the speed as a cap).
+PROFILES: tuple[str, ...] = ("constant", "limited")
+#: Planner grid nodes per lap of a "limited" profile (corners are added; assumed: enough
+#: that the 10 kHz samples between nodes stay within the limits on the test drawings).
+_GRID_PER_LAP = 400
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -88,6 +103,10 @@ class ContourMotion:
         Arc length between spline knots at full speed, m (default 1 µm; at most L/64).
     sample_rate_hz : float
         Controller rate, Hz (default 10 kHz, assumed: Ts = 100 µs).
+    profile : {"constant", "limited"}
+        ``"constant"``: the seed's constant tangential speed (eq. (6)); ``"limited"``: the
+        v/a/j planner with ``speed_m_s`` as a cap (slows at corners; ``ramp_s`` and
+        ``knot_spacing_m`` are then unused).
     """
 
     speed_m_s: float = 1e-3
@@ -96,6 +115,7 @@ class ContourMotion:
     rest_s: float = 0.01
     knot_spacing_m: float = 1e-6
     sample_rate_hz: float = 1e4
+    profile: Literal["constant", "limited"] = "constant"
 
     def __post_init__(self) -> None:
         check_positive("speed_m_s", self.speed_m_s, "m/s")
@@ -105,6 +125,8 @@ class ContourMotion:
         check_nonnegative("rest_s", self.rest_s, "s")
         check_positive("knot_spacing_m", self.knot_spacing_m, "m")
         check_positive("sample_rate_hz", self.sample_rate_hz, "Hz")
+        if self.profile not in PROFILES:
+            raise ValueError(f"profile must be one of {', '.join(PROFILES)}, got {self.profile!r}")
 
     @property
     def ramp(self) -> float:
@@ -125,16 +147,14 @@ class ContourReference:
     motion : ContourMotion
         How it is run.
     spline : TimeSpline
-        The time-based spline (seed 004 eq. (1)).
+        The time-based spline (seed 004 eq. (1); for a "limited" profile the planner's).
     trajectory : Trajectory
         Samples at ``motion.sample_rate_hz``: position (m), velocity (m/s), acceleration
         (m/s²), shape (n, 2); ``trajectory.s`` the arc length along the contour (m,
         unwrapped: it grows past L on later laps; negative during the speed-up).
-    lap_starts : numpy.ndarray
-        Sample index where each full-speed lap starts, shape (laps,), and where the last
-        ends at index ``lap_starts[-1] + lap_samples``.
-    lap_samples : int
-        Samples per lap at full speed (rounded).
+    lap_starts, lap_ends : numpy.ndarray
+        Sample index where each lap starts and where it ends (exclusive), shape (laps,);
+        at constant speed every lap has the same number of samples.
     """
 
     path: Path
@@ -142,7 +162,50 @@ class ContourReference:
     spline: TimeSpline
     trajectory: Trajectory
     lap_starts: np.ndarray
-    lap_samples: int
+    lap_ends: np.ndarray
+
+    @property
+    def lap_samples(self) -> int:
+        """Samples of the first lap (of every lap at constant speed)."""
+        return int(self.lap_ends[0] - self.lap_starts[0])
+
+    @property
+    def laps(self) -> slice:
+        """Samples from the start of the first lap to the end of the last."""
+        return slice(int(self.lap_starts[0]), int(self.lap_ends[-1]))
+
+    def slowdowns(self, below: float = 0.9) -> list[tuple[float, float]]:
+        """Where the laps ran slower than the requested speed, and how slow.
+
+        Parameters
+        ----------
+        below : float
+            A sample counts as slowed below ``below`` times the requested speed (0.9:
+            the planner runs 1 % under its cap, its spline wavers a little).
+
+        Returns
+        -------
+        list of (float, float)
+            For each stretch of lap 1 that ran slower: its arc length from the start
+            point at the slowest sample (m) and the slowest speed there (m/s); empty at
+            constant speed.
+        """
+        sl = self.lap(0)
+        v = np.hypot(*np.asarray(self.trajectory.velocity)[sl].T)
+        s = np.asarray(self.trajectory.s)[sl] if self.trajectory.s is not None else None
+        slow = v < below * self.motion.speed_m_s
+        out: list[tuple[float, float]] = []
+        if s is None or not slow.any():
+            return out
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], slow.astype(np.int8), [0]])))
+        for a, b in zip(edges[::2], edges[1::2], strict=True):
+            k = a + int(np.argmin(v[a:b]))
+            out.append((float(s[k] - s[0]), float(v[k])))
+        if len(out) > 1 and slow[0] and slow[-1]:  # the lap wraps: one stretch at its start
+            last = out.pop()
+            if last[1] < out[0][1]:
+                out[0] = (0.0, last[1])
+        return out
 
     @property
     def dt(self) -> float:
@@ -150,9 +213,8 @@ class ContourReference:
         return float(self.trajectory.dt)
 
     def lap(self, i: int) -> slice:
-        """Samples of full-speed lap ``i`` (from 0)."""
-        a = int(self.lap_starts[i])
-        return slice(a, a + self.lap_samples)
+        """Samples of lap ``i`` (from 0)."""
+        return slice(int(self.lap_starts[i]), int(self.lap_ends[i]))
 
 
 def _time_law(motion: ContourMotion, length: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -250,6 +312,8 @@ def contour_reference(path: Path, motion: ContourMotion | None = None) -> Contou
             "the seed 004 reference runs laps of a closed contour; this path is open "
             "(close it in the drawing, or pick a closed contour)"
         )
+    if m.profile == "limited":
+        return _limited_reference(path, m)
     L = float(path.length)
     t, s, t1 = _time_law(m, L)
     pts = path.point(np.mod(s, L))
@@ -273,7 +337,41 @@ def contour_reference(path: Path, motion: ContourMotion | None = None) -> Contou
         spline=spline,
         trajectory=traj,
         lap_starts=starts,
-        lap_samples=int(lap_samples),
+        lap_ends=starts + int(lap_samples),
+    )
+
+
+def _limited_reference(path: Path, m: ContourMotion) -> ContourReference:
+    """The laps planned by the v/a/j planner under Table I, ``m.speed_m_s`` as a cap."""
+    from microfab.geometry.path import concatenate
+    from microfab.trajectory.optimal import PlanningError, time_optimal
+
+    L = float(path.length)
+    laps = concatenate([path] * m.laps)
+    try:
+        res = time_optimal(
+            laps,
+            MachineLimits.seed004_stage(),
+            n_grid=_GRID_PER_LAP * m.laps,
+            sample_rate_hz=m.sample_rate_hz,
+            feed=m.speed_m_s,
+        )
+    except PlanningError as exc:
+        raise ValueError(f"the limited profile could not be planned: {exc}") from exc
+    traj = res.trajectory
+    s = np.asarray(traj.s)
+    # lap i runs from the first sample at or past i L to the first at or past (i + 1) L
+    bounds = np.searchsorted(s, np.arange(m.laps + 1) * L * (1 - 1e-12), side="left")
+    if m.rest_s > 0:
+        bounds = bounds + round(m.rest_s * m.sample_rate_hz)
+        traj = _pad_rest(traj, m.rest_s)
+    return ContourReference(
+        path=path,
+        motion=m,
+        spline=res.spline,
+        trajectory=traj,
+        lap_starts=bounds[:-1].astype(np.int64),
+        lap_ends=bounds[1:].astype(np.int64),
     )
 
 

@@ -110,3 +110,31 @@ def test_a_one_lap_job_without_sweep_writes_its_report(tmp_path):
     assert res.sweep == () and res.focus is None
     assert kind.write_report(res, out, "one lap").exists()
     assert not (out / "focus.png").exists()
+
+
+def test_a_sharp_star_runs_at_20_mm_s_through_microfab_run(tmp_path: Path) -> None:
+    """Issue 33 item 3: a 3 mm five-point star (no fillets) at 20 mm/s cruise, planned
+    with the limited profile, runs with no limit refused, reports its contour error and
+    where it slowed; at constant speed the same job is refused on the acceleration."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from microfab.cli import app
+
+    job = tmp_path / "star.toml"
+    body = (
+        '[job]\nkind = "laser-micromachining"\n[drawing]\nsource = '
+        '"star:points=5,radius=1.5e-3"\n[trajectory]\nspeed_mm_s = 20.0\nlaps = 2\n'
+        "{profile}[control]\ncompare = false\n[sweep]\nspeeds_mm_s = []\n[focus]\nrun = false\n"
+    )
+    job.write_text(body.format(profile='profile = "limited"\n'))
+    res = CliRunner().invoke(app, ["run", str(job), "--out", str(tmp_path / "r")])
+    assert res.exit_code == 0, res.output
+    assert "Slowed below 90 % of 20 mm/s" in res.output
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert summary["profile"] == "limited" and len(summary["slowdowns"]) == 10
+    assert 0 < max(summary["contour_lap_max_nm"]) < 3000  # measured 1437 nm
+    job.write_text(body.format(profile=""))
+    res = CliRunner().invoke(app, ["run", str(job), "--out", str(tmp_path / "c")])
+    assert res.exit_code == 2 and "acceleration" in res.output, res.output

@@ -42,7 +42,7 @@ from microfab.machines.laser_stage import LAWS, ContourJob, ControlSettings, Twi
 from microfab.machines.laser_stage_contour import run_contour, speed_sweep
 from microfab.machines.laser_stage_focus import focus_study
 from microfab.report.tables import Table, versus
-from microfab.trajectory.contour_laps import ContourMotion
+from microfab.trajectory.contour_laps import PROFILES, ContourMotion
 
 __all__ = [
     "LASER_MICROMACHINING",
@@ -68,6 +68,9 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="speed-up and slow-down (default from the acceleration limit)"),
         Key(name="knot_spacing_um", type=_F, default=1.0, low=0.0, unit="µm",
             help="arc length between spline knots"),
+        Key(name="profile", type="str", default="constant", choices=PROFILES,
+            help="constant: the seed's constant speed (eq. 6); limited: the v/a/j planner "
+            "keeps the speed where Table I allows it and slows at corners"),
     ),
     "control": (
         Key(name="law", type="str", default="contour", choices=LAWS,
@@ -126,6 +129,7 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> LaserJob:
         laps=tr["laps"],
         ramp_s=tr["ramp_s"],
         knot_spacing_m=tr["knot_spacing_um"] * 1e-6,
+        profile=tr["profile"],
     )
     control = ControlSettings(
         law=c["law"],

@@ -16,7 +16,12 @@ from microfab.experiments.seed004_laser import paper
 from microfab.machines.laser_stage import ContourJob
 from microfab.machines.laser_stage_contour import ContourRun
 from microfab.machines.laser_stage_focus import FocusStudy
-from microfab.report.contour import contour_table, margins_table, speed_table
+from microfab.report.contour import (
+    contour_table,
+    margins_table,
+    slowdown_table,
+    speed_table,
+)
 from microfab.report.tables import Table, versus
 
 __all__ = ["FocusSettings", "LaserJob", "LaserResult", "focus_table"]
@@ -124,6 +129,8 @@ class LaserResult:
         if self.baseline is not None:
             runs["without correction"] = self.baseline
         tables = [t1, contour_table(runs)]
+        if m.job.motion.profile == "limited":
+            tables.append(slowdown_table(m.reference.slowdowns(), m.job.motion.speed_m_s))
         if self.margins:
             tables.append(margins_table(self.margins))
         if self.focus is not None:
@@ -154,6 +161,10 @@ class LaserResult:
             },
             "sweep": list(self.sweep),
             "failures": list(self.failures()),
+            "profile": m.job.motion.profile,
+            "slowdowns": [
+                {"at_mm": w * 1e3, "speed_mm_s": v * 1e3} for w, v in m.reference.slowdowns()
+            ],
         }
         out["margins"] = [
             {
