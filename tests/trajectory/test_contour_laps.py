@@ -129,3 +129,16 @@ def test_a_circle_limited_keeps_its_speed_after_the_start() -> None:
     check_reference(ref, MachineLimits.seed004_stage(), (1.2, 0.6))  # the seed's masses
     v = np.hypot(*np.asarray(ref.trajectory.velocity)[ref.lap(1)].T)
     assert np.mean(np.abs(v - 0.005) < 1e-4) > 0.9  # at speed on lap 2 but its slow-down
+
+
+def test_auto_keeps_the_seed_s_constant_speed_where_it_is_within_the_limits() -> None:
+    from microfab.trajectory.contour_laps import contour_path
+
+    circle_ = contour_path("circle:radius=30e-6")
+    ref = contour_reference(circle_, ContourMotion(speed_m_s=1e-3, laps=2, profile="auto"))
+    assert ref.motion.profile == "constant"
+    same = contour_reference(circle_, ContourMotion(speed_m_s=1e-3, laps=2))
+    np.testing.assert_array_equal(ref.trajectory.position, same.trajectory.position)
+    star_ = contour_path(STAR)
+    ref = contour_reference(star_, ContourMotion(speed_m_s=0.02, laps=2, profile="auto"))
+    assert ref.motion.profile == "limited"

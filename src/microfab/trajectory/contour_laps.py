@@ -29,8 +29,10 @@ planner (`microfab.trajectory.optimal.time_optimal`) on the same path under Tabl
 limits with the speed as a cap, so the stage keeps the requested speed where the limits
 allow it and slows where they do not (at a sharp corner, to rest); it starts lap 1 from
 rest at the contour's start point and rests after the last lap (no ramps over the
-contour), and `ContourReference.slowdowns` says where and how much it slowed. The seed's
-own set-up (constant tangential speed, eq. (6)) stays ``profile="constant"``. The
+contour), and `ContourReference.slowdowns` says where and how much it slowed.
+``profile="auto"`` keeps the constant speed when that reference is within the limits and
+plans a limited one when it is not. The seed's own set-up (constant tangential speed,
+eq. (6)) stays ``profile="constant"``, the default. At constant speed, the
 rounding is the reference's own contour error, which no controller removes: on a 4 x 2 mm
 rectangle at 1 mm/s it is 1.7 µm with 20 µm knots and 85 nm with 1 µm knots (the run's
 largest contour error then 219 nm), so keep the knot spacing fine on drawings with
@@ -46,7 +48,7 @@ peak and its RMS over the whole reference against the 3 N continuous force.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -75,8 +77,9 @@ MAX_ACCELERATION_M_S2 = 5.0  # seed 004 Table I (experiments/seed004_laser/paper
 PEAK_FORCE_N = 12.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
 CONTINUOUS_FORCE_N = 3.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
 #: How the laps are timed: "constant" (seed 004 eq. (6): constant tangential speed on the
-#: time-based spline) or "limited" (the v/a/j planner, the speed as a cap).
-PROFILES: tuple[str, ...] = ("constant", "limited")
+#: time-based spline), "limited" (the v/a/j planner, the speed as a cap) or "auto"
+#: (constant when that is within the limits, else limited).
+PROFILES: tuple[str, ...] = ("constant", "limited", "auto")
 #: Planner grid nodes per lap of a "limited" profile (corners are added; assumed: enough
 #: that the 10 kHz samples between nodes stay within the limits on the test drawings).
 _GRID_PER_LAP = 400
@@ -103,10 +106,11 @@ class ContourMotion:
         Arc length between spline knots at full speed, m (default 1 µm; at most L/64).
     sample_rate_hz : float
         Controller rate, Hz (default 10 kHz, assumed: Ts = 100 µs).
-    profile : {"constant", "limited"}
+    profile : {"constant", "limited", "auto"}
         ``"constant"``: the seed's constant tangential speed (eq. (6)); ``"limited"``: the
         v/a/j planner with ``speed_m_s`` as a cap (slows at corners; ``ramp_s`` and
-        ``knot_spacing_m`` are then unused).
+        ``knot_spacing_m`` are then unused); ``"auto"``: constant when that reference is
+        within the kinematic limits, else limited (the reference's ``motion`` says which).
     """
 
     speed_m_s: float = 1e-3
@@ -115,7 +119,7 @@ class ContourMotion:
     rest_s: float = 0.01
     knot_spacing_m: float = 1e-6
     sample_rate_hz: float = 1e4
-    profile: Literal["constant", "limited"] = "constant"
+    profile: Literal["constant", "limited", "auto"] = "constant"
 
     def __post_init__(self) -> None:
         check_positive("speed_m_s", self.speed_m_s, "m/s")
@@ -312,6 +316,13 @@ def contour_reference(path: Path, motion: ContourMotion | None = None) -> Contou
             "the seed 004 reference runs laps of a closed contour; this path is open "
             "(close it in the drawing, or pick a closed contour)"
         )
+    if m.profile == "auto":
+        ref = contour_reference(path, replace(m, profile="constant"))
+        try:
+            check_trajectory(ref.trajectory, MachineLimits.seed004_stage())
+        except LimitViolation:
+            return _limited_reference(path, replace(m, profile="limited"))
+        return ref
     if m.profile == "limited":
         return _limited_reference(path, m)
     L = float(path.length)

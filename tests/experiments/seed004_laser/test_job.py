@@ -14,6 +14,7 @@ from microfab.experiments.kinds import no_progress
 from microfab.experiments.seed004_laser.job import LaserJob
 from microfab.io.job import JobFileError
 from microfab.machines.laser_stage import ContourJob
+from microfab.trajectory.contour_laps import ContourMotion
 
 EXAMPLE = Path(__file__).parents[3] / "examples" / "laser_micromachining.toml"
 
@@ -32,7 +33,8 @@ def test_registered_with_its_reproduction():
 def test_example_and_empty_sections_are_the_defaults(tmp_path):
     cfg = load_job(EXAMPLE).config
     assert isinstance(cfg, LaserJob)
-    assert cfg.run == ContourJob()
+    # the library's default profile is the seed's constant speed; a job's is auto
+    assert cfg.run == ContourJob(motion=ContourMotion(profile="auto"))
     assert load_job(_job(tmp_path, "")).config == cfg
 
 
@@ -115,7 +117,8 @@ def test_a_one_lap_job_without_sweep_writes_its_report(tmp_path):
 def test_a_sharp_star_runs_at_20_mm_s_through_microfab_run(tmp_path: Path) -> None:
     """Issue 33 item 3: a 3 mm five-point star (no fillets) at 20 mm/s cruise, planned
     with the limited profile, runs with no limit refused, reports its contour error and
-    where it slowed; at constant speed the same job is refused on the acceleration."""
+    where it slowed; at constant speed the same job is refused on the acceleration; the
+    default profile (auto) takes the limited one."""
     import json
 
     from typer.testing import CliRunner
@@ -135,6 +138,12 @@ def test_a_sharp_star_runs_at_20_mm_s_through_microfab_run(tmp_path: Path) -> No
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["profile"] == "limited" and len(summary["slowdowns"]) == 10
     assert 0 < max(summary["contour_lap_max_nm"]) < 3000  # measured 1437 nm
-    job.write_text(body.format(profile=""))
+    job.write_text(body.format(profile='profile = "constant"\n'))
     res = CliRunner().invoke(app, ["run", str(job), "--out", str(tmp_path / "c")])
     assert res.exit_code == 2 and "acceleration" in res.output, res.output
+    # the default, auto: the constant reference breaks the limits, so the laps are limited
+    job.write_text(body.format(profile=""))
+    res = CliRunner().invoke(app, ["run", str(job), "--out", str(tmp_path / "a")])
+    assert res.exit_code == 0, res.output
+    auto = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert auto["profile"] == "limited" and auto["slowdowns"] == summary["slowdowns"]

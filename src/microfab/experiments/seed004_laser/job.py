@@ -68,9 +68,10 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="speed-up and slow-down (default from the acceleration limit)"),
         Key(name="knot_spacing_um", type=_F, default=1.0, low=0.0, unit="µm",
             help="arc length between spline knots"),
-        Key(name="profile", type="str", default="constant", choices=PROFILES,
+        Key(name="profile", type="str", default="auto", choices=PROFILES,
             help="constant: the seed's constant speed (eq. 6); limited: the v/a/j planner "
-            "keeps the speed where Table I allows it and slows at corners"),
+            "keeps the speed where Table I allows it and slows at corners; auto: constant "
+            "when that is within the limits, else limited"),
     ),
     "control": (
         Key(name="law", type="str", default="contour", choices=LAWS,

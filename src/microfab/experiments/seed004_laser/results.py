@@ -129,7 +129,7 @@ class LaserResult:
         if self.baseline is not None:
             runs["without correction"] = self.baseline
         tables = [t1, contour_table(runs)]
-        if m.job.motion.profile == "limited":
+        if m.reference.motion.profile == "limited":
             tables.append(slowdown_table(m.reference.slowdowns(), m.job.motion.speed_m_s))
         if self.margins:
             tables.append(margins_table(self.margins))
@@ -161,7 +161,7 @@ class LaserResult:
             },
             "sweep": list(self.sweep),
             "failures": list(self.failures()),
-            "profile": m.job.motion.profile,
+            "profile": m.reference.motion.profile,
             "slowdowns": [
                 {"at_mm": w * 1e3, "speed_mm_s": v * 1e3} for w, v in m.reference.slowdowns()
             ],
