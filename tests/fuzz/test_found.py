@@ -70,6 +70,14 @@ FOUND: dict[str, tuple[tuple[str, ...], str]] = {
         ("path", "show", "text:\x00", "--out", "part.png"),
         "not a printable character",
     ),
+    "a polygon turned by an infinite angle (seed 1)": (
+        ("path", "show", "polygon:n_sides=6,radius=0.01,theta0=Infinity", "--out", "p.png"),
+        "finite",
+    ),
+    "a butterfly of scale 1e308 (seed 1)": (
+        ("path", "show", "butterfly:scale=1e+308", "--out", "p.png"),
+        "finite",
+    ),
     "droplet render of no liquid": (
         (
             "droplet",

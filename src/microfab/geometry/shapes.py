@@ -144,7 +144,10 @@ def star(
 
 
 def _curve(f: Callable[[np.ndarray], np.ndarray], closed: bool) -> Path:
-    segs = CurveSegment.from_function(f)
+    # an absurd scale overflows inside ``f``: no warning printed, the segment's own check
+    # refuses the non-finite points it returns
+    with np.errstate(over="ignore", invalid="ignore"):
+        segs = CurveSegment.from_function(f)
     if closed:
         # the pieces' ends agree to ~1e-13; close exactly on the first point
         return Path(tuple(segs), closed=True, gap_tol=1e-9 * _size(segs))
@@ -286,6 +289,8 @@ def parse_shape(spec: str) -> Path:
             kwargs[key.strip()] = float(val)
         except ValueError:
             raise ValueError(f"shape argument {key}={val!r} is not a number") from None
+        if not math.isfinite(kwargs[key.strip()]):  # no builder is meant for inf or NaN
+            raise ValueError(f"shape argument {key.strip()}={val.strip()} must be a finite number")
     try:
         return SHAPES[name](**kwargs)
     except TypeError as exc:
