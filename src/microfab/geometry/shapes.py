@@ -292,6 +292,9 @@ def parse_shape(spec: str) -> Path:
         if not math.isfinite(kwargs[key.strip()]):  # no builder is meant for inf or NaN
             raise ValueError(f"shape argument {key.strip()}={val.strip()} must be a finite number")
     try:
-        return SHAPES[name](**kwargs)
+        # an absurd size overflows inside a builder: no numpy warning printed, the
+        # segments' own finiteness checks refuse the points
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return SHAPES[name](**kwargs)
     except TypeError as exc:
         raise ValueError(f"bad arguments for shape {name!r}: {exc}") from None
