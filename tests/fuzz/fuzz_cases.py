@@ -792,6 +792,8 @@ def _h5(cols: dict[str, Any]) -> bytes:
                 f.create_group(k)
             elif np.asarray(v).dtype.kind == "U":  # HDF5 holds byte strings
                 f.create_dataset(k, data=np.char.encode(np.asarray(v)))
+            elif np.asarray(v).dtype.kind == "O":  # a dict cut by "short": its text
+                f.create_dataset(k, data=np.bytes_(repr(v)))
             else:
                 f.create_dataset(k, data=v)
     return buf.getvalue()

@@ -109,3 +109,12 @@ def test_a_calibration_refuses_a_property_table_it_could_not_update_before_runni
                                  "afile"), files=(("afile", b"kept?\n"),), setup=("workspace",))
     )  # fmt: skip
     assert out.outcome == "refused" and out.seconds < 5, out.detail
+
+
+def test_a_baseline_model_of_absurd_coefficients_is_refused_without_warnings() -> None:
+    """make fuzz --seed 2: a model with coefficients of 1e300 as the baseline of --frf
+    was a LinAlgError traceback (and printed scipy's BadCoefficients first)."""
+    model = b'{"num": [1e300], "den": [1.0, 1e300, 1e300, 1e300]}'
+    argv = ("shaper", "design", "m.json", "--kind", "ei", "--frf", "frf.csv", "--out", "s.json")
+    out = run_case(Case(kind="found", argv=argv, files=(("m.json", model),), setup=("workspace",)))
+    assert out.outcome == "refused" and "no finite response" in out.detail, out.detail

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -308,7 +309,14 @@ def _design_classic(
             baseline = None
             if model is not None:
                 m = _read_model(model)
-                baseline = np.abs(m.frequency_response(f, sampling="zoh", dt=f_dt))
+                try:  # a model of absurd coefficients: refused below, without warnings
+                    with np.errstate(all="ignore"), warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        baseline = np.abs(m.frequency_response(f, sampling="zoh", dt=f_dt))
+                except (ValueError, np.linalg.LinAlgError) as exc:
+                    fail(f"{model}: no finite response over the FRF's band ({exc})")
+                if not np.all(np.isfinite(baseline)):
+                    fail(f"{model}: no finite response over the FRF's band (its coefficients?)")
             data: tuple[Any, ...] = (f, resp, "frf", baseline)
         else:
             f, resp = _read_psd(psd)  # type: ignore[arg-type]

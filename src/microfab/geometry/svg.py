@@ -166,6 +166,9 @@ def _to_segments(seg: object) -> list[Segment]:
     raise TypeError(f"unknown svgpathtools segment {type(seg).__name__}")  # pragma: no cover
 
 
+# absurd coordinates overflow in the curves' reach (numpy's Chebyshev sums): no warning
+# printed, the extent checks below refuse them
+@np.errstate(over="ignore", invalid="ignore")
 def _parse_d(d: str, A: np.ndarray, b: np.ndarray, ref: str) -> tuple[list[Path], list[Skipped]]:
     """Contours of path data ``d`` mapped by ``p -> A p + b`` (user units -> m)."""
     contours: list[Path] = []
