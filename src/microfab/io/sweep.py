@@ -489,6 +489,11 @@ def _run_on_cluster(
         elif client is None:
             # No dashboard, the scheduler's HTTP server on a free port (not a warning that
             # 8787 is taken), no worker logs: SweepError reports the failures.
+            from distributed.deploy.spec import SpecCluster
+
+            # Dask's registry of live clusters (closed at exit); private, so looked up
+            instances = getattr(SpecCluster, "_instances", None)
+            earlier = set(instances or ())
             with _quiet_workers() as held:
                 try:
                     cluster = LocalCluster(
@@ -500,10 +505,17 @@ def _run_on_cluster(
                         silence_logs=logging.CRITICAL,
                     )
                 except Exception:
-                    if held:  # the workers' start was cut by the Ctrl-C they heard too
+                    if held:  # the workers' start was cut by the Ctrl-C they heard too:
+                        # close the half-started cluster now, quietly (left to Python's
+                        # exit, Dask asserts on a worker still starting and prints it)
+                        for half in set(instances or ()) - earlier:
+                            with contextlib.suppress(Exception):
+                                half.close(timeout=5)
+                            instances.discard(half)  # type: ignore[union-attr]
                         raise KeyboardInterrupt from None
                     raise
-            client = stack.enter_context(Client(stack.enter_context(cluster)))
+            stack.enter_context(_closed_quietly_on_error(cluster))
+            client = stack.enter_context(_closed_quietly_on_error(Client(cluster)))
             if held:  # Ctrl-C while the cluster started: taken now that it closes cleanly
                 raise KeyboardInterrupt
         # pure=False: never reuse a result cached by the scheduler (a failed point retried
@@ -561,6 +573,22 @@ def _quiet_workers() -> Iterator[list[int]]:
         os.close(null)
         if handler is not None:
             signal.signal(signal.SIGINT, handler)
+
+
+@contextlib.contextmanager
+def _closed_quietly_on_error(resource: Any) -> Iterator[Any]:
+    """``resource`` closed on leaving; on an error, its close's own errors dropped.
+
+    The error that stopped the sweep (a Ctrl-C) is the one reported: Dask may assert on
+    closing a cluster whose workers that Ctrl-C killed.
+    """
+    try:
+        yield resource
+    except BaseException:
+        with contextlib.suppress(Exception):
+            resource.close()
+        raise
+    resource.close()
 
 
 def _run_pickled(task: bytes, point: bytes) -> Any:
