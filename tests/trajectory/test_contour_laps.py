@@ -142,3 +142,20 @@ def test_auto_keeps_the_seed_s_constant_speed_where_it_is_within_the_limits() ->
     star_ = contour_path(STAR)
     ref = contour_reference(star_, ContourMotion(speed_m_s=0.02, laps=2, profile="auto"))
     assert ref.motion.profile == "limited"
+
+
+def test_a_limited_plan_given_the_masses_keeps_the_continuous_force() -> None:
+    """A 30 µm seven-point star at 20 mm/s is all corners: planned at 5 m/s² its RMS force
+    is 5.4 N against Table I's 3 N continuous; with the masses the plan lowers its
+    acceleration until it holds."""
+    from microfab.trajectory.contour_laps import contour_path
+
+    path = contour_path("star:points=7,radius=30e-6")
+    motion = ContourMotion(speed_m_s=0.02, laps=2, profile="limited")
+    masses = (1.2, 0.6)
+    with pytest.raises(LimitViolation, match="continuous force"):
+        check_reference(contour_reference(path, motion), MachineLimits.seed004_stage(), masses)
+    ref = contour_reference(path, motion, masses)
+    check_reference(ref, MachineLimits.seed004_stage(), masses)
+    v = np.hypot(*np.asarray(ref.trajectory.velocity).T)
+    assert v.max() < 0.5 * 0.02 and ref.slowdowns()  # it never reaches the speed asked

@@ -412,8 +412,9 @@ def play_contour(job: ContourJob | None = None) -> ContourPlay:
             f"the motion's sample rate {job.motion.sample_rate_hz:g} Hz differs from the "
             f"twin's {1.0 / plant.dt:g} Hz; use {1.0 / plant.dt:g}"
         )
-    ref = contour_reference(path, job.motion)
-    check_reference(ref, limits(), tuple(plant.config.mass_kg))  # type: ignore[arg-type]
+    masses = tuple(plant.config.mass_kg)
+    ref = contour_reference(path, job.motion, masses)  # type: ignore[arg-type]
+    check_reference(ref, limits(), masses)  # type: ignore[arg-type]
     return ContourPlay(
         job=job, path=path, reference=ref, trace=play(ref.trajectory, job.control, job.twin)
     )
@@ -445,7 +446,8 @@ def check_job(job: ContourJob, speeds_m_s: Sequence[float] = ()) -> None:
     masses = tuple(plant.config.mass_kg)
     for v in (job.motion.speed_m_s, *speeds_m_s):
         motion = dataclasses.replace(job.motion, speed_m_s=v)
-        check_reference(contour_reference(path, motion), limits(), masses)  # type: ignore[arg-type]
+        ref = contour_reference(path, motion, masses)  # type: ignore[arg-type]
+        check_reference(ref, limits(), masses)  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------------------- margins

@@ -83,6 +83,8 @@ PROFILES: tuple[str, ...] = ("constant", "limited", "auto")
 #: Planner grid nodes per lap of a "limited" profile (corners are added; assumed: enough
 #: that the 10 kHz samples between nodes stay within the limits on the test drawings).
 _GRID_PER_LAP = 400
+#: Most plans of a "limited" profile lowering the acceleration for the continuous force.
+_FORCE_REPLANS = 6
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -291,7 +293,11 @@ def contour_path(drawing: str, contour: int = 0) -> Path:
     return closed[contour]
 
 
-def contour_reference(path: Path, motion: ContourMotion | None = None) -> ContourReference:
+def contour_reference(
+    path: Path,
+    motion: ContourMotion | None = None,
+    masses_kg: tuple[float, float] | None = None,
+) -> ContourReference:
     """The sampled reference that runs ``motion.laps`` laps of a closed contour.
 
     Parameters
@@ -300,6 +306,10 @@ def contour_reference(path: Path, motion: ContourMotion | None = None) -> Contou
         A closed contour, m.
     motion : ContourMotion, optional
         Speed, laps, ramps, knots, rate (defaults: see `ContourMotion`).
+    masses_kg : tuple of float, optional
+        Moving mass per axis, kg. A "limited" profile then also keeps the RMS force
+        within Table I's 3 N continuous force (it plans with a lower acceleration until
+        it does), and "auto" checks the constant reference's forces too.
 
     Returns
     -------
@@ -320,11 +330,13 @@ def contour_reference(path: Path, motion: ContourMotion | None = None) -> Contou
         ref = contour_reference(path, replace(m, profile="constant"))
         try:
             check_trajectory(ref.trajectory, MachineLimits.seed004_stage())
+            if masses_kg is not None:
+                check_force(ref.trajectory.acceleration, masses_kg, ref.dt)
         except LimitViolation:
-            return _limited_reference(path, replace(m, profile="limited"))
+            return _limited_reference(path, replace(m, profile="limited"), masses_kg)
         return ref
     if m.profile == "limited":
-        return _limited_reference(path, m)
+        return _limited_reference(path, m, masses_kg)
     L = float(path.length)
     t, s, t1 = _time_law(m, L)
     pts = path.point(np.mod(s, L))
@@ -352,23 +364,44 @@ def contour_reference(path: Path, motion: ContourMotion | None = None) -> Contou
     )
 
 
-def _limited_reference(path: Path, m: ContourMotion) -> ContourReference:
-    """The laps planned by the v/a/j planner under Table I, ``m.speed_m_s`` as a cap."""
+def _limited_reference(
+    path: Path, m: ContourMotion, masses_kg: tuple[float, float] | None = None
+) -> ContourReference:
+    """The laps planned by the v/a/j planner under Table I, ``m.speed_m_s`` as a cap.
+
+    With ``masses_kg``, a plan whose RMS force on an axis passes the continuous force is
+    planned again with the acceleration limit lowered by the square of the excess (the
+    RMS of a corner-bound plan grows about as the square root of its acceleration).
+    """
     from microfab.geometry.path import concatenate
     from microfab.trajectory.optimal import PlanningError, time_optimal
 
     L = float(path.length)
     laps = concatenate([path] * m.laps)
-    try:
-        res = time_optimal(
-            laps,
-            MachineLimits.seed004_stage(),
-            n_grid=_GRID_PER_LAP * m.laps,
-            sample_rate_hz=m.sample_rate_hz,
-            feed=m.speed_m_s,
+    table = MachineLimits.seed004_stage()
+    accel = MAX_ACCELERATION_M_S2
+    for _ in range(_FORCE_REPLANS):
+        limits = MachineLimits(
+            workspace=table.workspace, velocity=table.velocity, acceleration=(accel, accel)
         )
-    except PlanningError as exc:
-        raise ValueError(f"the limited profile could not be planned: {exc}") from exc
+        try:
+            res = time_optimal(
+                laps,
+                limits,
+                n_grid=_GRID_PER_LAP * m.laps,
+                sample_rate_hz=m.sample_rate_hz,
+                feed=m.speed_m_s,
+            )
+        except PlanningError as exc:
+            raise ValueError(f"the limited profile could not be planned: {exc}") from exc
+        if masses_kg is None:
+            break
+        acc = np.asarray(res.trajectory.acceleration)
+        rms = np.sqrt(np.mean((acc * np.asarray(masses_kg)) ** 2, axis=0))
+        excess = float(np.max(rms)) / CONTINUOUS_FORCE_N
+        if excess <= 1.0:
+            break
+        accel *= 0.95 / excess**2
     traj = res.trajectory
     s = np.asarray(traj.s)
     # lap i runs from the first sample at or past i L to the first at or past (i + 1) L

@@ -48,8 +48,8 @@ def test_example_and_empty_sections_are_the_defaults(tmp_path):
         ("[control]\ndob_bandwidth_hz = 6000.0\n", r"Nyquist"),
         ('[drawing]\nsource = "circle:radius=1e-4"\ncontour = 2\n', r"contour = 2"),
         ("[trajectory]\nspeed_mm_s = 0.0\n", r"speed_m_s"),
-        ('[drawing]\nsource = "circle:radius=2e-3"\n[trajectory]\nspeed_mm_s = 99.0\n',
-         r"axis [xy]: (acceleration|RMS force|force)"),
+        ('[drawing]\nsource = "circle:radius=2e-3"\n[trajectory]\nspeed_mm_s = 99.0\n'
+         'profile = "constant"\n', r"axis [xy]: (acceleration|RMS force|force)"),
         ("[sweep]\nspeeds_mm_s = [0.0]\n", r"speeds_mm_s"),
         ("[focus]\nduration_s = 0.5\n", r"focus duration_s must exceed 1 s"),
         ("[focus]\npart_speed_mm_s = 0.0\n", r"part_speed_mm_s must be positive"),
@@ -66,7 +66,8 @@ def test_cli_refuses_a_reference_beyond_table_one_and_writes_nothing(tmp_path):
     p = tmp_path / "job.toml"
     p.write_text(
         f'[job]\nkind = "laser-micromachining"\nout = "{out.as_posix()}"\n'
-        '[drawing]\nsource = "circle:radius=2e-3"\n[trajectory]\nspeed_mm_s = 99.0\n',
+        '[drawing]\nsource = "circle:radius=2e-3"\n[trajectory]\nspeed_mm_s = 99.0\n'
+        'profile = "constant"\n',  # the seed's set-up; auto would slow down instead
         encoding="utf-8",
     )
     res = CliRunner().invoke(app, ["run", str(p)])
