@@ -329,9 +329,10 @@ def contour_reference(
     if m.profile == "auto":
         ref = contour_reference(path, replace(m, profile="constant"))
         try:
-            check_trajectory(ref.trajectory, MachineLimits.seed004_stage())
-            if masses_kg is not None:
-                check_force(ref.trajectory.acceleration, masses_kg, ref.dt)
+            if masses_kg is None:
+                check_trajectory(ref.trajectory, MachineLimits.seed004_stage())
+            else:
+                check_reference(ref, MachineLimits.seed004_stage(), masses_kg)
         except LimitViolation:
             return _limited_reference(path, replace(m, profile="limited"), masses_kg)
         return ref
@@ -381,9 +382,7 @@ def _limited_reference(
     table = MachineLimits.seed004_stage()
     accel = MAX_ACCELERATION_M_S2
     for _ in range(_FORCE_REPLANS):
-        limits = MachineLimits(
-            workspace=table.workspace, velocity=table.velocity, acceleration=(accel, accel)
-        )
+        limits = replace(table, acceleration=(accel, accel))
         try:
             res = time_optimal(
                 laps,
