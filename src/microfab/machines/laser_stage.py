@@ -155,6 +155,10 @@ class TwinSettings:
         Encoder interpolation noise on (``noise_rms_m`` of the data file).
     nonlinear : bool
         Friction, cogging, cable, saturation and quantisation on (off: the linear twin).
+    friction : bool
+        The LuGre friction on (the data file's ``[switches] friction``); off leaves the
+        other nonlinear parts as ``nonlinear`` says (the friction-free runs of the Fig. 7
+        study). Ignored when ``nonlinear`` is off.
     disturbance_scale : float or None
         Scale of friction + cogging + cable (default: the data file's).
     mass_error : float
@@ -168,6 +172,7 @@ class TwinSettings:
     seed: int = 0
     noise: bool = True
     nonlinear: bool = True
+    friction: bool = True
     disturbance_scale: float | None = None
     mass_error: float = 0.0
     params_file: str | None = None
@@ -250,6 +255,8 @@ def twin(settings: TwinSettings | None = None) -> LMWStage:
     over: dict[str, Any] = {}
     if tw.disturbance_scale is not None:
         over["disturbance_scale"] = tw.disturbance_scale
+    if tw.nonlinear and not tw.friction:
+        over["friction"] = False
     return stage(tw.params_file, ideal=not tw.nonlinear, **over)
 
 
