@@ -71,11 +71,13 @@ def plot_axis_errors(
     measured: np.ndarray,
     axis: AxisErrors,
     span: tuple[float, float] | None = None,
+    seed: bool = True,
 ) -> MplFigure:
     """Seed 004 Fig. 3: x and y tracking errors against time, with the ±0.5 µm band.
 
     ``time`` (s, (n,)), ``reference`` and ``measured`` (m, (n, 2)); ``axis`` the errors'
-    figures (`microfab.measure.contour.axis_errors`); ``span`` the laps' time span to shade.
+    figures (`microfab.measure.contour.axis_errors`); ``span`` the laps' time span to shade;
+    ``seed`` also names the seed's figures in the titles (only for the seed's set-up).
     """
     fig = new_figure(7.0, 4.2)
     axes = fig.subplots(2, 1, sharex=True)
@@ -90,7 +92,7 @@ def plot_axis_errors(
         ax.set_ylabel(f"e_{name} [µm]")
         ax.set_title(
             f"{name}: {frac:.1f} % of lap samples within ±{band:g} µm, peak "
-            f"{axis.peak_m[k] * 1e6:.2f} µm (seed: < 0.5, peaks 0.8 µm)",
+            f"{axis.peak_m[k] * 1e6:.2f} µm" + (" (seed: < 0.5, peaks 0.8 µm)" if seed else ""),
             fontsize=8,
         )
         ax.grid(True, alpha=0.3)
@@ -189,10 +191,10 @@ def write_analysis(a: TraceAnalysis, out: str | FilePath, title: str) -> FilePat
 
 
 # ---------------------------------------------------------------------------- twin runs
-def fig_axis_errors(run: ContourRun) -> MplFigure:
-    """`plot_axis_errors` of a twin run."""
+def fig_axis_errors(run: ContourRun, seed: bool = True) -> MplFigure:
+    """`plot_axis_errors` of a twin run (``seed``: name the seed's figures)."""
     return plot_axis_errors(
-        run.time, run.reference.trajectory.position, run.measured, run.axis, run.span
+        run.time, run.reference.trajectory.position, run.measured, run.axis, run.span, seed
     )
 
 

@@ -148,3 +148,58 @@ def test_a_sharp_star_runs_at_20_mm_s_through_microfab_run(tmp_path: Path) -> No
     assert res.exit_code == 0, res.output
     auto = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert auto["profile"] == "limited" and auto["slowdowns"] == summary["slowdowns"]
+
+
+SWEEP_EXAMPLE = EXAMPLE.with_name("laser_speed_sweep.toml")
+
+
+def test_the_example_sets_its_preview_dob_run_beside_fig3_as_the_reproduction_does():
+    """Issue 33 item 4/C: the example's main run is the contour law (0.22 µm peak, 100 %
+    within ±0.5 µm: not the seed's Fig. 3 set-up); its Fig. 3 row is the uncorrected
+    preview + DOB run, which is the reproduction's run (`FIG3_JOB`) to the bit."""
+    import dataclasses
+
+    from microfab.experiments.seed004_laser.results import (
+        FIG3_JOB,
+        LaserResult,
+        seed_fig3_setup,
+    )
+    from microfab.machines.laser_stage import ControlSettings
+    from microfab.machines.laser_stage_contour import run_contour
+
+    cfg = load_job(EXAMPLE).config
+    assert not seed_fig3_setup(cfg.run)  # the contour law
+    base_job = cfg.run.with_(control=dataclasses.replace(cfg.run.control, law="preview-dob"))
+    assert seed_fig3_setup(base_job)
+    main, base = run_contour(cfg.run), run_contour(base_job)
+    ref = run_contour(FIG3_JOB)
+    res = LaserResult(config=cfg, main=main, baseline=base, sweep=())
+    assert res.fig3_run() is base
+    assert list(base.axis.peak_m) == list(ref.axis.peak_m)
+    table = res.axis_table()
+    assert "seed 004" in table.title and "preview-dob" in table.title
+    assert f"{ref.axis.peak_m[1] * 1e6:.2f}" in str(table.rows)
+    summary = res.summary()["fig3"]
+    assert summary["peak_um"] == [v * 1e6 for v in ref.axis.peak_m]
+    # without the comparison run, the contour run is not set beside Fig. 3
+    alone = LaserResult(config=cfg, main=main, baseline=None, sweep=())
+    assert alone.fig3_run() is None and alone.summary()["fig3"] is None
+    assert "ours / seed" not in alone.axis_table().columns
+    assert "0.8" not in str(alone.axis_table().rows)
+    # a noise seed still is the seed's set-up; another speed or controller gain is not
+    assert seed_fig3_setup(FIG3_JOB.with_(twin=dataclasses.replace(FIG3_JOB.twin, seed=3)))
+    slow = FIG3_JOB.with_(motion=dataclasses.replace(FIG3_JOB.motion, speed_m_s=2e-3))
+    assert not seed_fig3_setup(slow)
+    assert not seed_fig3_setup(
+        FIG3_JOB.with_(control=ControlSettings(law="preview-dob", bandwidth_hz=40.0))
+    )
+
+
+def test_the_speed_sweep_example_is_not_set_beside_the_seeds_30_um_figures():
+    from microfab.experiments.seed004_laser.results import seed_fig3_setup
+
+    cfg = load_job(SWEEP_EXAMPLE).config
+    assert cfg.run.drawing == "circle:radius=5e-3"
+    assert not seed_fig3_setup(cfg.run)
+    assert not seed_fig3_setup(cfg.run.with_(control=ContourJob().control.__class__(
+        law="preview-dob")))  # fmt: skip

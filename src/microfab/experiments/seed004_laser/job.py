@@ -30,6 +30,7 @@ from typing import Any
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed004_laser import paper
 from microfab.experiments.seed004_laser.results import (
+    FIG3_JOB,
     FocusSettings,
     LaserJob,
     LaserResult,
@@ -230,7 +231,7 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
 
     tw = TwinSettings(seed=options["seed"])
     progress("Fig. 3", 0, None)
-    fig3 = run_contour(ContourJob(control=ControlSettings(law="preview-dob"), twin=tw))
+    fig3 = run_contour(FIG3_JOB.with_(twin=tw))  # the job kind's Fig. 3 set-up too
     quiet = dataclasses.replace(tw, noise=False)
     fig7: dict[str, dict[str, float]] = {}
     for radius in (paper.FIG7_SIZE_M, 50e-6):

@@ -49,12 +49,15 @@ def write_report(result: LaserResult, out: Path, title: str) -> Path:
     from microfab.report.page import Figure, page_html, write_page
 
     m = result.main
+    fig3 = result.fig3_run()
     runs = {f"{m.job.control.law}": m}
     if result.baseline is not None:
         runs["preview-dob (no correction)"] = result.baseline
     figs = [
-        Figure(name="axis_errors.png", png=render_png(fig_axis_errors(m)),
-               caption="Redraws seed 004 Fig. 3: x and y tracking error with the ±0.5 µm band."),
+        Figure(name="axis_errors.png", png=render_png(fig_axis_errors(fig3 or m, fig3 is not None)),
+               caption=(f"Redraws seed 004 Fig. 3 ({fig3.job.control.law} run)"
+                        if fig3 is not None else "Axis tracking (not the seed's Fig. 3 set-up)")
+               + ": x and y tracking error with the ±0.5 µm band."),
         Figure(name="ballbar.png", png=render_png(fig_ballbar(m)),
                caption="Redraws seed 004 Fig. 4, ballbar style: the measured path with its "
                "contour error magnified."),
