@@ -21,7 +21,7 @@ from microfab.core.limits import MachineLimits
 from microfab.machines.twins import TwinCache
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, nanomanipulator_twin
 from microfab.plants.nanomanipulator_params import NanomanipulatorParams, load_params
-from microfab.sim.loop import simulate
+from microfab.sim.loop import LoopState, simulate
 from microfab.sim.result import SimResult
 
 __all__ = ["DATA_FILES", "limits", "play", "twin"]
@@ -62,8 +62,9 @@ def play(
     path: str | os.PathLike[str] | None = None,
     nonlinear: bool = True,
     disturbance: bool = True,
+    state: LoopState | None = None,
 ) -> SimResult:
-    """Play ``controller`` on ``reference`` through the twin's loop, from rest.
+    """Play ``controller`` on ``reference`` through the twin's loop, from rest or ``state``.
 
     Parameters
     ----------
@@ -83,6 +84,10 @@ def play(
         Another twin data file (default the packaged one).
     nonlinear, disturbance : bool
         The §4.1 terms and ``d(t)`` of the twin (`twin`).
+    state : LoopState, optional
+        Where to continue from (e.g. the plant of an earlier result's ``final_state``
+        with another controller's state: a hand-over); at rest if omitted. The noise is
+        drawn for ``reference`` alone (from ``seed``).
 
     Returns
     -------
@@ -93,4 +98,4 @@ def play(
     plant = twin(path, seed=seed, nonlinear=nonlinear, disturbance=disturbance)
     ref = np.asarray(reference, dtype=float)
     v = plant.noise(ref.shape[0], seed) if noise else np.zeros(ref.shape)
-    return simulate(plant, controller, ref, v, derivatives=tuple(derivatives))
+    return simulate(plant, controller, ref, v, state, derivatives=tuple(derivatives))

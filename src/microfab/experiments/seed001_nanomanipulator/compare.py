@@ -21,7 +21,14 @@ from microfab.core.validate import check_finite, check_int, check_positive
 from microfab.machines import nanomanipulator
 from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 
-__all__ = ["CONTROLLERS", "ComparisonConfig", "ComparisonResult", "compare_controllers"]
+__all__ = [
+    "CONTROLLERS",
+    "CircleSetting",
+    "ComparisonConfig",
+    "ComparisonResult",
+    "circle_setting",
+    "compare_controllers",
+]
 
 #: The controllers compared, in the order of the report.
 CONTROLLERS = ("PID", "RBF", "RBF+RC", "PID+RC")
@@ -95,6 +102,60 @@ class ComparisonResult:
         for name, r in self.rms_nm.items():
             rows.append(f"{name:<8}" + "".join(f"{v:8.0f}" for v in r))
         return "\n".join(rows)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class CircleSetting:
+    """The circle of a `ComparisonConfig` at the twin's rate.
+
+    Attributes
+    ----------
+    position, velocity, acceleration : numpy.ndarray
+        Reference moved to the offset, mm, mm/s, mm/s², shape (n_samples, 2).
+    start : int
+        First sample of the first period.
+    period_samples, periods : int
+        Samples per period, periods.
+    seed : int
+        Twin seed.
+    """
+
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    start: int
+    period_samples: int
+    periods: int
+    seed: int
+
+    @property
+    def one(self) -> slice:
+        """The first period."""
+        return slice(self.start, self.start + self.period_samples)
+
+    def period_rms_nm(self, output: np.ndarray, offset: int = 0) -> np.ndarray:
+        """RMS over both axes of ``r − y`` per period, nm, shape (periods,).
+
+        ``output`` (mm, shape (n, 2)) starts at sample ``offset`` of the reference.
+        """
+        a, n = self.start, self.period_samples
+        e = (self.position[offset:] - output)[a - offset : a - offset + self.periods * n]
+        e = e.reshape(self.periods, n, 2)
+        return np.sqrt(np.mean(e**2, axis=(1, 2))) * 1e6  # mm -> nm
+
+
+def circle_setting(config: ComparisonConfig, dt: float = 1e-4) -> CircleSetting:
+    """The circle of ``config`` at sample time ``dt`` (s; the twin's 10 kHz by default)."""
+    ref = pattern_reference(config.pattern, dt)
+    return CircleSetting(
+        position=ref.position + config.offset_mm,
+        velocity=ref.velocity,
+        acceleration=ref.acceleration,
+        start=int(ref.starts[0]),
+        period_samples=int(ref.period_samples),
+        periods=int(ref.periods),
+        seed=config.seed,
+    )
 
 
 def compare_controllers(config: ComparisonConfig | None = None) -> ComparisonResult:

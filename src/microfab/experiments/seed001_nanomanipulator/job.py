@@ -207,19 +207,48 @@ def _write_report(result: NanomanipulatorResult, out: Path, title: str) -> Path:
 
 
 def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
+    from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
+    from microfab.experiments.seed001_nanomanipulator.fig8 import fair_fig8
+    from microfab.experiments.seed001_nanomanipulator.study import learning_study
     from microfab.report.circle_tracking import tracking_table  # draws: loaded on use
 
     cfg = JobConfig(twin=TwinSettings(seed=options["seed"]))
     run = run_job(cfg, None, progress)
     m = run.metrics()
+    progress("RBF learning study and Fig. 8 sweep", 0, None)
+    circle = ComparisonConfig(seed=options["seed"])
+    study = learning_study(circle)
+    fig8 = fair_fig8(circle)
+    data = m.summary()
+    data["rbf_study"] = {
+        "rms_nm": {k: v.tolist() for k, v in study.rms_nm.items()},
+        "weight_norm_v": {k: v.tolist() for k, v in study.weight_norm.items()},
+        "regressor": [vars(r) for r in study.regressor],
+    }
+    data["fig8_fair"] = {
+        "gamma_v_per_mm": fig8.gamma,
+        "rows": [
+            {
+                "bandwidth_hz": r.bandwidth_hz,
+                "phase_margin_deg": r.phase_margin_deg,
+                "final_rms_nm": {
+                    c: (r.final(c) if math.isfinite(r.final(c)) else None) for c in r.rms_nm
+                },
+            }
+            for r in fig8.rows
+        ],
+        "skipped": list(fig8.skipped),
+    }
     return ReproductionResult(
-        tables=(tracking_table(m),),
+        tables=(tracking_table(m), study.as_table(), fig8.as_table()),
         notes=(
             "Twin of seed 001 eq. 9 with the §4.1 terms, assumed noise and disturbance "
             "(microfab/data/nanomanipulator_twin.toml); `microfab calibrate nanomanipulator` "
             "fits the noise to the axial RMS, after which the contour RMS is a prediction.",
+            "RBF study and Fig. 8: one 0.15 mm circle 0.25 mm off-centre, 8 periods, noise "
+            "off, d(t) and the §4.1 α, β terms on (compare.py's setting).",
         ),
-        data=m.summary(),
+        data=data,
     )
 
 

@@ -1,0 +1,64 @@
+"""RBFPlusLinear: a linear controller plus the seed 001 network."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from microfab.control.pid import PID
+from microfab.control.rbf import RBFAdaptive, RBFConfig
+from microfab.control.rbf_composite import RBFPlusLinear
+from microfab.machines import nanomanipulator
+
+
+def _setup() -> tuple[PID, RBFAdaptive, np.ndarray, np.ndarray, np.ndarray]:
+    plant = nanomanipulator.twin()
+    dt = plant.dt
+    t = np.arange(4000) * dt
+    w = 2 * np.pi * 5.0
+    pos = 0.01 * np.column_stack([np.sin(w * t), np.cos(w * t)])
+    vel = 0.01 * w * np.column_stack([np.cos(w * t), -np.sin(w * t)])
+    acc = -(w**2) * pos
+    pid = PID.tuned(plant.continuous_models(), bandwidth_hz=200.0, dt=dt)
+    cfg = RBFConfig(n_nodes=9, s_spread=0.0, gamma=0.3)
+    rbf = RBFAdaptive.for_reference(pos[:2000], vel[:2000], acc[:2000], dt, cfg)
+    return pid, rbf, pos, vel, acc
+
+
+def test_with_frozen_zero_weights_it_is_the_linear_controller() -> None:
+    pid, rbf, pos, vel, acc = _setup()
+    frozen = RBFAdaptive(
+        config=dataclasses.replace(rbf.config, gamma=1e-30), networks=rbf.networks, dt=rbf.dt
+    )
+    a = nanomanipulator.play(pid, pos, derivatives=(vel, acc))
+    b = nanomanipulator.play(RBFPlusLinear(pid, frozen), pos, derivatives=(vel, acc))
+    np.testing.assert_allclose(b.command, a.command, rtol=0, atol=1e-12)
+
+
+def test_kernel_matches_the_python_step_and_adds_both_parts() -> None:
+    pid, rbf, pos, vel, acc = _setup()
+    c = RBFPlusLinear(pid, rbf)
+    res = nanomanipulator.play(c, pos, derivatives=(vel, acc))
+    from microfab.control.base import ReferenceWindow
+
+    x = c.init()
+    xp, xr = pid.init(), rbf.init()
+    for k in range(300):
+        win = ReferenceWindow(position=pos[k : k + 1], velocity=vel[k : k + 1],
+                              acceleration=acc[k : k + 1])  # fmt: skip
+        u, x = c.step(x, win, res.measured[k])
+        up, xp = pid.step(xp, win, res.measured[k])
+        ur, xr = rbf.step(xr, win, res.measured[k])
+        np.testing.assert_allclose(u, res.command[k], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(u, up + ur, rtol=1e-12, atol=1e-15)
+    assert np.any(np.abs(rbf.weights(c.rbf_state(x))) > 0)  # the network adapted
+
+
+def test_refuses_what_it_cannot_combine() -> None:
+    pid, rbf, *_ = _setup()
+    with pytest.raises(TypeError, match="RBFAdaptive"):
+        RBFPlusLinear(pid, pid)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="CompiledController"):
+        RBFPlusLinear(object(), rbf)  # type: ignore[arg-type]
