@@ -15,6 +15,7 @@ from microfab.control.preview_dob import (
 )
 from microfab.control.velocity import VelocityEstimator
 from microfab.plants.base import LTIPlant
+from microfab.plants.friction import StageFriction
 from microfab.plants.lti import DiscreteLTI, block_diag, discretize
 from microfab.sim.loop import LoopState, reference_array, simulate, simulate_python
 
@@ -159,8 +160,29 @@ def test_linear_closed_loop_matches_the_per_sample_loop():
             assert np.max(np.abs(resp.outputs[i] - sig)) <= 1e-9 * scale
 
 
-@pytest.mark.parametrize("kw", [{}, {"dob": False}, {"k_a": 0.0, "match_velocity_filter": False}])
+def friction_laws() -> tuple[StageFriction, ...]:
+    """LuGre friction only, per axis (values of the seed 004 twin's x axis, assumed there)."""
+    law = StageFriction(
+        coulomb_n=0.15, static_n=0.225, stribeck_m_s=1e-3, bristle_stiffness_n_per_m=1.5e5,
+        bristle_damping_n_s_per_m=100.0, viscous_n_s_per_m=1.0, cogging_n=0.0,
+        cogging_pitch_m=0.024, cogging_phase_rad=0.0, cogging=False, cable=False,
+    )  # fmt: skip
+    return (law, law)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {},
+        {"dob": False},
+        {"k_a": 0.0, "match_velocity_filter": False},
+        {"friction_ff": "laws", "friction_ff_scale": 2.0},
+        {"friction_ff": "laws", "dob": False},
+    ],
+)
 def test_kernel_and_python_step_agree(kw):
+    if kw.get("friction_ff") == "laws":
+        kw = {**kw, "friction_ff": friction_laws()}
     ctrl = PreviewDOB(config(**kw))
     pos, vel, acc = circle(0.5)
     plant = stage()
@@ -225,3 +247,49 @@ def test_reference_without_acceleration_is_refused():
     pos, vel, _ = circle(0.1)
     with pytest.raises(ValueError, match="velocity and acceleration"):
         simulate(stage(), ctrl, pos, derivatives=(vel,))
+
+
+def ramp(n: int, speed: float) -> tuple:
+    """Accelerate for 20 ms to ``speed`` along x (y at rest), then cruise; n samples."""
+    t = np.arange(n) * DT
+    ta = 0.02
+    a = speed / ta
+    v = np.where(t < ta, a * t, speed)
+    x = np.where(t < ta, 0.5 * a * t**2, 0.5 * a * ta**2 + speed * (t - ta))
+    acc = np.where(t < ta, a, 0.0)
+    z = np.zeros(n)
+    return np.column_stack([x, z]), np.column_stack([v, z]), np.column_stack([acc, z])
+
+
+@pytest.mark.parametrize("dob", [True, False])
+def test_friction_feedforward_passes_the_dob_only_what_it_leaves(dob):
+    """On a plant without friction the feedforward is a wrong force: with the DOB it sees
+    the current less the feedforward, so the DOB takes the feedforward's steady part back
+    out (position as without it); without DOB the position loop must hold the
+    feedforward's force with a steady error ``F_ff / (M K_p)``. At cruise the plant needs
+    no force, so the command ends as the plain one's either way."""
+    pos, vel, acc = ramp(3000, 2e-3)
+    plant = stage()
+    laws = friction_laws()
+    plain = simulate(plant, PreviewDOB(config(dob=dob)), pos, derivatives=(vel, acc))
+    ff = simulate(plant, PreviewDOB(config(dob=dob, friction_ff=laws)), pos,
+                  derivatives=(vel, acc))  # fmt: skip
+    f_ss, _zd, _g = laws[0].force(0.0, 2e-3, laws[0].coulomb_n / 1.5e5)
+    i_ff = f_ss / KF[0]  # the feedforward's steady current, A (0.15 N + 2 mN)
+    gap = abs(ff.command[-1, 0] - plain.command[-1, 0])
+    err = abs(ff.output[-1, 0] - plain.output[-1, 0])
+    assert gap <= 1e-3 * i_ff, gap
+    if dob:
+        assert err <= 1e-10, err  # measured 3e-13 m
+    else:
+        k_p = config().k_p
+        assert err == pytest.approx(f_ss / MASS[0] / k_p, rel=0.05)  # F_ff / (M K_p)
+
+
+def test_friction_feedforward_refusals():
+    with pytest.raises(ValueError, match="one per axis"):
+        config(friction_ff=friction_laws()[:1])
+    with pytest.raises(ValueError, match="StageFriction"):
+        config(friction_ff=(1.0, 2.0))
+    with pytest.raises(ValueError, match="friction_ff_scale"):
+        config(friction_ff=friction_laws(), friction_ff_scale=-1.0)

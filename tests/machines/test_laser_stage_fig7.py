@@ -38,6 +38,6 @@ def test_the_compensator_trades_normal_for_tangential_error_near_the_axis_bandwi
 
 
 def test_a_speed_beyond_table_one_is_marked_refused_not_run():
-    rows = fig7_study(["circle:radius=1e-4"], [20.0], [False])
+    rows = fig7_study(["circle:radius=1e-4"], [20.0], [(False, False)])
     assert len(rows) == 1 and "continuous force" in rows[0]["refused"]
     assert "with_nm" not in rows[0]

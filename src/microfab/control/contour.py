@@ -84,6 +84,9 @@ from microfab.control.preview_dob import (
     pdob_command,
     pdob_measure,
 )
+from microfab.control.preview_dob_model import _NS
+from microfab.control.preview_dob_model import _S_V as _S_V_IN
+from microfab.control.preview_dob_model import _S_VREF as _S_VREF_IN
 from microfab.core.validate import check_positive
 
 __all__ = [
@@ -95,7 +98,7 @@ __all__ = [
 ]
 
 # offsets in the inner controller's state (see PreviewDOB): v̂ and filtered ẋ_ref per axis
-_NS_IN, _S_V, _S_VREF = 16, 12, 13
+_NS_IN, _S_V, _S_VREF = _NS, _S_V_IN, _S_VREF_IN
 _HDR = 4  # k_pc, k_vc, min speed, dt / fade-in time
 _XS = 6  # state: Δa (2), ε, ε̇, w, spare
 

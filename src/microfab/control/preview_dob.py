@@ -46,6 +46,17 @@ Gains from bandwidths (seed 004 gives none; every default is assumed, see
 Nyquist frequency, or when the nominal closed loop (``K_fn / (M_n s²)``, ZOH at ``dt``,
 with this controller, all python-control) has a pole on or outside the unit circle.
 
+Friction feedforward (not in the seed; off by default, ``friction_ff``): a model-based
+current ``i_ff = s_F F(x_ref, ẋ_ref, z) / K_fn`` from a `microfab.plants.friction.StageFriction`
+law per axis (``s_F`` = ``friction_ff_scale``), run on the reference: its LuGre bristle
+state ``z`` moves by ``ẋ_ref dt`` a sample (`microfab.plants.friction.bristle_step`,
+exact at constant speed), so the feedforward turns over at a reversal as the bristles of
+a stage on the reference would. It enters eq. 4 as ``i = (M_n/K_fn) ẍ_d + î_d + i_ff``
+with ``Q`` fed ``i − i_ff``: the DOB then estimates ``F_l − K_fn i_ff`` (what the model
+leaves) instead of taking the feedforward's low-frequency part back out, and the plant
+sees ``M_n ẍ_d − (1 − Q)(F_l − K_fn i_ff)``. The feedforward reads the reference only,
+so the loop's linear model and margins (``x_fb`` to ``i``) are those without it.
+
 Baselines: ``dob=False`` (preview without DOB), ``k_a=0`` and `PreviewDOBConfig.pd_only`
 (``K_a = 0``, no DOB).
 
@@ -75,6 +86,7 @@ from microfab.control.preview_dob_model import (
     _NS,
     _P_EST,
     _P_F,
+    _P_FF,
     _P_Q,
     _P_REF,
     _S_ACC,
@@ -82,10 +94,12 @@ from microfab.control.preview_dob_model import (
     _S_EST,
     _S_F,
     _S_F_OUT,
+    _S_IFF,
     _S_Q,
     _S_REF,
     _S_V,
     _S_VREF,
+    _S_Z,
     PreviewDOBConfig,
     _axis_block,
     _model_from_block,
@@ -95,6 +109,7 @@ from microfab.control.preview_dob_model import (
 )
 from microfab.control.replay import replay_steps
 from microfab.control.velocity import estimator_step
+from microfab.plants.friction import bristle_step, friction_force
 from microfab.plants.lti import DiscreteLTI
 
 __all__ = [
@@ -135,6 +150,28 @@ def pdob_measure(p: np.ndarray, x: np.ndarray, r: np.ndarray, ym: np.ndarray) ->
         x[s + _S_F_OUT] = estimator_step(p, o + _P_F, x, s + _S_F, y)
 
 
+@njit(cache=True, inline="always")
+def friction_feedforward(
+    p: np.ndarray, x: np.ndarray, o: int, s: int, r: np.ndarray, a: int
+) -> float:
+    """The friction feedforward current of axis ``a`` (A), its bristle state advanced.
+
+    The axis's friction law (block at ``p[o + _P_FF + 2:]``) at the reference position
+    and velocity ``r[0, a]``, ``r[1, a]`` and the state's ``z``, times scale / ``K_fn``;
+    ``z`` then moves by ``ẋ_ref dt`` (`microfab.plants.friction.bristle_step`, exact at a
+    constant speed). 0 when the feedforward is off.
+    """
+    if p[o + _P_FF] == 0.0:
+        return 0.0
+    b = o + _P_FF + 2
+    z = x[s + _S_Z]
+    f, _zd, g = friction_force(p, b, r[0, a], r[1, a], z)
+    dt = p[1]
+    if p[b] != 0.0:  # friction on in the law (the bristle state exists)
+        x[s + _S_Z] = bristle_step(p, b, z, r[1, a] * dt, g)
+    return p[o + _P_FF + 1] * f
+
+
 @njit(cache=True)
 def pdob_command(
     p: np.ndarray, x: np.ndarray, r: np.ndarray, ym: np.ndarray, da: np.ndarray, u: np.ndarray
@@ -159,15 +196,18 @@ def pdob_command(
         dhat = 0.0
         if dob:
             dhat = p[oq + 6] * x[s + _S_Q] + p[oq + 7] * x[s + _S_Q + 1] - mk * x[s + _S_F_OUT]
-        i = mk * acc + dhat
+        iff = friction_feedforward(p, x, o, s, r, a)
+        i = mk * acc + dhat + iff
         u[a] = i
-        if dob:
-            q0 = p[oq] * x[s + _S_Q] + p[oq + 1] * x[s + _S_Q + 1] + p[oq + 4] * i
-            q1 = p[oq + 2] * x[s + _S_Q] + p[oq + 3] * x[s + _S_Q + 1] + p[oq + 5] * i
+        if dob:  # Q sees the current less the feedforward: î_d estimates F_l − F_ff
+            iq = i - iff
+            q0 = p[oq] * x[s + _S_Q] + p[oq + 1] * x[s + _S_Q + 1] + p[oq + 4] * iq
+            q1 = p[oq + 2] * x[s + _S_Q] + p[oq + 3] * x[s + _S_Q + 1] + p[oq + 5] * iq
             x[s + _S_Q] = q0
             x[s + _S_Q + 1] = q1
         x[s + _S_DHAT] = dhat
         x[s + _S_ACC] = acc
+        x[s + _S_IFF] = iff
 
 
 @njit(cache=True)
@@ -226,13 +266,15 @@ class PreviewDOB(CompiledController):
 
     Notes
     -----
-    ``params = [n_axes, 0, per axis (M_n/K_fn, K_fn, K_a, K_v, K_p, dob, match, 0,
-    estimator(11), reference low-pass(11), Q s² (11), Q (11)), zeros(n_axes)]``, each
+    ``params = [n_axes, dt, per axis (M_n/K_fn, K_fn, K_a, K_v, K_p, dob, match, 0,
+    estimator(11), reference low-pass(11), Q s² (11), Q (11), friction feedforward (on,
+    scale/K_fn, law block)), zeros(n_axes)]``, each
     filter ``[A(2x2), B(2), C(2), D, g(2)]`` with ``g`` its state at rest at input 1.
-    State per axis (16): estimator ``[x0, x1, initialised]``, reference low-pass (3),
+    State per axis (18): estimator ``[x0, x1, initialised]``, reference low-pass (3),
     ``Q s²`` filter (3) (each set to rest at its first input), ``Q`` (2, zero at rest),
     then the last sample's ``î_d`` (A), ``v̂`` (m/s), filtered ``ẋ_ref`` (m/s),
-    ``Q s² x_fb`` (m/s²), ``ẍ_d`` (m/s²).
+    ``Q s² x_fb`` (m/s²), ``ẍ_d`` (m/s²), then the friction feedforward's bristle
+    deflection ``z`` (m, 0 at rest) and its last current ``i_ff`` (A).
     """
 
     kernel_step: Any = preview_dob_step
@@ -248,13 +290,13 @@ class PreviewDOB(CompiledController):
         self.preview = 1
         blocks = [_axis_block(config, a, config.k_p, config.k_v) for a in range(self.n_axes)]
         self.params = np.concatenate(
-            [[float(self.n_axes), 0.0], *blocks, np.zeros(self.n_axes)]
+            [[float(self.n_axes), self.dt], *blocks, np.zeros(self.n_axes)]
         ).astype(np.float64)
         self.params.setflags(write=False)
 
     # ------------------------------------------------------------------ state machine
     def init(self) -> np.ndarray:
-        """Every filter at rest (set at its first input), shape (16 n_axes,)."""
+        """Every filter at rest (set at its first input), shape (18 n_axes,)."""
         return np.zeros(_NS * self.n_axes)
 
     def _block(self, a: int) -> np.ndarray:
@@ -312,14 +354,26 @@ class PreviewDOB(CompiledController):
             dhat = 0.0
             if b[5] != 0.0:
                 dhat = q[6] * sq[0] + q[7] * sq[1] - mk * x[s + _S_F_OUT]
-            i = mk * acc + dhat
+            iff = 0.0
+            if self.config.friction_ff:
+                law = self.config.friction_ff[a]
+                z = float(x[s + _S_Z])
+                xr = float(window.position[0, a])
+                vr = float(window.velocity[0, a])  # type: ignore[index]
+                f, _zd, g = law.force(xr, vr, z)
+                if law.friction:
+                    x[s + _S_Z] = law.bristle(z, vr * self.dt, g)
+                iff = self.config.friction_ff_scale * f / self.config.force_constant_n_per_a[a]
+            i = mk * acc + dhat + iff
             if b[5] != 0.0:
+                iq = i - iff
                 x[s + _S_Q : s + _S_Q + 2] = (
-                    q[0] * sq[0] + q[1] * sq[1] + q[4] * i,
-                    q[2] * sq[0] + q[3] * sq[1] + q[5] * i,
+                    q[0] * sq[0] + q[1] * sq[1] + q[4] * iq,
+                    q[2] * sq[0] + q[3] * sq[1] + q[5] * iq,
                 )
             x[s + _S_DHAT] = dhat
             x[s + _S_ACC] = acc
+            x[s + _S_IFF] = iff
             u[a] = i
         return u
 

@@ -22,19 +22,24 @@ import numpy as np
 import control
 from microfab.control.velocity import VelocityEstimator
 from microfab.core.validate import check_nonnegative, check_positive
+from microfab.plants.friction import N_FRICTION, StageFriction
 from microfab.plants.lti import DiscreteLTI, discretize
 
 __all__ = ["PreviewDOBConfig", "axis_model", "check_stable", "nominal_closed_loop_poles"]
 
 _HEAD = 2  # n_axes, spare
 _NF = 11  # a 2-state filter in the layout of VelocityEstimator.discrete
-# per-axis parameter block: M/K, K, K_a, K_v, K_p, dob, match, spare, then four filters
+# per-axis parameter block: M/K, K, K_a, K_v, K_p, dob, match, spare, then four filters,
+# then the friction feedforward: on, scale / K_fn (1/(N/A)), the friction law's block
 _P_EST, _P_REF, _P_F, _P_Q = 8, 8 + _NF, 8 + 2 * _NF, 8 + 3 * _NF
-_NB = 8 + 4 * _NF
-# per-axis state block: estimator(3), reference filter(3), Q s² filter(3), Q(2), logs
+_P_FF = 8 + 4 * _NF
+_NB = _P_FF + 2 + N_FRICTION
+# per-axis state block: estimator(3), reference filter(3), Q s² filter(3), Q(2), logs,
+# then the feedforward's bristle deflection z (m) and its last current i_ff (A)
 _S_EST, _S_REF, _S_F, _S_Q = 0, 3, 6, 9
 _S_DHAT, _S_V, _S_VREF, _S_F_OUT, _S_ACC = 11, 12, 13, 14, 15
-_NS = 16
+_S_Z, _S_IFF = 16, 17
+_NS = 18
 
 
 def _check_axes_tuple(name: str, values: Sequence[float], unit: str) -> tuple[float, ...]:
@@ -84,6 +89,12 @@ class PreviewDOBConfig:
     estimator : VelocityEstimator
         Filtered differentiator for ``ẋ_fb`` (assumed 2 kHz, ζ = 1/√2: 40 ω_c, a fifth of
         the sample rate; 1 kHz costs 3 dB / 7° of the margins above).
+    friction_ff : tuple of StageFriction
+        Friction feedforward, one law per axis (`microfab.plants.friction`), or empty (the
+        default: none, the seed's eqs. 3-4). Not in the seed: a model-based addition
+        (`microfab.control.preview_dob`, "Friction feedforward").
+    friction_ff_scale : float
+        Multiplies the feedforward's force (the twins' ``disturbance_scale``), >= 0.
 
     Raises
     ------
@@ -106,6 +117,8 @@ class PreviewDOBConfig:
     estimator: VelocityEstimator = field(
         default_factory=lambda: VelocityEstimator(bandwidth_hz=2000.0)  # assumed: 40 ω_c
     )
+    friction_ff: tuple[StageFriction, ...] = ()
+    friction_ff_scale: float = 1.0
 
     def __post_init__(self) -> None:
         m = _check_axes_tuple("mass_kg (nominal mass M_n)", self.mass_kg, "kg")
@@ -143,6 +156,18 @@ class PreviewDOBConfig:
                 f"estimator must be a VelocityEstimator, got {type(self.estimator).__name__}"
             )
         self.estimator.discrete(dt)  # refuses an estimator above Nyquist
+        ff = tuple(self.friction_ff)
+        if ff and len(ff) != len(m):
+            raise ValueError(
+                f"friction_ff has {len(ff)} laws for {len(m)} axes: give one per axis, or none"
+            )
+        for law in ff:
+            if not isinstance(law, StageFriction):
+                raise ValueError(
+                    f"friction_ff must hold StageFriction laws, got {type(law).__name__}"
+                )
+        object.__setattr__(self, "friction_ff", ff)
+        check_nonnegative("friction_ff_scale", self.friction_ff_scale)
         for a in range(len(m)):
             check_stable(self, a, self.k_p, self.k_v, "")
 
@@ -219,7 +244,15 @@ def _axis_block(cfg: PreviewDOBConfig, a: int, k_p: float, k_v: float) -> np.nda
         float(cfg.match_velocity_filter),
         0.0,
     ]
-    return np.concatenate([head, est, ref, f, q])
+    if cfg.friction_ff:
+        ff = [
+            1.0,
+            cfg.friction_ff_scale / cfg.force_constant_n_per_a[a],
+            *cfg.friction_ff[a].pack(),
+        ]
+    else:
+        ff = [0.0] * (2 + N_FRICTION)
+    return np.concatenate([head, est, ref, f, q, ff])
 
 
 def _model_from_block(b: np.ndarray, dt: float) -> DiscreteLTI:

@@ -203,6 +203,12 @@ class ControlSettings:
         Acceleration feedforward gain of eq. 3 (default 1).
     contour_bandwidth_hz : float
         Contour compensator (or cross-coupled) ``ω_cc / 2π`` (default 100 Hz).
+    friction_ff : bool
+        Friction feedforward on the preview + DOB axes (not in the seed; default off).
+        Assumed: the controller knows the twin's LuGre friction law exactly, as a friction
+        identification on the stage would give it (the data file's values, switch and
+        disturbance scale), and runs it on the reference (`controller`); cogging and cable
+        stay the DOB's. An upper bound of what a model-based friction feedforward does.
     """
 
     law: str = "contour"
@@ -210,6 +216,7 @@ class ControlSettings:
     dob_bandwidth_hz: float = 500.0
     k_a: float = 1.0
     contour_bandwidth_hz: float = 100.0
+    friction_ff: bool = False
 
     def __post_init__(self) -> None:
         if self.law not in LAWS:
@@ -277,6 +284,15 @@ def controller(cs: ControlSettings, plant: LMWStage, mass_error: float = 0.0) ->
         dob_bandwidth_hz=cs.dob_bandwidth_hz,
         k_a=0.0 if cs.law == "pd" else cs.k_a,
         dob=cs.law not in ("preview", "pd"),
+        friction_ff=(
+            tuple(
+                dataclasses.replace(law, cogging=False, cable=False)
+                for law in plant.config.friction_laws
+            )
+            if cs.friction_ff
+            else ()
+        ),
+        friction_ff_scale=plant.config.disturbance_scale,
     )
     if cs.law == "contour":
         return ContourCompensator(ContourConfig(inner=inner, bandwidth_hz=cs.contour_bandwidth_hz))

@@ -58,8 +58,11 @@ from microfab.trajectory.contour_laps import ContourMotion
 
 __all__ = [
     "FIG7_DRAWINGS",
+    "FIG7_MODES",
     "FIG7_SPEEDS_MM_S",
     "PathFrameErrors",
+    "fig7_cause",
+    "fig7_point",
     "fig7_study",
     "path_frame_errors",
     "rotating_frame_prediction",
@@ -173,38 +176,62 @@ def rotating_frame_prediction(
     return float(e[0]), float(e[1])
 
 
-def _job(drawing: str, speed_mm_s: float, law: str, friction: bool, laps: int) -> ContourJob:
+#: The twin and controller variants of the study, ``(friction, friction_ff)``: the full
+#: twin, the full twin with the friction feedforward on both laws
+#: (`ControlSettings.friction_ff`), the twin without friction.
+FIG7_MODES = ((True, False), (True, True), (False, False))
+
+
+def _job(
+    drawing: str, speed_mm_s: float, law: str, friction: bool, laps: int, friction_ff: bool
+) -> ContourJob:
     return ContourJob(
         drawing=drawing,
         motion=ContourMotion(speed_m_s=speed_mm_s * 1e-3, laps=laps),
-        control=ControlSettings(law=law),
+        control=ControlSettings(law=law, friction_ff=friction_ff),
         twin=TwinSettings(noise=False, friction=friction),
     )
 
 
-def fig7_point(drawing: str, speed_mm_s: float, friction: bool, *, laps: int = 2) -> dict[str, Any]:
-    """Both laws on one drawing at one speed, friction on or off: one row of `fig7_study`.
+def fig7_point(
+    drawing: str,
+    speed_mm_s: float,
+    friction: bool,
+    *,
+    friction_ff: bool = False,
+    laps: int = 2,
+) -> dict[str, Any]:
+    """Both laws on one drawing at one speed and mode: one row of `fig7_study`.
+
+    ``friction`` is the twin's LuGre friction, ``friction_ff`` the friction feedforward
+    under both laws.
 
     Returns
     -------
     dict
-        ``drawing``, ``speed_mm_s``, ``friction``; ``without_nm`` and ``with_nm`` (largest
-        contour error of the true positions after lap 1, ``preview-dob`` and ``contour``),
-        ``gain`` (their ratio), ``turn_rate_ratio`` (largest ``Ω`` over the axis loop's
-        ``ω_c``), and the path-frame mean errors ``normal_nm`` / ``tangential_nm`` of
-        each law (dicts by law). A reference beyond Table I is not run: the row then has
-        ``refused`` (the limit's message) and no numbers.
+        ``drawing``, ``speed_mm_s``, ``friction``, ``friction_ff``; ``without_nm`` and
+        ``with_nm`` (largest contour error of the true positions after lap 1,
+        ``preview-dob`` and ``contour``), ``gain`` (their ratio), ``turn_rate_ratio``
+        (largest ``Ω`` over the axis loop's ``ω_c``), and the path-frame mean errors
+        ``normal_nm`` / ``tangential_nm`` of each law (dicts by law). A reference beyond
+        Table I is not run: the row then has ``refused`` (the limit's message) and no
+        numbers.
     """
-    out: dict[str, Any] = {"drawing": drawing, "speed_mm_s": speed_mm_s, "friction": friction}
+    out: dict[str, Any] = {
+        "drawing": drawing,
+        "speed_mm_s": speed_mm_s,
+        "friction": friction,
+        "friction_ff": friction_ff,
+    }
     try:
-        check_job(_job(drawing, speed_mm_s, "preview-dob", friction, laps))
+        check_job(_job(drawing, speed_mm_s, "preview-dob", friction, laps, friction_ff))
     except LimitViolation as err:
         out["refused"] = str(err)
         return out
     normal: dict[str, float] = {}
     tangential: dict[str, float] = {}
     for law in _LAWS:
-        p = play_contour(_job(drawing, speed_mm_s, law, friction, laps))
+        p = play_contour(_job(drawing, speed_mm_s, law, friction, laps, friction_ff))
         laps_ = [p.reference.lap(i) for i in range(laps)]
         c = contour_errors(p.path, p.trace.output, laps_).steady_max()
         out["without_nm" if law == "preview-dob" else "with_nm"] = c * 1e9
@@ -223,11 +250,11 @@ def fig7_point(drawing: str, speed_mm_s: float, friction: bool, *, laps: int = 2
 def fig7_study(
     drawings: Sequence[str] = FIG7_DRAWINGS,
     speeds_mm_s: Sequence[float] = FIG7_SPEEDS_MM_S,
-    frictions: Sequence[bool] = (True, False),
+    modes: Sequence[tuple[bool, bool]] = FIG7_MODES,
     *,
     laps: int = 2,
 ) -> list[dict[str, Any]]:
-    """`fig7_point` for every drawing, friction setting and speed (in that order).
+    """`fig7_point` for every drawing, mode and speed (in that order).
 
     Parameters
     ----------
@@ -235,8 +262,10 @@ def fig7_study(
         Drawing sources (`microfab.geometry.load.load_drawing`), m.
     speeds_mm_s : sequence of float
         Tangential speeds, mm/s.
-    frictions : sequence of bool
-        LuGre friction of the twin on / off (`TwinSettings.friction`).
+    modes : sequence of (bool, bool)
+        ``(friction, friction_ff)``: the twin's LuGre friction on / off
+        (`TwinSettings.friction`), the friction feedforward on / off
+        (`ControlSettings.friction_ff`).
     laps : int
         Full-speed laps per run (the error is taken after the first).
 
@@ -246,7 +275,10 @@ def fig7_study(
         The rows (`fig7_point`).
     """
     return [
-        fig7_point(d, v, fr, laps=laps) for d in drawings for fr in frictions for v in speeds_mm_s
+        fig7_point(d, v, fr, friction_ff=ff, laps=laps)
+        for d in drawings
+        for fr, ff in modes
+        for v in speeds_mm_s
     ]
 
 

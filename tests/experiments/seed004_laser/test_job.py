@@ -203,3 +203,9 @@ def test_the_speed_sweep_example_is_not_set_beside_the_seeds_30_um_figures():
     assert not seed_fig3_setup(cfg.run)
     assert not seed_fig3_setup(cfg.run.with_(control=ContourJob().control.__class__(
         law="preview-dob")))  # fmt: skip
+
+
+def test_friction_feedforward_is_a_job_setting(tmp_path):
+    cfg = load_job(_job(tmp_path, "[control]\nfriction_ff = true\n")).config
+    assert cfg.run.control.friction_ff
+    assert not load_job(EXAMPLE).config.run.control.friction_ff  # the seed's eqs. 3-4

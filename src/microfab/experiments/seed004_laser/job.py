@@ -86,6 +86,9 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
         Key(name="k_a", type=_F, default=1.0, low=0.0, help="acceleration feedforward K_a"),
         Key(name="contour_bandwidth_hz", type=_F, default=100.0, low=0.0, unit="Hz",
             help="contour compensator / cross-coupled loop (assumed)"),
+        Key(name="friction_ff", type="bool", default=False,
+            help="friction feedforward from the twin's LuGre law (not in the seed; assumed "
+            "known exactly, as identified)"),
     ),
     "sweep": (
         Key(name="speeds_mm_s", type="float_list", default=(0.1, 1.0, 10.0), low=0.0,
@@ -139,6 +142,7 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> LaserJob:
         dob_bandwidth_hz=c["dob_bandwidth_hz"],
         k_a=c["k_a"],
         contour_bandwidth_hz=c["contour_bandwidth_hz"],
+        friction_ff=c["friction_ff"],
     )
     twin = TwinSettings(
         seed=tw["seed"],

@@ -37,7 +37,12 @@ def _notes(result: LaserResult) -> list[str]:
         "Table I (speed, acceleration, 12 N peak, 3 N RMS force) before running.",
         f"Controller: {job.control.law} (axis loop {job.control.bandwidth_hz:g} Hz, DOB "
         f"{job.control.dob_bandwidth_hz:g} Hz, K_a = {job.control.k_a:g}, contour loop "
-        f"{job.control.contour_bandwidth_hz:g} Hz; all assumed, the seed gives no gains).",
+        f"{job.control.contour_bandwidth_hz:g} Hz; all assumed, the seed gives no gains)"
+        + (
+            "; friction feedforward from the twin's LuGre law (not in the seed)."
+            if job.control.friction_ff
+            else "."
+        ),
         "Contour error: distance of the true (or measured) position to the exact drawing "
         "(foot point), signed; 'after lap 1' leaves out the first full-speed lap.",
     ]
