@@ -99,7 +99,12 @@ def test_reproduce_msl_ilc_json(tmp_path):
     )
     assert res.exit_code == 0, res.output
     data = json.loads(out.read_text())
-    assert set(data) == {"table1", "table2", "margins", "rms_history"}
+    assert set(data) == {"table1", "table2", "margins", "rms_history", "provenance"}
+    rows = [r for t in data["provenance"] for r in t["rows"]]
+    assert len(rows) == 8 and all(
+        r["label"] in ("input", "fitted", "predicted", "mixed") for r in rows
+    )
+    assert rows[0]["label"] == "fitted" and rows[0]["by"] == ["microfab calibrate galvo"]
     for a in ("x", "y"):
         assert set(data["table1"][a]) == set(RATES)
         for r in RATES:

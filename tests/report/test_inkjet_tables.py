@@ -25,7 +25,13 @@ def test_tables_put_the_seed_beside_ours_and_judge_the_trend() -> None:
     first, trend, volts = breakup_tables(rows)
     assert first.rows[0][:3] == ("0.15", "96 / 95", "exit / front")
     assert first.rows[1][:3] == ("1", "258 / 230", "exit / exit")
-    assert trend.rows == (("breakup time rises with concentration", "yes", "yes"),)
+    assert trend.rows == (("breakup time rises with concentration", "yes", "yes", "predicted"),)
+    # the quoted times are the calibration's targets, the modes are not
+    assert first.labels[0].origin == "mixed" and first.labels[0].counts == {
+        "fitted": 1,
+        "predicted": 1,
+    }
+    assert first.labels[0].by == ("microfab droplet calibrate --model lagrangian",)
     assert [r[0] for r in volts.rows] == ["50", "60"]
 
     falling = [_row(0.15, 50, 96e-6), _row(1.0, 50, 258e-6), _row(1.5, 50, 133e-6)]

@@ -266,5 +266,5 @@ def reproduce_cmd(
     for note in result.notes:
         console.print(note, highlight=False)
     if json_path is not None:
-        atomic_write_json(json_path, result.data or {})
+        atomic_write_json(json_path, result.to_json())
         console.print(f"wrote {json_path}", highlight=False)

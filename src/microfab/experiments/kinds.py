@@ -175,16 +175,32 @@ class ReproductionResult:
     Attributes
     ----------
     tables : tuple of Table
-        Comparison tables (``ours / seed`` cells or ours and seed columns).
+        Comparison tables (``ours / seed`` cells or ours and seed columns), each row
+        labelled with where our numbers come from (`Table.labels`: input from the paper,
+        fitted to it, or predicted; `microfab.report.provenance.labelled`).
     notes : tuple of str
         What differs and why, one line each.
     data : dict
         JSON-ready numbers (ours), for ``--json``.
+
+    Raises
+    ------
+    ValueError
+        A table without its row labels.
     """
 
     tables: tuple[Table, ...]
     notes: tuple[str, ...] = ()
     data: dict[str, Any] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tables", tuple(self.tables))
+
+    def to_json(self) -> dict[str, Any]:
+        """``data`` and, under ``"provenance"``, every row's label by table title."""
+        out = dict(self.data or {})
+        out["provenance"] = [{"table": t.title, "rows": t.labels_json()} for t in self.tables]
+        return out
 
 
 @dataclass(frozen=True, kw_only=True)

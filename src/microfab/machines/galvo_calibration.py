@@ -23,17 +23,20 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
+from microfab.core.provenance import Calibration, quantity
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.galvo import complementary_sensitivity
 from microfab.plants.galvo import GalvoAxis, _seed_axes
 from microfab.trajectory.periodic import square_scan
 
 __all__ = [
+    "CALIBRATION",
     "RATES",
     "TABLE1_MV",
     "AxisCalibration",
     "calibrate_galvo",
     "fb_error",
+    "table1_quantity",
     "truncation_error",
 ]
 
@@ -52,6 +55,24 @@ TABLE1_MV: dict[str, dict[int, dict[str, float]]] = {
         400: {"fb_rms": 139.59, "fb_pp": 532.96, "ilc_rms": 5.21, "ilc_pp": 44.43},
     },
 }
+
+
+def table1_quantity(axis: str, key: str, rate: int) -> str:
+    """Id of one Table 1 number: ``key`` in ``fb_rms``, ``fb_pp``, ``ilc_rms``, ``ilc_pp``."""
+    return quantity("000", "Table 1", axis, key, rate)
+
+
+#: What the fit targets: the six feedback numbers per axis (pole and gain ratio) and the ILC
+#: RMS at the lowest rate (the encoder noise).
+CALIBRATION = Calibration(
+    command="microfab calibrate galvo",
+    data_file="galvo_twin.toml",
+    targets=frozenset(
+        {table1_quantity(a, k, r) for a in TABLE1_MV for r in RATES for k in ("fb_rms", "fb_pp")}
+        | {table1_quantity(a, "ilc_rms", RATES[0]) for a in TABLE1_MV}
+    ),
+    what="rigid-body pole, gain ratio and encoder noise per axis",
+)
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ from pathlib import Path
 
 from scipy import optimize
 
+from microfab.core.provenance import Calibration, quantity
 from microfab.core.validate import check_in_range
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
@@ -48,10 +49,12 @@ from microfab.process.inkjet.breakup import BreakupMode
 from microfab.process.inkjet.fluids import NaAlgTable, _parse_table, load_table, naalg
 
 __all__ = [
+    "CALIBRATIONS",
     "SEED_BREAKUP",
     "SEED_VOLTAGE_V",
     "Evaluation",
     "RelaxationFit",
+    "breakup_quantity",
     "calibrate_relaxation",
     "model_breakup",
     "simulated_breakup",
@@ -68,6 +71,24 @@ SEED_BREAKUP: dict[float, tuple[float, BreakupMode]] = {
     0.15: (95e-6, "front"),
     1.0: (230e-6, "exit"),
 }
+
+
+def breakup_quantity(concentration_pct: float, what: str = "time") -> str:
+    """Id of one seed breakup number at 50 V: ``what`` is ``"time"`` or ``"mode"``."""
+    return quantity("003", "Fig. 4", f"{concentration_pct:g} %", what)
+
+
+#: One fit per jet model (each writes its own relaxation law): the times of `SEED_BREAKUP`;
+#: the modes are not fitted.
+CALIBRATIONS = tuple(
+    Calibration(
+        command=f"microfab droplet calibrate --model {m}",
+        data_file="naalg.toml",
+        targets=frozenset(breakup_quantity(c) for c in SEED_BREAKUP),
+        what=f"relaxation-time law of the {m} jet model",
+    )
+    for m in ("lagrangian", "eulerian")
+)
 
 #: Simulated time per calibration run, s: long enough for a breakup 70 % later than the
 #: latest target.

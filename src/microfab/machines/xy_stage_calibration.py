@@ -77,6 +77,7 @@ from typing import Any
 
 import numpy as np
 
+from microfab.core.provenance import Calibration, quantity
 from microfab.core.validate import check_in_range, check_int, check_positive
 from microfab.identify.excitation import MAX_TOTAL_S, random_runs
 from microfab.io.atomic import atomic_write_json, atomic_write_text
@@ -92,6 +93,7 @@ from microfab.plants.sourced_toml import update_sourced
 from microfab.plants.xy_stage_params import AXES, XYStageParams, load_params
 
 __all__ = [
+    "CALIBRATION",
     "FREE_FIELDS",
     "PLAUSIBLE_CAP",
     "REFERENCE",
@@ -104,6 +106,7 @@ __all__ = [
     "force_budget",
     "scaled_changes",
     "scales_of",
+    "table_ii_quantity",
     "write_calibration_json",
     "write_twin_file",
 ]
@@ -116,6 +119,20 @@ TARGET_SIGMA_M = (
 )
 #: The issue's band for the fit: ±15 % of Table II column 1.
 TARGET_BAND = 0.15
+
+
+def table_ii_quantity(model: str, axis: str, column: str, stat: str) -> str:
+    """Id of one Table II number: model ``linear``/``ann``, column, ``mu`` or ``sigma``."""
+    return quantity("002", "Table II", model, axis, column, stat)
+
+
+#: What `fit_scales` targets: Table II column 1's σ, per axis.
+CALIBRATION = Calibration(
+    command="microfab calibrate xy-stage",
+    data_file="xy_stage_twin.toml",
+    targets=frozenset(table_ii_quantity("linear", a, "training", "sigma") for a in ("x", "y")),
+    what="friction and cogging magnitudes per axis",
+)
 
 #: The assumed magnitudes at scale 1, per axis (x, y); their reasons were the data file's
 #: before calibration and are kept here. All "assumed" (the seed gives none).

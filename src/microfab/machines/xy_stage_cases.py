@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from microfab.core.limits import MachineLimits
+from microfab.core.provenance import Calibration, quantity
 from microfab.geometry.airfoil import airfoil_path
 from microfab.geometry.path import Path
 from microfab.geometry.text import SEED002_LETTERS, letters_seed002
@@ -47,6 +48,7 @@ from microfab.trajectory.optimal import time_optimal
 
 __all__ = [
     "AIRFOIL_TIME_S",
+    "CALIBRATION",
     "CASES",
     "DATA_FILES",
     "R_TIME_S",
@@ -60,11 +62,29 @@ __all__ = [
     "case_sizes",
     "centred",
     "play_cases",
+    "table_iii_quantity",
 ]
 
 R_TIME_S = 0.807  # seed 002 §V-A, Table III: letter "r" at a_max = 1 m/s² takes 0.807 s
 AIRFOIL_TIME_S = 1.322  # seed 002 Table III: airfoil at a_max = 1 m/s² takes 1.322 s
 SIZE_A_MAX = 1.0  # seed 002 Table III: the a_max of both times above, m/s²
+
+
+def table_iii_quantity(case: str, a_max: float, what: str) -> str:
+    """Id of one Table III number: ``what`` is ``"T"`` or a tolerance column."""
+    return quantity("002", "Table III", case, f"{a_max:g} m/s²", what)
+
+
+#: The case sizes (here for the time-optimal command, in ``seed002_reference.sizing`` for
+#: stage 1's) are fitted at every run to these two times; every other length is a check.
+CALIBRATION = Calibration(
+    command="case sizing (letter height and airfoil chord)",
+    data_file="",
+    targets=frozenset(
+        {table_iii_quantity("r", SIZE_A_MAX, "T"), table_iii_quantity("airfoil", SIZE_A_MAX, "T")}
+    ),
+    what="letter height to 'r', airfoil chord to the airfoil, at 1 m/s²",
+)
 #: The cases: the four letters (seed 002 §II-C) and the airfoil.
 CASES = (*SEED002_LETTERS, "airfoil")
 #: The packaged data the cases read (the airfoil coordinates).

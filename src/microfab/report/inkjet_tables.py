@@ -21,8 +21,10 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from microfab.core.provenance import Shows, quantity
 from microfab.machines.printhead import FIG4_VOLTAGE_V
-from microfab.machines.printhead_calibration import SEED_BREAKUP
+from microfab.machines.printhead_calibration import CALIBRATIONS, SEED_BREAKUP, breakup_quantity
+from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, versus
 
 __all__ = ["breakup_tables", "breakup_trend", "row_model"]
@@ -55,6 +57,18 @@ def breakup_trend(at50: Sequence[dict[str, Any]]) -> str:
         if b["breakup_time_s"] <= a["breakup_time_s"]
     ]
     return "yes" if not falls else "no: falls from " + ", ".join(falls)
+
+
+def _seed_shows(c: float, n_models: int = 1) -> Shows:
+    """The seed numbers a 50 V row at ``c`` is compared with: time per model, and mode."""
+    if c not in SEED_BREAKUP:
+        return OURS
+    return Shows((breakup_quantity(c, "time"),) * n_models + (breakup_quantity(c, "mode"),))
+
+
+def _others(model: str) -> tuple[str, ...]:
+    """The calibrations of the other jet models (not applied to ``model``'s numbers)."""
+    return tuple(c.command for c in CALIBRATIONS if not c.command.endswith(f" {model}"))
 
 
 def breakup_tables(rows: Sequence[dict[str, Any]]) -> tuple[Table, ...]:
@@ -105,16 +119,19 @@ def _model_comparison(rows: Sequence[dict[str, Any]], models: Sequence[str]) -> 
     columns = ["NaAlg [% w/v]"]
     for m in models:
         columns += [f"{m}: first breakup", f"{m}: tail [µm]"]
-    return Table(
+    table = Table(
         title=f"Jet models side by side at {FIG4_VOLTAGE_V:g} V, and the seed",
         columns=(*columns, "seed 003"),
         rows=table_rows,
         note="tail: length of the ligament behind the head in the last 10 µs frame before "
         "the first breakup (microfab.process.inkjet.head_tail); a plug has none.",
     )
+    return labelled(table, [_seed_shows(c, len(models)) for c in cs])
 
 
 def _tables_of_one_model(rows: Sequence[dict[str, Any]], label: str) -> tuple[Table, ...]:
+    model = row_model(rows[0]) if rows else "lagrangian"
+    skip = _others(model)
 
     def cells(r: dict[str, Any]) -> tuple[str, ...]:
         z = r.get("breakup_z_m")
@@ -142,19 +159,26 @@ def _tables_of_one_model(rows: Sequence[dict[str, Any]], label: str) -> tuple[Ta
         )
     tail = ("z [µm]", "head speed [m/s]", "satellites", "drop Ø [µm]")
     tables = [
-        Table(
-            title=f"First breakup at {FIG4_VOLTAGE_V:g} V, ours / seed 003 part 1{label}",
-            columns=("NaAlg [% w/v]", "time [µs]", "mode", *tail),
-            rows=series,
-            note="The seed quotes two breakups (0.15 % at 95 µs by front-pinching, 1 % at "
-            "230 µs by exit-pinching; 'Typical droplet formation process', Fig. 2); "
-            "Fig. 4's other points are drawn, not tabulated. z is measured from the "
-            "nozzle exit; a dash: no breakup within the simulated time.",
+        labelled(
+            Table(
+                title=f"First breakup at {FIG4_VOLTAGE_V:g} V, ours / seed 003 part 1{label}",
+                columns=("NaAlg [% w/v]", "time [µs]", "mode", *tail),
+                rows=series,
+                note="The seed quotes two breakups (0.15 % at 95 µs by front-pinching, 1 % at "
+                "230 µs by exit-pinching; 'Typical droplet formation process', Fig. 2); "
+                "Fig. 4's other points are drawn, not tabulated. z is measured from the "
+                "nozzle exit; a dash: no breakup within the simulated time.",
+            ),
+            [_seed_shows(r["concentration_pct"]) for r in at50],
+            not_applied=skip,
         ),
-        Table(
-            title=f"Seed Fig. 4 trend: breakup time rises with concentration (50 V){label}",
-            columns=("claim", "ours", "seed"),
-            rows=[("breakup time rises with concentration", breakup_trend(at50), "yes")],
+        labelled(
+            Table(
+                title=f"Seed Fig. 4 trend: breakup time rises with concentration (50 V){label}",
+                columns=("claim", "ours", "seed"),
+                rows=[("breakup time rises with concentration", breakup_trend(at50), "yes")],
+            ),
+            Shows((quantity("003", "Fig. 4", "trend at 50 V"),)),
         ),
     ]
     by_c: dict[float, list[dict[str, Any]]] = {}
@@ -164,20 +188,26 @@ def _tables_of_one_model(rows: Sequence[dict[str, Any]], label: str) -> tuple[Ta
     if len(longest) > 1:
         vrows = sorted(longest, key=lambda r: r["voltage_v"])
         tables.append(
-            Table(
-                title=f"Voltage series at {vrows[0]['concentration_pct']:g} % NaAlg (ours){label}",
-                columns=("voltage [V]", "time [µs]", "mode", *tail),
-                rows=[
-                    (
-                        f"{r['voltage_v']:g}",
-                        DASH if r["breakup_time_s"] is None else f"{r['breakup_time_s'] * 1e6:.0f}",
-                        r["breakup_mode"] or DASH,
-                        *cells(r),
-                    )
-                    for r in vrows
-                ],
-                note="Seed 003 Table 1 lists the voltages (40-70 V) but publishes no breakup "
-                "numbers for them.",
+            labelled(
+                Table(
+                    title=f"Voltage series at {vrows[0]['concentration_pct']:g} % NaAlg "
+                    f"(ours){label}",
+                    columns=("voltage [V]", "time [µs]", "mode", *tail),
+                    rows=[
+                        (
+                            f"{r['voltage_v']:g}",
+                            DASH
+                            if r["breakup_time_s"] is None
+                            else f"{r['breakup_time_s'] * 1e6:.0f}",
+                            r["breakup_mode"] or DASH,
+                            *cells(r),
+                        )
+                        for r in vrows
+                    ],
+                    note="Seed 003 Table 1 lists the voltages (40-70 V) but publishes no breakup "
+                    "numbers for them.",
+                ),
+                OURS,
             )
         )
     return tuple(tables)

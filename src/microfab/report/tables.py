@@ -10,6 +10,8 @@ import html
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from microfab.core.provenance import LABEL_COLUMN, RowLabel
+
 __all__ = ["DASH", "Table", "ratio", "versus"]
 
 #: What a cell shows where there is no value.
@@ -62,22 +64,59 @@ class Table:
         Rows, each as long as ``columns``.
     note : str
         A line under the table (e.g. where the seed's numbers come from).
+    labels : sequence of RowLabel
+        Where each row's numbers come from (`microfab.core.provenance`); when given, one
+        per row, and the last column is `LABEL_COLUMN` holding each label's text.
     """
 
     title: str
     columns: Sequence[str]
     rows: Sequence[Sequence[str]]
     note: str = ""
+    labels: Sequence[RowLabel] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "columns", tuple(self.columns))
         object.__setattr__(self, "rows", tuple(tuple(r) for r in self.rows))
+        object.__setattr__(self, "labels", tuple(self.labels))
         for i, row in enumerate(self.rows):
             if len(row) != len(self.columns):
                 raise ValueError(
                     f"table {self.title!r}: row {i} has {len(row)} cells, "
                     f"expected {len(self.columns)}"
                 )
+        if self.labels:
+            if len(self.labels) != len(self.rows) or self.columns[-1] != LABEL_COLUMN:
+                raise ValueError(
+                    f"table {self.title!r}: labels need one per row and a last column "
+                    f"{LABEL_COLUMN!r}"
+                )
+            for i, (row, lab) in enumerate(zip(self.rows, self.labels, strict=True)):
+                if row[-1] != lab.text:
+                    raise ValueError(f"table {self.title!r}: row {i}'s label cell is not its label")
+
+    def with_labels(self, labels: Sequence[RowLabel]) -> Table:
+        """A copy with a `LABEL_COLUMN` column holding ``labels`` (one per row)."""
+        if self.labels:
+            raise ValueError(f"table {self.title!r} is labelled already")
+        if len(labels) != len(self.rows):
+            raise ValueError(
+                f"table {self.title!r}: {len(labels)} labels for {len(self.rows)} rows"
+            )
+        return Table(
+            title=self.title,
+            columns=(*self.columns, LABEL_COLUMN),
+            rows=[(*r, lab.text) for r, lab in zip(self.rows, labels, strict=True)],
+            note=self.note,
+            labels=labels,
+        )
+
+    def labels_json(self) -> list[dict[str, object]]:
+        """Per row: its cells without the label, and the label (`RowLabel.to_json`)."""
+        return [
+            {"row": list(r[:-1]), **lab.to_json()}
+            for r, lab in zip(self.rows, self.labels, strict=True)
+        ]
 
     def to_html(self) -> str:
         """The table as an HTML ``<table>`` (numbers right-aligned)."""

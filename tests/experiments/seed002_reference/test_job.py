@@ -99,6 +99,8 @@ def test_tables_and_report(small):
     tables = res.comparison()
     assert tables[0].rows[0][0] == "r"
     assert "/ —" in tables[0].rows[0][2]  # no seed time at 2 m/s² for the letter r
+    assert all(t.columns[-1] == "ours is" and len(t.labels) == len(t.rows) for t in tables)
+    assert all(lab.origin == "predicted" for lab in tables[0].labels)  # Table III: a check
     page = write_report(study, out, "t")
     assert page.is_file() and "Table III" in page.read_text()
     json.dumps(res.summary())

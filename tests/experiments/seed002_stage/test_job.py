@@ -177,3 +177,30 @@ def test_seed_values_only_beside_columns_at_the_seeds_a_max(ran):
     assert row[5].endswith("/ —") and row[7].endswith("/ —")  # not the seed's a_max there
     r_row = next(r for r in cases_table(swapped).rows if r[0] == "r")
     assert r_row[1].endswith("/ 0.473") and r_row[2].endswith("/ 0.807")
+
+
+def test_table_ii_labels_the_calibrated_sigma_fitted_and_the_networks_predicted(ran):
+    import dataclasses
+
+    from microfab.experiments.seed002_stage.tables import cases_table, table_ii
+    from microfab.machines.xy_stage_calibration import scaled_changes, table_ii_quantity
+
+    study = ran[1].study
+    labels = table_ii(study).labels  # linear x, linear y, ANN x, ANN y
+    assert labels[0].origin == "mixed"
+    assert labels[0].fitted == (table_ii_quantity("linear", "x", "training", "sigma"),)
+    assert labels[0].by == ("microfab calibrate xy-stage",)
+    assert [lab.origin for lab in labels[2:]] == ["predicted", "predicted"]
+    # the twin at its assumed magnitudes: the calibration did not act, nothing is fitted
+    assumed = dataclasses.replace(
+        study,
+        settings=dataclasses.replace(
+            study.settings,
+            twin=dataclasses.replace(study.settings.twin, changes=scaled_changes((1.0, 1.0))),
+        ),
+    )
+    assert all(lab.origin == "predicted" for lab in table_ii(assumed).labels)
+    cases = cases_table(study)
+    by_case = dict(zip((r[0] for r in cases.rows), cases.labels, strict=True))
+    assert by_case["r"].fitted and by_case["airfoil"].fitted  # the sizes are fitted to them
+    assert not by_case["u"].fitted and by_case["u"].origin == "predicted"

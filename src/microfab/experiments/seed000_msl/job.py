@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from microfab.control.ilc import ILCConfig
+from microfab.core.provenance import Shows, quantity
 from microfab.experiments.kinds import (
     JobKind,
     Progress,
@@ -38,6 +39,7 @@ from microfab.experiments.seed000_msl import paper
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import galvo as galvo_machine
+from microfab.report.provenance import labelled
 from microfab.report.tables import Table, versus
 
 if TYPE_CHECKING:  # the learning run is imported when a job runs
@@ -242,10 +244,18 @@ def comparison_tables(tables: dict[str, Any]) -> tuple[Table, ...]:
     tables : dict
         From `tables_from_runs` (rates as strings).
     """
+    from microfab.machines.galvo_calibration import table1_quantity
+
     rates = sorted(int(r) for r in tables["table2"])
     t1_rows = []
+    t1_shows = []
     for a in tables["table1"]:
         for c in ("fb", "ilc"):
+            t1_shows.append(
+                Shows(
+                    tuple(table1_quantity(a, f"{c}_{k}", r) for r in rates for k in ("rms", "pp"))
+                )
+            )
             cells = []
             for r in rates:
                 o, s = tables["table1"][a][str(r)], paper.TABLE1_MV[a].get(r, {})
@@ -266,6 +276,22 @@ def comparison_tables(tables: dict[str, Any]) -> tuple[Table, ...]:
                 )
             )
         t2_rows.append((c.upper(), *cells))
+    t2_shows = [
+        Shows(
+            tuple(
+                quantity("000", "Table 2", c, k, r)
+                for r in rates
+                for k in ("mean", "std", "min", "max")
+            )
+        )
+        for c in ("fb", "ilc")
+    ]
+    m_shows = [
+        Shows(
+            (quantity("000", "§3.1", a, "gain margin"), quantity("000", "§3.1", a, "phase margin"))
+        )
+        for a in tables["margins"]
+    ]
     m_rows = [
         (
             a,
@@ -278,22 +304,31 @@ def comparison_tables(tables: dict[str, Any]) -> tuple[Table, ...]:
     ]
     heads = [f"{r} features/s" for r in rates]
     return (
-        Table(
-            title="Table 1: RMS (PP) tracking error [mV], ours / seed 000",
-            columns=("axis", "control", *heads),
-            rows=t1_rows,
+        labelled(
+            Table(
+                title="Table 1: RMS (PP) tracking error [mV], ours / seed 000",
+                columns=("axis", "control", *heads),
+                rows=t1_rows,
+            ),
+            t1_shows,
         ),
-        Table(
-            title="Table 2: beam speed mean std min max [mm/s], ours / seed 000",
-            columns=("control", *heads),
-            rows=t2_rows,
+        labelled(
+            Table(
+                title="Table 2: beam speed mean std min max [mm/s], ours / seed 000",
+                columns=("control", *heads),
+                rows=t2_rows,
+            ),
+            t2_shows,
         ),
-        Table(
-            title="Feedback-loop margins, ours / seed 000 §3.1",
-            columns=("axis", "GM [dB]", "at [kHz]", "PM [deg]", "at [kHz]"),
-            rows=m_rows,
-            note="The seed's margins were measured on the real scanners; ours are those "
-            "of the calibrated twin, whose resonances carry an assumed damping of 0.05.",
+        labelled(
+            Table(
+                title="Feedback-loop margins, ours / seed 000 §3.1",
+                columns=("axis", "GM [dB]", "at [kHz]", "PM [deg]", "at [kHz]"),
+                rows=m_rows,
+                note="The seed's margins were measured on the real scanners; ours are those "
+                "of the calibrated twin, whose resonances carry an assumed damping of 0.05.",
+            ),
+            m_shows,
         ),
     )
 

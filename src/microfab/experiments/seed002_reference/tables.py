@@ -8,8 +8,11 @@ from typing import Any
 
 import numpy as np
 
+from microfab.core.provenance import Shows, quantity
 from microfab.experiments.seed002_reference import paper
 from microfab.experiments.seed002_reference.study import ReferenceStudy
+from microfab.machines.xy_stage_cases import table_iii_quantity
+from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, versus
 
 __all__ = [
@@ -48,10 +51,16 @@ def _ok(p: dict[str, Any] | None) -> bool:
 def table_iii(study: ReferenceStudy, output: str = "twin") -> Table:
     """Table III: time and improvement in L1, L2, L∞ per case and a_max, ours / seed."""
     rows = []
+    shows = []
     for case in study.settings.cases:
         for a in study.settings.a_max:
             p = study.points.get((case, a))
             seed = paper.TABLE_III.get(case, {}).get(a)
+            shows.append(
+                OURS
+                if seed is None or not _ok(p)
+                else Shows(tuple(table_iii_quantity(case, a, k) for k in ("T", *_NORMS)))
+            )
             if not _ok(p):
                 rows.append([case, f"{a:g}", "failed", DASH, DASH, DASH])
                 continue
@@ -63,22 +72,25 @@ def table_iii(study: ReferenceStudy, output: str = "twin") -> Table:
                   for k in _NORMS),
             ])  # fmt: skip
     label = "twin (experimental)" if output == "twin" else "networks (simulated)"
-    return Table(
+    table = Table(
         title=f"Table III: improvement over the eq. (15) baseline at the same time, {label} "
         "[%], ours / seed",
         columns=("shape", "a_max [m/s²]", "time [s]", "L1", "L2", "L∞"),
         rows=rows,
         note="improvement = 100 (baseline - optimised) / baseline; seed: experimental",
     )
+    return labelled(table, shows)
 
 
 def times_table(study: ReferenceStudy) -> Table:
     """Optimised times per case and a_max against Table III and §V-A; T(3)/T(1)."""
     a_all = sorted({a for (_, a) in study.points})
     rows = []
+    shows = []
     for case in study.settings.cases:
         cells = [case]
         t = {}
+        compared: list[str] = []
         for a in a_all:
             p = study.points.get((case, a))
             seed = paper.TABLE_III.get(case, {}).get(a)
@@ -86,16 +98,20 @@ def times_table(study: ReferenceStudy) -> Table:
             if case == "airfoil" and a in paper.AIRFOIL_TIMES_S:
                 seed_t = paper.AIRFOIL_TIMES_S[a]
             t[a] = p["duration_s"] if _ok(p) else None
+            if seed_t is not None and t[a] is not None:
+                compared.append(table_iii_quantity(case, a, "T"))
             cells.append(versus(t[a], seed_t, "{:.3f}".format) if (case, a) in study.points
                          else DASH)  # fmt: skip
         r = t.get(3.0), t.get(1.0)
         cells.append(f"{r[0] / r[1]:.3f}" if r[0] and r[1] else DASH)
         rows.append(cells)
-    return Table(
+        shows.append(Shows(tuple(compared)))
+    table = Table(
         title="Optimised time T [s], ours / seed (Table III, §V-A)",
         columns=("shape", *(f"a_max {a:g}" for a in a_all), "T(3)/T(1) (seed 0.59)"),
         rows=rows,
     )
+    return labelled(table, shows)
 
 
 def stages_table(study: ReferenceStudy) -> Table:
@@ -114,12 +130,15 @@ def stages_table(study: ReferenceStudy) -> Table:
             f"{s2.get('iterations', DASH)} / {s2.get('wall_s', float('nan')):.1f}", cost,
             str(p["limited"].get("baseline", DASH)), f"{p['m']}",
         ])  # fmt: skip
-    return Table(
-        title="Stages: stage 1 N / iterations / s; stage 2 iterations / s; predicted cost; "
-        "baseline samples limited by the set-point guard; M",
-        columns=("shape", "a_max", "stage 1", "stage 2", "cost [µm² sum]", "limited", "M"),
-        rows=rows,
-        note="seed §IV-C: stage 1 about 1 min (N ≈ 10³), stage 2 1-4 h (M 200-1000)",
+    return labelled(
+        Table(
+            title="Stages: stage 1 N / iterations / s; stage 2 iterations / s; predicted cost; "
+            "baseline samples limited by the set-point guard; M",
+            columns=("shape", "a_max", "stage 1", "stage 2", "cost [µm² sum]", "limited", "M"),
+            rows=rows,
+            note="seed §IV-C: stage 1 about 1 min (N ≈ 10³), stage 2 1-4 h (M 200-1000)",
+        ),
+        OURS,
     )
 
 
@@ -135,11 +154,14 @@ def points_table(study: ReferenceStudy) -> Table:
         rows.append([case, f"{a:g}", *(
             f"{sc[k]['l2'] * 1e6:.1f} / {sc[k]['linf'] * 1e6:.1f}" if k in sc else DASH
             for k in keys), f"{sc['optimised_twin']['tail_linf'] * 1e6:.1f}"])  # fmt: skip
-    return Table(
-        title="Deviation L2 / L∞ [µm] per input and output",
-        columns=("shape", "a_max", *keys, "tail L∞ (opt., twin)"),
-        rows=rows,
-        note="stretched: the time-optimal command under Table I stretched to the same T",
+    return labelled(
+        Table(
+            title="Deviation L2 / L∞ [µm] per input and output",
+            columns=("shape", "a_max", *keys, "tail L∞ (opt., twin)"),
+            rows=rows,
+            note="stretched: the time-optimal command under Table I stretched to the same T",
+        ),
+        OURS,
     )
 
 
@@ -167,9 +189,18 @@ def tradeoff_reduction(study: ReferenceStudy, name: str, l2: float) -> dict[str,
 def tradeoff_table(study: ReferenceStudy) -> Table:
     """§V-B: the time each input needs for the seed's L2, and the optimised share."""
     rows = []
+    shows = []
     for name, seed in paper.TRADEOFF.items():
         if name not in study.tradeoff:
             continue
+        shows.append(
+            Shows(
+                tuple(
+                    quantity("002", "§V-B", name, k)
+                    for k in ("optimised time", "baseline time", "reduction")
+                )
+            )
+        )
         r = tradeoff_reduction(study, name, seed.l2_m)
         beats = all(x["optimised_twin_l2"] < x["baseline_twin_l2"] for x in study.tradeoff[name])
         rows.append([
@@ -181,12 +212,12 @@ def tradeoff_table(study: ReferenceStudy) -> Table:
             versus(r["reduction_pct"], seed.reduction_pct, "{:.0f}".format),
             "yes" if beats else "no",
         ])  # fmt: skip
-    return Table(
+    return labelled(Table(
         title="Trade-off (§V-B): time at the same L2 on the twin [s], ours / seed",
         columns=("case", "L2 [µm]", "optimised", "baseline", "reduction [%]",
                  "optimised better at every a_max"),
         rows=rows,
-    )  # fmt: skip
+    ), shows)  # fmt: skip
 
 
 def study_summary(study: ReferenceStudy) -> dict[str, Any]:

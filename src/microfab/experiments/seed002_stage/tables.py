@@ -6,11 +6,15 @@ from typing import Any
 
 import numpy as np
 
+from microfab.core.provenance import Shows, quantity
 from microfab.experiments.seed002_stage import paper
 from microfab.experiments.seed002_stage.study import IdentifyStudy
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.identify.stage_data import AXES, RunErrors
-from microfab.machines.xy_stage_cases import CASES
+from microfab.machines.xy_stage_calibration import CALIBRATION as XY_CALIBRATION
+from microfab.machines.xy_stage_calibration import FREE_FIELDS, table_ii_quantity
+from microfab.machines.xy_stage_cases import CASES, table_iii_quantity
+from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, versus
 
 __all__ = [
@@ -81,6 +85,12 @@ def table_ii_values(study: IdentifyStudy) -> dict[str, dict[str, dict[str, list[
     return out
 
 
+def not_applied(study: IdentifyStudy) -> tuple[str, ...]:
+    """The calibration the study's twin overrides (its friction or cogging changed), if any."""
+    changed = {k for k, _ in study.settings.twin.changes}
+    return (XY_CALIBRATION.command,) if changed & set(FREE_FIELDS) else ()
+
+
 def table_ii(study: IdentifyStudy) -> Table:
     """Seed 002 Table II: μ and σ per model and axis, ours / seed, µm."""
     ours = table_ii_values(study)
@@ -90,25 +100,31 @@ def table_ii(study: IdentifyStudy) -> Table:
     for lab in labels:
         heads += [f"{lab}: μ", f"{lab}: σ"]
     rows = []
+    shows = []
     for model, label in (("linear", "linear"), ("ann", "non-linear (ANN)")):
         for ax in AXES:
             row = [label, ax]
+            compared: list[str] = []
             for col, a_col in zip(_COLUMNS[: len(labels)], (None, *a[:2]), strict=True):
                 seed = paper.TABLE_II[model][ax][col]
                 same = a_col is None or a_col == _SEED_A_MAX[col]  # the seed's a_max there
                 v = ours[model][ax][col]
                 mu, sd = (None, None) if v is None else v
                 s_mu, s_sd = (seed.mu_m * 1e6, seed.sigma_m * 1e6) if same else (None, None)
+                if same and v is not None:
+                    compared += [table_ii_quantity(model, ax, col, s) for s in ("mu", "sigma")]
                 row += [versus(_n(mu), s_mu, "{:.1f}".format),
                         versus(_n(sd), s_sd, "{:.1f}".format)]  # fmt: skip
             rows.append(row)
-    return Table(
+            shows.append(Shows(tuple(compared)))
+    table = Table(
         title="Table II: prediction error, ours / seed [µm]",
         columns=heads,
         rows=rows,
         note="Seed 002 Table II. Linear: its training data; non-linear: its validation runs; "
         "letters: the four letters pooled, time-optimal inputs at a_max (see notes).",
     )
+    return labelled(table, shows, not_applied=not_applied(study))
 
 
 def _n(v: float | None) -> float | None:
@@ -121,13 +137,14 @@ def order_table(study: IdentifyStudy) -> Table:
         [str(r.order), f"{r.singular_ratio:.3g}", _um(r.sigma_m[0]), _um(r.sigma_m[1])]
         for r in study.orders
     ]
-    return Table(
+    table = Table(
         title="Order check: σ on the linear model's training data [µm]",
         columns=("order", "singular value n / first", "σ x", "σ y"),
         rows=rows,
         note="Seed 002 §III-A: beyond 4 states the error is 'practically the same'. "
         "One R factor for all orders; each model scored from rest.",
     )
+    return labelled(table, OURS)
 
 
 _FIG9_HEADS = tuple(
@@ -146,12 +163,15 @@ def fig9_table(study: IdentifyStudy) -> Table:
             for e in (let, air):
                 row += [_um(None if e is None else e.std[0]), _um(None if e is None else e.std[1])]
         rows.append(row)
-    return Table(
-        title="Fig. 9: prediction σ against a_max [µm]",
-        columns=("a_max [m/s²]", *_FIG9_HEADS),
-        rows=rows,
-        note="Seed 002 Fig. 9: the error grows gradually while the training data (up to "
-        "5 m/s²) cover a_max, and fast beyond.",
+    return labelled(
+        Table(
+            title="Fig. 9: prediction σ against a_max [µm]",
+            columns=("a_max [m/s²]", *_FIG9_HEADS),
+            rows=rows,
+            note="Seed 002 Fig. 9: the error grows gradually while the training data (up to "
+            "5 m/s²) cover a_max, and fast beyond.",
+        ),
+        OURS,
     )
 
 
@@ -163,19 +183,26 @@ def cases_table(study: IdentifyStudy) -> Table:
         "c": {1.0: 0.807, 3.0: 0.473}, "h": {1.0: 0.971, 3.0: 0.568}, "airfoil": {1.0: 1.322},
     }  # fmt: skip
     rows = []
+    shows = []
     for name in CASES:
         row = [name]
         for v in a[:2]:
             d = study.durations(v).get(name)
             row.append(versus(d, seed[name].get(v), "{:.3f}".format))
         rows.append(row)
-    return Table(
-        title="Test cases: command length, ours (time-optimal) / seed (optimised) [s]",
-        columns=("case", *(f"a_max {v:g} m/s²" for v in a[:2])),
-        rows=rows,
-        note=f"Letter height {study.sizes.letter_height_m * 1e3:.2f} mm and airfoil chord "
-        f"{study.sizes.airfoil_chord_m * 1e3:.1f} mm are fitted to 'r' and the airfoil at "
-        "1 m/s² (Table III); the other lengths are checks (the seed's are optimised inputs).",
+        shows.append(
+            Shows(tuple(table_iii_quantity(name, v, "T") for v in a[:2] if v in seed[name]))
+        )
+    return labelled(
+        Table(
+            title="Test cases: command length, ours (time-optimal) / seed (optimised) [s]",
+            columns=("case", *(f"a_max {v:g} m/s²" for v in a[:2])),
+            rows=rows,
+            note=f"Letter height {study.sizes.letter_height_m * 1e3:.2f} mm and airfoil chord "
+            f"{study.sizes.airfoil_chord_m * 1e3:.1f} mm are fitted to 'r' and the airfoil at "
+            "1 m/s² (Table III); the other lengths are checks (the seed's are optimised inputs).",
+        ),
+        shows,
     )
 
 
@@ -193,12 +220,15 @@ def studies_table(study: IdentifyStudy) -> Table:
             e = study.letters(a, model)
             if e is not None:
                 rows.append([label, f"letters, {a:g} m/s²", _um(e.std[0]), _um(e.std[1])])
-    return Table(
-        title="Networks: coupling and classic excitation, σ [µm]",
-        columns=("networks", "data", "σ x", "σ y"),
-        rows=rows,
-        note="Seed 002 §III-B: coupling 'negligible'; §III-C: PRBS and chirp 'none of these "
-        "proved adequate'.",
+    return labelled(
+        Table(
+            title="Networks: coupling and classic excitation, σ [µm]",
+            columns=("networks", "data", "σ x", "σ y"),
+            rows=rows,
+            note="Seed 002 §III-B: coupling 'negligible'; §III-C: PRBS and chirp 'none of these "
+            "proved adequate'.",
+        ),
+        Shows((quantity("002", "§III-B/C", "network comparisons"),)),
     )
 
 
