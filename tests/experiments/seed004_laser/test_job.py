@@ -96,7 +96,9 @@ def test_a_job_runs_resumes_its_sweep_and_writes_its_report(tmp_path):
 
 
 def test_reproduction_prints_the_seed_beside_ours():
-    res = REPRODUCTIONS["laser-micromachining"].run({"seed": 0}, no_progress)
+    rep = REPRODUCTIONS["laser-micromachining"]
+    # the Fig. 7 speed study (20 s) is tested in tests/machines/test_laser_stage_fig7.py
+    res = rep.run(rep.parse_options({"speed_study": False}), no_progress)
     d = res.data
     assert d is not None
     assert abs(d["depth_of_focus_um"] - 54.0) <= 0.05 * 54.0
@@ -209,3 +211,17 @@ def test_friction_feedforward_is_a_job_setting(tmp_path):
     cfg = load_job(_job(tmp_path, "[control]\nfriction_ff = true\n")).config
     assert cfg.run.control.friction_ff
     assert not load_job(EXAMPLE).config.run.control.friction_ff  # the seed's eqs. 3-4
+
+
+def test_the_fig7_study_table_and_note_read_the_studys_rows():
+    from microfab.experiments.seed004_laser.job import _study_note
+    from microfab.machines.laser_stage_fig7 import fig7_study
+    from microfab.report.contour_fig7 import fig7_study_table
+
+    rows = fig7_study(["circle:radius=1e-4"], [1.0, 10.0, 20.0])
+    table = fig7_study_table(rows)
+    assert table.columns[2:] == ("1 mm/s", "10 mm/s", "20 mm/s")
+    assert [r[1] for r in table.rows] == ["friction on", "friction on, feedforward", "friction off"]
+    assert table.rows[0][2].startswith("530 / 116") and table.rows[0][4] == "refused (Table I)"
+    note = _study_note(rows)
+    assert "up to 414 nm on the calibrated twin" in note and "2 nm with the friction off" in note
