@@ -6,6 +6,8 @@ pattern, moved off-centre where the §4.1 terms matter), the same twin, disturba
 noise seed. The PID is tuned by `microfab.control.pid.PIDGains.design` on eq. (9)
 (crossover ``pid_bandwidth_hz``, 45° phase margin); the RBF controller takes the default
 centres, widths and scaling of `RBFAdaptive.for_reference` on one period of the circle.
+Fig. 8 at equal bandwidth, with an RBF controller that learns, is `fig8.py`; why this
+one does not, `study.py`.
 """
 
 from __future__ import annotations

@@ -246,7 +246,10 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
             "(microfab/data/nanomanipulator_twin.toml); `microfab calibrate nanomanipulator` "
             "fits the noise to the axial RMS, after which the contour RMS is a prediction.",
             "RBF study and Fig. 8: one 0.15 mm circle 0.25 mm off-centre, 8 periods, noise "
-            "off, d(t) and the §4.1 α, β terms on (compare.py's setting).",
+            "off, d(t) and the §4.1 α, β terms on (compare.py's setting). The job above "
+            "runs the seed's network (eq. 4 alone, default centres), which the study shows "
+            "does not learn; 'proposed' is eq. 6's linear part from eq. 9 plus the network "
+            "with centres along the orbit (proposed.py).",
         ),
         data=data,
     )

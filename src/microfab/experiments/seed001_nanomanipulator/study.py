@@ -1,23 +1,28 @@
-"""Why the RBF of seed 001 does not learn over periods: a per-period study on the twin.
+"""Why the RBF of seed 001 does not learn over periods, and the one that does: a per-period study.
 
 Setting: `compare.py`'s circle (0.15 mm, 0.25 mm off-centre on the diagonal, 1 s period,
-8 periods, noise off, ``d(t)`` and the §4.1 ``α``, ``β`` terms on). The stage is brought
-along the circle's lead-in under the Fig. 8 PID (move, pause, spin-up), and at the first
-sample of the first period the loop is handed over (`microfab.control.
-rbf_handover`: bumpless, damping ``ζ_h = 1``) to one of three controllers:
+8 periods, noise off, ``d(t)`` and the §4.1 ``α``, ``β`` terms on). Two controllers, each
+in three variants:
 
-* ``adaptive``: the seed's RBF (eqs. 2, 4, 5; default rule of `RBFAdaptive.for_reference`),
-  adapting;
-* ``frozen``: the same network with the hand-over weights held (Γ → 0);
-* ``oracle``: the network's output replaced by what it is meant to approximate, the
-  certainty-equivalence law eq. 6 with the twin's true ``α``, ``β`` (same ``λ``, ``ε``,
-  velocity estimator; `microfab.control.certainty`): the best the network could do.
+* ``seed``: the seed's network as the whole command (eqs. 2, 4, 5; default rule of
+  `RBFAdaptive.for_reference`). The stage is brought along the circle's lead-in under the
+  Fig. 8 PID (move, pause, spin-up) and at the first sample of the first period the loop
+  is handed over (`microfab.control.rbf_handover`: bumpless, ``ζ_h = 1``) to the network
+  ``adaptive``; to the same network with the hand-over weights held (``frozen``, Γ → 0);
+  or to its ideal, eq. 6 with the twin's true ``α``, ``β`` (``oracle``,
+  `microfab.control.certainty`, same ``λ``, ``ε``, velocity filter).
+* ``proposed`` (`proposed.py`): eq. 6's linear part from eq. 9 (PD at 200 Hz, 45°, plus
+  eq. 9's inverse) plus the network with centres along the orbit (``s_spread = 0``),
+  from rest with ``Ŵ(0) = 0``: ``adaptive``; ``frozen`` (``Ŵ = 0`` held: the linear part
+  alone); ``oracle`` (the network replaced by the true nonlinearity,
+  `NonlinearityOracle`).
 
 Per period: the RMS tracking error over both axes (``r − y``, nm) and ‖Ŵ‖ (mean over the
-period, both axes together, V). Beside them, what the network's regressor looks like on
-the circle: the range of every ``h_j`` over the orbit and the mean ``Σ_j h_j²``, for the
-default rule and for centres without the ``±s_spread`` alternation (``s_spread = 0``).
-`LearningStudy.table` prints it; `microfab.report.nanomanipulator_study` draws it.
+period, both axes together, V; replayed from the measurements, the network's update
+depends on nothing else). Beside them, what the regressor looks like on the circle: the
+range of every ``h_j`` over the orbit and the mean ``Σ_j h_j²``, for the default rule and
+for ``s_spread = 0``. `LearningStudy.table` prints it; `microfab.report.
+nanomanipulator_study` draws it.
 """
 
 from __future__ import annotations
@@ -30,11 +35,17 @@ import numpy as np
 from microfab.control.certainty import CertaintyEquivalence
 from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive
+from microfab.control.rbf_composite import RBFPlusLinear
 from microfab.control.rbf_handover import feedback_gain, handover
 from microfab.experiments.seed001_nanomanipulator.compare import (
     CircleSetting,
     ComparisonConfig,
     circle_setting,
+)
+from microfab.experiments.seed001_nanomanipulator.proposed import (
+    orbit_z,
+    proposed_controller,
+    proposed_oracle,
 )
 from microfab.machines import nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, drift_and_gain
@@ -43,6 +54,8 @@ from microfab.sim.loop import LoopState
 from microfab.sim.result import SimResult
 
 __all__ = [
+    "BLOCKS",
+    "ROWS",
     "VARIANTS",
     "LearningStudy",
     "RegressorStats",
@@ -53,6 +66,10 @@ __all__ = [
 
 #: The three variants, in the order of the table.
 VARIANTS = ("adaptive", "frozen", "oracle")
+#: The two controllers studied.
+BLOCKS = ("seed", "proposed")
+#: Row names: ``"<block> <variant>"``.
+ROWS = tuple(f"{b} {v}" for b in BLOCKS for v in VARIANTS)
 _HANDOVER_MEAN_S = 0.01  # assumed: mean of the last 10 ms of the PID's signals (as the job)
 
 
@@ -92,10 +109,11 @@ class LearningStudy:
     config : ComparisonConfig
         The circle and the RBF settings.
     rms_nm : dict of str to numpy.ndarray
-        Per variant, RMS error per period over both axes, nm, shape (periods,).
+        Per row of `ROWS` (``"seed adaptive"``, ...), RMS error per period over both
+        axes, nm, shape (periods,).
     weight_norm : dict of str to numpy.ndarray
-        Per variant, mean ‖Ŵ‖ per period (both axes), V, shape (periods,); NaN for the
-        oracle (no weights).
+        Per row, mean ‖Ŵ‖ per period (both axes), V, shape (periods,); NaN for the
+        oracles (no weights).
     regressor : tuple of RegressorStats
         The default rule and ``s_spread = 0``.
     """
@@ -106,62 +124,55 @@ class LearningStudy:
     regressor: tuple[RegressorStats, ...]
 
     def table(self) -> str:
-        """A plain-text table: variants by period, then the regressor statistics."""
-        n = len(self.rms_nm[VARIANTS[0]])
-        rows = [f"{'':<18}" + "".join(f"{k + 1:>9d}" for k in range(n))]
-        for name in VARIANTS:
-            rows.append(
-                f"{name + ' RMS [nm]':<18}" + "".join(f"{v:9.0f}" for v in self.rms_nm[name])
-            )
-        for name in VARIANTS[:2]:
+        """A plain-text table: rows by period, then the regressor statistics."""
+        n = len(self.rms_nm[ROWS[0]])
+        rows = [f"{'':<26}" + "".join(f"{k + 1:>8d}" for k in range(n))]
+        for name in ROWS:
+            rows.append(f"{name + ' [nm]':<26}" + "".join(f"{v:8.0f}" for v in self.rms_nm[name]))
+        for name in ROWS:
             w = self.weight_norm[name]
-            rows.append(f"{name + ' |W| [mV]':<18}" + "".join(f"{v * 1e3:9.3f}" for v in w))
-        rows.append("regressor  width   h_min   h_max  mean Σh²  ΓΣh² [V/mm]")
+            if np.any(np.isfinite(w)):
+                rows.append(f"{name + ' |W| [mV]':<26}" + "".join(f"{v * 1e3:8.2f}" for v in w))
+        rows.append("regressor   width   h_min   h_max  mean Σh²  ΓΣh² [V/mm]")
         for r in self.regressor:
             rows.append(
-                f"{r.rule:<10} {r.width_mean:5.2f} {r.h_min:7.3f} {r.h_max:7.3f} "
+                f"{r.rule:<10} {r.width_mean:6.2f} {r.h_min:7.3f} {r.h_max:7.3f} "
                 f"{r.sum_h2:9.2f} {r.gain:12.3f}"
             )
         return "\n".join(rows)
 
     def as_table(self) -> Table:
-        """The per-period numbers and the regressor statistics as a report `Table`."""
-        n = len(self.rms_nm[VARIANTS[0]])
-        rows = [(f"{v} RMS [nm]", *(f"{x:.0f}" for x in self.rms_nm[v])) for v in VARIANTS]
+        """The per-period numbers as a report `Table`, the regressor in its note."""
+        n = len(self.rms_nm[ROWS[0]])
+        rows = [(f"{v} RMS [nm]", *(f"{x:.0f}" for x in self.rms_nm[v])) for v in ROWS]
         rows += [
             (f"{v} ‖Ŵ‖ [mV]", *(f"{x * 1e3:.2f}" for x in self.weight_norm[v]))
-            for v in VARIANTS[:2]
+            for v in ROWS
+            if np.any(np.isfinite(self.weight_norm[v]))
         ]
         d, loc = self.regressor
         return Table(
-            title="RBF per period after the hand-over (0.15 mm circle 0.25 mm off-centre, "
-            "noise off)",
-            columns=("variant", *(f"period {k + 1}" for k in range(n))),
+            title="RBF per period (0.15 mm circle 0.25 mm off-centre, noise off, d(t) on)",
+            columns=("controller / variant", *(f"period {k + 1}" for k in range(n))),
             rows=rows,
-            note=f"Default centres: every h_j stays in [{d.h_min:.2f}, {d.h_max:.2f}] over "
-            f"the circle (widths {d.width_mean:.1f} scaled units against an orbit of "
-            f"diameter 2; mean Σh² {d.sum_h2:.1f}): the network is one constant basis "
-            f"function and eq. 5 an integrator on s (ΓΣh² = {d.gain:.2f} V/mm), a PI with no "
-            "memory of the phase, so the error cannot fall from period to period. Without "
-            f"the ±s_spread alternation the widths are {loc.width_mean:.2f} and h_j spans "
-            f"[{loc.h_min:.3f}, {loc.h_max:.2f}]. The oracle (eq. 6 with the true α, β) is "
-            "bounded by d(t): eq. 6 has no integral action.",
+            note="seed = the seed's network as the whole command, handed over from the "
+            "PID; proposed = eq. 6's linear part from eq. 9 (PD 200 Hz + eq. 9 inverse) "
+            "plus the network, centres along the orbit. frozen = weights held; oracle = "
+            "the network replaced by its ideal (seed: eq. 6 with the true α, β; proposed: "
+            f"the true §4.1 terms cancelled). Default centres: every h_j stays in "
+            f"[{d.h_min:.2f}, {d.h_max:.2f}] on the circle (widths {d.width_mean:.1f} "
+            f"scaled units against an orbit of diameter 2; mean Σh² {d.sum_h2:.1f}): one "
+            f"constant basis function, eq. 5 an integrator on s (ΓΣh² = {d.gain:.2f} "
+            "V/mm) with no memory of the phase. With s_spread = 0 the widths are "
+            f"{loc.width_mean:.2f}, h_j spans [{loc.h_min:.3f}, {loc.h_max:.2f}] and Γ = "
+            f"{loc.gain / loc.sum_h2:.2f} V/mm keeps ΓΣh².",
         )
-
-
-def _orbit_z(st: CircleSetting, axis: int) -> np.ndarray:
-    """The reference's own ``z`` for ``axis`` over one period, shape (n, 6)."""
-    one = st.one
-    b = 1 - axis
-    pos, vel, acc = st.position[one], st.velocity[one], st.acceleration[one]
-    zeros = np.zeros(pos.shape[0])
-    return np.column_stack([pos[:, axis], vel[:, axis], pos[:, b], vel[:, b], zeros, -acc[:, axis]])
 
 
 def regressor_stats(rbf: RBFAdaptive, st: CircleSetting, rule: str) -> RegressorStats:
     """`RegressorStats` of ``rbf``'s x network along one period of ``st``'s reference."""
     net = rbf.networks[0]
-    H = net.hidden(_orbit_z(st, 0))
+    H = net.hidden(orbit_z(st, 0))
     s2 = float(np.mean(np.sum(H**2, axis=1)))
     return RegressorStats(
         rule=rule,
@@ -241,27 +252,46 @@ def learning_study(config: ComparisonConfig | None = None) -> LearningStudy:
         st.position[one], st.velocity[one], st.acceleration[one], dt, cfg.rbf
     )
     adaptive = handed_over(base, st, plant, lead)
-    frozen_cfg = dataclasses.replace(cfg.rbf, gamma=1e-30)  # Γ → 0: weights held
-    frozen = RBFAdaptive(config=frozen_cfg, networks=adaptive.networks, dt=dt)
-    oracle = CertaintyEquivalence(drift_and_gain, plant.params, cfg.rbf, dt)
+    fc = cfg.pid_bandwidth_hz
+    proposed = proposed_controller(st, plant, fc, cfg.rbf)
+    runs = {
+        "seed adaptive": adaptive,
+        "seed frozen": _frozen(adaptive),
+        "seed oracle": CertaintyEquivalence(drift_and_gain, plant.params, cfg.rbf, dt),
+        "proposed adaptive": proposed,
+        "proposed frozen": RBFPlusLinear(proposed.linear, _frozen(proposed.rbf)),
+        "proposed oracle": proposed_oracle(plant, fc, cfg.rbf),
+    }
     rms: dict[str, np.ndarray] = {}
     wn: dict[str, np.ndarray] = {}
-    a, n, periods = st.start, st.period_samples, st.periods
-    for name, ctrl in (("adaptive", adaptive), ("frozen", frozen), ("oracle", oracle)):
-        res = _after(st, lead, ctrl)
+    n, periods = st.period_samples, st.periods
+    for name, ctrl in runs.items():
+        a = st.start if name.startswith("seed") else 0
+        if a:
+            res = _after(st, lead, ctrl)
+        else:
+            res = nanomanipulator.play(
+                ctrl,  # type: ignore[arg-type]
+                st.position,
+                derivatives=(st.velocity, st.acceleration),
+                seed=st.seed,
+            )
         rms[name] = st.period_rms_nm(res.output, a)
-        if isinstance(ctrl, RBFAdaptive):
-            log = ctrl.replay(st.position[a:], st.velocity[a:], st.acceleration[a:], res.measured)
-            w = np.sqrt(np.sum(log.weight_norm**2, axis=1))[: periods * n]
-            wn[name] = w.reshape(periods, n).mean(axis=1)
+        net = ctrl.rbf if isinstance(ctrl, RBFPlusLinear) else ctrl
+        if isinstance(net, RBFAdaptive):
+            log = net.replay(st.position[a:], st.velocity[a:], st.acceleration[a:], res.measured)
+            w = np.sqrt(np.sum(log.weight_norm**2, axis=1))[st.start - a :]
+            wn[name] = w[: periods * n].reshape(periods, n).mean(axis=1)
         else:
             wn[name] = np.full(periods, np.nan)
-    local = RBFAdaptive.for_reference(
-        st.position[one],
-        st.velocity[one],
-        st.acceleration[one],
-        dt,
-        dataclasses.replace(cfg.rbf, s_spread=0.0),
+    stats = (
+        regressor_stats(base, st, "default"),
+        regressor_stats(proposed.rbf, st, "s_spread=0"),
     )
-    stats = (regressor_stats(base, st, "default"), regressor_stats(local, st, "s_spread=0"))
     return LearningStudy(config=cfg, rms_nm=rms, weight_norm=wn, regressor=stats)
+
+
+def _frozen(rbf: RBFAdaptive) -> RBFAdaptive:
+    """``rbf`` with its initial weights held (Γ → 0)."""
+    cfg = dataclasses.replace(rbf.config, gamma=1e-30)
+    return RBFAdaptive(config=cfg, networks=rbf.networks, dt=rbf.dt)
