@@ -27,20 +27,33 @@ with ``v − ṙ`` the filtered velocity error of the axis controllers (the esti
 velocity against the reference velocity through the same low-pass,
 `microfab.control.preview_dob`).
 
-**Correction.** Eq. 15 solved for the acceleration is ``a = J⁻¹ (a* − J̇ v)``. With
-``a* = [a*_n, v̇]`` and ``v = ṙ`` this is the reference acceleration ``r̈`` itself (the
-normal acceleration the path needs, ``κ |ṙ|² n``, is ``−J⁻¹ J̇ ṙ``), which the axis
-controllers already apply through ``K_a ẍ_ref`` (eq. 3). What remains is the feedback on
-the contour error, in the normal direction only,
+**Correction.** Eq. 15 solved for the acceleration is ``a = J⁻¹ (a* − J̇ v)``, with
+``a* = [a*_n, a*_t]`` the accelerations that enforce the two rows of eq. 13. With ``v =
+ṙ`` and ``a* = [0, v̇]`` this is the reference acceleration ``r̈`` itself (the normal
+acceleration the path needs, ``κ |ṙ|² n``, is ``−J⁻¹ J̇ ṙ``), which the axis controllers
+already apply through ``K_a ẍ_ref`` (eq. 3). What remains, added to ``ẍ_d`` of eq. 3
+before eq. 4 turns it into current, is
 
-``Δa = J⁻¹ [a*_n, 0]ᵀ = n a*_n``,   ``a*_n = −k_vc ε̇ − k_pc ε``,
+``Δa = n a*_n + t a*_t − J⁻¹ J̇ (v − ṙ)``,
 
-added to ``ẍ_d`` of eq. 3 before eq. 4 turns it into current; the normal error then obeys
-``ε̈ + (K_v + k_vc) ε̇ + (K_p + k_pc) ε ≈ 0``. The part of ``J̇ v`` that the reference does
-not hold, ``J̇ (v − ṙ)``, is a product of curvature, speed and velocity error (second
-order, and noisy through ``v``): left out. The tangential channel (tracking ``v(t)``) is
-left to the axis controllers: zero correction along ``t``. Under exact tracking ``ε`` and
-``ε̇`` vanish and so does the correction.
+* row 1 of eq. 13 (``v_φ = 0``, on the contour): ``a*_n = −k_vc ε̇ − k_pc ε``;
+* row 2 (``v_φ⊥ = v(t)``, the tangential speed): ``a*_t = −k_vt e_vt`` with ``e_vt =
+  tᵀ(v − ṙ) = v_φ⊥ − v(t)`` (a speed requirement: no tangential position term);
+* ``−J⁻¹ J̇ (v − ṙ) = κ|ṙ| (n tᵀ − t nᵀ)(v − ṙ)``: the part of eq. 15's ``J̇ v`` that the
+  reference does not hold, with ``v − ṙ`` the filtered velocity error. It is first order
+  in the error with the path's turn rate ``Ω = κ|ṙ|`` as gain: in the path frame it
+  cancels the ``−Ω² e`` that the frame's rotation adds to the error's acceleration.
+
+The two rows and the ``J̇`` term matter when the path turns at a rate near the axis
+loop's bandwidth (``Ω`` against ``ω_c``, `microfab.machines.laser_stage_fig7`): the
+axis loops' position gain then nearly cancels against ``Ω²`` in the path frame and the
+normal and tangential errors are held together by ``K_v Ω``; a normal-only correction
+moves the error into the tangential direction, whence it returns (the 30 µm circle at
+10 mm/s: 333 against 314 rad/s, 1112 → 1253 nm normal-only; 1112 → 439 nm with both rows
+and the ``J̇`` term). ``tangential=False`` and ``rotation=False`` leave them out (the
+normal-only law, for that comparison).
+
+Under exact tracking ``ε``, ``ε̇`` and ``v − ṙ`` vanish and so does the correction.
 
 **At rest and at corners** the tangent is undefined. The correction is weighted by
 ``w``: its target is 0 below ``min_speed_m_s``, 1 above twice it, a smoothstep between,
@@ -55,10 +68,12 @@ once. The axis controllers hold both directions throughout. A path that turns at
 is a curve of high curvature, handled as any curve.
 
 Gains (assumed; the seed gives none): ``k_pc = ω_cc²``, ``k_vc = 2 ζ_c ω_cc`` with
-``ω_cc / 2π`` = 100 Hz (twice the axis loop's default) and ``ζ_c`` = 1; ``fade_in_s`` =
-2 ms (a fifth of the contour loop's period). A config is
-refused when the axis loop with the normal gains added (``K_p + k_pc``, ``K_v + k_vc``,
-the worst case of a normal along an axis) is unstable on the nominal plant.
+``ω_cc / 2π`` = 100 Hz (twice the axis loop's default) and ``ζ_c`` = 1; ``k_vt = k_vc``
+(assumed: the same speed gain along the path as across it); ``fade_in_s`` = 2 ms (a fifth
+of the contour loop's period). A config is refused when the axis loop with the normal
+gains added (``K_p + k_pc``, ``K_v + k_vc``: a normal along an axis) or with the
+tangential one (``K_v + k_vt``: a tangent along an axis) is unstable on the nominal plant
+(the ``J̇`` term's gain ``Ω`` varies along the path and is not in that check).
 
 `ContourCompensator` wraps a `microfab.control.preview_dob.PreviewDOB` (composition):
 its kernel calls the inner controller's two halves (`pdob_measure`, `pdob_command`)
@@ -99,7 +114,7 @@ __all__ = [
 
 # offsets in the inner controller's state (see PreviewDOB): v̂ and filtered ẋ_ref per axis
 _NS_IN, _S_V, _S_VREF = _NS, _S_V_IN, _S_VREF_IN
-_HDR = 4  # k_pc, k_vc, min speed, dt / fade-in time
+_HDR = 6  # k_pc, k_vc, min speed, dt / fade-in time, k_vt, J̇ term on
 _XS = 6  # state: Δa (2), ε, ε̇, w, spare
 
 
@@ -122,6 +137,10 @@ class ContourConfig:
     fade_in_s : float
         Shortest time over which the correction's weight rises from 0 to 1, s (assumed
         2 ms); at least one sample.
+    tangential : bool
+        Enforce row 2 of eq. 13 (the tangential speed, gain ``k_vt = k_vc``); default on.
+    rotation : bool
+        Apply the ``J̇ (v − ṙ)`` part of eq. 15; default on.
 
     Raises
     ------
@@ -135,6 +154,8 @@ class ContourConfig:
     damping: float = 1.0  # assumed
     min_speed_m_s: float = 1e-4  # assumed
     fade_in_s: float = 2e-3  # assumed
+    tangential: bool = True  # seed 004 eq. 13, row 2
+    rotation: bool = True  # seed 004 eq. 15, J̇ v
 
     def __post_init__(self) -> None:
         check_addon_config(self, "contour compensator", "contour loop")
@@ -144,7 +165,12 @@ class ContourConfig:
                 f"fade_in_s must be at least one sample (dt = {self.inner.dt:g} s), got "
                 f"{self.fade_in_s:g} s; raise it"
             )
+        for name in ("tangential", "rotation"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
         check_normal_gains(self.inner, self.k_pc, self.k_vc, "contour compensator")
+        if self.tangential:
+            check_normal_gains(self.inner, 0.0, self.k_vt, "contour compensator's tangential row")
 
     @property
     def k_pc(self) -> float:
@@ -155,6 +181,11 @@ class ContourConfig:
     def k_vc(self) -> float:
         """``k_vc = 2 ζ_c ω_cc``, 1/s."""
         return 2.0 * self.damping * 2.0 * math.pi * self.bandwidth_hz
+
+    @property
+    def k_vt(self) -> float:
+        """``k_vt`` of the tangential row, 1/s (``k_vc``; 0 with ``tangential`` off)."""
+        return self.k_vc if self.tangential else 0.0
 
 
 def check_addon_config(cfg: Any, what: str, loop: str) -> None:
@@ -239,10 +270,13 @@ def contour_step(
         evx = xin[_S_VREF] - xin[_S_V]
         evy = xin[_NS_IN + _S_VREF] - xin[_NS_IN + _S_V]
         eps = -(nx * ex + ny * ey)
-        epsd = -(nx * evx + ny * evy) + ks * (tx * ex + ty * ey)
-        an = w * (-p[1] * epsd - p[0] * eps)
-        x[0] = an * nx
-        x[1] = an * ny
+        evn = -(nx * evx + ny * evy)  # nᵀ(v − ṙ)
+        evt = -(tx * evx + ty * evy)  # tᵀ(v − ṙ) = v_φ⊥ − v(t)
+        epsd = evn + ks * (tx * ex + ty * ey)
+        an = -p[1] * epsd - p[0] * eps + p[5] * ks * evt
+        at = -p[4] * evt - p[5] * ks * evn
+        x[0] = w * (an * nx + at * tx)
+        x[1] = w * (an * ny + at * ty)
     x[2] = eps
     x[3] = epsd
     x[4] = w
@@ -259,7 +293,8 @@ class ContourCompensator(PreviewDOBAddOn):
 
     Notes
     -----
-    ``params = [k_pc, k_vc, min speed, dt / fade_in_s, inner params]``; state ``[Δa_x,
+    ``params = [k_pc, k_vc, min speed, dt / fade_in_s, k_vt, J̇ on, inner params]``;
+    state ``[Δa_x,
     Δa_y (m/s²), ε (m), ε̇ (m/s), w, 0, inner state]`` (the correction terms of the last
     sample).
     Measurement ``(x, y)`` m, command ``(i_x, i_y)`` A; the reference window must carry
@@ -277,7 +312,14 @@ class ContourCompensator(PreviewDOBAddOn):
         self.config = config
         self._setup(
             config.inner,
-            [config.k_pc, config.k_vc, config.min_speed_m_s, config.inner.dt / config.fade_in_s],
+            [
+                config.k_pc,
+                config.k_vc,
+                config.min_speed_m_s,
+                config.inner.dt / config.fade_in_s,
+                config.k_vt,
+                float(config.rotation),
+            ],
         )
 
     def step(
@@ -304,9 +346,13 @@ class ContourCompensator(PreviewDOBAddOn):
             evx = xin[_S_VREF] - xin[_S_V]
             evy = xin[_NS_IN + _S_VREF] - xin[_NS_IN + _S_V]
             eps = -(nx * ex + ny * ey)
-            epsd = -(nx * evx + ny * evy) + ks * (tx * ex + ty * ey)
-            an = w * (-self.params[1] * epsd - self.params[0] * eps)
-            da[:] = (an * nx, an * ny)
+            evn = -(nx * evx + ny * evy)
+            evt = -(tx * evx + ty * evy)
+            epsd = evn + ks * (tx * ex + ty * ey)
+            pr = self.params
+            an = -pr[1] * epsd - pr[0] * eps + pr[5] * ks * evt
+            at = -pr[4] * evt - pr[5] * ks * evn
+            da[:] = (w * (an * nx + at * tx), w * (an * ny + at * ty))
         x[0:2] = da
         x[2], x[3], x[4] = eps, epsd, w
         u = self.inner.command(xin, window, ym, da)

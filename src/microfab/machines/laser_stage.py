@@ -209,6 +209,10 @@ class ControlSettings:
         identification on the stage would give it (the data file's values, switch and
         disturbance scale), and runs it on the reference (`controller`); cogging and cable
         stay the DOB's. An upper bound of what a model-based friction feedforward does.
+    normal_only : bool
+        For the ``contour`` law: the normal row of eqs. 13/15 alone, without the
+        tangential row and the ``J̇`` term (`microfab.control.contour.ContourConfig`); the
+        law before issue 33, kept for the Fig. 7 study's comparison. Default off.
     """
 
     law: str = "contour"
@@ -217,6 +221,7 @@ class ControlSettings:
     k_a: float = 1.0
     contour_bandwidth_hz: float = 100.0
     friction_ff: bool = False
+    normal_only: bool = False
 
     def __post_init__(self) -> None:
         if self.law not in LAWS:
@@ -295,7 +300,14 @@ def controller(cs: ControlSettings, plant: LMWStage, mass_error: float = 0.0) ->
         friction_ff_scale=plant.config.disturbance_scale,
     )
     if cs.law == "contour":
-        return ContourCompensator(ContourConfig(inner=inner, bandwidth_hz=cs.contour_bandwidth_hz))
+        return ContourCompensator(
+            ContourConfig(
+                inner=inner,
+                bandwidth_hz=cs.contour_bandwidth_hz,
+                tangential=not cs.normal_only,
+                rotation=not cs.normal_only,
+            )
+        )
     if cs.law == "cross-coupled":
         return CrossCoupled(CrossCoupledConfig(inner=inner, bandwidth_hz=cs.contour_bandwidth_hz))
     return PreviewDOB(inner)

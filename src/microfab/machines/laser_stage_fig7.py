@@ -28,8 +28,12 @@ axis bandwidth ``ω_c`` (``K_p = ω_c²``), ``K_p − Ω²`` vanishes and the tw
 together by ``K_v Ω`` alone: a tangential residual makes a normal error, and stiffening
 the normal direction moves the error into the tangential one, which feeds the normal one
 again through ``K_v Ω``. The 30 µm circle of Fig. 3 at 10 mm/s turns at 333 rad/s against
-``ω_c`` = 314 rad/s (50 Hz): there the compensator cannot help. The 100 µm circle of
-Fig. 7 at 10 mm/s turns at 100 rad/s: there it does.
+``ω_c`` = 314 rad/s (50 Hz): there the normal row alone cannot help (1112 → 1253 nm,
+friction off). The seed's law has two more parts that act there
+(`microfab.control.contour`): row 2 of eq. 13 (the tangential speed) and eq. 15's ``J̇ v``
+(which cancels the ``−Ω²`` of the rotating frame); with them the same circle goes
+1112 → 439 nm. The 100 µm circle of Fig. 7 at 10 mm/s turns at 100 rad/s: there either
+law helps. `fig7_cause` measures these three runs.
 """
 
 from __future__ import annotations
@@ -282,41 +286,53 @@ def fig7_study(
     ]
 
 
+def _circle_run(
+    radius_m: float, speed_mm_s: float, cs: ControlSettings
+) -> tuple[PathFrameErrors, float]:
+    """Path-frame errors and max contour error after lap 1 (m) of a friction-free circle."""
+    job = _job(f"circle:radius={radius_m!r}", speed_mm_s, cs.law, False, 2, cs.friction_ff)
+    p = play_contour(job.with_(control=cs))
+    laps = [p.reference.lap(i) for i in range(2)]
+    return path_frame_errors(p), contour_errors(p.path, p.trace.output, laps).steady_max()
+
+
 def fig7_cause(
     radius_m: float = 30e-6, speed_mm_s: float = 10.0, control: ControlSettings | None = None
 ) -> dict[str, Any]:
-    """Why the compensator does not help on a circle turning near the axis bandwidth.
+    """Why a normal-only correction does not help on a circle turning near the bandwidth.
 
-    Runs the circle friction-free with both laws, and predicts the compensated path-frame
+    Runs the circle friction-free without the compensator (``preview-dob``), with its
+    normal row alone (``normal_only``, the law before issue 33) and with the full law (both
+    rows of eq. 13 and eq. 15's ``J̇`` term), and predicts the normal-only law's path-frame
     errors from the uncorrected run (`rotating_frame_prediction`).
 
     Returns
     -------
     dict
-        ``turn_rate_rad_s``, ``bandwidth_rad_s`` (``ω_c``), the measured ``normal_nm`` /
-        ``tangential_nm`` per law, the ``predicted_nm`` ``(e_n, e_t)`` with the
-        compensator, and ``without_nm`` / ``with_nm`` (largest contour error after lap 1).
+        ``radius_um``, ``speed_mm_s``, ``turn_rate_rad_s``, ``bandwidth_rad_s`` (``ω_c``);
+        per variant (``preview-dob``, ``normal-only``, ``contour``) the mean path-frame
+        ``normal_nm`` / ``tangential_nm`` and the largest contour error after lap 1
+        ``contour_nm``; ``predicted_nm``: ``(e_n, e_t)`` of the normal-only law by the
+        path-frame model.
     """
     cs = control or ControlSettings()
-    row = fig7_point(f"circle:radius={radius_m!r}", speed_mm_s, False, laps=2)
+    variants = {
+        "preview-dob": dataclasses.replace(cs, law="preview-dob"),
+        "normal-only": dataclasses.replace(cs, law="contour", normal_only=True),
+        "contour": dataclasses.replace(cs, law="contour", normal_only=False),
+    }
+    runs = {k: _circle_run(radius_m, speed_mm_s, v) for k, v in variants.items()}
     plant = twin(TwinSettings(noise=False, friction=False))
-    comp = controller(dataclasses.replace(cs, law="contour"), plant)
+    comp = controller(variants["normal-only"], plant)
     omega = speed_mm_s * 1e-3 / radius_m
-    without = PathFrameErrors(
-        normal_mean_m=row["normal_nm"]["preview-dob"] * 1e-9,
-        tangential_mean_m=row["tangential_nm"]["preview-dob"] * 1e-9,
-        normal_rms_m=0.0,
-        tangential_rms_m=0.0,
-    )
-    en, et = rotating_frame_prediction(without, omega, comp.config)
+    en, et = rotating_frame_prediction(runs["preview-dob"][0], omega, comp.config)
     return {
         "radius_um": radius_m * 1e6,
         "speed_mm_s": speed_mm_s,
         "turn_rate_rad_s": omega,
         "bandwidth_rad_s": 2.0 * np.pi * cs.bandwidth_hz,
-        "normal_nm": row["normal_nm"],
-        "tangential_nm": row["tangential_nm"],
+        "normal_nm": {k: r[0].normal_mean_m * 1e9 for k, r in runs.items()},
+        "tangential_nm": {k: r[0].tangential_mean_m * 1e9 for k, r in runs.items()},
+        "contour_nm": {k: r[1] * 1e9 for k, r in runs.items()},
         "predicted_nm": (en * 1e9, et * 1e9),
-        "without_nm": row["without_nm"],
-        "with_nm": row["with_nm"],
     }

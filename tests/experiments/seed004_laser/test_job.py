@@ -222,6 +222,6 @@ def test_the_fig7_study_table_and_note_read_the_studys_rows():
     table = fig7_study_table(rows)
     assert table.columns[2:] == ("1 mm/s", "10 mm/s", "20 mm/s")
     assert [r[1] for r in table.rows] == ["friction on", "friction on, feedforward", "friction off"]
-    assert table.rows[0][2].startswith("530 / 116") and table.rows[0][4] == "refused (Table I)"
+    assert table.rows[0][2].startswith("530 / 117") and table.rows[0][4] == "refused (Table I)"
     note = _study_note(rows)
-    assert "up to 414 nm on the calibrated twin" in note and "2 nm with the friction off" in note
+    assert "up to 413 nm on the calibrated twin" in note and "2 nm with the friction off" in note

@@ -343,8 +343,9 @@ def _study_note(study: list[dict[str, Any]]) -> str:
         f"{low(False, False):.0f} nm with the friction off; at >= 10 mm/s it gains "
         f"{g_off[0]:.1f}-{g_off[1]:.1f}x with the friction off, {g_ff[0]:.1f}-{g_ff[1]:.1f}x "
         f"with the feedforward ({g_on[0]:.1f}-{g_on[1]:.1f}x without). On the 30 µm circle "
-        "at 10 mm/s the path turns at the axis loop's bandwidth and the normal-only "
-        "correction moves the error into the tangential direction (the table above)."
+        "at 10 mm/s the path turns at the axis loop's bandwidth: there the normal row alone "
+        "moves the error into the tangential direction, and the seed's tangential row and "
+        "J̇ v (eqs. 13, 15) are what help (the table above)."
     )  # fmt: skip
 
 
