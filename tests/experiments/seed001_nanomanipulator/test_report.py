@@ -22,7 +22,8 @@ def test_job_writes_summary_and_report(tmp_path):
     for name in ("xy.png", "error_time.png", "contour_phase.png", "learning.png", "cure_1.png"):
         assert (tmp_path / name).stat().st_size > 1000
         assert name in text
-    assert "485.8" in text  # the seed's numbers beside ours
+    assert "485.8" not in text  # one circle is not the seed's set-up: ours alone
+    assert "ours alone" in text and summary["seed"] is None
     assert not res.failures()
 
 
@@ -32,3 +33,7 @@ def test_reproduction_gives_the_seed_table():
     rows = {r[0]: r[1] for r in out.tables[0].rows}
     assert rows["axial RMS x [nm]"].endswith("/ 485.8")
     assert out.data["gate_period"] == [3, 3, 3, 3]
+    titles = [t.title for t in out.tables]
+    assert any("RBF per period" in t for t in titles) and any("Fig. 8" in t for t in titles)
+    assert set(out.data["rbf_study"]["rms_nm"]) >= {"seed adaptive", "proposed adaptive"}
+    assert [r["bandwidth_hz"] for r in out.data["fig8_fair"]["rows"]] == [100.0, 200.0, 400.0]

@@ -18,17 +18,42 @@ from microfab.machines.nanomanipulator_job import JobConfig, JobRun
 from microfab.measure.circle_tracking import TrackingMetrics
 from microfab.report.tables import DASH, Table, versus
 
-__all__ = ["NanomanipulatorResult", "cure_table"]
+__all__ = ["NanomanipulatorResult", "cure_table", "is_seed_setup"]
 
 
 def _um(v: float) -> str:
     return DASH if not math.isfinite(v) else f"{v * 1e6:.2f}"
 
 
+def is_seed_setup(config: JobConfig) -> bool:
+    """Whether a job runs seed 001 §4.2's set-up, the one its numbers are for.
+
+    Four 0.15 mm circles in a 0.5 mm field (§4.2) on the full twin (§4.1 terms, ``d(t)``
+    and the sensor noise of the data file, which `microfab calibrate nanomanipulator`
+    fits to this set-up). Any other job prints ours alone.
+    """
+    p, t = config.pattern, config.twin
+    return (
+        p.n_circles == paper.N_CIRCLES
+        and p.diameter_mm == paper.CIRCLE_DIAMETER_MM
+        and p.field_mm == paper.FIELD_MM
+        and t.nonlinear
+        and t.disturbance
+        and t.noise
+        and t.noise_rms_mm is None
+        and t.disturbance_mm_s2 is None
+        and t.params_file is None
+    )
+
+
 def cure_table(cures: tuple[CircleCure, ...], config: JobConfig) -> Table:
-    """Cured line per circle and print: width, closure, gap, closing width, offset."""
+    """Cured line per circle and print: width, closure, gap, closing width, offset.
+
+    The seed's line width is set beside ours only for its set-up (`is_seed_setup`).
+    """
     rows = []
     nominal = paper.LINE_WIDTH_UM
+    seed = is_seed_setup(config)
     for c in cures:
         for name, pr in c.prints.items():
             lp = pr.loop
@@ -37,7 +62,9 @@ def cure_table(cures: tuple[CircleCure, ...], config: JobConfig) -> Table:
                 (
                     f"{c.circle + 1}",
                     name,
-                    versus(lp.mean_width_m * 1e6, nominal, "{:.2f}".format),
+                    versus(lp.mean_width_m * 1e6, nominal, "{:.2f}".format)
+                    if seed
+                    else f"{lp.mean_width_m * 1e6:.2f}",
                     f"{_um(lp.min_width_m)}-{_um(lp.max_width_m)}",
                     "yes" if lp.closed else "no",
                     _um(lp.gap_m),
@@ -47,8 +74,9 @@ def cure_table(cures: tuple[CircleCure, ...], config: JobConfig) -> Table:
             )
     w = config.laser.warmup_s
     speed = math.pi * config.pattern.diameter_mm / config.pattern.period_s  # mm/s
+    head = "Seed: lines of about {} µm, some circles not closed (Fig. 14), blamed on the laser's "
     return Table(
-        title="Cured lines (seed 001 Figs. 14-15), ours / seed",
+        title="Cured lines (seed 001 Figs. 14-15), " + ("ours / seed" if seed else "ours alone"),
         columns=(
             "circle",
             "print",
@@ -60,8 +88,8 @@ def cure_table(cures: tuple[CircleCure, ...], config: JobConfig) -> Table:
             "line offset RMS [µm]",
         ),
         rows=rows,
-        note=f"Seed: lines of about {nominal} µm, some circles not closed (Fig. 14), blamed "
-        f"on the laser's warm-up. Here the warm-up is {w * 1e3:g} ms (assumed): at "
+        note=(head.format(nominal) + "warm-up. " if seed else "")
+        + f"Here the warm-up is {w * 1e3:g} ms (assumed): at "
         f"{speed:.3f} mm/s it leaves the gated loop {speed * w * 1e3:.2f} µm short of its "
         "start less the cured line's overlap; 'compensated' advances the switch-on by the "
         "warm-up, 'ungated' exposes the first loop (unconverged). Offset: RMS distance of "
@@ -81,7 +109,11 @@ class NanomanipulatorResult:
         """Tracking beside seed 001 §4.2, and the cured lines."""
         from microfab.report.circle_tracking import tracking_table  # draws: loaded on use
 
-        return (tracking_table(self.metrics), cure_table(self.cures, self.run.config))
+        seed = is_seed_setup(self.run.config)
+        return (
+            tracking_table(self.metrics, seed=seed),
+            cure_table(self.cures, self.run.config),
+        )
 
     def failures(self) -> tuple[str, ...]:
         """Circles whose gate never opened."""
@@ -115,6 +147,8 @@ class NanomanipulatorResult:
             "tracking": self.metrics.summary(),
             "cured_lines": cures,
             "noise_rms_nm": (self.run.noise_rms_mm * 1e6).tolist(),
-            "seed": {"line_width_um": paper.LINE_WIDTH_UM},
+            "seed": (
+                {"line_width_um": paper.LINE_WIDTH_UM} if is_seed_setup(self.run.config) else None
+            ),
             "failures": list(self.failures()),
         }
