@@ -228,6 +228,15 @@ def networks_for_reference(
       that comes out 0 (repeated centres) takes the largest other width, or 1.
     * Weights: ``Ŵ(0) = w0`` for every node.
 
+    With ``s_spread > 0`` the alternation enters the gap between neighbours (``2 s_spread``
+    in scaled ``s``) and dominates it: on seed 001's 0.15 mm circle the widths come out
+    ~3.9 scaled units against an orbit of diameter 2, every ``h_j`` stays within
+    [0.61, 0.97] along the circle, and the network acts as one constant basis function
+    whose adaptive law is an integrator on ``s`` (no memory of the phase, no learning from
+    period to period: `microfab.experiments.seed001_nanomanipulator.study`). With
+    ``s_spread = 0`` the widths follow the spacing along the orbit (~0.5); the network
+    then needs a linear feedback beside it (`microfab.control.rbf_composite`).
+
     Parameters
     ----------
     position, velocity, acceleration : numpy.ndarray
