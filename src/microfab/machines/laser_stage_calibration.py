@@ -22,19 +22,38 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from microfab.core.provenance import Calibration, quantity
 from microfab.core.validate import check_in_range, check_int
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.laser_stage import ContourJob, ControlSettings, play_contour, twin
 from microfab.measure.contour import AxisErrors
 from microfab.plants.sourced_toml import update_sourced
 
-__all__ = ["FIG3_JOB", "DisturbanceFit", "fit_disturbance_scale", "write_scale"]
+__all__ = [
+    "CALIBRATION",
+    "FIG3_JOB",
+    "FIG3_PEAK_QUANTITY",
+    "DisturbanceFit",
+    "fit_disturbance_scale",
+    "write_scale",
+]
 
 FIG3_PEAK_ERROR_M = 0.8e-6  # seed 004 §IV.A: "reaching 0.8 µm at the peak points" (paper.py)
 
 #: The Fig. 3 run the fit uses: the seed's 30 µm circle under preview + DOB (the motion
 #: experiment of §IV.A has no contour compensator), at 1 mm/s (assumed), noise on.
 FIG3_JOB = ContourJob(control=ControlSettings(law="preview-dob"))
+
+#: The published number the fit targets (`microfab.core.provenance`).
+FIG3_PEAK_QUANTITY = quantity("004", "§IV.A, Fig. 3", "peak error")
+
+#: What this calibration fits, for the rows' input / fitted / predicted labels.
+CALIBRATION = Calibration(
+    command="microfab calibrate laser",
+    data_file="lmw_stage.toml",
+    targets=frozenset({FIG3_PEAK_QUANTITY}),
+    what="disturbance scale of friction, cogging and cable",
+)
 
 
 @dataclass(frozen=True, kw_only=True)

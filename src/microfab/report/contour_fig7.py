@@ -8,9 +8,15 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from microfab.core.provenance import Shows, quantity
+from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import Table
 
-__all__ = ["fig7_cause_table", "fig7_study_table", "mode_name"]
+__all__ = ["FIG7_SPEED_QUANTITY", "fig7_cause_table", "fig7_study_table", "mode_name"]
+
+#: Seed 004 §IV.D's claim the speed study is compared with: "almost no significant
+#: contribution ... at low speeds. However at high speeds its effect is significant".
+FIG7_SPEED_QUANTITY = quantity("004", "§IV.D, Fig. 7", "compensation against speed")
 
 
 def mode_name(row: Mapping[str, Any]) -> str:
@@ -39,7 +45,7 @@ def fig7_study_table(rows: Sequence[Mapping[str, Any]]) -> Table:
         (drawing, mode, *(_cell(by[v]) if v in by else "" for v in speeds))
         for (drawing, mode), by in groups.items()
     ]
-    return Table(
+    table = Table(
         title="Fig. 7 against speed: max contour error after lap 1 [nm], without / with the "
         "contour compensator (gain)",
         columns=("drawing", "twin", *(f"{v:g} mm/s" for v in speeds)),
@@ -51,6 +57,7 @@ def fig7_study_table(rows: Sequence[Mapping[str, Any]]) -> Table:
         "cable, saturation and quantisation stay). Speeds beyond Table I's 3 N RMS or "
         "5 m/s² are refused, not run.",
     )
+    return labelled(table, Shows((FIG7_SPEED_QUANTITY,)))
 
 
 def fig7_cause_table(cause: Mapping[str, Any]) -> Table:
@@ -68,7 +75,7 @@ def fig7_cause_table(cause: Mapping[str, Any]) -> Table:
         )
         for k, name in names.items()
     ]
-    return Table(
+    table = Table(
         title=f"Fig. 7 cause: the {cause['radius_um']:g} µm circle at {cause['speed_mm_s']:g} "
         f"mm/s turns at Ω = {cause['turn_rate_rad_s']:.0f} rad/s, the axis loop's ω_c = "
         f"{cause['bandwidth_rad_s']:.0f} rad/s (friction off)",
@@ -83,3 +90,4 @@ def fig7_cause_table(cause: Mapping[str, Any]) -> Table:
         "residual read off the run without it). The seed's tangential row (eq. 13) and "
         "J̇ v (eq. 15, cancelling −Ω²) hold both (laser_stage_fig7).",
     )  # fmt: skip
+    return labelled(table, OURS)

@@ -101,6 +101,13 @@ def test_reproduction_prints_the_seed_beside_ours():
     res = rep.run(rep.parse_options({"speed_study": False}), no_progress)
     d = res.data
     assert d is not None
+    # every row labelled; the Fig. 3 peak is the calibrated scale's (fitted), the share
+    # within 0.5 µm and Fig. 7 are predicted
+    main = res.tables[0]
+    origin = {row[0]: lab.origin for row, lab in zip(main.rows, main.labels, strict=True)}
+    assert origin["Fig. 3 peak, x / y [µm]"] == "fitted"
+    assert origin["Fig. 3 within ±0.5 µm, x / y [%]"] == "predicted"
+    assert all(len(t.labels) == len(t.rows) for t in res.tables)
     assert abs(d["depth_of_focus_um"] - 54.0) <= 0.05 * 54.0
     for v in d["fig7_nm"].values():
         assert v["preview-dob"] >= 2.0 * v["contour"]
@@ -220,7 +227,8 @@ def test_the_fig7_study_table_and_note_read_the_studys_rows():
 
     rows = fig7_study(["circle:radius=1e-4"], [1.0, 10.0, 20.0])
     table = fig7_study_table(rows)
-    assert table.columns[2:] == ("1 mm/s", "10 mm/s", "20 mm/s")
+    assert table.columns[2:] == ("1 mm/s", "10 mm/s", "20 mm/s", "ours is")
+    assert all(lab.origin == "predicted" for lab in table.labels)
     assert [r[1] for r in table.rows] == ["friction on", "friction on, feedforward", "friction off"]
     assert table.rows[0][2].startswith("530 / 117") and table.rows[0][4] == "refused (Table I)"
     note = _study_note(rows)

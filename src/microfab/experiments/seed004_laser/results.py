@@ -13,8 +13,10 @@ from typing import Any
 import numpy as np
 
 from microfab.control.margins import AxisMargins
+from microfab.core.provenance import Shows, quantity
 from microfab.experiments.seed004_laser import paper
-from microfab.machines.laser_stage import ContourJob, ControlSettings
+from microfab.machines.laser_stage import ContourJob
+from microfab.machines.laser_stage_calibration import FIG3_JOB
 from microfab.machines.laser_stage_contour import ContourRun
 from microfab.machines.laser_stage_focus import FocusStudy
 from microfab.report.contour import (
@@ -23,14 +25,22 @@ from microfab.report.contour import (
     slowdown_table,
     speed_table,
 )
+from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import Table, versus
 
-__all__ = ["FIG3_JOB", "FocusSettings", "LaserJob", "LaserResult", "focus_table", "seed_fig3_setup"]
+__all__ = [
+    "DOF_QUANTITY",
+    "FIG3_JOB",
+    "FocusSettings",
+    "LaserJob",
+    "LaserResult",
+    "focus_table",
+    "seed_fig3_setup",
+]
 
-#: The seed's Fig. 3 run as the project reads it (seed 004 §IV.A: the 30 µm circle under
-#: preview control with DOB, eqs. 3-4, measured on the stage; speed assumed,
-#: `paper.PROJECT_CHOICES`). `microfab reproduce laser-micromachining` runs exactly this.
-FIG3_JOB = ContourJob(control=ControlSettings(law="preview-dob"))
+# FIG3_JOB: the seed's Fig. 3 run as the project reads it (seed 004 §IV.A: the 30 µm
+# circle under preview control with DOB, eqs. 3-4; speed assumed): the run `microfab
+# calibrate laser` fits, and the one `microfab reproduce laser-micromachining` reports.
 
 
 def seed_fig3_setup(job: ContourJob) -> bool:
@@ -85,6 +95,10 @@ class FocusSettings:
             )
 
 
+#: Seed 004 §II.A's depth of focus (54 µm), as a compared quantity.
+DOF_QUANTITY = quantity("004", "§II.A", "depth of focus")
+
+
 def focus_table(study: FocusStudy) -> Table:
     """The autofocus figures beside the project's targets (seed 004 gives no numbers)."""
     s = study.summary()
@@ -110,13 +124,14 @@ def focus_table(study: FocusStudy) -> Table:
             f"{err:.2f}"
             + f" (DOF/2 = {s['depth_of_focus_um'] / 2:.1f})",
         ))  # fmt: skip
-    return Table(
+    table = Table(
         title="Autofocus (seed 004 §III.B, eqs. 16-17) on the focus twin",
         columns=("figure", "ours"),
         rows=rows,
         note=f"Start {s['start_um']:.0f} µm off focus (assumed); steady = last 1 s. The "
         "seed shows Fig. 6 without numbers; the targets are the project's (issue).",
     )
+    return labelled(table, [Shows((DOF_QUANTITY,))] + [OURS] * (len(rows) - 1))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
