@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from microfab.core.provenance import Calibration, quantity
 from microfab.core.validate import check_in_range, check_int
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.nanomanipulator_job import JobConfig, make_twin, run_job
@@ -31,9 +32,11 @@ from microfab.measure.circle_tracking import SEED_CONTOUR_RMS_NM
 from microfab.plants.sourced_toml import update_sourced
 
 __all__ = [
+    "CALIBRATION",
     "SEED_AXIAL_RMS_NM",
     "SEED_CONTOUR_RMS_NM",
     "NoiseFit",
+    "axial_quantity",
     "fit_noise",
     "fit_sensor_noise",
     "write_noise",
@@ -44,6 +47,20 @@ __all__ = [
 #: RMS of Fig. 13b, `SEED_CONTOUR_RMS_NM` (769.5 nm), is the check.
 SEED_AXIAL_RMS_NM = (_SEED_AXIAL["x"], _SEED_AXIAL["y"])
 _TARGET = SEED_AXIAL_RMS_NM
+
+
+def axial_quantity(axis: str) -> str:
+    """Id of seed 001 §4.2's axial RMS of ``axis`` (``"x"`` or ``"y"``)."""
+    return quantity("001", "§4.2", "axial RMS", axis)
+
+
+#: The fit's targets: the axial RMS of both axes (the contour RMS is its check).
+CALIBRATION = Calibration(
+    command="microfab calibrate nanomanipulator",
+    data_file="nanomanipulator_twin.toml",
+    targets=frozenset(axial_quantity(a) for a in ("x", "y")),
+    what="sensor noise RMS per axis",
+)
 #: One run of the job: ``run(noise_nm) -> (axial RMS (x, y) nm, contour RMS nm)``.
 JobRunner = Callable[[tuple[float, float]], tuple[tuple[float, float], float]]
 

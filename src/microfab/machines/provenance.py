@@ -39,6 +39,7 @@ __all__ = [
 #: to a seed's published numbers.
 CALIBRATION_MODULES: tuple[str, ...] = (
     "microfab.machines.galvo_calibration",
+    "microfab.machines.nanomanipulator_calibration",
     "microfab.machines.xy_stage_calibration",
     "microfab.machines.xy_stage_cases",
     "microfab.machines.printhead_calibration",

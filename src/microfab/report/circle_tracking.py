@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from microfab.core.provenance import Shows, quantity
 from microfab.measure.circle_trace import Analysis
 from microfab.measure.circle_tracking import (
     NM_PER_MM,
@@ -34,6 +35,7 @@ from microfab.measure.circle_tracking import (
 from microfab.report.canvas import new_figure, render_png
 from microfab.report.page import Figure as PageFigure
 from microfab.report.page import page_html, write_page
+from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, ratio, versus
 
 __all__ = [
@@ -297,14 +299,17 @@ def tracking_table(metrics: TrackingMetrics, *, seed: bool = True) -> Table:
         for i in range(metrics.n_circles):
             rows.append((f"circle {i + 1}: gate period", _opt(metrics.gate_period[i], "{}")))
             rows.append((f"circle {i + 1}: exposed RMS [nm]", _opt(metrics.exposed_rms_nm[i])))
-        return Table(
-            title="Tracking (not the seed's set-up: ours alone)",
-            columns=("quantity", "ours"),
-            rows=rows,
-            note="Error r − y as the sensor shows it, over every period of every circle "
-            "(moves and pauses left out). The seed's §4.2 numbers are for four 0.15 mm "
-            "circles in a 0.5 mm field on the calibrated twin; this run differs, so they "
-            "are not set beside it.",
+        return labelled(
+            Table(
+                title="Tracking (not the seed's set-up: ours alone)",
+                columns=("quantity", "ours"),
+                rows=rows,
+                note="Error r − y as the sensor shows it, over every period of every circle "
+                "(moves and pauses left out). The seed's §4.2 numbers are for four 0.15 mm "
+                "circles in a 0.5 mm field on the calibrated twin; this run differs, so they "
+                "are not set beside it.",
+            ),
+            OURS,
         )
     rows = [
         (
@@ -321,20 +326,28 @@ def tracking_table(metrics: TrackingMetrics, *, seed: bool = True) -> Table:
             ratio(metrics.contour_rms_nm, SEED_CONTOUR_RMS_NM),
         )
     )
+    from microfab.machines.nanomanipulator_calibration import axial_quantity
+
+    shows = [Shows((axial_quantity(a),)) for a in "xy"]
+    shows.append(Shows((quantity("001", "§4.2", "contour RMS"),)))
     lo, hi = SEED_GATE_PERIODS
     for i in range(metrics.n_circles):
+        shows += [Shows((quantity("001", "§4.2", "gate period"),)), OURS]
         g = metrics.gate_period[i]
         rows.append((f"circle {i + 1}: gate period", f"{_opt(g, '{}')} / {lo}-{hi}", DASH))
         rows.append(
             (f"circle {i + 1}: exposed RMS [nm]", f"{_opt(metrics.exposed_rms_nm[i])}", DASH)
         )
-    return Table(
-        title="Seed 001 §4.2 tracking, ours / seed",
-        columns=("quantity", "ours / seed", "ratio"),
-        rows=rows,
-        note="Error r − y as the sensor shows it, over every period of every circle "
-        "(moves and pauses left out); seed 001 §4.2, Fig. 13: axial 485.8 / 885.8 nm, "
-        "contour 769.5 nm RMS, laser on after 3-4 periods.",
+    return labelled(
+        Table(
+            title="Seed 001 §4.2 tracking, ours / seed",
+            columns=("quantity", "ours / seed", "ratio"),
+            rows=rows,
+            note="Error r − y as the sensor shows it, over every period of every circle "
+            "(moves and pauses left out); seed 001 §4.2, Fig. 13: axial 485.8 / 885.8 nm, "
+            "contour 769.5 nm RMS, laser on after 3-4 periods.",
+        ),
+        shows,
     )
 
 

@@ -37,3 +37,10 @@ def test_reproduction_gives_the_seed_table():
     assert any("RBF per period" in t for t in titles) and any("Fig. 8" in t for t in titles)
     assert set(out.data["rbf_study"]["rms_nm"]) >= {"seed adaptive", "proposed adaptive"}
     assert [r["bandwidth_hz"] for r in out.data["fig8_fair"]["rows"]] == [100.0, 200.0, 400.0]
+    json.dumps(out.to_json(), allow_nan=False)  # what --json writes (an oracle has no weights)
+    # the axial RMS is what the noise calibration fits; the contour RMS is predicted
+    labels = {r[0]: lab for r, lab in zip(out.tables[0].rows, out.tables[0].labels, strict=True)}
+    assert labels["axial RMS x [nm]"].origin == labels["axial RMS y [nm]"].origin == "fitted"
+    assert labels["axial RMS x [nm]"].by == ("microfab calibrate nanomanipulator",)
+    assert labels["contour RMS [nm]"].origin == "predicted"
+    assert all(len(t.labels) == len(t.rows) for t in out.tables)

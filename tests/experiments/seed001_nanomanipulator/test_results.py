@@ -40,5 +40,5 @@ def test_tracking_table_off_the_setup_sets_no_seed_number_beside_ours() -> None:
     ours = tracking_table(m, seed=False)
     cells = " ".join(" ".join(r) for r in ours.rows)
     assert "485.8" not in cells and "769.5" not in cells and "/" not in cells
-    assert ours.columns == ("quantity", "ours")
+    assert ours.columns == ("quantity", "ours", "ours is")
     assert "485.8" in " ".join(" ".join(r) for r in tracking_table(m).rows)

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from microfab.control.rbf import RBFConfig
+from microfab.core.provenance import Shows, quantity
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.experiments.seed001_nanomanipulator.results import NanomanipulatorResult
@@ -47,6 +48,7 @@ from microfab.machines.nanomanipulator_job import (
 )
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
+from microfab.report.provenance import OURS, labelled
 from microfab.trajectory.circle_pattern import PatternConfig
 
 __all__ = [
@@ -220,9 +222,12 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
     study = learning_study(circle)
     fig8 = fair_fig8(circle)
     data = m.summary()
+    def finite(v: Any) -> list[float | None]:  # JSON has no NaN: an oracle has no weights
+        return [float(x) if math.isfinite(x) else None for x in v]
+
     data["rbf_study"] = {
-        "rms_nm": {k: v.tolist() for k, v in study.rms_nm.items()},
-        "weight_norm_v": {k: v.tolist() for k, v in study.weight_norm.items()},
+        "rms_nm": {k: finite(v) for k, v in study.rms_nm.items()},
+        "weight_norm_v": {k: finite(v) for k, v in study.weight_norm.items()},
         "regressor": [vars(r) for r in study.regressor],
     }
     data["fig8_fair"] = {
@@ -240,7 +245,11 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
         "skipped": list(fig8.skipped),
     }
     return ReproductionResult(
-        tables=(tracking_table(m), study.as_table(), fig8.as_table()),
+        tables=(
+            tracking_table(m),
+            labelled(study.as_table(), OURS),
+            labelled(fig8.as_table(), Shows((quantity("001", "Fig. 8", "RBF against PID"),))),
+        ),
         notes=(
             "Twin of seed 001 eq. 9 with the §4.1 terms, assumed noise and disturbance "
             "(microfab/data/nanomanipulator_twin.toml); `microfab calibrate nanomanipulator` "
