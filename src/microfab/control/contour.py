@@ -53,14 +53,16 @@ moves the error into the tangential direction, whence it returns (the 30 µm cir
 and the ``J̇`` term). ``tangential=False`` and ``rotation=False`` leave them out (the
 normal-only law, for that comparison).
 
-Under exact tracking ``ε``, ``ε̇`` and ``v − ṙ`` vanish and so does the correction.
+Under exact tracking ``ε``, ``ε̇`` and ``v − ṙ`` vanish and so does the correction (up
+to the velocity filters' discretisation: on a sampled circle the Tustin differentiator
+reads the speed ``(ωT)²/12`` high, which the tangential row sees).
 
 **At rest and at corners** the tangent is undefined. The correction is weighted by
 ``w``: its target is 0 below ``min_speed_m_s``, 1 above twice it, a smoothstep between,
 and ``w`` follows the target down at once but rises at most ``dt / fade_in_s`` a sample.
 A path that stops at a corner (the constant-speed planner stops there) drops the
-correction as it comes to rest (the normal error of the old direction, which the
-correction has kept small, is all it acted on), turns its normal while at rest, and
+correction as it comes to rest (the errors of the old direction, which the correction
+has kept small, are all it acted on), turns its normal while at rest, and
 takes the correction in along the new normal over ``fade_in_s`` on the way out, even
 when the reference leaves the speed band within a sample (1 m/s² does): the errors that
 the stop left along the new normal (the old direction's settling) are not kicked at

@@ -185,7 +185,8 @@ class LaserResult:
             for k, ax in enumerate("xy")
         ] + [(f"peak |e_{ax}| [µm]", f"{m.axis.peak_m[k] * 1e6:.2f}") for k, ax in enumerate("xy")]
         return Table(
-            title=f"Axis tracking ({m.job.control.law}), ours",
+            title=f"Axis tracking ({m.job.control.law}), ours: not seed 004's Fig. 3 set-up, "
+            "not compared with it",
             columns=("figure", "ours"),
             rows=rows,
             note="Not seed 004's Fig. 3 set-up (30 µm circle at 1 mm/s, preview + DOB, the "
