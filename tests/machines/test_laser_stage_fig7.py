@@ -35,7 +35,7 @@ def test_near_the_axis_bandwidth_the_normal_row_alone_trades_normal_for_tangenti
     pn, pt = cause["predicted_nm"]
     assert pn == pytest.approx(n["normal-only"], rel=0.15)
     assert pt == pytest.approx(t["normal-only"], rel=0.15)
-    # the seed's full law (eq. 13 row 2, eq. 15's J̇ v) halves it: 1112 -> 439 nm
+    # the seed's full law (eq. 13 row 2, eq. 15's J̇ v) halves it: 1112 -> 249 nm
     assert c["preview-dob"] >= paper.PROJECT_CHOICES["fig7_gain_min"] * c["contour"], c
 
 

@@ -49,7 +49,7 @@ loop's bandwidth (``Ω`` against ``ω_c``, `microfab.machines.laser_stage_fig7`)
 axis loops' position gain then nearly cancels against ``Ω²`` in the path frame and the
 normal and tangential errors are held together by ``K_v Ω``; a normal-only correction
 moves the error into the tangential direction, whence it returns (the 30 µm circle at
-10 mm/s: 333 against 314 rad/s, 1112 → 1253 nm normal-only; 1112 → 439 nm with both rows
+10 mm/s: 333 against 314 rad/s, 1112 → 1253 nm normal-only; 1112 → 249 nm with both rows
 and the ``J̇`` term). ``tangential=False`` and ``rotation=False`` leave them out (the
 normal-only law, for that comparison).
 

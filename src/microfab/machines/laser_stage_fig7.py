@@ -32,7 +32,7 @@ again through ``K_v Ω``. The 30 µm circle of Fig. 3 at 10 mm/s turns at 333 ra
 friction off). The seed's law has two more parts that act there
 (`microfab.control.contour`): row 2 of eq. 13 (the tangential speed) and eq. 15's ``J̇ v``
 (which cancels the ``−Ω²`` of the rotating frame); with them the same circle goes
-1112 → 439 nm. The 100 µm circle of Fig. 7 at 10 mm/s turns at 100 rad/s: there either
+1112 → 249 nm. The 100 µm circle of Fig. 7 at 10 mm/s turns at 100 rad/s: there either
 law helps. `fig7_cause` measures these three runs.
 """
 
