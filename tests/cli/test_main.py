@@ -202,3 +202,25 @@ def test_ilc_step_refusals_of_issue_13_are_one_line(tmp_path):
         assert says in res.output
         assert not (tmp_path / "st").exists()
         assert (tmp_path / "next.csv").read_bytes() == b"sentinel\n"
+
+
+def test_reproduce_out_writes_a_page_with_the_labels_and_guards_its_folder(tmp_path):
+    out = tmp_path / "page"
+    args = ["reproduce", "msl-ilc", "--set", "iterations=3", "--out", str(out)]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    page = (out / "report.html").read_text()
+    assert "ours is" in page and "fitted (calibrate galvo)" in page and "predicted" in page
+    before = page
+    # other settings into the same folder: refused before any work, the page kept
+    res = CliRunner().invoke(app, [*args[:3], "iterations=4", *args[4:]])
+    assert res.exit_code == 2 and "other settings" in res.output
+    assert (out / "report.html").read_text() == before
+    # a file, or the checkpoint folder, as --out: refused
+    res = CliRunner().invoke(app, [*args[:4], "--out", str(out / "report.html")])
+    assert res.exit_code == 2 and "is a file" in res.output
+    ck = tmp_path / "ck"
+    res = CliRunner().invoke(
+        app, ["reproduce", "stage-models", "--set", f"checkpoints={ck}", "--out", str(ck)]
+    )
+    assert res.exit_code == 2 and "checkpoint folder" in res.output and not ck.exists()

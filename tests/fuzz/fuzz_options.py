@@ -87,6 +87,7 @@ EXTRA_PATHS: dict[tuple[str, str], tuple[str, str]] = {
     ("shaper design", "--frf"): ("in", "frf.csv"),
     ("shaper design", "--psd"): ("in", "chirp.csv"),
     ("nanomanipulator analyze", "--job"): ("in", "nano_job.toml"),
+    ("reproduce", "--out"): ("out", "reproduce_page"),
 }
 
 

@@ -5,11 +5,14 @@ from __future__ import annotations
 import contextlib
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from microfab.cli._kit import check_output_path, console, fail, print_table, progress, reporter
+
+if TYPE_CHECKING:
+    from microfab.experiments.kinds import ReproductionResult
 
 __all__ = ["kinds_cmd", "reproduce_cmd", "run_cmd"]
 
@@ -190,6 +193,14 @@ def reproduce_cmd(
     json_path: Annotated[
         Path | None, typer.Option("--json", help="Write our numbers as JSON.")
     ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Write the tables, notes and figures as DIR/report.html (a run folder: "
+            "rerun with the same settings to rewrite it, --fresh to start clean).",
+        ),
+    ] = None,
     settings: Annotated[
         list[str] | None,
         typer.Option("--set", help="Change a setting, key=value (see `microfab kinds`)."),
@@ -232,6 +243,11 @@ def reproduce_cmd(
                 f"--set {rep.run_folder_option}", Path(folder), kind="folder", inputs=inputs
             )
         check_output_path("--json", json_path, inputs=inputs)
+        if out is not None:
+            check_output_path("--out", out, kind="folder", inputs=inputs)
+            if folder and Path(folder).resolve() == out.resolve():
+                fail(f"--out {out} is also the checkpoint folder; give --out another folder")
+        page_settings = {**rep.fingerprint(options), "written": "report page"}
         if rep.preflight is not None:
             rep.preflight(options)
         if check:
@@ -241,6 +257,9 @@ def reproduce_cmd(
                 "start": f"save its checkpoints in {folder}",
                 "resume": f"resume from {folder}",
             }.get(plan, f"start fresh in {folder}")
+            if out is not None:
+                page = check_run(out, page_settings, fresh=fresh)
+                what += f", and {'rewrite' if page == 'resume' else 'write'} {out}/report.html"
             console.print(
                 f"reproduce {name}: valid settings; it would {what}",
                 highlight=False,
@@ -257,14 +276,41 @@ def reproduce_cmd(
             if folder
             else contextlib.nullcontext()
         )
-        with store, progress() as prog:
+        page_store = (
+            open_run(out, page_settings, fresh=fresh, other_hint="give another --out")
+            if out is not None
+            else contextlib.nullcontext()
+        )
+        with store, page_store, progress() as prog:
             result = rep.run(options, reporter(prog))
+            page = _write_reproduction_page(name, result, out) if out is not None else None
+            if json_path is not None:
+                atomic_write_json(json_path, result.to_json())
     except ValueError as exc:
         fail(str(exc))
     for table in result.tables:
         print_table(table)
     for note in result.notes:
         console.print(note, highlight=False)
-    if json_path is not None:
-        atomic_write_json(json_path, result.to_json())
-        console.print(f"wrote {json_path}", highlight=False)
+    for written in (json_path, page):
+        if written is not None:
+            console.print(f"wrote {written}", highlight=False)
+
+
+def _write_reproduction_page(name: str, result: ReproductionResult, out: Path) -> Path:
+    """``out/report.html``: the reproduction's tables (with their labels), notes, figures."""
+    from microfab.experiments.catalog import REPRODUCTION_ENTRIES
+    from microfab.report.page import page_html, write_page
+
+    entry = REPRODUCTION_ENTRIES[name]
+    figures = result.figures() if result.figures is not None else ()
+    text = page_html(
+        f"microfab reproduce {name}",
+        intro=f"Seed {entry.seed}: {entry.description}. Each table's last column says whether "
+        "our number is an input from the paper, fitted to it (by which calibration) or "
+        "predicted.",
+        notes=result.notes,
+        figures=figures,
+        tables=result.tables,
+    )
+    return write_page(out, text, figures)

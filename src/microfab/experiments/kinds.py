@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 from microfab.io.job import JobFile, Key, parse_section
+from microfab.report.page import Figure
 from microfab.report.tables import Table
 
 __all__ = [
@@ -182,6 +183,10 @@ class ReproductionResult:
         What differs and why, one line each.
     data : dict
         JSON-ready numbers (ours), for ``--json``.
+    figures : callable, optional
+        ``figures() -> tuple of Figure``: the reproduction's figures, drawn from what the
+        run returned (not computed again) and only when asked (``microfab reproduce NAME
+        --out DIR`` writes them with the tables and notes as ``DIR/report.html``).
 
     Raises
     ------
@@ -192,6 +197,7 @@ class ReproductionResult:
     tables: tuple[Table, ...]
     notes: tuple[str, ...] = ()
     data: dict[str, Any] | None = None
+    figures: Callable[[], tuple[Figure, ...]] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tables", tuple(self.tables))

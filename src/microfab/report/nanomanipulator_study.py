@@ -31,12 +31,13 @@ def fig_learning_study(
     """
     fig = new_figure(7.0, 4.6)
     a1, a2 = fig.subplots(2, 1, sharex=True)
-    for name, r in rms_nm.items():
+    for i, (name, r) in enumerate(rms_nm.items()):
         k = np.arange(1, len(r) + 1)
-        a1.semilogy(k, r, "o-", ms=3, label=name)
+        colour = f"C{i % 10}"  # the same variant in the same colour on both panels
+        a1.semilogy(k, r, "o-", ms=3, color=colour, label=name)
         w = np.asarray(weight_norm.get(name, np.full(len(r), np.nan)), dtype=float)
         if np.any(np.isfinite(w)):
-            a2.plot(k, w * 1e3, "o-", ms=3, label=name)
+            a2.plot(k, w * 1e3, "o-", ms=3, color=colour, label=name)
     a1.set_ylabel("RMS error [nm]")
     a2.set_ylabel("‖Ŵ‖ [mV]")
     a2.set_xlabel("period")

@@ -48,6 +48,7 @@ from microfab.machines.nanomanipulator_job import (
 )
 from microfab.process.dose import DoseSettings
 from microfab.process.laser import LaserDiode
+from microfab.report.page import Figure
 from microfab.report.provenance import OURS, labelled
 from microfab.trajectory.circle_pattern import PatternConfig
 
@@ -222,6 +223,7 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
     study = learning_study(circle)
     fig8 = fair_fig8(circle)
     data = m.summary()
+
     def finite(v: Any) -> list[float | None]:  # JSON has no NaN: an oracle has no weights
         return [float(x) if math.isfinite(x) else None for x in v]
 
@@ -261,6 +263,23 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
             "with centres along the orbit (proposed.py).",
         ),
         data=data,
+        figures=lambda: _study_figures(study),
+    )
+
+
+def _study_figures(study: Any) -> tuple[Figure, ...]:
+    """The RBF learning study as a page figure (`reproduce nanomanipulator --out DIR`)."""
+    from microfab.report.canvas import render_png
+    from microfab.report.nanomanipulator_study import fig_learning_study
+
+    return (
+        Figure(
+            name="rbf_per_period.png",
+            png=render_png(fig_learning_study(study.rms_nm, study.weight_norm)),
+            caption="RBF per period on one 0.15 mm circle (noise off, d(t) and the §4.1 α, "
+            "β terms on): RMS error and ‖Ŵ‖ for the seed's network and the proposed one, "
+            "adapting, with the weights frozen, and with the network replaced by its ideal.",
+        ),
     )
 
 
