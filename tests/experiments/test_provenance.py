@@ -88,7 +88,7 @@ def test_every_target_of_these_calibrations_is_shown_and_labelled(results: dict[
             assert all(q in shown[q].fitted for q in cal.targets)
 
 
-def _later_test_a_table_without_labels_is_refused() -> None:
+def test_a_table_without_labels_is_refused() -> None:
     from microfab.experiments.kinds import ReproductionResult
     from microfab.report.tables import Table
 

@@ -201,6 +201,12 @@ class ReproductionResult:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tables", tuple(self.tables))
+        for t in self.tables:
+            if len(t.labels) != len(t.rows) or (t.rows and not t.labels):
+                raise ValueError(
+                    f"table {t.title!r} has no row labels: build it with "
+                    "microfab.report.provenance.labelled"
+                )
 
     def to_json(self) -> dict[str, Any]:
         """``data`` and, under ``"provenance"``, every row's label by table title."""

@@ -21,10 +21,10 @@ import functools
 import importlib
 import tomllib
 from collections.abc import Collection, Iterable
-from importlib import resources
 from typing import Any
 
 from microfab.core.provenance import Calibration, RowLabel, Shows
+from microfab.data import read_text as read_data_text
 
 __all__ = [
     "CALIBRATION_MODULES",
@@ -43,6 +43,7 @@ CALIBRATION_MODULES: tuple[str, ...] = (
     "microfab.machines.xy_stage_calibration",
     "microfab.machines.xy_stage_cases",
     "microfab.machines.printhead_calibration",
+    "microfab.machines.laser_stage_calibration",
 )
 
 
@@ -60,9 +61,8 @@ def calibrations() -> tuple[Calibration, ...]:
     return tuple(out)
 
 
-@functools.cache
 def _data_text(name: str) -> str:
-    return resources.files("microfab.data").joinpath(name).read_text(encoding="utf-8")
+    return read_data_text(name)  # shared with the twins' loaders: one read per content
 
 
 def holds(cal: Calibration) -> bool:
@@ -116,10 +116,14 @@ def label(shows: Shows, *, not_applied: Collection[str] = ()) -> RowLabel:
         Commands of calibrations this run did not use (e.g. a twin run with its assumed
         magnitudes); their targets count as predicted.
     """
+    # only the data files of calibrations that target this row are read: a run's labels
+    # depend on nothing it has not read for its twin
+    wanted = set(shows.quantities)
     targets: dict[str, list[str]] = {}
     for cal in calibrations():
-        if cal.command not in not_applied and holds(cal):
-            for q in cal.targets:
+        hit = wanted & cal.targets
+        if hit and cal.command not in not_applied and holds(cal):
+            for q in hit:
                 targets.setdefault(q, []).append(cal.command)
     counts = {"input": 0, "fitted": 0, "predicted": 0}
     fitted: list[str] = []

@@ -19,12 +19,12 @@ from __future__ import annotations
 import functools
 import tomllib
 from dataclasses import dataclass, replace
-from importlib import resources
 
 import numpy as np
 
 import control
 from microfab.core.validate import check_nonnegative, check_positive
+from microfab.data import read_text as read_data_text
 from microfab.plants.lti import DiscreteLTI, discretize, with_input_delay
 
 __all__ = ["FS_HZ", "GalvoAxis", "default_galvo_axes"]
@@ -173,7 +173,7 @@ def default_galvo_axes() -> dict[str, GalvoAxis]:
     residuals.
     """
     axes = _seed_axes()
-    text = resources.files("microfab.data").joinpath("galvo_twin.toml").read_text()
+    text = read_data_text("galvo_twin.toml")
     cal = tomllib.loads(text)
     out = {}
     for name, ax in axes.items():

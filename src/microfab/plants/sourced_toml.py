@@ -26,10 +26,11 @@ import os
 import re
 import tomllib
 from collections.abc import Mapping
-from importlib import resources
 from typing import Any
 
 import numpy as np
+
+from microfab.data import read_text as read_data_text
 
 __all__ = ["read_sourced", "sources_of", "toml_value", "update_sourced"]
 
@@ -37,7 +38,7 @@ __all__ = ["read_sourced", "sources_of", "toml_value", "update_sourced"]
 def _text(path: str | os.PathLike[str] | None, default: str) -> tuple[str, str]:
     """``(origin, text)`` of ``path``, or of ``data/<default>`` in the package."""
     if path is None:
-        return f"data/{default}", resources.files("microfab.data").joinpath(default).read_text()
+        return f"data/{default}", read_data_text(default)
     with open(path, "rb") as fh:
         return os.fspath(path), fh.read().decode()
 

@@ -37,7 +37,6 @@ import os
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from microfab.core.validate import check_finite, check_nonnegative, check_positive
+from microfab.data import read_text as read_data_text
 
 __all__ = [
     "SEED_CONCENTRATIONS_PCT",
@@ -475,7 +475,7 @@ def load_table(path: str | os.PathLike[str] | None = None) -> NaAlgTable:
     'calibrated'
     """
     if path is None:
-        text = resources.files("microfab.data").joinpath(_TABLE_FILE).read_text(encoding="utf-8")
+        text = read_data_text(_TABLE_FILE)
         origin = f"microfab/data/{_TABLE_FILE}"
     else:
         text = Path(path).read_text(encoding="utf-8")
