@@ -8,11 +8,20 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from matplotlib.figure import Figure as MplFigure
+
 from microfab.core.provenance import Shows, quantity
+from microfab.report.canvas import new_figure
 from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import Table
 
-__all__ = ["FIG7_SPEED_QUANTITY", "fig7_cause_table", "fig7_study_table", "mode_name"]
+__all__ = [
+    "FIG7_SPEED_QUANTITY",
+    "fig7_cause_table",
+    "fig7_speed_figure",
+    "fig7_study_table",
+    "mode_name",
+]
 
 #: Seed 004 §IV.D's claim the speed study is compared with: "almost no significant
 #: contribution ... at low speeds. However at high speeds its effect is significant".
@@ -91,3 +100,37 @@ def fig7_cause_table(cause: Mapping[str, Any]) -> Table:
         "J̇ v (eq. 15, cancelling −Ω²) hold both (laser_stage_fig7).",
     )  # fmt: skip
     return labelled(table, OURS)
+
+
+def fig7_speed_figure(rows: Sequence[Mapping[str, Any]]) -> MplFigure:
+    """Contour error against speed, one panel per drawing.
+
+    Without (dashed) and with (solid) the compensator, one colour per twin variant;
+    refused speeds are left out.
+
+    ``rows``: `microfab.machines.laser_stage_fig7.fig7_study`'s (nm, mm/s).
+    """
+    drawings = list(dict.fromkeys(r["drawing"] for r in rows))
+    modes = list(dict.fromkeys(mode_name(r) for r in rows))
+    fig = new_figure(4.0 * max(len(drawings), 1), 3.8)
+    axes = fig.subplots(1, max(len(drawings), 1), sharey=True, squeeze=False)[0]
+    for ax, drawing in zip(axes, drawings, strict=False):
+        for i, mode in enumerate(modes):
+            run = sorted(
+                (r for r in rows
+                 if r["drawing"] == drawing and mode_name(r) == mode and "refused" not in r),
+                key=lambda r: float(r["speed_mm_s"]),
+            )  # fmt: skip
+            if not run:
+                continue
+            v = [float(r["speed_mm_s"]) for r in run]
+            c = f"C{i % 10}"
+            ax.loglog(v, [r["without_nm"] for r in run], "o--", ms=3, color=c,
+                      label=f"{mode}, without")  # fmt: skip
+            ax.loglog(v, [r["with_nm"] for r in run], "o-", ms=3, color=c, label=f"{mode}, with")
+        ax.set_title(drawing, fontsize=8)
+        ax.set_xlabel("speed [mm/s]")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("max contour error after lap 1 [nm]")
+    axes[0].legend(loc="best", fontsize=6)
+    return fig

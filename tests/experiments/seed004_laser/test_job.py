@@ -106,6 +106,10 @@ def test_reproduction_prints_the_seed_beside_ours():
     main = res.tables[0]
     origin = {row[0]: lab.origin for row, lab in zip(main.rows, main.labels, strict=True)}
     assert origin["Fig. 3 peak, x / y [µm]"] == "fitted"
+    from microfab.machines.laser_stage_calibration import CALIBRATION
+
+    fitted = {q for lab in main.labels for q in lab.fitted}
+    assert fitted == set(CALIBRATION.targets)  # every target shown, and labelled fitted
     assert origin["Fig. 3 within ±0.5 µm, x / y [%]"] == "predicted"
     assert all(len(t.labels) == len(t.rows) for t in res.tables)
     assert abs(d["depth_of_focus_um"] - 54.0) <= 0.05 * 54.0
