@@ -19,7 +19,9 @@ measured data, as a library:
 * `run_errors`: the simulation error ``y - y_model`` of a model from rest, per axis
   (Table II's μ, σ).
 * `StageLinearModel`, `write_stage_model`, `read_stage_model`: the model file (JSON),
-  which carries the rate of the runs it was fitted to and its decimation, and whose
+  which carries the rate of the runs it was fitted to and its decimation (so that
+  `StageLinearModel.continuous` converts to continuous time for inputs held at the runs'
+  rate, not at the decimated one: `microfab.identify.subspace_model`), and whose
   reader dispatches on ``"kind"`` (`MODEL_KINDS`): ``"linear"`` (this file's JSON) or
   ``"ann"`` (a directory written by ``identify ann``, read by `microfab.identify.stage_ann`).
 
@@ -64,7 +66,7 @@ from microfab.identify.stage_runs import (
 )
 from microfab.identify.subspace import SubspaceConfig, identify_subspace
 from microfab.identify.subspace_data import IORun
-from microfab.identify.subspace_model import SubspaceModel
+from microfab.identify.subspace_model import ContinuousModel, SubspaceModel
 from microfab.io.atomic import atomic_write_json
 
 __all__ = [
@@ -288,6 +290,21 @@ class StageLinearModel:
     def input_rate_hz(self) -> float:
         """Rate of the runs the model reads, Hz."""
         return 1.0 / self.input_dt
+
+    def continuous(self) -> ContinuousModel:
+        """Seed 002 eq. (6) in continuous time, for data held at the runs' rate.
+
+        `SubspaceModel.to_continuous` with ``hold_dt = input_dt``: the machine held each
+        set-point for one sample of the runs (10 kHz), not for one sample of the
+        decimated model, so the inverse ZOH at the model's rate would add a lead of half
+        the difference (module docstring of `microfab.identify.subspace_model`).
+
+        Raises
+        ------
+        ValueError
+            A real discrete pole at or below zero (no real logarithm).
+        """
+        return self.model.to_continuous(hold_dt=self.input_dt)
 
     def errors(self, records: Any, *, keep: bool = False) -> RunErrors:
         """`run_errors` at the model's rate."""

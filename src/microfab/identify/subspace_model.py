@@ -8,6 +8,25 @@ seed 002 eq. (6)'s continuous ``(A, B, C, D)`` by the inverse zero-order hold, a
 (`scipy.linalg.logm`; python-control has no d2c, its ``sample_system`` is the check in the
 tests). A real discrete pole at or below zero has no real logarithm and is refused.
 
+**Decimated data** (``to_continuous(hold_dt=...)``). The inverse ZOH at the model's own
+``dt`` assumes the input was held for ``dt``. A model fitted after an anti-alias
+decimation (`microfab.identify.stage_data.decimate`, by ``q``) was not: the machine held
+its set-point for the *raw* sample time ``dt / q`` (the stage's 10 kHz loop, seed 002
+Table I), and the zero-phase FIR applied alike to input and output keeps their ratio in
+the band, so the fitted model's response there is that of the system sampled with a ZOH at
+``dt / q``: ``G_d(e^{jωdt}) ≈ G_{zoh, dt/q}(e^{jω dt/q})``, a half raw sample of lag
+(``e^{-jω dt/2q}``). The inverse ZOH at ``dt`` reads it as half a *model* sample of lag and
+gives a continuous model with a lead of ``ω (dt - dt/q) / 2``: 0.063 rad, 6.3 %, at 40 Hz
+for 2 kHz data fitted at 1 kHz (``tests/identify/test_subspace_model.py``). Neither a
+band-limited reading (``G_c(jω) = G_d``: half a raw sample of lag left in) nor a
+first-order hold fixes that: only the raw hold does. So the conversion keeps the poles
+(``A_c = logm(A) / dt``, exact for any intersample assumption) and ``C``, and chooses
+``B_c``, ``D_c`` so that the ZOH discretisation of ``(A_c, B_c, C, D_c)`` at ``hold_dt``
+has the fitted model's frequency response on the band ``[0, band x Nyquist]`` (linear
+least squares: that response is linear in ``B_c`` and ``D_c``), the static gain held
+exactly (weighted). With ``hold_dt = dt`` the least squares has the inverse ZOH as its
+exact solution, and the closed form is used.
+
 `to_dict` / `from_dict` give the JSON form (format, version, ``dt`` and rate).
 """
 
@@ -25,11 +44,18 @@ from microfab.core.validate import check_positive
 from microfab.identify.subspace_data import check_runs
 from microfab.identify.subspace_fit import error_moments, simulate_ss
 
-__all__ = ["FORMAT", "VERSION", "ContinuousModel", "SubspaceModel"]
+__all__ = ["CONTINUOUS_BAND", "FORMAT", "VERSION", "ContinuousModel", "SubspaceModel"]
 
 FORMAT = "microfab.identify.SubspaceModel"
 VERSION = 1
 _REAL_POLE_TOL = 1e-12  # |Im z| <= this |z|: a real pole
+#: Share of the model's Nyquist frequency on which `SubspaceModel.to_continuous` matches a
+#: decimated model's response (assumed: half, well inside the decimation FIR's pass band,
+#: which ends at about two thirds of the new Nyquist for order 20 q, Hamming; above it
+#: the data held little and aliased power).
+CONTINUOUS_BAND = 0.5
+_BAND_POINTS = 256  # frequencies of that match, uniform from 0 (assumed: ~1 Hz apart at 1 kHz)
+_DC_WEIGHT = 1e3  # weight of the static gain's row in that match (assumed: held to ~1e-6)
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,20 +187,46 @@ class SubspaceModel:
         """Time constant ``-1 / Re(s)`` of each continuous pole, s, slowest first."""
         return np.sort(-1.0 / self.continuous_poles().real)[::-1]
 
-    def to_continuous(self) -> ContinuousModel:
-        """Continuous ``(A, B, C, D)`` by the inverse zero-order hold (MATLAB ``d2c``).
+    def to_continuous(
+        self, hold_dt: float | None = None, *, band: float = CONTINUOUS_BAND
+    ) -> ContinuousModel:
+        """Continuous ``(A, B, C, D)``: the inverse zero-order hold at the data's hold time.
 
-        ``[[A_c, B_c], [0, 0]] = logm([[A, B], [0, I]]) / dt``; ``C`` and ``D`` unchanged.
-        The principal matrix logarithm (`scipy.linalg.logm`) is real when no eigenvalue of
-        A is real and negative or zero.
+        Without ``hold_dt`` (or with ``hold_dt == dt``), MATLAB's ``d2c``:
+        ``[[A_c, B_c], [0, 0]] = logm([[A, B], [0, I]]) / dt``; ``C`` and ``D``
+        unchanged. The principal matrix logarithm (`scipy.linalg.logm`) is real when no
+        eigenvalue of A is real and negative or zero. With a shorter ``hold_dt`` (a model
+        fitted to decimated data: the raw sample time), ``A_c`` and ``C`` as above and
+        ``B_c``, ``D_c`` such that the ZOH discretisation at ``hold_dt`` matches this
+        model's frequency response on ``[0, band x Nyquist]`` (module docstring).
+
+        Parameters
+        ----------
+        hold_dt : float, optional
+            Time the input of the data was held for, s (the raw sample time
+            ``dt / decimate``); at most ``dt``. Default ``dt``.
+        band : float
+            Share of the model's Nyquist frequency matched (0 < band <= 1; default
+            `CONTINUOUS_BAND`). Used only when ``hold_dt < dt``.
 
         Raises
         ------
         ValueError
             A real pole at or below zero: a sampled continuous system has none (the
-            discrete model has a mode that alternates sign every sample).
+            discrete model has a mode that alternates sign every sample); a ``hold_dt``
+            not in (0, dt] or a ``band`` not in (0, 1].
         """
         _check_log(np.linalg.eigvals(self.a))
+        if hold_dt is not None:
+            check_positive("hold_dt", hold_dt, "s")
+            if hold_dt > self.dt * (1.0 + 1e-9):
+                raise ValueError(
+                    f"hold_dt {hold_dt:g} s is longer than the model's dt {self.dt:g} s"
+                )
+            if not 0.0 < band <= 1.0:
+                raise ValueError(f"band must be in (0, 1] of the Nyquist frequency, got {band!r}")
+            if hold_dt < self.dt * (1.0 - 1e-9):
+                return self._held_continuous(float(hold_dt), band)
         n, m = self.order, self.n_inputs
         big = np.zeros((n + m, n + m))
         big[:n, :n] = self.a
@@ -188,6 +240,30 @@ class SubspaceModel:
             lg = lg.real
         lg = lg / self.dt
         return ContinuousModel(a=readonly(lg[:n, :n]), b=readonly(lg[:n, n:]), c=self.c, d=self.d)
+
+    def _held_continuous(self, hold_dt: float, band: float) -> ContinuousModel:
+        """`to_continuous` for data held for ``hold_dt < dt`` (module docstring)."""
+        n, m, p = self.order, self.n_inputs, self.n_outputs
+        lg = scipy.linalg.logm(self.a)
+        a_c = np.real(lg) / self.dt
+        # ZOH at hold_dt: A0 = e^{A_c h}, Gamma0 = int_0^h e^{A_c s} ds (per unit B_c)
+        big = np.zeros((2 * n, 2 * n))
+        big[:n, :n] = a_c * hold_dt
+        big[:n, n:] = np.eye(n) * hold_dt
+        e = scipy.linalg.expm(big)
+        a0, gamma0 = e[:n, :n], e[:n, n:]
+        w = np.linspace(0.0, band * math.pi / self.dt, _BAND_POINTS)  # rad/s
+        eye = np.eye(n)
+        z, z0 = np.exp(1j * w * self.dt), np.exp(1j * w * hold_dt)
+        target = self.c @ np.linalg.solve(z[:, None, None] * eye - self.a, self.b) + self.d
+        basis = self.c @ np.linalg.solve(z0[:, None, None] * eye - a0, gamma0)  # (K, p, n)
+        rows = np.concatenate([basis, np.broadcast_to(np.eye(p), (w.size, p, p))], axis=2)
+        weight = np.ones((w.size, 1, 1))
+        weight[0] = _DC_WEIGHT  # the static gain held (the stage's y ~ rho)
+        lhs = np.concatenate([(weight * rows).real, (weight * rows).imag]).reshape(-1, n + p)
+        rhs = np.concatenate([(weight * target).real, (weight * target).imag]).reshape(-1, m)
+        sol = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+        return ContinuousModel(a=readonly(a_c), b=readonly(sol[:n]), c=self.c, d=readonly(sol[n:]))
 
     def simulate(self, u: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         """Output (N, p) for inputs ``u`` (N, m) from ``x0`` (default zero: at rest)."""

@@ -84,7 +84,7 @@ def load_models(directory: str | Path, *, networks: bool = True) -> Models:
     if not isinstance(lin, StageLinearModel):
         raise ValueError(f"{lin_path}: not a linear stage model")
     try:
-        cont = lin.model.to_continuous()
+        cont = lin.continuous()  # held at the runs' rate, not the decimated one
     except ValueError as exc:
         raise ValueError(f"{lin_path}: {exc}") from None
     if not networks:
