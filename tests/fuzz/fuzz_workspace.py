@@ -22,6 +22,7 @@ workspace path           what it is, made by
 ``shaper.json``          a ZV shaper (`fuzz_slm.base_shapers`)
 ``runs/r*.h5``           three 0.7 s stage runs at 2 kHz (``identify``)
 ``linear_model.json``    ``identify linear runs/*`` (``identify validate``)
+``excited/``             ``stage excite --duration 0.6``: one command run (``stage play``)
 ``models/``              a stage model folder: ``linear_model.json`` (``optimize``)
 ``ilc_trial.csv``        the next trial (`fuzz_cases.base_trial_csv`) on ...
 ``ilc_state/``           ... the ILC state after one ``ilc step``
@@ -170,6 +171,9 @@ RECIPES: dict[str, Recipe] = {
         inputs=("part.dxf", "shaper.json"), outputs=("scan.json",)),
     "stage excite": Recipe(("stage", "excite", "--duration", "1", "--out", "excite"),
                            outputs=("excite",)),
+    "stage play": Recipe(("stage", "play", "excited", "--out", "played", "--seed", "1",
+                          "--hold", "0.1", "--format", "csv"),
+                         inputs=("excited",), outputs=("played",)),
     "trajectory": Recipe(
         ("trajectory", "part.dxf", "--time-optimal", "--n-grid", "50", "--rate", "2000",
          "--out", "reference.csv", "--plot", "profile.png"),
@@ -251,6 +255,7 @@ def _stage_runs(work: Path) -> None:
         (work / name).parent.mkdir(parents=True, exist_ok=True)
         write_columns(work / name, cols, unit="m")
     _cli(work, "identify", "linear", *RUNS, "--out", "linear_model.json")
+    _cli(work, "stage", "excite", "--duration", "0.6", "--out", "excited")
 
 
 def _models(work: Path) -> None:

@@ -1,27 +1,45 @@
-"""``microfab stage excite``: command files for the black-box XY stage (seed 002 §III-C).
+"""``microfab stage``: the black-box XY stage (seed 002 §III-C) through files.
 
-Writes excitation runs (`microfab.identify.excitation`) as command files to play on a real
-machine: one file per run (``time``, ``input_x``, ``input_y``, m, 10 kHz, from rest at the
-origin back to rest there) and an index ``runs.json``. Every run passes
-``check_trajectory`` against seed 002 Table I before anything is written; a refusal is one
-``error:`` line, exit code 2, and nothing is written.
+``stage excite`` writes excitation runs (`microfab.identify.excitation`) as command files
+to play on a real machine: one file per run (``time``, ``input_x``, ``input_y``, m,
+10 kHz, from rest at the origin back to rest there) and an index ``runs.json``. Every run
+passes ``check_trajectory`` against seed 002 Table I before anything is written.
+
+``stage play RUNS --out MEASURED`` plays those command files on the twin
+(`microfab.machines.xy_stage.play_runs`: from rest, held 0.5 s, the 2 µm noise of eq. 3)
+and writes what a real controller must record instead: per run, ``time``, ``input_x``,
+``input_y``, ``output_x``, ``output_y`` (m) at the command's rate (a multiple of 400 Hz;
+10 kHz), the file ``identify linear`` and ``identify ann`` read; and an index
+``played.json`` (the twin's settings, per run the samples the set-point guard changed).
+
+A refusal is one ``error:`` line, exit code 2, and nothing is written; every file is
+written whole (atomically), the index last.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_option, check_output_path, console, fail, print_table
+from microfab.cli._kit import (
+    check_option,
+    check_output_path,
+    console,
+    fail,
+    print_table,
+    progress,
+    read_trace_file,
+)
 from microfab.report.tables import Table
 
 __all__ = ["stage_app"]
 
 stage_app = typer.Typer(
     no_args_is_help=True,
-    help="The black-box XY stage (seed 002): command files to run on a real machine.",
+    help="The black-box XY stage (seed 002): command files to run on a real machine, and "
+    "the same files played on the twin.",
 )
 
 _KINDS = ("random", "shapes", "prbs", "chirp")
@@ -31,6 +49,8 @@ _FORMATS = ("csv", "h5", "mat")
 #: (assumed: 60 s per amplitude or axis, enough to show they are inadequate).
 _DEFAULT_S = {"random": 600.0, "shapes": 210.0, "prbs": 120.0, "chirp": 120.0}
 _FADE_S = 1.0  # chirp fade in / out, s (chirp_runs' default), at most a quarter of a sweep
+_SUFFIX = {"csv": ".csv", "h5": ".h5", "mat": ".mat"}
+PLAYED_INDEX = "played.json"
 
 
 @stage_app.command("excite")
@@ -110,3 +130,156 @@ def excite_cmd(
         )
     )
     console.print(f"wrote {len(runs)} files and {index}", highlight=False)
+
+
+_RUNS_HELP = (
+    "Excitation runs to play: a folder written by `stage excite` (its runs.json index, "
+    "digests checked) or command files (.csv, .mat, .h5: time [s], input_x, input_y [m], "
+    "at a multiple of 400 Hz, within seed 002 Table I)."
+)
+
+
+@stage_app.command("play")
+def play_cmd(
+    runs: Annotated[list[Path], typer.Argument(help=_RUNS_HELP)],
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for the measured runs and played.json.")
+    ],
+    seed: Annotated[
+        int,
+        typer.Option(
+            min=0, help="Noise seed (run k gets seed + k); the same seed, the same files."
+        ),
+    ] = 0,
+    noise: Annotated[
+        bool,
+        typer.Option("--noise/--no-noise", help="The twin's 2 µm encoder noise (seed 002 eq. 3)."),
+    ] = True,
+    hold: Annotated[
+        float, typer.Option(help="Hold of the last set-point after each run [s], recorded too.")
+    ] = 0.5,
+    fmt: Annotated[
+        str, typer.Option("--format", help="File format of the measured runs: csv, h5 or mat.")
+    ] = "csv",
+) -> None:
+    """Play excitation runs on the stage's twin and write the measured runs (seed 002 §III-C).
+
+    Each run is played from rest at its first set-point, its last one held for --hold,
+    and measured with the twin's 2 µm noise. Each measured file holds time, input_x,
+    input_y, output_x, output_y (m) at the run's rate: what ``identify linear`` and
+    ``identify ann`` read, and what a real stage's controller must record instead
+    (README). Prints the samples of each run and the set-points the twin's guard changed.
+    """
+    check_output_path("--out", out, kind="folder", inputs=runs)
+    if fmt not in _FORMATS:
+        fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
+    check_option("--hold", hold, "s", high=60.0, low_closed=True)
+    if out.exists() and not out.is_dir():
+        fail(f"--out {out} is a file; give a folder")
+    if (out / PLAYED_INDEX).exists():
+        fail(f"{out} already holds {PLAYED_INDEX}: remove it or give another --out")
+    commands, sources = _read_commands(runs)
+    files = [out / (c.name + _SUFFIX[fmt]) for c in commands]
+    for f in files:  # an output file that is an input file (e.g. --out the runs' folder)
+        check_output_path("--out", f, inputs=[*runs, *sources])
+    from microfab.identify.stage_runs import record_trace, stage_record
+    from microfab.io.atomic import atomic_write_json
+    from microfab.io.trace import write_trace
+    from microfab.machines.xy_stage import TwinSettings, play_runs
+
+    settings = TwinSettings(seed=seed, noise=noise, hold_s=hold)
+    n_total = sum(c.command.shape[0] for c in commands)
+    with progress() as bar:
+        task = bar.add_task(f"playing {len(commands)} runs on the twin", total=len(commands))
+        played = play_runs(
+            commands, settings, progress=lambda done, _n: bar.update(task, completed=done)
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    rows, entries = [], []
+    for cmd, rec, lim, f in zip(commands, played.records, played.limited, files, strict=True):
+        trace = record_trace(rec, cmd.dt)
+        stage_record(trace, f.name)  # what identify reads: checked before it is written
+        write_trace(trace, f)
+        entries.append(
+            {"name": cmd.name, "file": f.name, "command_samples": int(cmd.command.shape[0]),
+             "samples": rec.n_samples, "rate_hz": 1.0 / cmd.dt, "guard_limited": lim,
+             "noise_seed": seed + len(entries) if noise else None}
+        )  # fmt: skip
+        rows.append((cmd.name, f"{rec.n_samples}", f"{rec.n_samples * cmd.dt:.3f}", f"{lim}"))
+    atomic_write_json(
+        out / PLAYED_INDEX,
+        {
+            "what": "excitation runs played on the XY stage twin (seed 002): measured runs",
+            "columns": ["time", "input_x", "input_y", "output_x", "output_y"],
+            "unit": "m",
+            "twin": {"seed": seed, "noise": noise, "hold_s": hold},
+            "runs": entries,
+        },
+    )
+    print_table(
+        Table(
+            title=f"{len(commands)} runs played on the twin, {n_total} command samples",
+            columns=("run", "samples", "s", "set-points the guard changed"),
+            rows=rows,
+            note=f"each from rest, held {hold:g} s after its last set-point; noise "
+            + (f"2 µm, seeds {seed}…{seed + len(commands) - 1}" if noise else "off"),
+        )
+    )
+    if any(played.limited):
+        console.print(
+            "warning: the twin's set-point guard changed some set-points (outside seed 002 "
+            "Table I); the files hold the commands as given",
+            highlight=False,
+        )
+    console.print(f"wrote {len(files)} files and {out / PLAYED_INDEX}", highlight=False)
+
+
+def _read_commands(paths: list[Path]) -> tuple[list[Any], list[Path]]:
+    """The commands to play (`xy_stage.Command`), checked, and every file they came from."""
+    from microfab.core.limits import LimitViolation, check_trajectory
+    from microfab.identify import excitation as ex
+    from microfab.identify.stage_runs import check_rate
+    from microfab.machines.xy_stage import Command, limits
+    from microfab.trajectory.base import Trajectory
+
+    commands: list[Any] = []
+    sources: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            if not (path / ex.INDEX_FILE).is_file():
+                fail(
+                    f"{path} holds no {ex.INDEX_FILE}: give the folder `stage excite` wrote, "
+                    "or its run files"
+                )
+            try:
+                read = ex.read_runs(path)
+            except (OSError, ValueError, KeyError, TypeError) as exc:  # JSON errors included
+                fail(f"{path / ex.INDEX_FILE}: cannot read the runs: {exc}")
+            commands += [Command(name=r.name, dt=r.dt, command=r.command) for r in read]
+            sources += [path / ex.INDEX_FILE, *sorted(path.iterdir())]
+            continue
+        tr = read_trace_file(path)
+        missing = [c for c in ex.AXES if c not in tr.axes]
+        if missing:
+            fail(
+                f"{path}: no column {missing[0]!r} (columns: time, {', '.join(tr.axes)}); a "
+                f"command file needs time, {', '.join(ex.AXES)} (m)"
+            )
+        if tr.unit not in ("", "m"):
+            fail(f"{path}: unit {tr.unit!r}; the stage's commands are in m")
+        try:
+            check_rate(tr.dt, str(path))
+        except ValueError as exc:
+            fail(str(exc))
+        cmd = tr.values[:, [tr.axes.index(c) for c in ex.AXES]]
+        try:  # from rest to rest, as the machine would take it
+            check_trajectory(Trajectory(dt=tr.dt, position=cmd, at_rest=True), limits())
+        except (ValueError, LimitViolation) as exc:
+            fail(f"{path}: the command is outside seed 002 Table I: {exc}")
+        commands.append(Command(name=path.stem, dt=float(tr.dt), command=cmd))
+        sources.append(path)
+    names = [c.name for c in commands]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        fail(f"two runs are named {dup[0]!r}: their measured files would be the same file")
+    return commands, sources

@@ -9,6 +9,7 @@ What both stage models read (`microfab.identify.stage_data` for the linear model
   500 ms (the ANN's input history, §III-B), every input inside Table I's workspace, every
   output within 1 m. The trace itself has already refused NaN and a non-uniform or
   non-increasing time (`Trace.from_columns`).
+* `record_trace`: a run as such a trace (what ``microfab stage play`` writes).
 * `RunErrors`: the simulation error ``y - y_model`` of a model per axis, pooled over runs
   (Table II's μ, σ), as both models report it.
 
@@ -37,6 +38,7 @@ __all__ = [
     "RunErrors",
     "StageRecord",
     "check_rate",
+    "record_trace",
     "stage_record",
 ]
 
@@ -131,9 +133,15 @@ def stage_record(trace: Trace, name: str = "run") -> StageRecord:
     """
     missing = [c for c in COLUMNS if c not in trace.axes]
     if missing:
+        hint = ""
+        if set(missing) == {"output_x", "output_y"} and {"input_x", "input_y"} <= set(trace.axes):
+            hint = (
+                "; this file holds only the commands: play it first (`microfab stage play`, "
+                "or on the machine, recording the encoders)"
+            )
         raise ValueError(
             f"{name}: no column {missing[0]!r} (columns: time, {', '.join(trace.axes)}); a "
-            f"stage run needs time, {', '.join(COLUMNS)} (m)"
+            f"stage run needs time, {', '.join(COLUMNS)} (m){hint}"
         )
     if trace.unit not in ("", "m"):
         raise ValueError(f"{name}: unit {trace.unit!r}; the stage's runs are in m")
@@ -164,6 +172,20 @@ def stage_record(trace: Trace, name: str = "run") -> StageRecord:
             "of the stage in m (another unit or column?)"
         )
     return rec
+
+
+def record_trace(record: StageRecord, dt: float) -> Trace:
+    """A run as the trace `stage_record` reads back: ``time`` and `COLUMNS`, m, from t = 0.
+
+    Parameters
+    ----------
+    record : StageRecord
+        Set-points and positions, (n, 2) each, m.
+    dt : float
+        Sample time, s.
+    """
+    values = np.column_stack([record.u, record.y])
+    return Trace(dt=dt, values=values, axes=COLUMNS, unit="m")
 
 
 @dataclass(frozen=True, eq=False)

@@ -7,7 +7,10 @@ first sample through the compiled loop (`microfab.sim.loop.simulate` with
 `microfab.control.setpoint.SetPoint`: the black box's input is the set-point ρ), then held
 for ``hold_s`` so that the stage settles; the measured position gets the twin's 2 µm
 noise (seed 002 eq. 3) drawn from a seed per run. What comes back is a `StageRecord` per
-run, the same shape as a measured run read from a file (`microfab identify linear`).
+run, the same shape as a measured run read from a file (`microfab identify linear`);
+``microfab stage play`` (`microfab.cli.stage`) plays command files (`Command`) this way
+and writes them back with their measured columns
+(`microfab.identify.stage_runs.record_trace`).
 
 The twin of one configuration (`TwinSettings.changes`) is built once per process and
 shared (`twin`): the plant is immutable configuration, its state lives in the loop.
@@ -15,7 +18,7 @@ shared (`twin`): the plant is immutable configuration, its state lives in the lo
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -31,6 +34,7 @@ from microfab.sim.loop import LoopState, simulate
 
 __all__ = [
     "DATA_FILES",
+    "Command",
     "CommandRun",
     "Played",
     "TwinSettings",
@@ -125,8 +129,45 @@ class CommandRun(Protocol):
     def command(self) -> np.ndarray: ...  # noqa: D102
 
 
-def play_runs(runs: Sequence[CommandRun], settings: TwinSettings | None = None) -> Played:
-    """Play each run on the twin from rest at its first sample, then hold (module doc)."""
+@dataclass(frozen=True, eq=False)
+class Command:
+    """A command read from a file, to play (`CommandRun`): set-points of x and y.
+
+    Attributes
+    ----------
+    name : str
+        Its name (the file's stem), for the measured run and messages.
+    dt : float
+        Sample time, s.
+    command : numpy.ndarray
+        Set-points ``input_x``, ``input_y``, m, shape (n, 2).
+    """
+
+    name: str
+    dt: float
+    command: np.ndarray
+
+
+def play_runs(
+    runs: Sequence[CommandRun],
+    settings: TwinSettings | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Played:
+    """Play each run on the twin from rest at its first sample, then hold (module doc).
+
+    Parameters
+    ----------
+    runs : sequence of CommandRun
+        Commands (n, 2), m, each at its own ``dt``.
+    settings : TwinSettings, optional
+        Twin, noise seed (run ``k`` uses ``seed + k``), noise on or off, hold.
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each run.
+
+    Returns
+    -------
+    Played
+    """
     s = TwinSettings() if settings is None else settings
     twin = s.twin()
     out = []
@@ -145,4 +186,6 @@ def play_runs(runs: Sequence[CommandRun], settings: TwinSettings | None = None) 
         res = simulate(twin, SetPoint(2), u, v, state=state, axes=("x", "y"))
         limited.append(int(twin.guard_counts(res.final_state.plant).limited))
         out.append(StageRecord(name=run.name, u=u, y=np.asarray(res.measured)))
+        if progress is not None:
+            progress(k + 1, len(runs))
     return Played(records=out, limited=tuple(limited), dt=float(runs[0].dt) if runs else 1e-4)
