@@ -16,10 +16,18 @@ the banded matrix by index arithmetic. The window's encoding (``extrapolated``,
 from the model's own `WindowSpec` and `Scaling`, in float64; the networks run in float32
 as trained. `NetworkMap.predict` equals `AnnModel.predict` (``at="400hz"``) on the
 command whose 400 Hz samples are ``rest, …, rest, r_0, …`` (tested).
+
+Threads: the calls run on ``threads`` torch threads (default 1), set on entry and
+restored on exit. Inside stage 2, between CasADi's solves, two threads made the Jacobian
+8-30x slower than one (issue 18: 0.15 s against 3.35 s for 7 Jacobians at M = 918 in
+issue 34, 0.02 s each on one thread), the threads' pools contending with the solver's;
+outside, the batches (M + tail windows of h inputs) are too small to gain from a second.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -37,9 +45,12 @@ class NetworkMap:
         Networks for both axes ("x", "y").
     tail : int
         Samples predicted after the end (the input held), default ``h``.
+    threads : int or None
+        Torch threads during `predict` and `linearize` (module docstring), >= 1; None
+        leaves torch's count as it stands.
     """
 
-    def __init__(self, model: Any, tail: int | None = None) -> None:
+    def __init__(self, model: Any, tail: int | None = None, threads: int | None = 1) -> None:
         import torch
 
         from microfab.identify.ann_data import AXES
@@ -52,12 +63,33 @@ class NetworkMap:
         self.tail = self.h if tail is None else int(tail)
         if self.tail < 0:
             raise ValueError(f"tail must be >= 0 samples, got {tail}")
+        if threads is not None and (
+            isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
+        ):
+            raise ValueError(f"threads must be an integer >= 1 or None, got {threads!r}")
+        self.threads = threads
         self._torch = torch
         self._scal = {}
         for a in AXES:
             s = model.scalings[a]
             self._scal[a] = tuple(torch.as_tensor(v, dtype=torch.float64) for v in
                                   (s.in_offset, s.in_scale, s.out_offset, s.out_scale))  # fmt: skip
+
+    @contextmanager
+    def _threads(self) -> Iterator[None]:
+        """Torch on `threads` threads inside, the caller's count restored after."""
+        torch = self._torch
+        before = torch.get_num_threads()
+        if self.threads is None:
+            yield
+            return
+        if before != self.threads:
+            torch.set_num_threads(self.threads)
+        try:
+            yield
+        finally:
+            if torch.get_num_threads() != before:
+                torch.set_num_threads(before)
 
     # ------------------------------------------------------------------ windows
     def _series(self, r: np.ndarray, rest: np.ndarray) -> np.ndarray:
@@ -108,7 +140,7 @@ class NetworkMap:
     def predict(self, r: np.ndarray, rest: np.ndarray) -> np.ndarray:
         """``φ_1 … φ_{M+tail}``, shape (M + tail, 2), m."""
         wins = self._windows(self._series(r, rest), grad=False)
-        with self._torch.no_grad():
+        with self._threads(), self._torch.inference_mode():
             return np.column_stack([self._phi(wins, a).numpy() for a in ("x", "y")])
 
     def linearize(self, r: np.ndarray, rest: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
@@ -116,6 +148,10 @@ class NetworkMap:
 
         Rows: ``φ_x`` then ``φ_y``; columns: ``r_x`` then ``r_y``.
         """
+        with self._threads():
+            return self._linearize(r, rest)
+
+    def _linearize(self, r: np.ndarray, rest: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
         m = np.asarray(r).shape[0]
         wins = self._windows(self._series(r, rest), grad=True)
         n_out = m + self.tail

@@ -20,9 +20,9 @@ held (the tail, `NetworkMap`). Problem (14), in µm:
 **Gauss-Newton with a trust region.** Each iteration linearises ``φ(r + δ) ≈ φ + J δ``
 (`NetworkMap.linearize`: the Jacobian from one backward pass, banded, per axis), and
 solves the convex QP in ``δ`` and the residuals ``e = φ + J δ - Ξ̄`` (so the Hessian is
-diagonal and ``J`` only appears in equality rows) with IPOPT (`stage2_qp`: the matrix's
-nonzeros a parameter, built once; HiGHS's QP solver stopped with "solve error" on these
-problems and OSQP did not converge in 20 000 iterations). The step's Jacobian keeps the
+diagonal and ``J`` only appears in equality rows) with PIQP (`stage2_qp`: the solver
+built once for the matrix's pattern, its values passed per step; IPOPT, the solver before
+issue 34, with ``qp="ipopt"``: 10-20x slower, the same steps). The step's Jacobian keeps the
 band of recent inputs that holds 99 % of its mass (`Stage2Settings.band_mass`). A step
 is taken only if the true merit (cost + penalties, through the networks) decreases; the
 trust region grows after a good step and shrinks after a bad one. The merit therefore
@@ -57,9 +57,11 @@ __all__ = ["Stage2Result", "Stage2Settings", "feasible_input", "solve_stage2"]
 
 _UM = 1e6  # scaled unit: µm per m
 NORMS = ("euclidean", "axis")
+#: The step's QP solvers (`microfab.optimize.stage2_qp`).
+QP_SOLVERS = ("piqp", "ipopt")
 #: Settings that stop or pace the iterations but do not change their course: a rerun with
 #: more iterations resumes the checkpoint.
-_NOT_FINGERPRINTED = frozenset({"max_iter", "tol", "checkpoint_every"})
+_NOT_FINGERPRINTED = frozenset({"max_iter", "tol", "checkpoint_every", "qp", "threads"})
 
 
 @dataclass(frozen=True)
@@ -97,6 +99,13 @@ class Stage2Settings:
         still accepted on the true merit, so the result stays monotone.
     rate_hz : float
         The networks' rate, Hz.
+    qp : {"piqp", "ipopt"}
+        The solver of the step's QP (`microfab.optimize.stage2_qp`): PIQP (default) or
+        IPOPT (the solver before issue 34, kept for comparison). Both solve the same QP; the
+        steps agree to about 1e-4 µm, so the setting is not part of the checkpoint's key.
+    threads : int or None
+        Torch threads of the networks' evaluations (`NetworkMap`); None: torch's count as
+        it stands (the setting before issue 34). Default 1 (`microfab.optimize.ann_torch`).
     """
 
     norm: str = "euclidean"
@@ -108,10 +117,14 @@ class Stage2Settings:
     checkpoint_every: int = 3
     band_mass: float = 0.99
     rate_hz: float = 400.0
+    qp: str = "piqp"
+    threads: int | None = 1
 
     def __post_init__(self) -> None:
         if self.norm not in NORMS:
             raise ValueError(f"norm must be one of {', '.join(NORMS)}, got {self.norm!r}")
+        if self.qp not in QP_SOLVERS:
+            raise ValueError(f"qp must be one of {', '.join(QP_SOLVERS)}, got {self.qp!r}")
         for name in ("penalty", "limit_penalty", "trust_um", "rate_hz"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -120,6 +133,9 @@ class Stage2Settings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+        t = self.threads
+        if t is not None and (isinstance(t, bool) or not isinstance(t, int) or t < 1):
+            raise ValueError(f"threads must be an integer >= 1 or None, got {t!r}")
         if not (isinstance(self.band_mass, (int, float)) and 0 < self.band_mass <= 1):
             raise ValueError(f"band_mass must lie in (0, 1], got {self.band_mass!r}")
         if not (math.isfinite(self.tol) and self.tol >= 0):
@@ -331,7 +347,7 @@ def solve_stage2(
                          f"{r_init.shape}")  # fmt: skip
     if target.shape[0] < 3 or not (np.all(np.isfinite(target)) and np.all(np.isfinite(r_init))):
         raise ValueError("target and r_init must be finite with M >= 3 samples")
-    nm = NetworkMap(model)
+    nm = NetworkMap(model, threads=st.threads)
     pb = _Problem(target, np.asarray(rest, dtype=float), tolerance_m, v_max, a_max, limits, st)
     from microfab.optimize.stage2_qp import Subproblem
 
