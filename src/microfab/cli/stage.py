@@ -51,6 +51,9 @@ _DEFAULT_S = {"random": 600.0, "shapes": 210.0, "prbs": 120.0, "chirp": 120.0}
 _FADE_S = 1.0  # chirp fade in / out, s (chirp_runs' default), at most a quarter of a sweep
 _SUFFIX = {"csv": ".csv", "h5": ".h5", "mat": ".mat"}
 PLAYED_INDEX = "played.json"
+#: Longest --hold, s (assumed: the twin settles within 0.5 s, TwinSettings; a minute of
+#: hold is never needed and bounds the samples a typo could ask for).
+_HOLD_MAX_S = 60.0
 
 
 @stage_app.command("excite")
@@ -173,7 +176,7 @@ def play_cmd(
     check_output_path("--out", out, kind="folder", inputs=runs)
     if fmt not in _FORMATS:
         fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
-    check_option("--hold", hold, "s", high=60.0, low_closed=True)
+    check_option("--hold", hold, "s", high=_HOLD_MAX_S, low_closed=True)
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a folder")
     if (out / PLAYED_INDEX).exists():
