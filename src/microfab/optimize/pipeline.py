@@ -10,7 +10,17 @@
    before the start; skipped for ``stage="1"``;
 4. the 10 kHz command through `microfab.optimize.command.checked_command`, checked
    against Table I before it is returned (a `microfab.core.limits.LimitViolation`
-   otherwise, nothing returned).
+   otherwise, nothing returned);
+5. for stage 1 alone, `Stage1Check`: the command and the time-optimal command stretched
+   to the same ``T`` (`microfab.optimize.baseline.stretched_time_optimal`), both run on
+   the linear model from rest. Eq. (12) leaves the end free: stage 1's input ends moving
+   (0.34 m/s on a 30 mm star at 3 m/s²) and the command must come to rest into the held
+   end (`feasible_input`), which moves the last samples by up to 2.4 mm and the output's
+   end by 0.5 mm (stage 2 refines that end on the networks; stage 1 alone cannot). When
+   the linear model predicts stage 1's command worse (L2 or L∞) than the stretched one,
+   the result says so (`ReferenceResult.warning`) and, with ``fallback`` (default), the
+   stretched command is returned instead (issue 34 item 6: on the twin, that star's L∞
+   550 µm against the stretched command's 279).
 
 The result keeps each stage's output and its wall time (the seed reports about 1 min and
 1-4 h, §IV-C).
@@ -18,6 +28,7 @@ The result keeps each stage's output and its wall time (the seed reports about 1
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,14 +37,71 @@ from typing import Any
 import numpy as np
 
 from microfab.identify.subspace_model import ContinuousModel
+from microfab.optimize.metrics import DeviationNorms
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Result, Stage1Settings, solve_stage1
 from microfab.trajectory.base import Trajectory
 
-__all__ = ["MODEL_RATE_HZ", "ReferenceResult", "optimize_reference", "training_warning"]
+__all__ = [
+    "MODEL_RATE_HZ",
+    "ReferenceResult",
+    "Stage1Check",
+    "linear_output",
+    "optimize_reference",
+    "training_warning",
+]
 
 MODEL_RATE_HZ = 400.0  # seed 002 §III-B: the networks run at 400 Hz
+RUN_RATE_HZ = 1e4  # seed 002 Table I: the 10 kHz loop the command is played at
 STAGES = ("1", "both")
+
+
+@dataclass(frozen=True)
+class Stage1Check:
+    """Stage 1's command and the stretched time-optimal one on the linear model (step 5).
+
+    Attributes
+    ----------
+    stage1, stretched : DeviationNorms
+        Eqs. (16)-(18) of the linear model's output at ``t_1 … t_M``, m.
+    worst_at_s : float
+        Time of stage 1's largest deviation, s (from ``t_0``).
+    duration_s : float
+        ``T``, s.
+    fell_back : bool
+        Whether the stretched command was returned instead.
+    """
+
+    stage1: DeviationNorms
+    stretched: DeviationNorms
+    worst_at_s: float
+    duration_s: float
+    fell_back: bool
+
+    @property
+    def worse(self) -> bool:
+        """Stage 1 predicted worse than the stretched command in L2 or L∞."""
+        return self.stage1.l2 > self.stretched.l2 or self.stage1.linf > self.stretched.linf
+
+    @property
+    def warning(self) -> str | None:
+        """What to tell the user when stage 1 is predicted worse; None otherwise."""
+        if not self.worse:
+            return None
+        um = 1e6
+        then = (
+            "the time-optimal command stretched to T is used instead"
+            if self.fell_back
+            else "run stage 2 or use the stretched command"
+        )
+        return (
+            f"stage 1's command is predicted worse on the linear model than the time-optimal "
+            f"command stretched to the same T = {self.duration_s:.4g} s (L2 "
+            f"{self.stage1.l2 * um:.1f} vs {self.stretched.l2 * um:.1f} µm, L∞ "
+            f"{self.stage1.linf * um:.1f} vs {self.stretched.linf * um:.1f} µm, largest at "
+            f"t = {self.worst_at_s:.3g} s): eq. (12) leaves the end free, so its input ends "
+            f"moving and bringing it to rest moves the end; {then}"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,6 +132,9 @@ class ReferenceResult:
         The networks' output at ``t_1 … t_M`` for ``r``, (M, 2), m, when networks were given.
     wall_s : dict of str to float
         "stage1", "stage2", "command".
+    stage1_check : Stage1Check or None
+        Stage 1 alone: its command against the stretched one on the linear model (when
+        ``fell_back``, ``r`` and ``command`` are the stretched command's).
     """
 
     problem: ContourProblem
@@ -77,6 +148,12 @@ class ReferenceResult:
     stage2: Any = None
     predicted: np.ndarray | None = None
     wall_s: dict[str, float] = field(default_factory=dict)
+    stage1_check: Stage1Check | None = None
+
+    @property
+    def warning(self) -> str | None:
+        """Stage 1 alone predicted worse than the stretched command (`Stage1Check`)."""
+        return None if self.stage1_check is None else self.stage1_check.warning
 
     @property
     def duration(self) -> float:
@@ -117,6 +194,7 @@ def optimize_reference(
     stage2: Any = None,
     checkpoint: str | None = None,
     progress: Callable[[int, float], None] | None = None,
+    fallback: bool = True,
 ) -> ReferenceResult:
     """Run the stages on ``problem`` (module docstring).
 
@@ -135,6 +213,9 @@ def optimize_reference(
         Stage 2's checkpoint file (resumed when it matches).
     progress : callable, optional
         ``progress(iteration, cost)`` of stage 2.
+    fallback : bool
+        Stage 1 alone: return the stretched time-optimal command when the linear model
+        predicts it better (step 5); else only warn.
 
     Returns
     -------
@@ -193,13 +274,21 @@ def optimize_reference(
         from microfab.optimize.stage2 import feasible_input
 
         r = feasible_input(r_init, rest, problem.limits)
+    t0 = time.perf_counter()
+    command = checked_command(r, rest=rest, limits=problem.limits)
+    wall["command"] = time.perf_counter() - t0
+    check = None
+    if stage == "1":
+        t0 = time.perf_counter()
+        check, alt = _check_stage1(problem, linear, command, rest, st1.duration, r.shape[0])
+        if check is not None and check.worse and fallback:
+            r, command = alt
+            check = dataclasses.replace(check, fell_back=True)
+        wall["check"] = time.perf_counter() - t0
         if networks is not None:
             from microfab.optimize.ann_torch import NetworkMap
 
             predicted = NetworkMap(networks).predict(r, rest)[: r.shape[0]]
-    t0 = time.perf_counter()
-    command = checked_command(r, rest=rest, limits=problem.limits)
-    wall["command"] = time.perf_counter() - t0
     return ReferenceResult(
         problem=problem,
         stage1=st1,
@@ -212,4 +301,91 @@ def optimize_reference(
         stage2=st2,
         predicted=predicted,
         wall_s=wall,
+        stage1_check=check,
     )
+
+
+def linear_output(
+    linear: ContinuousModel, command: np.ndarray, rate_hz: float = RUN_RATE_HZ
+) -> np.ndarray:
+    """The linear model's output for a command played from rest at its first sample.
+
+    Parameters
+    ----------
+    linear : ContinuousModel
+        Eq. (6), m.
+    command : numpy.ndarray
+        Set-points, shape (n, 2), m, held for each sample (the machine's loop).
+    rate_hz : float
+        The command's rate, Hz.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (n, 2), m: eq. (6) sampled with a zero-order hold at ``1 / rate_hz``.
+    """
+    import scipy.linalg
+
+    from microfab.identify.subspace_fit import simulate_ss
+
+    a, b = np.asarray(linear.a), np.asarray(linear.b)
+    n, m = a.shape[0], b.shape[1]
+    big = np.zeros((n + m, n + m))
+    big[:n, :n], big[:n, n:] = a, b
+    e = scipy.linalg.expm(big / rate_hz)
+    u = np.asarray(command, dtype=float)
+    x0 = -np.linalg.solve(a, b @ u[0])  # at rest under the first set-point
+    return simulate_ss(e[:n, :n], e[:n, n:], linear.c, linear.d, u, x0)
+
+
+def _at_model_rate(y: np.ndarray, m: int, lead: int) -> np.ndarray:
+    """Rows at ``t_1 … t_M`` of a run at `RUN_RATE_HZ` whose sample ``lead q`` is ``t_0``."""
+    q = round(RUN_RATE_HZ / MODEL_RATE_HZ)
+    idx = (np.arange(1, m + 1) + lead) * q
+    return y[np.minimum(idx, y.shape[0] - 1)]
+
+
+def _check_stage1(
+    problem: ContourProblem,
+    linear: ContinuousModel,
+    command: Trajectory,
+    rest: np.ndarray,
+    duration: float,
+    m: int,
+) -> tuple[Stage1Check | None, tuple[np.ndarray, Trajectory] | None]:
+    """Step 5: the norms of both commands on the linear model, and the stretched one.
+
+    None for both when no stretched command fits (``T`` below the time-optimal one under
+    Table I, or its input outside the command's bounds).
+    """
+    from microfab.core.limits import LimitViolation
+    from microfab.optimize.baseline import stretched_time_optimal
+    from microfab.optimize.command import LEAD, checked_command
+    from microfab.optimize.stage2 import feasible_input
+
+    q = round(RUN_RATE_HZ / MODEL_RATE_HZ)
+    try:
+        stretched = stretched_time_optimal(problem.path, duration, problem.limits, RUN_RATE_HZ)
+        r_alt = np.asarray(stretched, dtype=float)[::q][:m]
+        if r_alt.shape[0] < m:
+            r_alt = np.vstack([r_alt, np.repeat(r_alt[-1:], m - r_alt.shape[0], axis=0)])
+        r_alt = feasible_input(r_alt, rest, problem.limits)
+        alt = checked_command(r_alt, rest=rest, limits=problem.limits)
+    except (ValueError, LimitViolation):
+        return None, None
+    norms = []
+    worst = 0.0
+    for k, cmd in enumerate((command, alt)):
+        pos = np.asarray(cmd.position, dtype=float)
+        pos = np.vstack([pos, np.repeat(pos[-1:], (m + LEAD + 1) * q, axis=0)])  # held
+        y = _at_model_rate(linear_output(linear, pos), m, LEAD)
+        norms.append(DeviationNorms.of(problem.path, y))
+        if k == 0:
+            from microfab.optimize.metrics import deviations
+
+            worst = float(np.argmax(deviations(problem.path, y)) + 1) / MODEL_RATE_HZ
+    check = Stage1Check(
+        stage1=norms[0], stretched=norms[1], worst_at_s=worst, duration_s=duration,
+        fell_back=False,
+    )  # fmt: skip
+    return check, (r_alt, alt)
