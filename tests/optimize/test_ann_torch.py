@@ -84,3 +84,35 @@ def test_refusals(tiny_models):
         nm.predict(np.full((5, 2), np.nan), np.zeros(2))
     with pytest.raises(ValueError, match="tail"):
         NetworkMap(model, tail=-1)
+
+
+def test_threads_are_set_inside_and_restored(tiny_models):
+    """One torch thread inside `predict` / `linearize` (issue 34), the caller's after."""
+    import torch
+
+    _, model = tiny_models
+    rng = np.random.default_rng(2)
+    rest = np.array([1e-4, 2e-4])
+    r = rest + np.cumsum(rng.normal(size=(60, 2)) * 1e-5, axis=0)
+    before = torch.get_num_threads()
+    seen = []
+    net = model.networks["x"]
+    hook = net.register_forward_pre_hook(lambda *_: seen.append(torch.get_num_threads()))
+    try:
+        torch.set_num_threads(2)
+        one = NetworkMap(model, tail=5)
+        phi1, jac1 = one.linearize(r, rest)
+        assert torch.get_num_threads() == 2 and set(seen) == {1}
+        seen.clear()
+        mine = NetworkMap(model, tail=5, threads=None)
+        phi2, jac2 = mine.linearize(r, rest)
+        assert set(seen) == {2}
+        # the same networks; float32 sums may split differently over two threads
+        assert np.allclose(phi1, phi2, rtol=0, atol=1e-9)
+        assert np.allclose(jac1.toarray(), jac2.toarray(), rtol=1e-5, atol=1e-6)
+        assert np.array_equal(one.predict(r, rest), phi1)
+    finally:
+        hook.remove()
+        torch.set_num_threads(before)
+    with pytest.raises(ValueError, match="threads must be"):
+        NetworkMap(model, threads=0)

@@ -170,6 +170,13 @@ class Stage2Result:
     wall_s : float
     resumed_from : int
         Iterations done before a resume (0: fresh).
+    info : dict
+        ``norm``, ``penalty``, ``band`` (the Jacobian's kept lags, None: all) and ``qp``
+        (the solver); in `summary`.
+    phase_s : dict of str to float
+        Wall time per phase, s (not in `summary`: bookkeeping): ``project_s`` (the start
+        made feasible), ``networks_s`` (predictions and Jacobians), ``qp_s`` (the steps'
+        QPs).
     """
 
     r: np.ndarray
@@ -185,6 +192,7 @@ class Stage2Result:
     wall_s: float
     resumed_from: int = 0
     info: dict[str, Any] = field(default_factory=dict)
+    phase_s: dict[str, float] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -358,15 +366,23 @@ def solve_stage2(
            "limits.workspace": limits.workspace, "limits.acceleration": limits.acceleration,
            "limits.velocity": limits.velocity}  # fmt: skip
     state = _load(checkpoint, key)
+    # wall time per phase (s), `Stage2Result.phase_s`
+    spent = {"project_s": 0.0, "networks_s": 0.0, "qp_s": 0.0}
     if state is None:
+        t0 = time.perf_counter()
         r = qp.project(r_init.T.ravel() * _UM)  # the nearest input within the command bounds
+        spent["project_s"] += time.perf_counter() - t0
         trust, it0, history = st.trust_um, 0, []
+        t0 = time.perf_counter()
         phi, jac = _linearize(nm, r, pb)
+        spent["networks_s"] += time.perf_counter() - t0
         band = jacobian_band(jac, pb.m, st.band_mass) if st.band_mass < 1 else None
     else:  # the band chosen at the start, not at the resumed iterate: bit-identical resume
         r, trust, it0, history, band = state
     if band is not None or state is not None:
+        t0 = time.perf_counter()
         phi, jac = _linearize(nm, r, pb, band)
+        spent["networks_s"] += time.perf_counter() - t0
     merit, cost = pb.merit(phi)
     cost_start = cost if not history else float(history[0][1])
     if not history:
@@ -376,19 +392,25 @@ def solve_stage2(
     it = it0
     while it < st.max_iter:
         it += 1
+        t0 = time.perf_counter()
         step = qp.solve(r, phi, jac, trust)
+        spent["qp_s"] += time.perf_counter() - t0
         if step is None or np.max(np.abs(step)) < 1e-9:
             converged = True
             break
         r_new = r + step
+        t0 = time.perf_counter()
         phi_new = nm.predict((r_new / _UM).reshape(2, pb.m).T, pb.rest / _UM)[: pb.m].T * _UM
+        spent["networks_s"] += time.perf_counter() - t0
         m_new, c_new = pb.merit(phi_new)
         predicted = merit - qp.model_merit
         if m_new < merit:
             gain = merit - m_new
             ratio = gain / predicted if predicted > 0 else 0.0
             r, merit, cost = r_new, m_new, c_new
+            t0 = time.perf_counter()
             phi, jac = _linearize(nm, r, pb, band)
+            spent["networks_s"] += time.perf_counter() - t0
             history.append((merit, cost))
             accepted += 1
             trust = min(trust * 2.0, 1e4) if ratio > 0.75 else trust
@@ -424,7 +446,8 @@ def solve_stage2(
         converged=converged,
         wall_s=time.perf_counter() - t_start,
         resumed_from=it0,
-        info={"norm": st.norm, "penalty": st.penalty, "band": band},
+        info={"norm": st.norm, "penalty": st.penalty, "band": band, "qp": st.qp},
+        phase_s=spent,
     )
 
 
