@@ -54,6 +54,22 @@ def test_stage_one_needs_only_the_linear_model(tiny_models, tmp_path):
     assert (out / "command.h5").is_file() and not (out / "predicted.csv").exists()
 
 
+def test_stage_one_worse_than_the_baseline_says_so(tiny_models, tmp_path, monkeypatch):
+    """When stage 1 alone is predicted worse than the stretched command, the user is told."""
+    from microfab.optimize import pipeline
+
+    monkeypatch.setattr(pipeline.Stage1Check, "worse", property(lambda self: True))
+    d, _ = tiny_models
+    out = tmp_path / "s1"
+    args = ["optimize", "circle:radius=0.002", "--model", str(d), "--out", str(out),
+            "--stage", "1", "--n", "60"]  # fmt: skip
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert "stretched to the same T" in summary["warning"]
+    assert "warning:" in res.output and "stretched" in res.output
+
+
 @pytest.mark.parametrize(
     ("extra", "says"),
     [

@@ -188,7 +188,15 @@ def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, networks: 
             "stage2": None if res.stage2 is None else res.stage2.summary(),
             "wall_s": res.wall_s,
             "command_samples": int(cmd.position.shape[0]),
-            "warning": None if networks is None else training_warning(networks, res.problem.a_max),
+            "warning": "; ".join(
+                w
+                for w in (
+                    res.warning,  # stage 1 alone predicted worse than the stretched baseline
+                    None if networks is None else training_warning(networks, res.problem.a_max),
+                )
+                if w
+            )
+            or None,
         }
         if res.predicted is not None:
             from microfab.optimize.metrics import DeviationNorms
