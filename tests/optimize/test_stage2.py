@@ -9,22 +9,9 @@ pytest.importorskip("casadi")
 pytest.importorskip("torch")
 
 from microfab.core.limits import MachineLimits
-from microfab.geometry.shapes import circle
-from microfab.optimize.models import load_models
 from microfab.optimize.pipeline import optimize_reference
-from microfab.optimize.problem import ContourProblem
-from microfab.optimize.stage1 import Stage1Settings, solve_stage1
+from microfab.optimize.stage1 import Stage1Settings
 from microfab.optimize.stage2 import Stage2Settings, solve_stage2
-
-
-@pytest.fixture(scope="module")
-def case(tiny_models):
-    d, _ = tiny_models
-    models = load_models(d)
-    problem = ContourProblem(circle(2e-3), a_max=2.0, tolerance_m=20e-6)
-    st1 = solve_stage1(problem, models.linear, Stage1Settings(n=80))
-    _t, s, rho = st1.sample(400.0)
-    return models, problem, problem.path.point(s)[1:], rho[:-1]
 
 
 def run(case, **kw):

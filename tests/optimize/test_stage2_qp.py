@@ -9,9 +9,6 @@ pytest.importorskip("casadi")
 pytest.importorskip("torch")
 
 from microfab.optimize.ann_torch import NetworkMap
-from microfab.optimize.models import load_models
-from microfab.optimize.problem import ContourProblem
-from microfab.optimize.stage1 import Stage1Settings, solve_stage1
 from microfab.optimize.stage2 import (
     _UM,
     Stage2Settings,
@@ -23,18 +20,6 @@ from microfab.optimize.stage2 import (
     solve_stage2,
 )
 from microfab.optimize.stage2_qp import Subproblem
-
-
-@pytest.fixture(scope="module")
-def case(tiny_models):
-    from microfab.geometry.shapes import circle
-
-    d, _ = tiny_models
-    models = load_models(d)
-    problem = ContourProblem(circle(2e-3), a_max=2.0, tolerance_m=20e-6)
-    st1 = solve_stage1(problem, models.linear, Stage1Settings(n=80))
-    _t, s, rho = st1.sample(400.0)
-    return models, problem, problem.path.point(s)[1:], rho[:-1]
 
 
 def _subproblem(case, qp: str, norm: str = "euclidean") -> tuple[Subproblem, _Problem]:
