@@ -90,8 +90,17 @@ def test_ctrl_c_is_one_line_and_exit_130(monkeypatch, argv, target, says) -> Non
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
+    import signal
+
     monkeypatch.setattr(target, interrupted)
-    res = CliRunner().invoke(app, argv)
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        res = CliRunner().invoke(app, argv)
+        # once shutting down, a second SIGINT is ignored, by a Python handler (not SIG_IGN,
+        # which processes started afterwards would inherit)
+        assert signal.getsignal(signal.SIGINT) not in (before, signal.SIG_IGN, signal.SIG_DFL)
+    finally:
+        signal.signal(signal.SIGINT, before)
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert res.exit_code == 130, res.output
     assert len(lines) == 1 and lines[0].startswith("interrupted; "), res.output

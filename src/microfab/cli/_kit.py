@@ -9,7 +9,9 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import signal
 import sys
+import threading
 from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -218,6 +220,10 @@ _CLICK_ERROR: type[Exception] = next(
 )
 
 
+def _ignore_signal(signum: int, frame: Any) -> None:
+    """A signal handler that does nothing (see `OneLineErrors.invoke`)."""
+
+
 class OneLineErrors(TyperGroup):
     """The ``microfab`` group: a usage error is one ``error:`` line, like every refusal.
 
@@ -234,6 +240,13 @@ class OneLineErrors(TyperGroup):
         try:
             return super().invoke(ctx)
         except KeyboardInterrupt:
+            # the shutdown has begun: a second SIGINT (another Ctrl-C, or one still pending
+            # from a handler that held it while a cluster started) must not cut the message
+            # or turn exit 130 into death by signal (seen twice in the interrupt tests, under
+            # load). A Python handler, not SIG_IGN, which processes started later would
+            # inherit (a test's CliRunner runs this in the test process).
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, _ignore_signal)
             err_console.print(
                 f"[bold red]interrupted[/]; {escape(interrupted_hint(words))}",
                 highlight=False,
