@@ -247,7 +247,10 @@ def reproduce_cmd(
             check_output_path("--out", out, kind="folder", inputs=inputs)
             if folder and Path(folder).resolve() == out.resolve():
                 fail(f"--out {out} is also the checkpoint folder; give --out another folder")
-        page_settings = {**rep.fingerprint(options), "written": "report page"}
+        # the settings' fingerprint digests inputs and data files: only when a page is asked
+        page_settings = (
+            {**rep.fingerprint(options), "written": "report page"} if out is not None else {}
+        )
         if rep.preflight is not None:
             rep.preflight(options)
         if check:

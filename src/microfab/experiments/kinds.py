@@ -202,7 +202,7 @@ class ReproductionResult:
     def __post_init__(self) -> None:
         object.__setattr__(self, "tables", tuple(self.tables))
         for t in self.tables:
-            if len(t.labels) != len(t.rows) or (t.rows and not t.labels):
+            if t.rows and not t.labels:  # Table itself checks one label per row
                 raise ValueError(
                     f"table {t.title!r} has no row labels: build it with "
                     "microfab.report.provenance.labelled"
