@@ -2,8 +2,9 @@
 
 Stage 1 (eqs. 8-12, linear model, minimum time within the tolerance) and stage 2 (eqs.
 13-14, the networks refine the 400 Hz input), then the 10 kHz command, checked against
-Table I. The models are those of a ``stage-identify`` job (``--model DIR``:
-``linear_model.json`` and ``ann/model``).
+Table I. The models are those of a ``stage-identify`` job (``--model DIR``, default the
+shipped ones, `microfab.optimize.models.resolve_models_dir`: ``linear_model.json`` and
+``ann/model``).
 
 Writes into ``--out``: ``command.<fmt>`` (the columns of ``microfab trajectory``: time,
 x, y, m, 10 kHz), ``input_400hz.csv`` (``r``), ``predicted.csv`` (the networks' output
@@ -46,14 +47,15 @@ def optimize_cmd(
             "airfoil:e344; one closed or open contour (see --contour)."
         ),
     ],
+    out: Annotated[Path, typer.Option("--out", help="Directory for the results.")],
     model: Annotated[
-        Path,
+        Path | None,
         typer.Option(
             "--model",
-            help="Output directory of a stage-identify job (linear_model.json, ann/model).",
+            help="Output directory of a stage-identify job (linear_model.json, ann/model); "
+            "default: the models shipped with microfab (the built-in twin's).",
         ),
-    ],
-    out: Annotated[Path, typer.Option("--out", help="Directory for the results.")],
+    ] = None,
     amax: Annotated[
         float, typer.Option(help="Output acceleration bound a_max, m/s² (0.001-40; seed 002: 1-3).")
     ] = 1.0,
@@ -79,7 +81,9 @@ def optimize_cmd(
     ] = None,
 ) -> None:
     """Optimise the reference of a contour on a black-box stage (seed 002 §IV)."""
-    check_output_path("--out", out, kind="folder", inputs=[Path(drawing), model])
+    check_output_path(
+        "--out", out, kind="folder", inputs=[Path(drawing)] + ([model] if model else [])
+    )
     from microfab.optimize.problem import ContourProblem
     from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 
@@ -134,7 +138,7 @@ def optimize_cmd(
     _write(out, res, fmt, drawing, k, models.networks)
 
 
-def _models(directory: Path, need_networks: bool) -> Any:
+def _models(directory: Path | None, need_networks: bool) -> Any:
     from microfab.optimize.models import load_models
 
     try:

@@ -19,6 +19,8 @@ the file, the section, the key, the value and what is allowed.
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -59,8 +61,10 @@ class Key:
     allow_empty : bool
         A list key that accepts ``[]`` (default: a list must hold a value).
     path : bool
-        The value may name an input file or folder (relative to the working directory);
-        when it names one that exists, its content is part of a run's fingerprint
+        The value may name an input file or folder. A relative one is looked up beside the
+        job file first (`JobFile.parse` rewrites it to that path when it exists there),
+        then in the working directory; when it names one that exists, its content is part
+        of a run's fingerprint
         (`microfab.io.runstore`), so a run resumed on changed data is refused.
     choices : tuple of str, optional
         The values a ``str`` key takes (any non-empty string when not given).
@@ -191,6 +195,9 @@ class JobFile:
         Every other section, as read.
     source : str
         Where it came from (for messages).
+    folder : pathlib.Path or None
+        The job file's folder (`read_job`), against which relative input paths (keys with
+        ``path``) are resolved first; None for a job not read from a file.
     """
 
     kind: str | None
@@ -198,6 +205,7 @@ class JobFile:
     out: Path | None
     sections: dict[str, dict[str, Any]] = field(default_factory=dict)
     source: str = "<job>"
+    folder: Path | None = None
 
     def parse(self, schema: Mapping[str, Sequence[Key]]) -> dict[str, dict[str, Any]]:
         """Check every section against a kind's schema (unknown sections refused).
@@ -214,10 +222,29 @@ class JobFile:
                 f"{self.source}: unknown section(s) {unknown} for kind {self.kind!r} "
                 f"(known: {known})"
             )
-        return {
+        parsed = {
             sec: parse_section(self.sections.get(sec, {}), keys, self.source, sec)
             for sec, keys in schema.items()
         }
+        if self.folder is not None:
+            for sec, keys in schema.items():
+                for key in keys:
+                    value = parsed[sec].get(key.name)
+                    if key.path and isinstance(value, str) and value:
+                        parsed[sec][key.name] = _beside(self.folder, value)
+        return parsed
+
+
+def _beside(folder: Path, value: str) -> str:
+    """``value`` as a path beside the job file when it is relative and exists there."""
+    p = Path(value).expanduser()
+    if p.is_absolute():
+        return value
+    try:
+        here = folder / p
+        return str(here) if here.exists() else value
+    except (OSError, ValueError):  # not a path (a spec string the kind reads)
+        return value
 
 
 _JOB_KEYS = (
@@ -263,4 +290,5 @@ def read_job(path: str | Path) -> JobFile:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise JobFileError(f"{p}: not valid TOML: {' '.join(str(exc).split())}") from exc
-    return parse_job(data, str(p))
+    job = parse_job(data, str(p))
+    return dataclasses.replace(job, folder=p.parent)

@@ -7,17 +7,67 @@ converted to continuous time for stage 1 (eqs. 8-12), and ``ann/model``, the per
 networks of eq. (7) (`microfab.identify.stage_ann.read_ann_stage_model`) for stage 2
 (eqs. 13-14). ``microfab optimize --model DIR`` and the seed 002 reference reproduction
 read their models with it.
+
+**Shipped models.** The package holds the models of the ``stage-identify`` job on the
+built-in twin (``microfab/data/xy_stage_models``: the same files, plus ``trained.json``:
+the settings, seed, data digest and validation σ that produced them, written by
+``benchmarks/train_shipped_models.py``). A models folder given as ``""`` or ``"builtin"``
+means them (`resolve_models_dir`), so the reference optimisation runs straight after
+install; a user's own folder is any other path. `models_digest` hashes the model files
+themselves, so that a result computed on other models is never taken for this one.
 """
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from microfab.identify.subspace_model import ContinuousModel
 
-__all__ = ["Models", "check_models_dir", "load_models"]
+__all__ = [
+    "BUILTIN",
+    "Models",
+    "builtin_models_dir",
+    "check_models_dir",
+    "load_models",
+    "models_digest",
+    "resolve_models_dir",
+]
+
+#: The name that selects the shipped models (an empty string does too).
+BUILTIN = "builtin"
+_FILES = ("linear_model.json", "ann/model/model.json", "ann/model/weights.npz")
+
+
+def builtin_models_dir() -> Path:
+    """The folder of the shipped models (``microfab/data/xy_stage_models``)."""
+    return Path(str(resources.files("microfab.data").joinpath("xy_stage_models")))
+
+
+def resolve_models_dir(directory: str | Path | None) -> Path:
+    """The models folder meant by ``directory``: ``None``, ``""`` or ``"builtin"`` are the
+    shipped models (`builtin_models_dir`); anything else is that path, as given."""
+    if directory is None or str(directory).strip() in ("", BUILTIN):
+        return builtin_models_dir()
+    return Path(directory)
+
+
+def models_digest(directory: str | Path | None, *, networks: bool = True) -> str:
+    """SHA-256 (hex) of the model files of a models folder, in a fixed order.
+
+    What decides an optimisation's numbers: two folders with the same files digest alike,
+    a retrained network in the same folder does not. Missing files are hashed as absent.
+    """
+    d = resolve_models_dir(directory)
+    h = hashlib.sha256()
+    for name in _FILES if networks else _FILES[:1]:
+        f = d / name
+        h.update(name.encode())
+        h.update(f.read_bytes() if f.is_file() else b"<absent>")
+    return h.hexdigest()
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,8 +101,10 @@ def check_models_dir(directory: str | Path, *, networks: bool = True) -> None:
     ValueError
         Naming the folder, what is missing and the job that writes it.
     """
-    d = Path(directory)
+    d = resolve_models_dir(directory)
     how = "run `microfab run examples/blackbox_stage_identify.toml` and give its output folder"
+    if d == builtin_models_dir():
+        how = "the installed package lacks its shipped models: reinstall microfab"
     if not d.is_dir():
         raise ValueError(f"models folder {d} does not exist; {how}")
     missing = [] if (d / "linear_model.json").is_file() else ["linear_model.json"]
@@ -65,7 +117,8 @@ def check_models_dir(directory: str | Path, *, networks: bool = True) -> None:
 def load_models(directory: str | Path, *, networks: bool = True) -> Models:
     """The models of a ``stage-identify`` output: ``linear_model.json`` and ``ann/model``.
 
-    ``networks=False`` reads only the linear model (stage 1 alone).
+    ``networks=False`` reads only the linear model (stage 1 alone). ``directory`` ``""``
+    or ``"builtin"``: the shipped models (`resolve_models_dir`).
 
     Raises
     ------
@@ -76,7 +129,7 @@ def load_models(directory: str | Path, *, networks: bool = True) -> Models:
     from microfab.identify.stage_ann import read_ann_stage_model
     from microfab.identify.stage_data import StageLinearModel, read_stage_model
 
-    d = Path(directory)
+    d = resolve_models_dir(directory)
     lin_path = d / "linear_model.json"
     if not lin_path.is_file():
         raise ValueError(f"{lin_path}: no linear model (the output of a stage-identify job)")
@@ -87,7 +140,8 @@ def load_models(directory: str | Path, *, networks: bool = True) -> Models:
         cont = lin.continuous()  # held at the runs' rate, not the decimated one
     except ValueError as exc:
         raise ValueError(f"{lin_path}: {exc}") from None
+    source = BUILTIN if d == builtin_models_dir() else str(d)
     if not networks:
-        return Models(linear=cont, networks=None, source=str(d))
+        return Models(linear=cont, networks=None, source=source)
     ann = read_ann_stage_model(d / "ann" / "model")
-    return Models(linear=cont, networks=ann.model, source=str(d))
+    return Models(linear=cont, networks=ann.model, source=source)

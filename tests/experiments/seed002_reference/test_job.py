@@ -29,7 +29,6 @@ def job_file(tmp_path, body: str):
 @pytest.mark.parametrize(
     ("body", "says"),
     [
-        ("", "[models] dir is required"),
         ('[models]\ndir = "m"\n[cases]\nnames = "r,q"\n', "names must be"),
         ('[models]\ndir = "m"\n[cases]\na_max = [0.0]\n', "above 0"),
         ('[models]\ndir = "m"\n[cases]\nletter_height_mm = 5.0\n', "give both"),
@@ -41,6 +40,32 @@ def job_file(tmp_path, body: str):
 def test_bad_job_files_refused(tmp_path, body, says):
     with pytest.raises(Exception, match=says.replace("[", r"\[").replace("]", r"\]")):
         load_job(job_file(tmp_path, body))
+
+
+def test_a_models_folder_is_found_beside_the_job_file(tmp_path, tiny_models, monkeypatch):
+    """Issue 34: [models] dir named a folder relative to the working directory only."""
+    import shutil
+
+    d, _ = tiny_models
+    shutil.copytree(d, tmp_path / "jobs" / "mine")
+    p = tmp_path / "jobs" / "j.toml"
+    p.write_text('[job]\nkind = "stage-reference-opt"\n[models]\ndir = "mine"\n', "utf-8")
+    monkeypatch.chdir(tmp_path)  # "mine" is not in the working directory
+    assert load_job(p).config.models_dir == str(tmp_path / "jobs" / "mine")
+
+
+def test_settings_fingerprint_follows_the_model_files(tmp_path, tiny_models):
+    """A retrained model in the same folder is another fingerprint (not the old points)."""
+    import shutil
+
+    d, _ = tiny_models
+    mine = tmp_path / "m"
+    shutil.copytree(d, mine)
+    a = ReferenceSettings(models_dir=str(mine)).fingerprint()
+    assert ReferenceSettings(models_dir=str(d)).fingerprint() == a  # same files elsewhere
+    w = mine / "ann" / "model" / "weights.npz"
+    w.write_bytes(w.read_bytes() + b"\0")
+    assert ReferenceSettings(models_dir=str(mine)).fingerprint() != a
 
 
 def test_example_and_registry():

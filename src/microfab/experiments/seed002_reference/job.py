@@ -6,7 +6,7 @@ Job file (``examples/blackbox_stage_reference.toml``)::
     kind = "stage-reference-opt"
     out = "report/stage_reference"
 
-    [models]    # the output of a stage-identify job (linear_model.json, ann/model)
+    [models]    # dir: a stage-identify job's output; "" (default): the shipped models
     [twin]      # the twin the models were identified on: noise seed, noise on/off
     [cases]     # shapes, Table III's a_max, the airfoil's extra a_max, μ, sizes
     [tradeoff]  # Figs. 16-17: a_max of the letters and the airfoil, longer baselines
@@ -48,11 +48,16 @@ __all__ = [
 ]
 
 _F = "float"
+#: The shipped models' folder in the package data (`microfab.optimize.models`): part of
+#: a run's fingerprint, so a release with retrained models does not resume old points.
+SHIPPED_MODELS = "xy_stage_models"
 
 SCHEMA: dict[str, tuple[Key, ...]] = {
     "models": (
         Key(name="dir", type="str", default="", path=True,
-            help="output of a stage-identify job (linear_model.json and ann/model)"),
+            help="output of a stage-identify job (linear_model.json and ann/model), "
+                 "beside the job file or in the working directory; '' or 'builtin': the "
+                 "models shipped with microfab (the built-in twin's)"),
     ),
     "twin": (
         Key(name="seed", type="int", default=0, low=0, help="noise seed (run k uses seed + k)"),
@@ -108,11 +113,6 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> ReferenceSettings:
         without the other.
     """
     mo, tw, ca, tr, s2 = (sec[k] for k in ("models", "twin", "cases", "tradeoff", "stage2"))
-    if not mo["dir"]:
-        raise ValueError(
-            "[models] dir is required: the output folder of a stage-identify job "
-            "(microfab run examples/blackbox_stage_identify.toml)"
-        )
     for key, vals in (("[cases] a_max", ca["a_max"]), ("[cases] airfoil_a_max",
                       ca["airfoil_a_max"]), ("[tradeoff] letters_a_max", tr["letters_a_max"]),
                       ("[tradeoff] airfoil_a_max", tr["airfoil_a_max"])):  # fmt: skip
@@ -182,13 +182,7 @@ def _preflight(settings: ReferenceSettings) -> None:
 
 
 def _reproduce_preflight(options: dict[str, Any]) -> None:
-    """The ``models`` option names a stage-identify job's output (before any work)."""
-    if not options["models"]:
-        raise ValueError(
-            "reference-opt needs identified models: run `microfab run "
-            "examples/blackbox_stage_identify.toml` (about 20 min) and pass its output folder "
-            "with --set models=FOLDER"
-        )
+    """The ``models`` option names models (shipped by default; checked before any work)."""
     from microfab.optimize.models import check_models_dir
 
     check_models_dir(options["models"])
@@ -218,7 +212,7 @@ STAGE_REFERENCE_OPT = JobKind(
     run=_run,
     write_report=_write_report,
     default_title="Black-box XY stage: optimised references",
-    data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES,
+    data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES + (SHIPPED_MODELS,),
     preflight=_preflight,
 )
 
@@ -227,7 +221,7 @@ REFERENCE_OPT_REPRODUCTION = Reproduction(
     run=_reproduce,
     options=(
         Key(name="models", type="str", default="", path=True,
-            help="output folder of a stage-identify job (required)"),
+            help="output folder of a stage-identify job; '' (default): the shipped models"),
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),
         Key(name="noise", type="bool", default=True, help="2 µm output noise on"),
         Key(name="tradeoff", type="bool", default=True,
@@ -235,7 +229,7 @@ REFERENCE_OPT_REPRODUCTION = Reproduction(
         Key(name="checkpoints", type="str", default="",
             help="folder for the points and stage-2 checkpoints, so a rerun resumes"),
     ),
-    data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES,
+    data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES + (SHIPPED_MODELS,),
     run_folder_option="checkpoints",
     preflight=_reproduce_preflight,
 )  # fmt: skip

@@ -36,7 +36,7 @@ from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_cases import CASES, CaseSizes, case_paths
 from microfab.machines.xy_stage_reference import baseline_l2, saved_point
 from microfab.optimize.metrics import DeviationNorms
-from microfab.optimize.models import Models, load_models
+from microfab.optimize.models import Models, load_models, models_digest
 from microfab.optimize.problem import ContourProblem
 
 __all__ = ["ReferenceSettings", "ReferenceStudy", "run_reference"]
@@ -51,7 +51,9 @@ class ReferenceSettings:
     Parameters
     ----------
     models_dir : str
-        Output of a ``stage-identify`` job (``linear_model.json``, ``ann/model``).
+        Output of a ``stage-identify`` job (``linear_model.json``, ``ann/model``); ``""``
+        (default) or ``"builtin"``: the shipped models
+        (`microfab.optimize.models.resolve_models_dir`).
     twin : TwinSettings
         The twin the networks were trained on (its noise seed).
     cases : tuple of str
@@ -72,7 +74,7 @@ class ReferenceSettings:
         Stage 2's Gauss-Newton iterations.
     """
 
-    models_dir: str
+    models_dir: str = ""
     twin: TwinSettings = field(default_factory=TwinSettings)
     cases: tuple[str, ...] = CASES
     a_max: tuple[float, ...] = (1.0, 3.0)
@@ -86,7 +88,7 @@ class ReferenceSettings:
 
     def fingerprint(self) -> str:
         """Hash of what decides a point's numbers (not the list of points)."""
-        keep = {"models_dir": str(Path(self.models_dir).resolve()),
+        keep = {"models": models_digest(self.models_dir),  # the files, not their folder
                 "twin": asdict(self.twin), "tolerance_m": self.tolerance_m,
                 "sizes": None if self.sizes is None else asdict(self.sizes),
                 "stage2_max_iter": self.stage2_max_iter}  # fmt: skip
