@@ -20,7 +20,6 @@ the file, the section, the key, the value and what is allowed.
 from __future__ import annotations
 
 import dataclasses
-
 import math
 import tomllib
 from collections.abc import Mapping, Sequence

@@ -48,8 +48,11 @@ def builtin_models_dir() -> Path:
 
 
 def resolve_models_dir(directory: str | Path | None) -> Path:
-    """The models folder meant by ``directory``: ``None``, ``""`` or ``"builtin"`` are the
-    shipped models (`builtin_models_dir`); anything else is that path, as given."""
+    """The models folder meant by ``directory``.
+
+    ``None``, ``""`` or ``"builtin"`` are the shipped models (`builtin_models_dir`);
+    anything else is that path, as given.
+    """
     if directory is None or str(directory).strip() in ("", BUILTIN):
         return builtin_models_dir()
     return Path(directory)
