@@ -13,10 +13,23 @@ imports them (the model module does not import this one).
   data resumes, and on the CPU the result is bit for bit that of an uninterrupted run. A
   checkpoint of another configuration, data set or format version is refused with
   `CheckpointMismatchError`, naming the difference (``restart=True`` starts afresh).
+* Warm start (``init``): the training starts from the weights of a trained `AnnModel`
+  (seed 002 §III-C.2: the first-generation network "trained further" on the optimised
+  runs gives the second generation) instead of `build_network`'s seeded ones. The
+  previous model's scaling is kept, not refitted: its weights act on inputs and targets
+  scaled that way, and a refit would move every input under them (the generations add
+  runs of the same workspace and accelerations, so the scaling still fits). Before the
+  first epoch the start weights are scored on the validation runs and count as a
+  candidate (best epoch -1): a retraining that never improves on them gives them back.
+  The start model's digest (`init_digest`) is part of the checkpoint fingerprint, so a
+  checkpoint trained from other weights is refused; a cold start's fingerprint is as it
+  was.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -40,7 +53,7 @@ from microfab.identify.ann_data import AXES, Run, Scaling, WindowSet, data_diges
 from microfab.io.checkpoint import read_state, save_state
 from microfab.io.runstore import RunRefusedError
 
-__all__ = ["CheckpointMismatchError", "EpochRecord", "train_ann"]
+__all__ = ["CheckpointMismatchError", "EpochRecord", "init_digest", "train_ann"]
 
 
 class CheckpointMismatchError(RunRefusedError):
@@ -127,6 +140,34 @@ def _load_checkpoint(
     return saved.meta, saved.arrays
 
 
+def init_digest(model: AnnModel, axes: Sequence[str] | None = None) -> str:
+    """SHA-256 (hex) of a model's weights and scalings for ``axes`` (default all).
+
+    What a warm start starts from (`train_ann` ``init``): part of the checkpoint
+    fingerprint.
+    """
+    h = hashlib.sha256()
+    for a in model.axes if axes is None else axes:
+        h.update(a.encode())
+        for k, v in model.networks[a].state_dict().items():
+            h.update(k.encode())
+            h.update(v.detach().cpu().numpy().astype("<f4").tobytes())
+        h.update(json.dumps(model.scalings[a].as_dict(), sort_keys=True, default=str).encode())
+    return h.hexdigest()
+
+
+def _check_init(init: AnnModel, config: AnnConfig) -> None:
+    """Refuse a start model whose networks do not fit ``config`` (window, axes)."""
+    missing = [a for a in config.axes if a not in init.axes]
+    if missing:
+        raise ValueError(f"init: the start model has no network for axes {missing}")
+    if init.spec.as_dict() != config.window.as_dict():
+        raise ValueError(
+            f"init: the start model's window {init.spec.as_dict()} is not the training's "
+            f"{config.window.as_dict()}; a warm start needs the same inputs"
+        )
+
+
 # --- training ----------------------------------------------------------------------------
 
 
@@ -138,6 +179,7 @@ def train_ann(
     checkpoint_dir: str | os.PathLike[str] | None = None,
     progress: Callable[[EpochRecord], None] | None = None,
     restart: bool = False,
+    init: AnnModel | None = None,
 ) -> AnnModel:
     """Train one network per axis on ``train_runs``, stop early on ``val_runs``.
 
@@ -155,13 +197,19 @@ def train_ann(
         Called with an `EpochRecord` after each epoch.
     restart : bool
         Ignore (overwrite) existing checkpoints.
+    init : AnnModel, optional
+        Warm start (module docstring): start from these networks and keep their scaling;
+        same window and axes as ``config``. Its digest is fingerprinted.
 
     Returns
     -------
     AnnModel
-        The best validation epoch's weights per axis.
+        The best validation epoch's weights per axis (with ``init``: the start weights
+        if no epoch beat them, best epoch -1).
     """
     config = AnnConfig() if config is None else config
+    if init is not None:
+        _check_init(init, config)
     spec = config.window
     device = _device(config)
     _set_threads(config)
@@ -173,6 +221,8 @@ def train_ann(
         "train_digest": data_digest(train_runs),
         "val_digest": data_digest(val_runs),
     }
+    if init is not None:  # only then: a cold start's checkpoints stay valid
+        expect["init_digest"] = init_digest(init, config.axes)
     ckdir = None if checkpoint_dir is None else Path(checkpoint_dir)
     nets: dict[str, nn.Module] = {}
     scalings: dict[str, Scaling] = {}
@@ -184,13 +234,19 @@ def train_ann(
         "command_accel_max_m_s2": dict(zip(AXES, train.command_accel_max(), strict=True)),
         "axes": {},
     }
+    if init is not None:
+        info["init_digest"] = expect["init_digest"]
+    start = None if init is None else {a: (init.networks[a], init.scalings[a]) for a in config.axes}
     if config.workers > 1 and len(config.axes) > 1 and device.type == "cpu":
-        done = _train_in_processes(train, val, config, expect, ckdir, progress, restart)
+        done = _train_in_processes(train, val, config, expect, ckdir, progress, restart, start)
     else:
         done = {
-            a: _train_axis(a, train, val, config, device, expect, ckdir, progress, restart)
+            a: _train_axis(
+                a, train, val, config, device, expect, ckdir, progress, restart,
+                None if start is None else start[a],
+            )
             for a in config.axes
-        }
+        }  # fmt: skip
     for a in config.axes:
         nets[a], scalings[a], info["axes"][a] = done[a]
     return AnnModel(config, nets, scalings, info)
@@ -206,6 +262,7 @@ def _train_axis(
     ckdir: Path | None,
     progress: Callable[[EpochRecord], None] | None,
     restart: bool,
+    start: tuple[nn.Module, Scaling] | None = None,
 ) -> tuple[nn.Module, Scaling, dict[str, Any]]:
     ax = AXES.index(axis)
     spec = config.window
@@ -222,6 +279,10 @@ def _train_axis(
         "history": [],
     }
     best_state: dict[str, torch.Tensor] | None = None
+    val_idx = None
+    if config.val_windows is not None and config.val_windows < len(val):
+        rng = np.random.default_rng([config.seed, ax, 7919])
+        val_idx = np.sort(rng.choice(len(val), config.val_windows, replace=False))
     if path is not None and path.exists() and not restart:
         meta, arrays = _load_checkpoint(path, expect)
         scaling = Scaling.from_dict(meta["scaling"])
@@ -239,15 +300,17 @@ def _train_axis(
         sched.load_state_dict(meta["scheduler"])
         torch.set_rng_state(torch.from_numpy(arrays["torch_rng"]))
         st = meta["state"]
+    elif start is not None:  # warm start: the previous weights and scaling (module doc)
+        net.load_state_dict({k: v.detach().clone() for k, v in start[0].state_dict().items()})
+        scaling = start[1]
+        best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
+        net.eval()
+        st["best_val"] = _val_loss(net, val, ax, scaling, device, val_idx)
     else:
         scaling = train.fit_scaling(ax)
 
     n_all = len(train)
     n = n_all if config.epoch_windows is None else min(config.epoch_windows, n_all)
-    val_idx = None
-    if config.val_windows is not None and config.val_windows < len(val):
-        rng = np.random.default_rng([config.seed, ax, 7919])
-        val_idx = np.sort(rng.choice(len(val), config.val_windows, replace=False))
     bs = config.batch_size
     loss_fn = nn.MSELoss()
     while not st["stopped"] and st["epoch"] < config.max_epochs:
@@ -315,12 +378,18 @@ def _axis_job(
     ckdir: Path | None,
     queue: Any,
     restart: bool,
+    start: tuple[dict[str, torch.Tensor], Scaling] | None = None,
 ) -> tuple[dict[str, torch.Tensor], Scaling, dict[str, Any]]:
     """One axis's training in a worker process; epochs go to ``queue`` (if any)."""
     _set_threads(config)
     report = None if queue is None else queue.put
+    begin = None
+    if start is not None:  # state dicts travel to the worker, networks are rebuilt there
+        net0 = build_network(config.window.n_inputs, seed=0)
+        net0.load_state_dict(start[0])
+        begin = (net0, start[1])
     net, scaling, summary = _train_axis(
-        axis, train, val, config, torch.device("cpu"), expect, ckdir, report, restart
+        axis, train, val, config, torch.device("cpu"), expect, ckdir, report, restart, begin
     )
     return net.state_dict(), scaling, summary
 
@@ -333,6 +402,7 @@ def _train_in_processes(
     ckdir: Path | None,
     progress: Callable[[EpochRecord], None] | None,
     restart: bool,
+    start: dict[str, tuple[nn.Module, Scaling]] | None = None,
 ) -> dict[str, tuple[nn.Module, Scaling, dict[str, Any]]]:
     """`_train_axis` of each axis in its own spawned process (``config.workers`` at once).
 
@@ -348,9 +418,12 @@ def _train_in_processes(
     with ctx.Manager() as manager, ProcessPoolExecutor(n, mp_context=ctx) as pool:
         queue = None if progress is None else manager.Queue()
         futures = {
-            a: pool.submit(_axis_job, a, train, val, config, expect, ckdir, queue, restart)
+            a: pool.submit(
+                _axis_job, a, train, val, config, expect, ckdir, queue, restart,
+                None if start is None else (start[a][0].state_dict(), start[a][1]),
+            )
             for a in config.axes
-        }
+        }  # fmt: skip
 
         def drain() -> None:
             while queue is not None and not queue.empty():

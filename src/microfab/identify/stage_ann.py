@@ -215,6 +215,7 @@ def train_stage_ann(
     progress: Callable[[EpochRecord], None] | None = None,
     restart: bool = False,
     keep: bool = False,
+    init: AnnModel | None = None,
 ) -> StageAnnFit:
     """Train the networks on ``train``, stopped early and scored on ``val``.
 
@@ -232,6 +233,9 @@ def train_stage_ann(
         Discard the checkpoints and start afresh.
     keep : bool
         Keep every validation error sample (`RunErrors.samples`).
+    init : AnnModel, optional
+        Warm start from these networks, keeping their scaling
+        (`microfab.identify.ann_train.train_ann`: the seed's next generation, §III-C.2).
 
     Raises
     ------
@@ -242,7 +246,7 @@ def train_stage_ann(
     """
     model = train_ann(
         runs_of(train), runs_of(val), config, checkpoint_dir=checkpoint_dir,
-        progress=progress, restart=restart,
+        progress=progress, restart=restart, init=init,
     )  # fmt: skip
     return StageAnnFit(
         model=model,
