@@ -11,11 +11,16 @@ Job file (``examples/blackbox_stage_reference.toml``)::
     [cases]     # shapes, Table III's a_max, the airfoil's extra a_max, μ, sizes
     [tradeoff]  # Figs. 16-17: a_max of the letters and the airfoil, longer baselines
     [stage2]    # Gauss-Newton iterations
+    [generations]  # the networks' generations (seed 002 Fig. 7): count, shapes, epochs
 
 Every key, its unit and its range is in `SCHEMA`; unknown keys are refused. The run
 (`microfab.experiments.seed002_reference.study.run_reference`) writes every finished
 point atomically under ``out/points/`` (a rerun skips it; stage 2 checkpoints there every
-few iterations and resumes), ``sizes.json`` and ``summary.json``.
+few iterations and resumes), ``sizes.json`` and ``summary.json``. With ``[generations]
+count`` ≥ 2 the networks' generations run first under ``out/generations/``
+(`microfab.machines.xy_stage_generations`), then Table III per generation
+(``out/generation<g>/``) and the study with the last generation's models; the report adds
+Table III per generation and the networks-against-twin table per generation.
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ from microfab.io.job import Key
 from microfab.machines import xy_stage, xy_stage_cases
 from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_cases import CASES, CaseSizes
+from microfab.machines.xy_stage_generations import DEFAULT_SHAPES, SHAPES
 from microfab.machines.xy_stage_reference import HOLD_S
 from microfab.report.tables import Table
 
@@ -90,6 +96,21 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
         Key(name="max_iter", type="int", default=30, low=1, high=1000,
             help="Gauss-Newton iterations"),
     ),
+    "generations": (
+        Key(name="count", type="int", default=1, low=1, high=10,
+            help="the networks' generations (seed 002 Fig. 7: 3); 1: the given models only"),
+        Key(name="shapes", type="str", default=",".join(DEFAULT_SHAPES),
+            help=f"regular shapes the generations optimise, comma-separated, of "
+                 f"{', '.join(SHAPES)} (seed §III-C.2: circles, polygons, spirals)"),
+        Key(name="size_mm", type=_F, default=20.0, low=0.1, high=180.0, unit="mm",
+            help="their size: radius, circumradius, the spiral's outer radius (assumed 20)"),
+        Key(name="a_max", type="float_list", default=(1.0, 3.0), low=0.0, high=40.0,
+            unit="m/s²", help="their a_max (assumed Table III's 1 and 3)"),
+        Key(name="retrain_epochs", type="int", default=20, low=1, high=1000,
+            help="most epochs of a retraining (warm start; early stopping decides first)"),
+        Key(name="data_s", type=_F, default=0.0, low=0.0, high=3600.0, unit="s",
+            help="generation 1's data length; 0: the seed's (about 525 s)"),
+    ),
 }  # fmt: skip
 
 
@@ -113,6 +134,16 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> ReferenceSettings:
         without the other.
     """
     mo, tw, ca, tr, s2 = (sec[k] for k in ("models", "twin", "cases", "tradeoff", "stage2"))
+    ge = sec["generations"]
+    shapes = tuple(n.strip() for n in ge["shapes"].split(",") if n.strip())
+    if not shapes or any(n not in SHAPES for n in shapes):
+        raise ValueError(
+            f"[generations] shapes must be a comma-separated list of {', '.join(SHAPES)}, "
+            f"got {ge['shapes']!r}"
+        )
+    if any(v <= 0 for v in ge["a_max"]):
+        raise ValueError(f"[generations] a_max must hold accelerations above 0 m/s², got "
+                         f"{list(ge['a_max'])}")  # fmt: skip
     for key, vals in (("[cases] a_max", ca["a_max"]), ("[cases] airfoil_a_max",
                       ca["airfoil_a_max"]), ("[tradeoff] letters_a_max", tr["letters_a_max"]),
                       ("[tradeoff] airfoil_a_max", tr["airfoil_a_max"])):  # fmt: skip
@@ -136,6 +167,12 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> ReferenceSettings:
         tradeoff_airfoil=tuple(tr["airfoil_a_max"]),
         baseline_factors=tuple(tr["baseline_factors"]),
         stage2_max_iter=s2["max_iter"],
+        generations=ge["count"],
+        generation_shapes=shapes,
+        generation_size_m=ge["size_mm"] * 1e-3,
+        generation_a_max=tuple(ge["a_max"]),
+        retrain_epochs=ge["retrain_epochs"],
+        generation_data_s=ge["data_s"] if ge["data_s"] > 0 else None,
     )
 
 
@@ -198,6 +235,7 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
         twin=TwinSettings(seed=options["seed"], noise=options["noise"], hold_s=HOLD_S),
         tradeoff_letters=(0.1, 0.3, 1.0, 2.0, 3.3) if options["tradeoff"] else (),
         tradeoff_airfoil=(0.1, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0) if options["tradeoff"] else (),
+        generations=options["generations"],
     )
     study = run_reference(settings, Path(folder) if folder else None, progress)
     return ReproductionResult(
@@ -228,6 +266,9 @@ REFERENCE_OPT_REPRODUCTION = Reproduction(
             help="also the trade-off points (about 30 more optimisations)"),
         Key(name="checkpoints", type="str", default="",
             help="folder for the points and stage-2 checkpoints, so a rerun resumes"),
+        Key(name="generations", type="int", default=1, low=1, high=10,
+            help="the networks' generations first (seed 002 Fig. 7: 3), Table III per "
+                 "generation; 1: the models as given"),
     ),
     data_files=xy_stage.DATA_FILES + xy_stage_cases.DATA_FILES + (SHIPPED_MODELS,),
     run_folder_option="checkpoints",

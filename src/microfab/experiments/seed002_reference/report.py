@@ -1,4 +1,10 @@
-"""Report of a ``stage-reference-opt`` job: seed 002 Figs. 11-17 redrawn, Table III."""
+"""Report of a ``stage-reference-opt`` job: seed 002 Figs. 11-17 redrawn, Table III.
+
+With the networks' generations (seed 002 Fig. 7) the page also shows Table III per
+generation and the networks against the twin per generation
+(`microfab.experiments.seed002_reference.tables.comparison_tables`), and notes where
+each generation's models are; it reads the study and computes nothing.
+"""
 
 from __future__ import annotations
 
@@ -62,6 +68,26 @@ def _figures(study: ReferenceStudy, out: Path) -> list[tuple[str, Any, str]]:
     return figs
 
 
+def _generation_notes(study: ReferenceStudy) -> list[str]:
+    """Where each generation's models are, and whether generation 1 saw the same data."""
+    if study.generations is None:
+        return []
+    gens = study.generations.generations
+    notes = [
+        f"Generations (seed 002 §III-C.2, Fig. 7): {len(gens)}; the tables above the "
+        "per-generation ones use the last generation's networks. Models: "
+        + "; ".join(f"{g.index}: {g.models_dir}" for g in gens)
+        + ". The linear model is not refitted (§III-C.2)."
+    ]
+    second = gens[1].training if len(gens) > 1 else None
+    if second is not None and not second.get("start_data_matches", True):
+        notes.append(
+            "Generation 1's networks were not trained on the data the retrainings start "
+            "from (another data digest): the retrainings add their runs to other data."
+        )
+    return notes
+
+
 def write_report(study: ReferenceStudy, out: Path, title: str) -> Path:
     """Render the figures and write ``report.html`` into ``out``."""
     from microfab.report.canvas import render_png
@@ -78,6 +104,7 @@ def write_report(study: ReferenceStudy, out: Path, title: str) -> Path:
         f"{study.sizes.letter_height_m * 1e3:.2f} mm, airfoil chord "
         f"{study.sizes.airfoil_chord_m * 1e3:.1f} mm.",
     ]
+    notes += _generation_notes(study)
     text = page_html(
         title,
         intro="Seed 002 part 2 on the XY stage twin: the two-stage reference optimisation "

@@ -20,12 +20,24 @@ fingerprint is in the point's JSON):
 
 Points are independent; a failed stage (infeasible, not converged) is recorded in the
 point's JSON with its message and the study goes on.
+
+Generations (seed 002 §III-C.2, Fig. 7; ``generations`` ≥ 2): first the networks'
+generations are run or resumed under ``out/generations/``
+(`microfab.machines.xy_stage_generations.run_generations`: the regular shapes optimised
+with each generation's models, played on the twin, added to the data, the networks
+retrained warm), then Table III's points (``cases`` × ``a_max``, no trade-off) with each
+earlier generation's models under ``out/generation<g>/``, and the whole study above with
+the last generation's models (the seed's Table III uses the third), sized once with the
+first generation's linear model (the linear model is not refitted, §III-C.2). Without
+``out`` the generations live in a temporary folder removed at the end.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -33,7 +45,14 @@ from typing import Any
 
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.machines.xy_stage import TwinSettings
+from microfab.machines.xy_stage_ann import AnnSettings
 from microfab.machines.xy_stage_cases import CASES, CaseSizes, case_paths
+from microfab.machines.xy_stage_generations import (
+    DEFAULT_SHAPES,
+    GenerationSettings,
+    GenerationsResult,
+    run_generations,
+)
 from microfab.machines.xy_stage_reference import baseline_l2, saved_point
 from microfab.optimize.metrics import DeviationNorms
 from microfab.optimize.models import Models, load_models, models_digest
@@ -72,6 +91,20 @@ class ReferenceSettings:
         Longer baseline times for the trade-off, in units of the slowest optimised time.
     stage2_max_iter : int
         Stage 2's Gauss-Newton iterations.
+    generations : int
+        The networks' generations (seed 002 §III-C.2, Fig. 7); 1: the given models alone.
+    generation_shapes : tuple of str
+        The regular shapes the generations optimise
+        (`microfab.machines.xy_stage_generations.SHAPES`).
+    generation_size_m : float
+        Their size, m (radius, circumradius, the spiral's outer radius).
+    generation_a_max : tuple of float
+        Their a_max, m/s².
+    retrain_epochs : int
+        Most epochs of a retraining.
+    generation_data_s : float or None
+        Generation 1's data length, s (`microfab.machines.xy_stage_ann.AnnSettings`
+        ``total_s``; None: the seed's, about 525 s).
     """
 
     models_dir: str = ""
@@ -85,6 +118,28 @@ class ReferenceSettings:
     tradeoff_airfoil: tuple[float, ...] = ()
     baseline_factors: tuple[float, ...] = (1.5, 2.0, 3.0, 4.0, 6.0)
     stage2_max_iter: int = 30
+    generations: int = 1
+    generation_shapes: tuple[str, ...] = DEFAULT_SHAPES
+    generation_size_m: float = 20e-3  # assumed (xy_stage_generations.GenerationSettings)
+    generation_a_max: tuple[float, ...] = (1.0, 3.0)  # assumed: Table III's columns
+    retrain_epochs: int = 20  # assumed (xy_stage_generations.GenerationSettings)
+    generation_data_s: float | None = None
+
+    def generation_settings(self) -> GenerationSettings:
+        """The generations' settings: these models, twin, tolerance and stage 2."""
+        twin = TwinSettings(seed=self.twin.seed, noise=self.twin.noise,
+                            changes=self.twin.changes)  # fmt: skip
+        return GenerationSettings(
+            models_dir=self.models_dir,
+            ann=AnnSettings(total_s=self.generation_data_s, twin=twin),
+            shapes=self.generation_shapes,
+            size_m=self.generation_size_m,
+            a_max=self.generation_a_max,
+            tolerance_m=self.tolerance_m,
+            stage2_max_iter=self.stage2_max_iter,
+            retrain_epochs=self.retrain_epochs,
+            count=self.generations,
+        )
 
     def fingerprint(self) -> str:
         """Hash of what decides a point's numbers (not the list of points)."""
@@ -112,6 +167,11 @@ class ReferenceStudy:
         "letters" and "airfoil": one row per a_max (time, pooled norms per output).
     baseline_curve : dict of str to list of dict
         "letters" and "airfoil": the eq. (15) baseline on the twin at longer times.
+    generations : GenerationsResult or None
+        The networks' generations (``settings.generations`` ≥ 2), else None.
+    earlier : tuple of ReferenceStudy
+        Table III's points with each generation's models but the last (whose study this
+        is), in order; empty without generations.
     """
 
     settings: ReferenceSettings
@@ -120,6 +180,12 @@ class ReferenceStudy:
     points: dict[tuple[str, float], dict[str, Any]]
     tradeoff: dict[str, list[dict[str, float]]] = field(default_factory=dict)
     baseline_curve: dict[str, list[dict[str, float]]] = field(default_factory=dict)
+    generations: GenerationsResult | None = None
+    earlier: tuple[ReferenceStudy, ...] = ()
+
+    def by_generation(self) -> list[tuple[int, ReferenceStudy]]:
+        """``(generation, study)`` from the first; just ``[(1, self)]`` without generations."""
+        return [*enumerate(self.earlier, start=1), (len(self.earlier) + 1, self)]
 
 
 def _sizes(st: ReferenceSettings, models: Models, out: Path | None) -> tuple[CaseSizes, dict]:
@@ -153,6 +219,38 @@ def run_reference(
     settings: ReferenceSettings, out: Path | None = None, progress: Progress | None = None
 ) -> ReferenceStudy:
     """Run the study (module docstring); ``out`` keeps the points for a resume."""
+    if settings.generations < 2:
+        return _study(settings, out, progress)
+    if out is None:
+        with tempfile.TemporaryDirectory(prefix="microfab-generations-") as tmp:
+            return _with_generations(settings, Path(tmp), progress, keep=False)
+    return _with_generations(settings, out, progress, keep=True)
+
+
+def _with_generations(
+    st: ReferenceSettings, out: Path, progress: Progress | None, *, keep: bool
+) -> ReferenceStudy:
+    """The generations, Table III with each earlier one's models, the study with the last."""
+    gens = run_generations(st.generation_settings(), out / "generations", progress)
+    earlier: list[ReferenceStudy] = []
+    sizes = st.sizes
+    for g in gens.generations[:-1]:
+        sub = dataclasses.replace(
+            st, models_dir=g.models_dir, generations=1, sizes=sizes, airfoil_extra=(),
+            tradeoff_letters=(), tradeoff_airfoil=(),
+        )  # fmt: skip
+        earlier.append(_study(sub, out / f"generation{g.index}" if keep else None, progress))
+        sizes = earlier[-1].sizes  # the linear model is the same in every generation
+    last = dataclasses.replace(st, models_dir=gens.generations[-1].models_dir, generations=1,
+                               sizes=sizes)  # fmt: skip
+    final = _study(last, out, progress)
+    return dataclasses.replace(final, settings=st, generations=gens, earlier=tuple(earlier))
+
+
+def _study(
+    settings: ReferenceSettings, out: Path | None, progress: Progress | None
+) -> ReferenceStudy:
+    """The study of the module docstring with one set of models."""
     report = progress or (lambda task, done, total: None)
     st = settings
     models = load_models(st.models_dir)

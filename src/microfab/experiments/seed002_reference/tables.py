@@ -1,4 +1,11 @@
-"""Tables and JSON of the seed 002 part 2 study: Table III ours beside the seed's, and more."""
+"""Tables and JSON of the seed 002 part 2 study: Table III ours beside the seed's, and more.
+
+With the networks' generations (seed 002 §III-C.2, Fig. 7; `ReferenceStudy.generations`)
+Table III is shown once per generation (`table_iii` with each generation's study, the last
+generation's first) and `generations_table` gives, per generation, the networks' error
+against the twin on the references that generation optimised and the twin's contour
+error of those references.
+"""
 
 from __future__ import annotations
 
@@ -18,6 +25,7 @@ from microfab.report.tables import DASH, Table, versus
 __all__ = [
     "NOTES",
     "comparison_tables",
+    "generations_table",
     "points_table",
     "stages_table",
     "study_summary",
@@ -48,8 +56,11 @@ def _ok(p: dict[str, Any] | None) -> bool:
     return p is not None and "error" not in p
 
 
-def table_iii(study: ReferenceStudy, output: str = "twin") -> Table:
-    """Table III: time and improvement in L1, L2, L∞ per case and a_max, ours / seed."""
+def table_iii(study: ReferenceStudy, output: str = "twin", prefix: str = "") -> Table:
+    """Table III: time and improvement in L1, L2, L∞ per case and a_max, ours / seed.
+
+    ``prefix`` starts the title (the generation, when there are several).
+    """
     rows = []
     shows = []
     for case in study.settings.cases:
@@ -73,8 +84,8 @@ def table_iii(study: ReferenceStudy, output: str = "twin") -> Table:
             ])  # fmt: skip
     label = "twin (experimental)" if output == "twin" else "networks (simulated)"
     table = Table(
-        title=f"Table III: improvement over the eq. (15) baseline at the same time, {label} "
-        "[%], ours / seed",
+        title=f"{prefix}Table III: improvement over the eq. (15) baseline at the same time, "
+        f"{label} [%], ours / seed",
         columns=("shape", "a_max [m/s²]", "time [s]", "L1", "L2", "L∞"),
         rows=rows,
         note="improvement = 100 (baseline - optimised) / baseline; seed: experimental",
@@ -220,14 +231,68 @@ def tradeoff_table(study: ReferenceStudy) -> Table:
     ), shows)  # fmt: skip
 
 
+def _axes_cell(err: dict[str, dict[str, float]], key: str) -> str:
+    """``x / y`` of one statistic (µm) of a per-axis error, or a dash."""
+    if not err:
+        return DASH
+    return " / ".join(f"{err[a][key]:.1f}" for a in ("x", "y") if a in err)
+
+
+def generations_table(study: ReferenceStudy) -> Table:
+    """Per generation: networks against the twin on its optimised references, and more.
+
+    Columns: σ and μ of ``predicted - measured`` per axis (µm, pooled over the
+    generation's optimised runs at 10 kHz: what seed 002 Table II columns 2-3 measure on
+    the letters), the twin's pooled L2 and largest L∞ of those references (µm), the points
+    that optimised, the retraining's validation σ (µm) and its epochs / best epoch.
+    """
+    assert study.generations is not None
+    rows = []
+    for g in study.generations.generations:
+        ok = [p for p in g.points if "error" not in p]
+        tr = g.training
+        rows.append([
+            str(g.index), _axes_cell(g.network_error, "sigma_um"),
+            _axes_cell(g.network_error, "mu_um"),
+            f"{g.twin['l2_m'] * 1e6:.1f}" if g.twin else DASH,
+            f"{g.twin['linf_m'] * 1e6:.1f}" if g.twin else DASH,
+            f"{len(ok)} / {len(g.points)}",
+            DASH if tr is None else _axes_cell(tr["validation"], "sigma_um"),
+            DASH if tr is None else " / ".join(
+                f"{tr['epochs'][a]}, {tr['best_epoch'][a]}" for a in sorted(tr["epochs"])),
+        ])  # fmt: skip
+    gs = study.generations.settings
+    shapes = ", ".join(gs.shapes)
+    a_max = ", ".join(f"{a:g}" for a in gs.a_max)
+    return labelled(
+        Table(
+            title="Networks against the twin per generation (seed 002 §III-C.2, Fig. 7): "
+            "the regular shapes optimised with each generation's models [µm]",
+            columns=("generation", "σ x / y", "μ x / y", "twin L2", "twin L∞", "points",
+                     "retraining: validation σ x / y", "epochs, best (x / y)"),
+            rows=rows,
+            note=f"shapes {shapes} of {gs.size_m * 1e3:g} mm at a_max {a_max} m/s²; "
+            "networks - twin on the optimised inputs (hold included). Seed 002 Table II, "
+            "third generation, letters after optimisation: σ 8.2 / 13.4 µm at 1 m/s², "
+            "11.1 / 18.7 µm at 3 m/s² (other drawings than these shapes); best epoch -1: "
+            "no epoch beat the previous generation's weights",
+        ),
+        OURS,
+    )  # fmt: skip
+
+
 def study_summary(study: ReferenceStudy) -> dict[str, Any]:
     """JSON-ready: sizes, every point, the trade-off and Table III's means."""
-    means: dict[str, dict[str, float]] = {}
-    for out in ("twin", "ann"):
-        vals = {k: [p["improvement"][out][k] for (c, a), p in study.points.items()
-                    if _ok(p) and a in study.settings.a_max] for k in _NORMS}  # fmt: skip
-        means[out] = {k: float(np.mean(v)) if v else float("nan") for k, v in vals.items()}
+    means = _means(study)
+    gens = None
+    if study.generations is not None:
+        gens = [{"generation": g.index, "models_dir": g.models_dir, "points": g.points,
+                 "network_error_um": g.network_error, "twin_m": g.twin, "split": g.split,
+                 "training": g.training, "table_iii_means": _means(sub)}
+                for g, (_, sub) in zip(study.generations.generations, study.by_generation(),
+                                       strict=True)]  # fmt: skip
     return {
+        "generations": gens,
         "sizes": {"letter_height_m": study.sizes.letter_height_m,
                   "airfoil_chord_m": study.sizes.airfoil_chord_m},
         "sizing_steps": study.sizing_steps,
@@ -244,9 +309,30 @@ def study_summary(study: ReferenceStudy) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def _means(study: ReferenceStudy) -> dict[str, dict[str, float]]:
+    """Table III's mean improvement per output and norm, %."""
+    means: dict[str, dict[str, float]] = {}
+    for out in ("twin", "ann"):
+        vals = {k: [p["improvement"][out][k] for (c, a), p in study.points.items()
+                    if _ok(p) and a in study.settings.a_max] for k in _NORMS}  # fmt: skip
+        means[out] = {k: float(np.mean(v)) if v else float("nan") for k, v in vals.items()}
+    return means
+
+
 def comparison_tables(study: ReferenceStudy) -> tuple[Table, ...]:
-    """Every comparison table of a study, ours beside the seed's (terminal and report)."""
-    out = [table_iii(study), table_iii(study, "ann"), times_table(study)]
+    """Every comparison table of a study, ours beside the seed's (terminal and report).
+
+    With generations: Table III of the last generation first, then of each earlier one,
+    then `generations_table`.
+    """
+    steps = study.by_generation()
+    n = len(steps)
+    last = f"Generation {n} of {n}: " if n > 1 else ""
+    out = [table_iii(study, prefix=last), table_iii(study, "ann", prefix=last)]
+    out += [table_iii(sub, prefix=f"Generation {g} of {n}: ") for g, sub in steps[:-1]]
+    if study.generations is not None:
+        out.append(generations_table(study))
+    out.append(times_table(study))
     if study.tradeoff:
         out.append(tradeoff_table(study))
     out += [stages_table(study), points_table(study)]
