@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test fuzz bench lint clean
+.PHONY: install run test fuzz bench lint clean shipped-models
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -43,6 +43,11 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_identify.py
 	$(BIN)/python benchmarks/bench_ann.py
 	$(BIN)/python benchmarks/bench_optimize.py --plain-cpu 120
+
+# retrain the models shipped for the built-in XY stage twin (seed 002; a few minutes on
+# 2 cores) into src/microfab/data/xy_stage_models, with their record trained.json
+shipped-models: $(STAMP)
+	$(BIN)/python -m microfab.experiments.seed002_stage.shipped
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples

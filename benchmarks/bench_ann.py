@@ -6,16 +6,18 @@ Prints, in one run on this machine:
    scaling, forward, backward, Adam) for the seed's network (h = 200, 117 322 weights,
    batches of 16 384) on ``--threads`` CPU threads: windows/s and the time of one epoch of
    4e6 windows (issue 17: about 34 windows per weight).
-2. A real run, the ``stage-identify`` job's training: ``--total-s`` (525 s) of the
+2. Real runs, the ``stage-identify`` job's training: ``--total-s`` (525 s) of the
    networks' data (`ann_records`: about 60 % random runs, the rest shapes at constant
    speeds, split 80/20 by whole runs, seed 002 §III-C) played on the calibrated twin
-   with 2 µm noise, one network per axis trained with the job's epochs of 262 144 random
-   windows (`train_networks`), the axes side by side in ``--workers`` processes (2).
-   Prints the training's wall time against the 15 min goal (issue 17) and the
-   validation μ, σ per axis at every 10 kHz sample beside the seed's Table II (ANN on
-   validation data: x 3.2, y 6.0 µm).
+   with 2 µm noise, one network per axis trained with epochs of 262 144 random windows,
+   the axes side by side in ``--workers`` processes (2), once with the schedule of
+   issue 17 (200 epochs, decay 0.97 per epoch) and once with the job's (`schedules`),
+   on the same data. Prints each training's wall time against the 5 min goal (issue 34),
+   the ratio, and the validation μ, σ per axis at every 10 kHz sample beside the seed's
+   Table II (ANN on validation data: x 3.2, y 6.0 µm).
 
-Run: ``python benchmarks/bench_ann.py [--quick]``.
+Run: ``python benchmarks/bench_ann.py [--quick] [--job-only]`` (the comparison takes
+about 20 min on an idle 2-core machine, the job's schedule alone about 4).
 """
 
 from __future__ import annotations
@@ -94,51 +96,67 @@ def throughput(threads: int, n_steps: int) -> None:
     )
 
 
-def real_run(total_s: float, max_epochs: int, threads: int, workers: int) -> None:
-    """The ``stage-identify`` job's training (its data and epoch settings) on the twin."""
-    from microfab.experiments.seed002_stage.job import EPOCH_WINDOWS, VAL_WINDOWS
-    from microfab.machines.xy_stage_ann import AnnSettings, ann_records, train_networks
+#: The training schedules compared by `real_run`: (name, max epochs, learning-rate decay
+#: per epoch). "issue 17" is the schedule the job had before issue 34 (about 16 min on an
+#: idle 2-core machine); "job" is the job's schedule now (`SCHEMA` defaults).
+def schedules() -> list[tuple[str, int, float]]:
+    from microfab.experiments.seed002_stage.job import SCHEMA
 
-    settings = AnnSettings(
-        total_s=total_s,
-        max_epochs=max_epochs,
-        epoch_windows=EPOCH_WINDOWS,
-        val_windows=VAL_WINDOWS,
-        threads=threads,
-        workers=workers,
-    )
+    ann = {k.name: k.default for k in SCHEMA["ann"]}
+    return [("issue 17", 200, 0.97), ("job", ann["max_epochs"], ann["lr_decay"])]
+
+
+def real_run(
+    total_s: float, threads: int, workers: int, which: list[tuple[str, int, float]]
+) -> None:
+    """The ``stage-identify`` job's training (its data and epoch settings) on the twin.
+
+    Each schedule of ``which`` trains on the same data, one after the other; prints the
+    wall time and the validation σ of each, and the ratio of times.
+    """
+    import dataclasses
+
+    from microfab.experiments.seed002_stage.job import EPOCH_WINDOWS, VAL_WINDOWS
+    from microfab.identify.stage_ann import ann_config, train_stage_ann
+    from microfab.machines.xy_stage_ann import AnnSettings, ann_records
+
+    settings = AnnSettings(total_s=total_s, epoch_windows=EPOCH_WINDOWS,
+                           val_windows=VAL_WINDOWS, threads=threads, workers=workers)  # fmt: skip
     t0 = time.perf_counter()
     train, val = ann_records(settings)
     t_sim = time.perf_counter() - t0
-
-    def show(r) -> None:
-        if r.epoch % 10 == 0 or r.epoch == 1:
-            print(
-                f"  {r.axis} epoch {r.epoch}: train {r.train_loss:.3e} val {r.val_loss:.3e} "
-                f"({r.seconds:.1f} s)",
-                flush=True,
-            )
-
-    t1 = time.perf_counter()
-    study = train_networks(train, val, settings, progress=show)
-    t_train = time.perf_counter() - t1
-    model = study.model
-    epochs = ", ".join(f"{a}: {model.info['axes'][a]['epochs']} epochs" for a in model.axes)
     print(
         f"twin: {total_s:g} s of the networks' data ({len(train.records)} training and "
         f"{len(val.records)} validation runs) made and played in {t_sim:.1f} s; "
-        f"{model.info['train_windows']} training windows; {EPOCH_WINDOWS} per epoch; "
-        f"training {t_train:.0f} s, {workers} worker process(es) of {threads} thread(s) "
-        f"({epochs}); goal <= 900 s on 2 cores "
-        f"(issue 17), seed: 24 h per axis on a GPU"
+        f"{EPOCH_WINDOWS} windows per epoch, {workers} worker process(es) of {threads} "
+        f"thread(s); goal: training <= 300 s on 2 cores (issue 34)",
+        flush=True,
     )
     lin = linear_baseline([(r.u, r.y) for r in val.records])
-    for a in model.axes:
-        e = study.validation[a]
-        print(
-            f"  {a}: validation mu {e.mu * 1e6:+.2f} um, sigma {e.sigma * 1e6:.2f} um (seed "
-            f"Table II: {SEED_SIGMA_UM[a]} um); command-as-prediction sigma {lin[a]:.1f} um"
-        )
+    times = {}
+    for name, epochs, decay in which:
+        config = ann_config(
+            1.0 / train.dt, ("x", "y"), max_epochs=epochs, lr_decay=decay,
+            epoch_windows=EPOCH_WINDOWS, val_windows=VAL_WINDOWS, seed=settings.seed,
+            threads=threads, workers=workers,
+        )  # fmt: skip
+        t1 = time.perf_counter()
+        fit = train_stage_ann(train.records, val.records, dataclasses.replace(config))
+        times[name] = time.perf_counter() - t1
+        ep = ", ".join(f"{a} {fit.model.info['axes'][a]['epochs']}" for a in fit.model.axes)
+        print(f"{name}: {epochs} epochs at most, decay {decay:g}/epoch: training "
+              f"{times[name]:.0f} s (epochs run: {ep})", flush=True)  # fmt: skip
+        for a in fit.model.axes:
+            e = fit.validation[a]
+            print(
+                f"  {a}: validation mu {e.mu * 1e6:+.2f} um, sigma {e.sigma * 1e6:.2f} um "
+                f"(seed Table II: {SEED_SIGMA_UM[a]} um; command as prediction "
+                f"{lin[a]:.1f} um)",
+                flush=True,
+            )
+    if len(times) == 2:
+        (n0, t0_), (n1, t1_) = times.items()
+        print(f"time {n1} / {n0}: {t1_ / t0_:.2f}")
 
 
 def linear_baseline(val) -> dict[str, float]:
@@ -153,15 +171,17 @@ def main() -> None:
     p.add_argument("--train-threads", type=int, default=1, help="threads of the real run")
     p.add_argument("--workers", type=int, default=2, help="axes trained at once (processes)")
     p.add_argument("--total-s", type=float, default=525.0, help="data, s (the job's 525)")
-    p.add_argument("--epochs", type=int, default=200)
+    p.add_argument("--job-only", action="store_true", help="only the job's schedule")
     p.add_argument("--quick", action="store_true", help="20 s of data, 2 epochs")
     args = p.parse_args()
     for threads in sorted({1, args.threads}):
         throughput(threads, 3 if args.quick else 10)
+    which = schedules()
     if args.quick:
-        real_run(20.0, 2, args.train_threads, args.workers)
+        real_run(20.0, args.train_threads, args.workers, [(n, 2, d) for n, _, d in which])
     else:
-        real_run(args.total_s, args.epochs, args.train_threads, args.workers)
+        real_run(args.total_s, args.train_threads, args.workers,
+                 which[1:] if args.job_only else which)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -78,6 +78,21 @@ def tiny_models(tmp_path_factory):
     return d, model
 
 
+@pytest.fixture(scope="session")
+def tiny_feature_model():
+    """Tiny networks with the position features (`microfab.identify.ann_data`)."""
+    pytest.importorskip("torch")
+    from microfab.identify.ann import AnnConfig
+    from microfab.identify.ann_data import WindowSpec
+    from microfab.identify.ann_train import train_ann
+
+    train = [smooth_run(12_000, s) for s in range(3)]
+    val = [smooth_run(8_000, 10)]
+    cfg = AnnConfig(window=WindowSpec(features="position"), batch_size=512, offsets=(0, 7),
+                    learning_rate=2e-3, max_epochs=2, device="cpu", threads=1)  # fmt: skip
+    return train_ann(train, val, cfg)
+
+
 # --- report pages in a real browser (issue 32) -------------------------------------------
 
 BROWSER = next(

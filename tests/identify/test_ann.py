@@ -72,6 +72,38 @@ def small_config(**kw) -> AnnConfig:
 # --- network ---------------------------------------------------------------------------
 
 
+def test_position_features_of_a_window():
+    """sin/cos of 2π r_{i-k} / λ for each lag and wavelength, appended after the window."""
+    from microfab.identify.ann_data import (
+        FEATURE_LAGS,
+        FEATURE_WAVELENGTHS_M,
+        position_features,
+    )
+
+    spec = WindowSpec(features="position")
+    assert spec.n_features == 2 * len(FEATURE_LAGS) * len(FEATURE_WAVELENGTHS_M) == 208
+    assert spec.n_inputs == 200 + 208
+    assert WindowSpec(features="position", inputs="both").n_inputs == 2 * 408
+    assert n_weights(spec.n_inputs) == 117_322 + 208 * 200
+    rng = np.random.default_rng(3)
+    cmd = np.cumsum(rng.normal(size=(20_000, 2)) * 1e-5, axis=0)
+    x, _, _ = windows(cmd, None, spec, axis=1, offset=4)
+    plain, _, _ = windows(cmd, None, WindowSpec(), axis=1, offset=4)
+    assert np.array_equal(x[:, :200], plain)
+    i, k, j = 777, FEATURE_LAGS[3], 5
+    r = cmd[4::25, 1][i - k]  # the window of target i ends at sample i - 1
+    feats = x[i, 200:]
+    assert np.array_equal(position_features(np.array([cmd[4::25, 1][i - 200 : i]]))[0], feats)
+    n = len(FEATURE_WAVELENGTHS_M)
+    lam = FEATURE_WAVELENGTHS_M[j]
+    assert feats[3 * 2 * n + j] == pytest.approx(np.sin(2 * np.pi * r / lam), abs=1e-12)
+    assert feats[3 * 2 * n + n + j] == pytest.approx(np.cos(2 * np.pi * r / lam), abs=1e-12)
+    with pytest.raises(ValueError, match="features must be one of"):
+        WindowSpec(features="fourier")
+    with pytest.raises(ValueError, match="need a history h >= 16"):
+        WindowSpec(features="position", h=8)
+
+
 def test_weight_count_fig5():
     assert n_weights(200) == 117_322  # seed 002 Fig. 5
     net = build_network(200, seed=0)

@@ -10,8 +10,13 @@ pytest.importorskip("torch")
 from microfab.optimize.ann_torch import NetworkMap
 
 
-def test_predict_equals_the_model_on_the_matching_command(tiny_models):
-    _, model = tiny_models
+@pytest.fixture(params=["seed inputs", "position features"])
+def networks(request, tiny_models, tiny_feature_model):
+    return tiny_models[1] if request.param == "seed inputs" else tiny_feature_model
+
+
+def test_predict_equals_the_model_on_the_matching_command(networks):
+    model = networks
     nm = NetworkMap(model, tail=30)
     rng = np.random.default_rng(0)
     rest = np.array([1e-3, -2e-3])
@@ -26,11 +31,11 @@ def test_predict_equals_the_model_on_the_matching_command(tiny_models):
     assert np.allclose(ref[lead + 1 : lead + 1 + m + 30], phi, rtol=0, atol=1e-9)
 
 
-def test_jacobian_matches_autograd_of_the_whole_map(tiny_models):
+def test_jacobian_matches_autograd_of_the_whole_map(networks):
     """The scattered band equals torch's dense Jacobian of r -> φ built independently."""
     import torch
 
-    _, model = tiny_models
+    model = networks
     tail, m = 10, 40
     nm = NetworkMap(model, tail=tail)
     rng = np.random.default_rng(1)

@@ -88,6 +88,14 @@ def ann_cmd(
     seed: Annotated[
         int, typer.Option(min=0, help="Seeds the split, the initial weights, the shuffles.")
     ] = 0,
+    features: Annotated[
+        str,
+        typer.Option(
+            help="position: also sin/cos of the last 40 ms of absolute positions at 13 "
+            "wavelengths (1-251 mm) as inputs, so position-periodic forces (cogging) are "
+            "learnt; none: the seed's 200 inputs only."
+        ),
+    ] = "position",
 ) -> None:
     """Train seed 002's per-axis networks (eq. 7, Fig. 5) on measured runs of the stage.
 
@@ -102,6 +110,8 @@ def ann_cmd(
         fail(f"--axis must be x, y or both, got {axis!r}")
     if device not in ("auto", "cpu", "cuda"):
         fail(f"--device must be auto, cpu or cuda, got {device!r}")
+    if features not in ("none", "position"):
+        fail(f"--features must be none or position, got {features!r}")
     check_option("--validation", validation, "", low=0.0, high=1.0)
     if validation >= 1.0:
         fail(f"--validation must be less than 1 (a share of the runs), got {validation:g}")
@@ -127,6 +137,7 @@ def ann_cmd(
         config = ann_config(
             1.0 / dt,
             _AXES[axis],
+            features=features,
             max_epochs=epochs,
             seed=seed,
             device=device,

@@ -39,6 +39,18 @@ What is built here, and the choices made (the seed leaves them open):
 * **Inputs.** ``"own"`` (default, seed 002 §III-B: "the most recent 500 ms of the input
   trajectory for the corresponding axis"): ``h`` inputs; ``"both"``: both axes' windows
   (x first), ``2 h`` inputs, for the coupling study the seed promises in §III-B.
+* **Position features** (``features="position"``; default ``"none"``, the seed's 200
+  inputs). A force that is a periodic function of the absolute position (a linear motor's
+  cogging, a cable carrier's links) makes an error the seed's network must build from the
+  one absolute input ``r_{i-1}``: many periods across the travel, which a LeakyReLU
+  network learns poorly. With this option the inputs also hold ``sin`` and ``cos`` of
+  ``2π r_{i-k} / λ_j`` for the lags ``k`` of `FEATURE_LAGS` and the wavelengths ``λ_j``
+  of `FEATURE_WAVELENGTHS_M` (own axis; both axes with ``inputs="both"``): still a
+  function of the window, so eq. 7 holds; 208 more inputs per axis. Measured on the
+  calibrated twin (x, noise off, 300 s of random runs, 150 s of training): with the
+  friction off, so that the cogging is the nonlinearity, validation σ 21.5 µm of a
+  23.3 µm target without the features, 3.3 µm with them; with the cogging's pitch moved
+  from 24 to 17 mm, see `FEATURE_WAVELENGTHS_M` (issue 34's note).
 * **Scaling.** After encoding, every input column and the target get an offset (mean) and
   a scale (standard deviation) fitted on the training windows (`Scaling`), stored with
   the model; a column that does not vary keeps scale 1.
@@ -64,6 +76,9 @@ from microfab.core.validate import check_int, check_positive
 __all__ = [
     "AXES",
     "ENCODINGS",
+    "FEATURES",
+    "FEATURE_LAGS",
+    "FEATURE_WAVELENGTHS_M",
     "HISTORY",
     "INPUTS",
     "MODEL_RATE_HZ",
@@ -82,6 +97,16 @@ RUN_RATE_HZ = 10_000.0  # seed 002 Table I: low-level control loop frequency 10 
 HISTORY = 200  # seed 002 §III-B: 500 ms at 400 Hz, "leading to 200 inputs"
 ENCODINGS = ("extrapolated", "relative", "absolute")
 INPUTS = ("own", "both")
+FEATURES = ("none", "position")
+#: Wavelengths of the position features, m: 5 per decade from 251 mm to 1 mm (13), so
+#: that a position-periodic force of any pitch in that span lies within a factor 10^0.1
+#: (26 %) of one of them. Assumed: the span covers Table I's 0.38 m travel down to the
+#: pitch of fine mechanics; no pitch of the twin is among them (its cogging is 24 mm).
+FEATURE_WAVELENGTHS_M: tuple[float, ...] = tuple(10.0 ** (-k / 5.0) for k in range(3, 16))
+#: Lags of the position features, model samples back (r_{i-1} ... r_{i-16}: the last
+#: 40 ms at 400 Hz). Assumed: a position-dependent force acts on the output through the
+#: built-in loop over about its response time (a 25 Hz loop: some 40 ms); denser near now.
+FEATURE_LAGS: tuple[int, ...] = (1, 2, 3, 4, 6, 8, 12, 16)
 
 Run = tuple[np.ndarray, np.ndarray]
 
@@ -106,6 +131,8 @@ class WindowSpec:
         through its last two samples (default) or to the last sample; or both raw.
     pad : bool
         Pad the history before a run's first sample with that sample (the rest position).
+    features : {"none", "position"}
+        The seed's inputs only, or also the position features (module docstring).
     """
 
     run_rate_hz: float = RUN_RATE_HZ
@@ -114,6 +141,7 @@ class WindowSpec:
     inputs: str = "own"
     encoding: str = "extrapolated"
     pad: bool = True
+    features: str = "none"
 
     def __post_init__(self) -> None:
         check_positive("run_rate_hz", self.run_rate_hz, "Hz")
@@ -132,6 +160,10 @@ class WindowSpec:
             raise ValueError(f"encoding must be one of {ENCODINGS}, got {self.encoding!r}")
         if not isinstance(self.pad, bool):
             raise ValueError(f"pad must be True or False, got {self.pad!r}")
+        if self.features not in FEATURES:
+            raise ValueError(f"features must be one of {FEATURES}, got {self.features!r}")
+        if self.features == "position" and h < max(FEATURE_LAGS):
+            raise ValueError(f"position features need a history h >= {max(FEATURE_LAGS)}, got {h}")
         object.__setattr__(self, "h", h)
         object.__setattr__(self, "run_rate_hz", float(self.run_rate_hz))
         object.__setattr__(self, "rate_hz", float(self.rate_hz))
@@ -142,9 +174,16 @@ class WindowSpec:
         return round(self.run_rate_hz / self.rate_hz)
 
     @property
+    def n_features(self) -> int:
+        """Position features per axis (0 without them)."""
+        if self.features == "none":
+            return 0
+        return 2 * len(FEATURE_LAGS) * len(FEATURE_WAVELENGTHS_M)
+
+    @property
     def n_inputs(self) -> int:
-        """Network inputs: ``h`` (own axis) or ``2 h`` (both axes)."""
-        return self.h * (2 if self.inputs == "both" else 1)
+        """Network inputs: ``h`` plus the features, per axis read (own: 1, both: 2)."""
+        return (self.h + self.n_features) * (2 if self.inputs == "both" else 1)
 
     @property
     def min_run_samples(self) -> int:
@@ -160,6 +199,7 @@ class WindowSpec:
             "inputs": self.inputs,
             "encoding": self.encoding,
             "pad": self.pad,
+            "features": self.features,
         }
 
 
@@ -253,9 +293,22 @@ def _encode_axes(
     """Encoded network inputs for ``axis`` from raw windows of both axes; base of ``axis``."""
     enc = [_encode(w, spec) for w in raw]
     base = enc[axis][1]
-    if spec.inputs == "own":
-        return enc[axis][0], base
-    return np.concatenate([enc[0][0], enc[1][0]], axis=1), base
+    read = (axis,) if spec.inputs == "own" else tuple(range(len(raw)))
+    parts = [enc[a][0] for a in read]
+    if spec.features == "position":
+        parts += [position_features(raw[a]) for a in read]
+    return (parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)), base
+
+
+def position_features(win: np.ndarray) -> np.ndarray:
+    """The position features of raw windows (b, h), m: shape (b, 208) (module docstring).
+
+    Columns: for each lag ``k`` of `FEATURE_LAGS`, ``sin`` of every wavelength of
+    `FEATURE_WAVELENGTHS_M`, then ``cos``.
+    """
+    pos = win[:, [-k for k in FEATURE_LAGS]]  # (b, lags)
+    phase = (2.0 * np.pi) * pos[:, :, None] / np.asarray(FEATURE_WAVELENGTHS_M)
+    return np.concatenate([np.sin(phase), np.cos(phase)], axis=2).reshape(win.shape[0], -1)
 
 
 def windows(

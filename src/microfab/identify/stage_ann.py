@@ -104,15 +104,22 @@ def split_records(
 
 
 def ann_config(
-    run_rate_hz: float, axes: Sequence[str], *, inputs: str = "own", **kwargs: Any
+    run_rate_hz: float,
+    axes: Sequence[str],
+    *,
+    inputs: str = "own",
+    features: str = "none",
+    **kwargs: Any,
 ) -> AnnConfig:
     """`AnnConfig` for runs at ``run_rate_hz``: 400 Hz, h = 200 (seed 002 §III-B).
 
     ``inputs`` is "own" (the seed's: each network reads its own axis's command) or
-    "both" (the coupling study); ``kwargs`` go to `AnnConfig` (``max_epochs``, ``seed``,
-    ``device``, ``threads``, ...).
+    "both" (the coupling study); ``features`` "none" (the seed's 200 inputs) or
+    "position" (`microfab.identify.ann_data`); ``kwargs`` go to `AnnConfig`
+    (``max_epochs``, ``seed``, ``device``, ``threads``, ...).
     """
-    spec = WindowSpec(run_rate_hz=run_rate_hz, rate_hz=MODEL_RATE_HZ, h=HISTORY, inputs=inputs)
+    spec = WindowSpec(run_rate_hz=run_rate_hz, rate_hz=MODEL_RATE_HZ, h=HISTORY,
+                      inputs=inputs, features=features)  # fmt: skip
     return AnnConfig(window=spec, axes=tuple(axes), **kwargs)
 
 

@@ -63,6 +63,10 @@ class AnnSettings:
         Share of whole runs kept for validation (seed: 20 %).
     max_epochs : int
         Most epochs per axis (early stopping on the validation loss decides first).
+    lr_decay : float
+        Learning-rate factor per epoch (`microfab.identify.ann.AnnConfig`).
+    features : {"none", "position"}
+        The seed's inputs, or also the position features (`microfab.identify.ann_data`).
     epoch_windows, val_windows : int or None
         Training windows per epoch and validation windows of the stopping loss
         (`microfab.identify.ann.AnnConfig`; None: all).
@@ -80,6 +84,8 @@ class AnnSettings:
     random_share: float = 0.6  # seed 002 §III-C: "about 60 %"
     validation: float = 0.2  # seed 002 §III-C: 80 % / 20 %
     max_epochs: int = 200
+    lr_decay: float = 0.97  # AnnConfig's default before issue 34; the job sets its own
+    features: str = "none"  # the seed's 200 inputs; the job sets its own
     epoch_windows: int | None = None
     val_windows: int | None = None
     threads: int = 1
@@ -152,7 +158,9 @@ def train_networks(
         1.0 / train.dt,
         stage_data.AXES,
         inputs=inputs,
+        features=s.features,
         max_epochs=s.max_epochs,
+        lr_decay=s.lr_decay,
         epoch_windows=s.epoch_windows,
         val_windows=s.val_windows,
         seed=s.seed,

@@ -13,9 +13,9 @@ the outputs over the batch of windows gives every row of the Jacobian (each row 
 gradient of one output with respect to its ``h`` inputs); the rows are scattered into
 the banded matrix by index arithmetic. The window's encoding (``extrapolated``,
 ``relative`` or ``absolute``), the scaling and the output's base are written in torch
-from the model's own `WindowSpec` and `Scaling`, in float64; the networks run in float32
-as trained. `NetworkMap.predict` equals `AnnModel.predict` (``at="400hz"``) on the
-command whose 400 Hz samples are ``rest, …, rest, r_0, …`` (tested).
+from the model's own `WindowSpec` and `Scaling` (its position features too), in float64;
+the networks run in float32 as trained. `NetworkMap.predict` equals `AnnModel.predict`
+(``at="400hz"``) on the command whose 400 Hz samples are ``rest, …, rest, r_0, …`` (tested).
 
 Threads: the calls run on ``threads`` torch threads (default 1), set on entry and
 restored on exit. Inside stage 2, between CasADi's solves, two threads made the Jacobian
@@ -113,13 +113,24 @@ class NetworkMap:
             return e, 2.0 * last - win[:, -2]
         return e, last
 
+    def _features(self, win: Any) -> Any:
+        """Position features of raw windows (b, h), torch float64 (`position_features`)."""
+        from microfab.identify.ann_data import FEATURE_LAGS, FEATURE_WAVELENGTHS_M
+
+        torch = self._torch
+        pos = win[:, [-k for k in FEATURE_LAGS]]
+        lam = torch.as_tensor(FEATURE_WAVELENGTHS_M, dtype=torch.float64)
+        phase = (2.0 * np.pi) * pos[:, :, None] / lam
+        return torch.cat([torch.sin(phase), torch.cos(phase)], dim=2).reshape(win.shape[0], -1)
+
     def _phi(self, wins: dict[str, Any], axis: str) -> Any:
         """Predicted position of ``axis`` for raw windows (torch float64, (b,))."""
         e_own, base = self._encode(wins[axis])
-        if self.spec.inputs == "own":
-            x = e_own
-        else:
-            x = self._torch.cat([self._encode(wins["x"])[0], self._encode(wins["y"])[0]], dim=1)
+        read = (axis,) if self.spec.inputs == "own" else ("x", "y")
+        parts = [e_own if a == axis else self._encode(wins[a])[0] for a in read]
+        if self.spec.features == "position":
+            parts += [self._features(wins[a]) for a in read]
+        x = parts[0] if len(parts) == 1 else self._torch.cat(parts, dim=1)
         off, scale, out_off, out_scale = self._scal[axis]
         z = ((x - off) / scale).to(self._torch.float32)
         y = self.model.networks[axis](z)[:, 0].to(self._torch.float64)

@@ -60,6 +60,17 @@ _F = "float"
 #: of 16 384 per epoch, about 5 s; `microfab.identify.ann.AnnConfig`).
 EPOCH_WINDOWS = 262_144
 VAL_WINDOWS = 131_072
+#: The training schedule (issue 34: training <= 5 min on 2 cores): at most 60 epochs, the
+#: learning rate falling 5 % an epoch to 1/20 of Adam's 1e-3 by the last (0.95^60 =
+#: 0.046). Assumed, from the measurement in ``benchmarks/bench_ann.py``: the validation
+#: σ levels off within the first minutes, and issue 17's 200 epochs at 0.97 (16 min)
+#: reached the same σ (the figures are in that script's output and issue 34's note).
+MAX_EPOCHS = 60
+LR_DECAY = 0.95
+#: The networks' inputs: the seed's window and the position features
+#: (`microfab.identify.ann_data`): on the calibrated twin they are what lets the networks
+#: learn the cogging (issue 34's measurements).
+FEATURES = "position"
 
 MAGNITUDES = ("calibrated", "assumed")
 
@@ -94,8 +105,13 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="share of random runs (seed: about 60 %)"),
         Key(name="validation", type=_F, default=0.2, low=0.0, high=0.9,
             help="share of whole runs kept for validation (seed: 20 %)"),
-        Key(name="max_epochs", type="int", default=200, low=1, high=100_000,
+        Key(name="max_epochs", type="int", default=MAX_EPOCHS, low=1, high=100_000,
             help="most epochs per axis (early stopping decides first)"),
+        Key(name="lr_decay", type=_F, default=LR_DECAY, low=0.5, high=1.0,
+            help="learning-rate factor per epoch (Adam from 1e-3)"),
+        Key(name="features", type="str", default=FEATURES, choices=("none", "position"),
+            help="'position': sin/cos of recent absolute positions as inputs too (learns "
+                 "cogging); 'none': the seed's 200 inputs"),
         Key(name="epoch_windows", type="int", default=EPOCH_WINDOWS, low=0,
             help="training windows per epoch (0: all)"),
         Key(name="val_windows", type="int", default=VAL_WINDOWS, low=0,
@@ -166,6 +182,8 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> StudySettings:
             random_share=an["random_share"],
             validation=an["validation"],
             max_epochs=an["max_epochs"],
+            lr_decay=an["lr_decay"],
+            features=an["features"],
             epoch_windows=an["epoch_windows"] or None,
             val_windows=an["val_windows"] or None,
             threads=an["threads"],
@@ -242,7 +260,9 @@ def _write_report(result: IdentifyResult, out: Path, title: str) -> Path:
 def reproduction_settings(options: dict[str, Any]) -> StudySettings:
     """The study ``microfab reproduce stage-models`` runs: the seed's design, job defaults."""
     twin = TwinSettings(seed=options["seed"], noise=options["noise"], changes=_magnitudes(options))
-    ann = AnnSettings(epoch_windows=EPOCH_WINDOWS, val_windows=VAL_WINDOWS, workers=2, twin=twin)
+    ann = AnnSettings(max_epochs=MAX_EPOCHS, lr_decay=LR_DECAY, features=FEATURES,
+                      epoch_windows=EPOCH_WINDOWS, val_windows=VAL_WINDOWS, workers=2,
+                      twin=twin)  # fmt: skip
     studies = options["networks"] and options["studies"]
     return StudySettings(
         twin=twin,

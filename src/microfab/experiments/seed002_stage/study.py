@@ -366,19 +366,9 @@ def run_study(
             seconds["PRBS/chirp networks"] = time.perf_counter() - t1
 
     t1 = time.perf_counter()
-    progress("test cases: sizes", 0, None)
-    sizes = case_sizes(s.cases.r_time_s, s.cases.airfoil_time_s)
-    commands = case_commands(
-        sizes, s.cases.a_max_values,
-        progress=lambda i, n: progress("test cases: references", i, n),
-    )  # fmt: skip
-    progress("test cases: on the twin", 0, None)
-    cases = play_cases(
-        commands,
-        dataclasses.replace(s.twin, seed=s.twin.seed + 20_000),
-        {"linear": linear.stage_model(), "ann": _stage(ann), "coupled": _stage(coupled),
-         "classic": _stage(classic)},
-    )  # fmt: skip
+    models = {"linear": linear.stage_model(), "ann": _stage(ann), "coupled": _stage(coupled),
+              "classic": _stage(classic)}  # fmt: skip
+    sizes, cases = study_cases(s, models, s.cases.a_max_values, progress=progress)
     seconds["test cases"] = time.perf_counter() - t1
     return IdentifyStudy(
         settings=s,
@@ -398,6 +388,31 @@ def run_study(
         seconds=seconds,
         curves=model_curves(s.twin, linear, ann, val_example),
     )
+
+
+def study_cases(
+    settings: StudySettings,
+    models: dict[str, Any],
+    a_values: Sequence[float],
+    names: Sequence[str] | None = None,
+    progress: Progress = no_progress,
+) -> tuple[CaseSizes, tuple[CaseRun, ...]]:
+    """The test cases of step 3 (module docstring): sized, planned, played, scored.
+
+    ``models`` maps a name to a stage model (``errors(records, keep=True)``) or None;
+    ``names`` defaults to every case. The twin's noise seeds sit 20 000 above the
+    study's (assumed: apart from the training and validation runs').
+    """
+    s = settings
+    progress("test cases: sizes", 0, None)
+    sizes = case_sizes(s.cases.r_time_s, s.cases.airfoil_time_s)
+    commands = case_commands(
+        sizes, a_values, **({} if names is None else {"names": tuple(names)}),
+        progress=lambda i, n: progress("test cases: references", i, n),
+    )  # fmt: skip
+    progress("test cases: on the twin", 0, None)
+    twin = dataclasses.replace(s.twin, seed=s.twin.seed + 20_000)
+    return sizes, play_cases(commands, twin, models)
 
 
 def _fig6_commands(records: Sequence[StageRecord]) -> tuple[tuple[str, np.ndarray], ...]:
