@@ -424,7 +424,7 @@ def run_generations(
         mdir = str(resolve_models_dir(st.models_dir))
         if g > 1:
             training = _saved(gdir / "training.json", fp)
-            if training is None or not (gdir / "models" / "ann" / "model").is_dir():
+            if training is None or not (gdir / "models" / "ann" / "model" / "model.json").is_file():
                 training = _retrain(g, st, root, models, data, report)
             mdir = str(gdir / "models")
             models = load_models(mdir)

@@ -79,14 +79,17 @@ def test_per_generation_tables_exist_and_are_labelled(study):
     assert summary["generations"][1]["training"]["epochs"] == {"x": 2, "y": 2}
 
 
-def test_report_shows_both(study):
+def test_report_shows_both(study, page_check):
     from microfab.experiments.seed002_reference.report import write_report
 
     _, out, s = study
-    text = write_report(s, out, "t").read_text()
+    page = write_report(s, out, "t")
+    text = page.read_text()
     assert "Generation 1 of 2: Table III" in text
     assert "Networks against the twin per generation" in text
-    assert "Generations (seed 002" in text
+    assert "Generations (seed 002" in text and "generations.png" in text
+    if page_check is not None:  # every image decodes, the console stays silent
+        page_check(page)
 
 
 def test_a_rerun_skips_finished_generations_and_points(study, monkeypatch):

@@ -20,6 +20,7 @@ from microfab.report.canvas import new_figure
 from microfab.report.reference import signed_deviation
 
 __all__ = [
+    "plot_generations",
     "plot_point_along_s",
     "plot_point_xy",
     "plot_timings",
@@ -129,4 +130,27 @@ def plot_timings(rows: Sequence[Mapping[str, Any]]) -> MplFigure:
     ax.set_ylabel("wall time [s]")
     ax.set_yscale("log")
     ax.legend(fontsize=7)
+    return fig
+
+
+def plot_generations(rows: Sequence[Mapping[str, Any]]) -> MplFigure:
+    """Seed 002 Fig. 7's loop per generation: the networks' σ against the twin, and L∞.
+
+    ``rows``: per generation ``generation``, ``sigma_um`` (per axis) and ``linf_m`` (the
+    twin's largest deviation of the optimised references); from the study, nothing
+    computed here.
+    """
+    fig = new_figure(9.0, 3.5)
+    ax, bx = fig.subplots(1, 2)
+    g = [r["generation"] for r in rows]
+    for axis, style in (("x", "o-"), ("y", "s--")):
+        ax.plot(g, [r["sigma_um"].get(axis, np.nan) for r in rows], style, label=axis)
+    ax.set_xlabel("generation")
+    ax.set_ylabel("σ networks - twin [µm]")
+    ax.set_xticks(g)
+    ax.legend(fontsize=7)
+    bx.plot(g, [r["linf_m"] * _UM for r in rows], "o-")
+    bx.set_xlabel("generation")
+    bx.set_ylabel("twin L∞ of the optimised shapes [µm]")
+    bx.set_xticks(g)
     return fig

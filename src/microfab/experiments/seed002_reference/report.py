@@ -58,6 +58,15 @@ def _figures(study: ReferenceStudy, out: Path) -> list[tuple[str, Any, str]]:
         if rows:
             cap = f"Redraws Fig. {fig_no}: L2 against time and time against a_max."
             figs.append((f"tradeoff_{name}.png", f.plot_tradeoff(rows, name), cap))
+    if study.generations is not None:
+        gens = [{"generation": g.index, "linf_m": g.twin.get("linf_m", np.nan),
+                 "sigma_um": {a: e["sigma_um"] for a, e in g.network_error.items()}}
+                for g in study.generations.generations]  # fmt: skip
+        cap = (
+            "Per generation (seed 002 Fig. 7): the networks' σ against the twin on the "
+            "shapes that generation optimised, and the twin's L∞ of those references."
+        )
+        figs.append(("generations.png", f.plot_generations(gens), cap))
     rows = [p for _, p in sorted(study.points.items()) if "error" not in p]
     if rows:
         figs.append(("timings.png", f.plot_timings(
