@@ -33,7 +33,7 @@ def small(models_dir, **kw) -> ReferenceSettings:
                 a_max=(2.0,), airfoil_extra=(), tolerance_m=100e-6, sizes=CaseSizes(5e-3, 20e-3),
                 stage2_max_iter=2, generations=2, generation_shapes=("circle", "square"),
                 generation_size_m=3e-3, generation_a_max=(2.0,), retrain_epochs=2,
-                generation_data_s=10.0)  # fmt: skip
+                generation_data_s=10.0, retrain_workers=1)  # fmt: skip
     return ReferenceSettings(**{**base, **kw})
 
 

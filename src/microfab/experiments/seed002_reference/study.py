@@ -105,6 +105,9 @@ class ReferenceSettings:
     generation_data_s : float or None
         Generation 1's data length, s (`microfab.machines.xy_stage_ann.AnnSettings`
         ``total_s``; None: the seed's, about 525 s).
+    retrain_workers : int
+        Axes retrained at once, one process each (assumed 2, the ``stage-identify``
+        job's: on 2 cores two processes halve the time; not fingerprinted).
     """
 
     models_dir: str = ""
@@ -124,6 +127,7 @@ class ReferenceSettings:
     generation_a_max: tuple[float, ...] = (1.0, 3.0)  # assumed: Table III's columns
     retrain_epochs: int = 20  # assumed (xy_stage_generations.GenerationSettings)
     generation_data_s: float | None = None
+    retrain_workers: int = 2  # assumed, see above
 
     def generation_settings(self) -> GenerationSettings:
         """The generations' settings: these models, twin, tolerance and stage 2."""
@@ -131,7 +135,9 @@ class ReferenceSettings:
                             changes=self.twin.changes)  # fmt: skip
         return GenerationSettings(
             models_dir=self.models_dir,
-            ann=AnnSettings(total_s=self.generation_data_s, twin=twin),
+            ann=AnnSettings(
+                total_s=self.generation_data_s, twin=twin, workers=self.retrain_workers
+            ),
             shapes=self.generation_shapes,
             size_m=self.generation_size_m,
             a_max=self.generation_a_max,
