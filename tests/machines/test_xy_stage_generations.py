@@ -77,6 +77,11 @@ def test_second_generation_trains_on_the_first_data_and_the_new_runs(done, tiny_
     assert model.info["train_digest"] == data_digest(runs_of(train))
     assert model.info["val_digest"] == data_digest(runs_of(val))
     assert model.info["init_digest"] == init_digest(first)  # warm: from generation 1
+    # the rate continues where generation 1's training ended (4 epochs in tiny_models)
+    c = first.config
+    assert gen.continued_rate(first) == pytest.approx(c.learning_rate * c.lr_decay**4)
+    assert model.config.learning_rate == pytest.approx(gen.continued_rate(first))
+    assert model.config.learning_rate < c.learning_rate
     t = res.generations[1].training
     assert (t["train_runs"], t["validation_runs"]) == (len(train), len(val))
     assert t["start_data_matches"] is False  # tiny_models never saw the twin

@@ -26,7 +26,8 @@ The linear model is not refitted ("no added benefit in refitting the linear mode
    (`ann_records` with ``settings.ann``: its validation runs stay as they were); the
    networks of generation ``g + 1`` are trained warm from generation ``g``'s weights and
    scaling (`microfab.identify.ann_train.train_ann` ``init``) for at most
-   ``retrain_epochs`` epochs, early-stopped on the grown validation set.
+   ``retrain_epochs`` epochs, early-stopped on the grown validation set, the learning
+   rate continuing where generation ``g``'s training left it (`continued_rate`).
 
 Folder layout (every file written atomically, `microfab.io.atomic`)::
 
@@ -75,6 +76,7 @@ __all__ = [
     "Generation",
     "GenerationSettings",
     "GenerationsResult",
+    "continued_rate",
     "regular_shapes",
     "run_generations",
 ]
@@ -327,6 +329,19 @@ def _saved(path: Path, fp: dict[str, Any]) -> dict[str, Any] | None:
     return saved if saved.get("settings") == fp else None
 
 
+def continued_rate(model: Any) -> float:
+    """The learning rate a retraining of ``model`` starts at: where its training ended.
+
+    ``learning_rate · lr_decay^epochs`` of its configuration, with the fewest epochs of
+    its axes (the higher rate). Assumed: "trained further" (§III-C.2) read as the same
+    decaying schedule continued; restarting at the first rate moves the trained weights
+    by steps sized for untrained ones.
+    """
+    epochs = [v.get("epochs", 0) for v in model.info.get("axes", {}).values()]
+    n = min(epochs) if epochs else 0
+    return float(model.config.learning_rate * model.config.lr_decay**n)
+
+
 class _Data:
     """Generation 1's played data, made on first use (about 75 s at the seed's length)."""
 
@@ -358,6 +373,7 @@ def _retrain(
         val += [by_name[n] for n in done["split"]["validation"]]
     start = prev.networks
     config = dataclasses.replace(start.config, max_epochs=st.retrain_epochs,
+                                 learning_rate=continued_rate(start),
                                  threads=st.ann.threads, workers=st.ann.workers)  # fmt: skip
 
     def epoch(rec: Any) -> None:
