@@ -58,7 +58,7 @@ def test_check_refuses_a_reference_job_without_its_models(tmp_path) -> None:
     example = Path(__file__).parents[2] / "examples" / "blackbox_stage_reference.toml"
     job = tmp_path / "j.toml"
     text = example.read_text(encoding="utf-8")
-    job.write_text(text.replace('dir = ""', f'dir = "{tmp_path / "none"}"', 1))
+    job.write_text(text.replace('dir = "builtin"', f'dir = "{tmp_path / "none"}"', 1))
     assert str(tmp_path / "none") in job.read_text()
     for extra in (["--check"], []):
         res = CliRunner().invoke(app, ["run", str(job), *extra, "--out", str(tmp_path / "o")])

@@ -93,9 +93,10 @@ def ann_cmd(
         typer.Option(
             help="position: also sin/cos of the last 40 ms of absolute positions at 13 "
             "wavelengths (1-251 mm) as inputs, so position-periodic forces (cogging) are "
-            "learnt; none: the seed's 200 inputs only."
+            "learnt (better on runs like the training runs, worse on new shapes on the "
+            "twin); none: the seed's 200 inputs only."
         ),
-    ] = "position",
+    ] = "none",
 ) -> None:
     """Train seed 002's per-axis networks (eq. 7, Fig. 5) on measured runs of the stage.
 

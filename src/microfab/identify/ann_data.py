@@ -49,8 +49,12 @@ What is built here, and the choices made (the seed leaves them open):
   function of the window, so eq. 7 holds; 208 more inputs per axis. Measured on the
   calibrated twin (x, noise off, 300 s of random runs, 150 s of training): with the
   friction off, so that the cogging is the nonlinearity, validation σ 21.5 µm of a
-  23.3 µm target without the features, 3.3 µm with them; with the cogging's pitch moved
-  from 24 to 17 mm, see `FEATURE_WAVELENGTHS_M` (issue 34's note).
+  23.3 µm target without the features, 3.3 µm with them; the full twin 22.9 -> 14.6 µm.
+  With the ``stage-identify`` job's data and schedule: validation σ x / y 13.9 / 24.8 µm
+  against about 19 / 38 without, but the letters at 1 m/s² (shapes the training never
+  saw) 27.3 / 61.3 against 21.6 / 41.4: the features also let the network tie the
+  friction's effects to places, which does not carry over. Hence an option, off by
+  default (issue 34's note).
 * **Scaling.** After encoding, every input column and the target get an offset (mean) and
   a scale (standard deviation) fitted on the training windows (`Scaling`), stored with
   the model; a column that does not vary keeps scale 1.

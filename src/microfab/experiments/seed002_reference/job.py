@@ -60,9 +60,9 @@ SHIPPED_MODELS = "xy_stage_models"
 
 SCHEMA: dict[str, tuple[Key, ...]] = {
     "models": (
-        Key(name="dir", type="str", default="", path=True,
+        Key(name="dir", type="str", default="builtin", path=True,
             help="output of a stage-identify job (linear_model.json and ann/model), "
-                 "beside the job file or in the working directory; '' or 'builtin': the "
+                 "beside the job file or in the working directory; 'builtin' (default): the "
                  "models shipped with microfab (the built-in twin's)"),
     ),
     "twin": (
@@ -258,8 +258,9 @@ REFERENCE_OPT_REPRODUCTION = Reproduction(
     name="reference-opt",
     run=_reproduce,
     options=(
-        Key(name="models", type="str", default="", path=True,
-            help="output folder of a stage-identify job; '' (default): the shipped models"),
+        Key(name="models", type="str", default="builtin", path=True,
+            help="output folder of a stage-identify job; 'builtin' (default): the shipped "
+                 "models"),
         Key(name="seed", type="int", default=0, low=0, help="noise seed"),
         Key(name="noise", type="bool", default=True, help="2 µm output noise on"),
         Key(name="tradeoff", type="bool", default=True,

@@ -219,10 +219,12 @@ def _letter_cells(settings: Any, model: Any) -> dict[str, dict[str, float]]:
     from microfab.identify.stage_runs import RunErrors
 
     a_values = settings.cases.table_a_max
-    _, cases = study_cases(settings, {"ann": model}, a_values, names=SEED002_LETTERS)
+    # every case, as the job plays them: each run's noise seed is its place in the list
+    _, cases = study_cases(settings, {"ann": model}, settings.cases.a_max_values)
     out = {}
     for a in a_values:
-        parts = [c.errors["ann"] for c in cases if abs(c.a_max - a) < 1e-12]
+        parts = [c.errors["ann"] for c in cases
+                 if abs(c.a_max - a) < 1e-12 and c.case in SEED002_LETTERS]  # fmt: skip
         out[f"{a:g}"] = _stats(RunErrors.pooled(parts))
     return out
 

@@ -1,0 +1,95 @@
+"""The models shipped for the built-in XY stage twin: made as recorded, scoring as recorded.
+
+No training here: the networks' data are made again from the recorded settings and must
+digest as the training recorded; the shipped networks are scored on the validation runs
+and on the letters (Table II), and the paper's network cells are checked per cell.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+pytest.importorskip("torch")
+
+from microfab.experiments.seed002_stage import paper
+from microfab.experiments.seed002_stage.shipped import RECORD, recheck
+from microfab.optimize.models import builtin_models_dir, load_models
+
+FOLDER = builtin_models_dir()
+
+
+@pytest.fixture(scope="module")
+def again():
+    return recheck(FOLDER)
+
+
+def test_the_shipped_folder_holds_models_and_their_record():
+    for name in (RECORD, "linear_model.json", "ann/model/model.json", "ann/model/weights.npz"):
+        assert (FOLDER / name).is_file(), name
+    size = sum(f.stat().st_size for f in FOLDER.rglob("*") if f.is_file())
+    assert size < 4e6  # "a few MB at most" (issue 34)
+
+
+def test_the_training_data_are_made_again_from_the_recorded_settings(again):
+    rec = again["recorded"]
+    info = again["model"].model.info
+    assert again["train_digest"] == rec["data"]["train_digest"] == info["train_digest"]
+    assert again["val_digest"] == rec["data"]["val_digest"] == info["val_digest"]
+
+
+def test_the_shipped_networks_score_as_recorded_on_the_validation_runs(again):
+    for a in ("x", "y"):
+        got, want = again["validation"][a], again["recorded"]["validation"][a]
+        assert got["sigma_um"] == pytest.approx(want["sigma_um"], rel=1e-4)
+        assert got["mu_um"] == pytest.approx(want["mu_um"], rel=1e-3, abs=1e-3)
+
+
+def test_the_letter_cells_score_as_recorded(again):
+    for a, cells in again["letters"].items():
+        want = again["recorded"]["letters"][a]["ann"]
+        for key, value in cells.items():
+            assert value == pytest.approx(want[key], rel=1e-4, abs=1e-3), (a, key)
+
+
+def test_the_models_load_as_the_builtin_default():
+    m = load_models("")
+    assert m.source == "builtin" and m.networks is not None
+    assert load_models("builtin").source == "builtin"
+
+
+def _cell(again, axis: str, column: str) -> tuple[float, float]:
+    if column == "training":
+        ours = again["validation"][axis]["sigma_um"]
+    else:
+        ours = again["letters"][column.split("_")[1]][f"sigma_{axis}_um"]
+    return ours, paper.TABLE_II["ann"][axis][column].sigma * 1e6
+
+
+CELLS = [(a, c) for a in ("x", "y") for c in ("training", "letters_1", "letters_3")]
+
+
+#: Measured on the shipped models (trained.json), σ µm, ours / seed: the cause of the gap.
+MEASURED = {
+    ("x", "training"): "19.7 / 3.2", ("y", "training"): "38.2 / 6.0",
+    ("x", "letters_1"): "23.0 / 8.2", ("y", "letters_1"): "44.0 / 13.4",
+    ("x", "letters_3"): "25.7 / 11.1", ("y", "letters_3"): "59.5 / 18.7",
+}  # fmt: skip
+CAUSE = (
+    "the seed's network does not learn the twin's cogging (a 24 mm-periodic force of the "
+    "absolute position: with friction off, validation sigma x 21.5 of a 23.3 um target) nor "
+    "all of its friction (cogging off: 7.7 of 38.2 um); position features learn the cogging "
+    "(validation 13.9 / 24.8 um) but generalise worse to the letters (27.3 / 61.3 um at "
+    "1 m/s^2): issue 34's note"
+)
+
+
+def _xfail(a: str, c: str) -> pytest.MarkDecorator:
+    return pytest.mark.xfail(strict=True, reason=f"{MEASURED[a, c]} um; {CAUSE}")
+
+
+@pytest.mark.parametrize(
+    ("axis", "column"), [pytest.param(a, c, marks=_xfail(a, c)) for a, c in CELLS]
+)
+def test_table_ii_network_cell_within_twice_the_paper(again, axis, column):
+    ours, seed = _cell(again, axis, column)
+    assert ours <= 2 * seed, f"{axis} {column}: ours {ours:.1f} um, seed {seed:.1f} um"
