@@ -91,7 +91,6 @@ def test_reproduce_check_refuses_what_a_run_would_refuse(tmp_path: Path) -> None
     (tmp_path / "afile").write_text("kept\n")
     (tmp_path / "models").mkdir()
     cases = {
-        ("reference-opt",): "needs identified models",
         ("reference-opt", "--set", "models=nowhere"): "does not exist",
         ("stage-models", "--set", "checkpoints=afile"): "is a file",
         ("stage-models", "--set", "magnitudes=foo"): "magnitudes",
