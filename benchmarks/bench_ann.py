@@ -114,8 +114,6 @@ def real_run(
     Each schedule of ``which`` trains on the same data, one after the other; prints the
     wall time and the validation σ of each, and the ratio of times.
     """
-    import dataclasses
-
     from microfab.experiments.seed002_stage.job import EPOCH_WINDOWS, VAL_WINDOWS
     from microfab.identify.stage_ann import ann_config, train_stage_ann
     from microfab.machines.xy_stage_ann import AnnSettings, ann_records
@@ -141,7 +139,7 @@ def real_run(
             threads=threads, workers=workers,
         )  # fmt: skip
         t1 = time.perf_counter()
-        fit = train_stage_ann(train.records, val.records, dataclasses.replace(config))
+        fit = train_stage_ann(train.records, val.records, config)
         times[name] = time.perf_counter() - t1
         ep = ", ".join(f"{a} {fit.model.info['axes'][a]['epochs']}" for a in fit.model.axes)
         print(f"{name}: {epochs} epochs at most, decay {decay:g}/epoch: training "

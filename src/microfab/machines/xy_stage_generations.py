@@ -13,9 +13,8 @@ The linear model is not refitted ("no added benefit in refitting the linear mode
    `microfab.optimize.models.load_models`; later ones: ``gen<g>/models``, the linear model
    copied from generation 1 and the retrained networks);
 2. each regular shape at each ``a_max`` (`GenerationSettings`) goes through both stages
-   and is played on the twin (`microfab.machines.xy_stage_reference.run_point`); the
-   optimised 10 kHz command is played again alone with the same noise seed (the same
-   record: the twin is deterministic per seed) to keep the whole 10 kHz run;
+   and is played on the twin (`microfab.machines.xy_stage_reference.run_point`, whose
+   10 kHz record of the optimised command is kept);
 3. scored: the networks' prediction from rest against the twin's output for those inputs,
    μ and σ per axis in µm (``predicted - measured``, pooled over the generation's runs:
    what Table II columns 2-3 measure on the letters), and the twin's contour error of the
@@ -63,7 +62,7 @@ from microfab.identify.stage_data import StageRecord
 from microfab.io.atomic import atomic_save_npz, atomic_write_bytes, atomic_write_json
 from microfab.io.runstore import RunRefusedError, canonical_settings, settings_difference
 from microfab.machines import xy_stage_reference
-from microfab.machines.xy_stage import Command, Played, TwinSettings, play_runs
+from microfab.machines.xy_stage import Played, TwinSettings
 from microfab.machines.xy_stage_ann import AnnSettings, ann_records
 from microfab.optimize.metrics import DeviationNorms
 from microfab.optimize.models import Models, load_models, models_digest, resolve_models_dir
@@ -281,16 +280,15 @@ def _play_generation(
         except (Stage1Error, ValueError) as exc:
             points.append({"shape": shape, "a_max": a, "error": f"{type(exc).__name__}: {exc}"})
             continue
-        cmd = np.asarray(res.reference.command.position)
-        rec = play_runs([Command(name, 1.0 / xy_stage_reference.RUN_RATE_HZ, cmd)], twin)
-        records.append(rec.records[0])
+        rec = dataclasses.replace(res.records["optimised"], name=name)  # the 10 kHz run
+        records.append(rec)
         norms.append(res.scores["optimised_twin"])
-        err = models.networks.metrics([(rec.records[0].u, rec.records[0].y)])
+        err = models.networks.metrics([(rec.u, rec.y)])
         points.append({
             "shape": shape, "a_max": a, "run": name, "duration_s": res.duration,
             "m": res.reference.m, "twin": res.scores["optimised_twin"].as_dict(),
             "ann": res.scores["optimised_ann"].as_dict(), "improvement": res.improvement(),
-            "network_error": _stats(err), "limited": int(rec.limited[0]),
+            "network_error": _stats(err), "limited": res.limited["optimised"],
         })  # fmt: skip
     report(f"generation {g}: points", len(todo), len(todo))
     if len(records) >= 2:
@@ -391,8 +389,7 @@ def _retrain(
         "generation": g,
         "epochs": {a: v.get("epochs") for a, v in axes.items()},
         "best_epoch": {a: v.get("best_epoch") for a, v in axes.items()},
-        "validation": {a: {"mu_um": e.mu * 1e6, "sigma_um": e.sigma * 1e6, "n": e.n}
-                       for a, e in fit.validation.items()},
+        "validation": _stats(fit.validation),
         "train_runs": len(train),
         "validation_runs": len(val),
         "start_data_matches": start.info.get("train_digest")

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from microfab.geometry.path import Path as Contour
+from microfab.identify.stage_data import StageRecord
 from microfab.machines.xy_stage import Played, TwinSettings, play_runs
 from microfab.optimize.command import LEAD
 from microfab.optimize.metrics import DeviationNorms
@@ -91,6 +92,8 @@ class PointResult:
     wall_s : dict of str to float
     reference_networks : AnnModel or None
         The networks (the training-range warning of the summary).
+    records : dict of str to StageRecord
+        The 10 kHz runs on the twin per input ("optimised", "baseline", "stretched").
     """
 
     case: str
@@ -101,6 +104,7 @@ class PointResult:
     outputs: dict[str, np.ndarray] = field(default_factory=dict)
     wall_s: dict[str, float] = field(default_factory=dict)
     reference_networks: Any = None
+    records: dict[str, StageRecord] = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
@@ -206,6 +210,7 @@ def run_point(
     scores: dict[str, DeviationNorms] = {}
     outputs: dict[str, np.ndarray] = {}
     limited = {}
+    records = {}
     net = NetworkMap(models.networks)
     step = round(RUN_RATE_HZ / MODEL_RATE_HZ)
     t0 = time.perf_counter()
@@ -216,6 +221,7 @@ def run_point(
         outputs[f"{name}_twin"] = y
         outputs[f"{name}_input"] = _at_model_rate(rec.u, m, lead)
         limited[name] = int(lim)
+        records[name] = rec
         # simulated: the networks on the command's 400 Hz samples from rest (the seed's φ)
         r400 = np.asarray(cmd)[lead * step :: step][:m]
         if r400.shape[0] < m:
@@ -226,7 +232,7 @@ def run_point(
     wall["score"] = time.perf_counter() - t0
     return PointResult(case=case, a_max=problem.a_max, reference=ref, scores=scores,
                        limited=limited, outputs=outputs, wall_s=wall,
-                       reference_networks=models.networks)  # fmt: skip
+                       reference_networks=models.networks, records=records)  # fmt: skip
 
 
 def write_point(result: PointResult, directory: Path) -> None:

@@ -10,8 +10,8 @@ read their models with it.
 
 **Shipped models.** The package holds the models of the ``stage-identify`` job on the
 built-in twin (``microfab/data/xy_stage_models``: the same files, plus ``trained.json``:
-the settings, seed, data digest and validation σ that produced them, written by
-``benchmarks/train_shipped_models.py``). A models folder given as ``""`` or ``"builtin"``
+the settings, seed, data digest and validation σ that produced them, written by ``python
+-m microfab.experiments.seed002_stage.shipped``). A models folder given as ``""`` or ``"builtin"``
 means them (`resolve_models_dir`), so the reference optimisation runs straight after
 install; a user's own folder is any other path. `models_digest` hashes the model files
 themselves, so that a result computed on other models is never taken for this one.
@@ -64,12 +64,14 @@ def models_digest(directory: str | Path | None, *, networks: bool = True) -> str
     What decides an optimisation's numbers: two folders with the same files digest alike,
     a retrained network in the same folder does not. Missing files are hashed as absent.
     """
+    from microfab.io.runstore import content_digest
+
     d = resolve_models_dir(directory)
     h = hashlib.sha256()
     for name in _FILES if networks else _FILES[:1]:
         f = d / name
         h.update(name.encode())
-        h.update(f.read_bytes() if f.is_file() else b"<absent>")
+        h.update(content_digest(f).encode() if f.is_file() else b"<absent>")
     return h.hexdigest()
 
 

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import Progress, no_progress
+from microfab.io.runstore import canonical_settings
 
 __all__ = ["RECORD", "SECTIONS", "recheck", "shipped_settings", "train_shipped", "write_record"]
 
@@ -73,17 +74,17 @@ def _letters(study: Any) -> dict[str, dict[str, dict[str, float] | None]]:
         row: dict[str, dict[str, float] | None] = {}
         for model in ("ann", "linear"):
             e = study.letters(a, model)
-            row[model] = None if e is None else _stats(e)
+            row[model] = None if e is None else _stats(e.mean, e.std, e.axes)
         out[f"{a:g}"] = row
     return out
 
 
-def _stats(errors: Any) -> dict[str, float]:
-    """μ and σ per axis of a `RunErrors`, µm."""
+def _stats(mean: Any, std: Any, axes: Any) -> dict[str, float]:
+    """μ and σ per axis (m, one value per axis), as ``mu_<axis>_um``, ``sigma_<axis>_um``."""
     out: dict[str, float] = {}
-    for j, a in enumerate(errors.axes):
-        out[f"mu_{a}_um"] = float(errors.mean[j]) * 1e6
-        out[f"sigma_{a}_um"] = float(errors.std[j]) * 1e6
+    for j, a in enumerate(axes):
+        out[f"mu_{a}_um"] = float(mean[j]) * 1e6
+        out[f"sigma_{a}_um"] = float(std[j]) * 1e6
     return out
 
 
@@ -110,13 +111,7 @@ def write_record(folder: Path, study: Any, sections: dict[str, Any], wall_s: flo
             for a in ann.model.axes
         },
         "epochs": {a: info["axes"][a]["epochs"] for a in ann.model.axes},
-        "linear_on_training": {
-            **{f"mu_{a}_um": float(study.linear.mu_m[j]) * 1e6 for j, a in enumerate(("x", "y"))},
-            **{
-                f"sigma_{a}_um": float(study.linear.sigma_m[j]) * 1e6
-                for j, a in enumerate(("x", "y"))
-            },
-        },
+        "linear_on_training": _stats(study.linear.mu_m, study.linear.sigma_m, ("x", "y")),
         "letters": _letters(study),
         "seconds": {**study.seconds, "wall": wall_s},
         "versions": {
@@ -154,7 +149,7 @@ def train_shipped(
     try:
         write_stage_model(stage / "linear_model.json", study.linear.stage_model())
         save_ann_model(study.ann.model, stage / "ann" / "model")
-        write_record(stage, study, _json_ready(_sections(SECTIONS)), wall)
+        write_record(stage, study, canonical_settings(_sections(SECTIONS)), wall)
         old = out.with_name(f".{out.name}-old")
         if old.exists():
             shutil.rmtree(old)
@@ -167,12 +162,6 @@ def train_shipped(
         shutil.rmtree(stage, ignore_errors=True)
         raise
     return out
-
-
-def _json_ready(sections: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """Every resolved key of every section (tuples as lists), as the record keeps them."""
-    return {sec: {k: list(v) if isinstance(v, tuple) else v for k, v in body.items()}
-            for sec, body in sections.items()}  # fmt: skip
 
 
 def recheck(folder: str | Path) -> dict[str, Any]:
@@ -214,18 +203,14 @@ def recheck(folder: str | Path) -> dict[str, Any]:
 
 def _letter_cells(settings: Any, model: Any) -> dict[str, dict[str, float]]:
     """Table II's letter cells of ``model`` (µm), the cases played as the job plays them."""
-    from microfab.experiments.seed002_stage.study import study_cases
-    from microfab.geometry.text import SEED002_LETTERS
-    from microfab.identify.stage_runs import RunErrors
+    from microfab.experiments.seed002_stage.study import pooled_letters, study_cases
 
-    a_values = settings.cases.table_a_max
     # every case, as the job plays them: each run's noise seed is its place in the list
     _, cases = study_cases(settings, {"ann": model}, settings.cases.a_max_values)
     out = {}
-    for a in a_values:
-        parts = [c.errors["ann"] for c in cases
-                 if abs(c.a_max - a) < 1e-12 and c.case in SEED002_LETTERS]  # fmt: skip
-        out[f"{a:g}"] = _stats(RunErrors.pooled(parts))
+    for a in settings.cases.table_a_max:
+        e = pooled_letters(cases, a, "ann")
+        out[f"{a:g}"] = _stats(e.mean, e.std, e.axes)
     return out
 
 

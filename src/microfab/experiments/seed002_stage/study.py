@@ -270,21 +270,31 @@ class IdentifyStudy:
 
     def case(self, name: str, a_max: float) -> CaseRun:
         """The run of ``name`` at ``a_max``."""
-        for c in self.cases:
-            if c.case == name and abs(c.a_max - a_max) < 1e-12:
-                return c
-        raise KeyError(f"no run of case {name!r} at a_max {a_max:g} m/s²")
+        return case_run(self.cases, name, a_max)
 
     def letters(self, a_max: float, model: str = "linear") -> RunErrors | None:
         """One model's errors pooled over the four letters at ``a_max`` (Table II)."""
-        parts = [self.case(ch, a_max).errors.get(model) for ch in SEED002_LETTERS]
-        if any(p is None for p in parts):
-            return None
-        return RunErrors.pooled(parts)
+        return pooled_letters(self.cases, a_max, model)
 
     def durations(self, a_max: float) -> dict[str, float]:
         """Each case's command length at ``a_max``, s."""
         return {c.case: c.duration_s for c in self.cases if abs(c.a_max - a_max) < 1e-12}
+
+
+def case_run(cases: Sequence[CaseRun], name: str, a_max: float) -> CaseRun:
+    """The run of case ``name`` at ``a_max`` among ``cases``."""
+    for c in cases:
+        if c.case == name and abs(c.a_max - a_max) < 1e-12:
+            return c
+    raise KeyError(f"no run of case {name!r} at a_max {a_max:g} m/s²")
+
+
+def pooled_letters(cases: Sequence[CaseRun], a_max: float, model: str) -> RunErrors | None:
+    """``model``'s errors pooled over the four letters at ``a_max`` (Table II), or None."""
+    parts = [case_run(cases, ch, a_max).errors.get(model) for ch in SEED002_LETTERS]
+    if any(p is None for p in parts):
+        return None
+    return RunErrors.pooled(parts)
 
 
 #: Folder of each trained model (and of its checkpoints) under a study's output folder.
