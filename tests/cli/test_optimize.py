@@ -106,3 +106,14 @@ def test_bad_drawing_and_model_refused(tiny_models, tmp_path, one_error_line):
                               "--out", str(out)])  # fmt: skip
     one_error_line(res, "no linear model")
     assert not out.exists()
+
+
+def test_the_shipped_models_folder_is_an_input_even_when_not_named():
+    """Without --model the shipped models are read: --out there is refused, nothing written."""
+    from microfab.optimize.models import builtin_models_dir
+
+    d = builtin_models_dir()
+    before = sorted(p.name for p in d.rglob("*"))
+    res = runner.invoke(app, ["optimize", "circle:radius=0.002", "--out", str(d), "--stage", "1"])
+    assert res.exit_code == 2 and "is also an input" in res.output, res.output
+    assert sorted(p.name for p in d.rglob("*")) == before

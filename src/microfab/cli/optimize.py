@@ -81,8 +81,11 @@ def optimize_cmd(
     ] = None,
 ) -> None:
     """Optimise the reference of a contour on a black-box stage (seed 002 §IV)."""
+    from microfab.optimize.models import resolve_models_dir
+
+    # the models folder is an input even when it is the shipped one (never written into)
     check_output_path(
-        "--out", out, kind="folder", inputs=[Path(drawing)] + ([model] if model else [])
+        "--out", out, kind="folder", inputs=[Path(drawing), resolve_models_dir(model)]
     )
     from microfab.optimize.problem import ContourProblem
     from microfab.optimize.stage1 import Stage1Error, Stage1Settings
