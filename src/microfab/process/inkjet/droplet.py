@@ -36,6 +36,7 @@ from microfab.trajectory.waveform import Waveform, seed003_waveform
 
 __all__ = [
     "BREAKUP_RADIUS_M",
+    "DEFAULT_JET_MODEL",
     "DOD_NUMERICS",
     "EULER_DOD_NUMERICS",
     "FLOW_RECORD_S",
@@ -70,6 +71,8 @@ FLOW_RECORD_S = 5.001e-3
 #: The two jet models of :func:`simulate_droplet`.
 JetModelKind = Literal["lagrangian", "eulerian"]
 JET_MODELS: tuple[JetModelKind, ...] = ("lagrangian", "eulerian")
+#: The jet model every command runs unless asked for another (one place for the default).
+DEFAULT_JET_MODEL: JetModelKind = "lagrangian"
 
 
 #: Settings of the Eulerian model for drop-on-demand runs: its documented defaults (25
@@ -187,7 +190,7 @@ class DropletResult:
     numbers: Dimensionless
     head_tail: HeadTail | None = None
     thinning: Thinning | None = None
-    model: JetModelKind = "lagrangian"
+    model: JetModelKind = DEFAULT_JET_MODEL
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary; keys carry their units."""
@@ -238,7 +241,7 @@ def simulate_droplet(
     frame_interval_s: float = 10e-6,
     breakup_radius_m: float = BREAKUP_RADIUS_M,
     numerics: Numerics | EulerNumerics | None = None,
-    model: JetModelKind = "lagrangian",
+    model: JetModelKind = DEFAULT_JET_MODEL,
     progress: Callable[[float], None] | None = None,
 ) -> DropletResult:
     """Simulate one drop-on-demand ejection.
