@@ -70,7 +70,7 @@ def test_write_relaxation_round_trip(tmp_path: Path) -> None:
         shutil.copy(f, path)
     before = load_table(path)
     fit = calibrate_relaxation(breakup=_stand_in(20e-6, 1.7), rtol=1e-3)
-    write_relaxation(fit, path, command="test")
+    write_relaxation(fit, path, command="test", model="lagrangian")
     after = load_table(path)
     assert after.relaxation_status == "calibrated"
     assert after.lambda_ref_s == pytest.approx(fit.lambda_ref_s, rel=1e-3)

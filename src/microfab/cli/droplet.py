@@ -10,6 +10,7 @@ import typer
 
 from microfab.cli._kit import check_option, check_output_path, console, fail, progress
 from microfab.io.atomic import atomic_write_text
+from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 
 __all__ = ["MAX_DURATION_US", "droplet_app"]
 
@@ -54,7 +55,7 @@ def simulate_cmd(
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Also write the summary to this JSON file.")
     ] = None,
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
 ) -> None:
     """Predict breakup time, position, mode, satellites and head speed; write a report.
 
@@ -96,8 +97,9 @@ def simulate_cmd(
 
 
 _MODEL_HELP = (
-    "Jet model: 'lagrangian' (moving nodes, bodies split at each pinch) or 'eulerian' "
-    "(fixed grid, TVD, a thin film through pinch-offs)."
+    "Jet model: 'eulerian' (fixed grid, a thin film through pinch-offs, the meniscus "
+    "retracting into the bore, acoustics coupled both ways; the default) or 'lagrangian' "
+    "(moving nodes, bodies split at each pinch, meniscus held at the rim)."
 )
 
 
@@ -159,7 +161,7 @@ def render_cmd(
     frame_interval: Annotated[float, typer.Option(help="Time between frames, µs.")] = 10.0,
     pixel_size: Annotated[float, typer.Option(help="Camera pixel size, µm.")] = 2.0,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the camera noise.")] = 0,
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
 ) -> None:
     """Simulate a droplet and write shadowgraph frames that droplet analyze can read."""
     check_output_path("OUT", out, kind="folder")
@@ -303,7 +305,7 @@ def sweep_cmd(
         str | None,
         typer.Option(help="Run on this Dask scheduler (tcp://host:8786) instead."),
     ] = None,
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
 ) -> None:
     """Breakup time against concentration (the seed's Fig. 4) and the 40-70 V trend.
 
@@ -377,7 +379,7 @@ def calibrate_cmd(
         Path | None,
         typer.Option(help="Store the fitted law in this property table (TOML) file."),
     ] = None,
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
 ) -> None:
     """Fit the relaxation law λ(c) to the seed's 95 µs (0.15 %) and 230 µs (1 %) breakups.
 
@@ -431,7 +433,7 @@ def sensitivity_cmd(
         str, typer.Option(help="NaAlg concentrations at 50 V, % w/v, comma-separated.")
     ] = "0.15,1,2",
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet-sensitivity"),
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = "lagrangian",
+    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
     jobs: Annotated[
         int, typer.Option("--jobs", min=1, max=256, help="Local Dask worker processes.")
     ] = 1,

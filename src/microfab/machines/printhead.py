@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 from microfab.core.validate import check_positive
 from microfab.io.sweep import SweepResult, run_sweep
 from microfab.machines.twins import TwinCache
+from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 from microfab.process.inkjet.fluids import SEED_CONCENTRATIONS_PCT
 from microfab.trajectory.waveform import SEED003_VOLTAGES_V
 
@@ -152,7 +153,7 @@ class DropletSettings:
     duration_s: float = 400e-6
     after_breakup_s: float = 20e-6
     max_steps: int | None = None
-    model: str = "lagrangian"
+    model: str = DEFAULT_JET_MODEL
 
     def __post_init__(self) -> None:
         from microfab.process.inkjet.droplet import JET_MODELS

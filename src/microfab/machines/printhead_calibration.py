@@ -46,6 +46,7 @@ from microfab.core.validate import check_in_range
 from microfab.io.atomic import atomic_write_text
 from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
 from microfab.process.inkjet.breakup import BreakupMode
+from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 from microfab.process.inkjet.fluids import NaAlgTable, _parse_table, load_table, naalg
 
 __all__ = [
@@ -98,7 +99,7 @@ BreakupFn = Callable[[float, float], tuple[float | None, BreakupMode | None]]
 
 
 def simulated_breakup(
-    concentration_pct: float, relaxation_time_s: float, model: str = "lagrangian"
+    concentration_pct: float, relaxation_time_s: float, model: str = DEFAULT_JET_MODEL
 ) -> tuple[float | None, BreakupMode | None]:
     """First breakup time and mode of NaAlg at the seed's 50 V drive.
 
@@ -335,7 +336,7 @@ def check_property_table(path: str | Path) -> None:
 
 
 def write_relaxation(
-    fit: RelaxationFit, path: str | Path, *, command: str, model: str = "lagrangian"
+    fit: RelaxationFit, path: str | Path, *, command: str, model: str = DEFAULT_JET_MODEL
 ) -> None:
     """Store a fitted relaxation law in a property-table file, atomically.
 

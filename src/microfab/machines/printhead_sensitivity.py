@@ -31,6 +31,7 @@ from typing import Any
 
 from microfab.io.sweep import SweepResult, run_sweep
 from microfab.machines.printhead import FIG4_VOLTAGE_V, DropletSettings, SweepPoint, run_point
+from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 
 __all__ = [
     "FACTORS",
@@ -67,7 +68,7 @@ class SensitivityPoint:
             raise ValueError(f"factor must be > 0, got {self.factor}")
 
 
-def perturbed_fluid(point: SensitivityPoint, model: str = "lagrangian") -> Any:
+def perturbed_fluid(point: SensitivityPoint, model: str = DEFAULT_JET_MODEL) -> Any:
     """The NaAlg fluid of ``point`` with its one property scaled.
 
     ``model`` picks the relaxation law calibrated for that jet model.

@@ -255,6 +255,7 @@ def printhead_state_space(
     density_kg_m3: float,
     viscosity_pa_s: float,
     surface_tension_n_m: float,
+    meniscus_input: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Continuous state-space model from ``dV/dt`` to the nozzle flow ``q_n``.
 
@@ -269,6 +270,11 @@ def printhead_state_space(
         inlet resistance).
     surface_tension_n_m : float
         Surface tension ``σ`` in N/m, >= 0 (0 removes the meniscus stiffness).
+    meniscus_input : bool, optional
+        Replace the lumped meniscus spring ``V_m / C_m`` by a second input, the meniscus
+        pressure ``p_m`` in Pa acting on the nozzle flow (for a model of the meniscus
+        outside this one, :mod:`microfab.plants.printhead_coupled`); ``surface_tension_n_m``
+        is then not used. Default False.
 
     Returns
     -------
@@ -277,12 +283,13 @@ def printhead_state_space(
         state ``[p_0..p_{N-1} (Pa), q_0..q_{N-1} (m³/s), q_n (m³/s), V_m (m³)]`` and
         ``N = printhead.cells``.
     B : numpy.ndarray
-        Input matrix, shape (2 N + 2, 1); the input is ``dV/dt`` in V/s.
+        Input matrix, shape (2 N + 2, 1); the input is ``dV/dt`` in V/s. With
+        ``meniscus_input`` shape (2 N + 2, 2), the second input ``p_m`` in Pa.
     C : numpy.ndarray
         Output matrix, shape (1, 2 N + 2); the output is ``q_n`` in m³/s (positive out of
         the nozzle).
     D : numpy.ndarray
-        Feed-through, shape (1, 1), zero.
+        Feed-through, shape (1, 1) (or (1, 2) with ``meniscus_input``), zero.
 
     Raises
     ------
@@ -313,6 +320,8 @@ def printhead_state_space(
     nozzle_inertance = rho * printhead.nozzle_length_m / (math.pi * radius_n**2)
     nozzle_resistance = 8.0 * eta * printhead.nozzle_length_m / (math.pi * radius_n**4)
     meniscus_stiffness = 8.0 * sigma / (math.pi * radius_n**4)  # 1 / C_m, Pa/m³
+    if meniscus_input:
+        meniscus_stiffness = 0.0  # the meniscus is modelled outside, through input 2
 
     nx = 2 * n + 2
     ip = np.arange(n)  # cell pressures
@@ -344,12 +353,14 @@ def printhead_state_space(
     left = np.arange(n) * dz
     overlap = np.clip(np.minimum(left + dz, z1) - np.maximum(left, z0), 0.0, None)
     sign = -1.0 if printhead.positive_voltage_expands else 1.0
-    b_mat = np.zeros((nx, 1))
+    b_mat = np.zeros((nx, 2 if meniscus_input else 1))
     b_mat[ip, 0] = sign * printhead.gain_m3_per_v * overlap / (z1 - z0) / cell_compliance
+    if meniscus_input:
+        b_mat[iq[n], 1] = -1.0 / mt
 
     c_mat = np.zeros((1, nx))
     c_mat[0, iq[n]] = 1.0
-    return a_mat, b_mat, c_mat, np.zeros((1, 1))
+    return a_mat, b_mat, c_mat, np.zeros((1, b_mat.shape[1]))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -24,6 +24,7 @@ from typing import Any
 from microfab.core.provenance import Shows, quantity
 from microfab.machines.printhead import FIG4_VOLTAGE_V
 from microfab.machines.printhead_calibration import CALIBRATIONS, SEED_BREAKUP, breakup_quantity
+from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, versus
 
@@ -130,7 +131,7 @@ def _model_comparison(rows: Sequence[dict[str, Any]], models: Sequence[str]) -> 
 
 
 def _tables_of_one_model(rows: Sequence[dict[str, Any]], label: str) -> tuple[Table, ...]:
-    model = row_model(rows[0]) if rows else "lagrangian"
+    model = row_model(rows[0]) if rows else DEFAULT_JET_MODEL
     skip = _others(model)
 
     def cells(r: dict[str, Any]) -> tuple[str, ...]:

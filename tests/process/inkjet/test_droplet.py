@@ -18,7 +18,11 @@ from microfab.process.inkjet.fluids import naalg
 @pytest.fixture(scope="module")
 def early_jet():
     # 80 µs: the jet is out and still whole (fast enough for the suite)
-    return simulate_droplet(naalg(0.15), duration_s=80e-6, frame_interval_s=5e-6)
+    # the Lagrangian model: the one fed the part of the acoustic flow that leaves the nozzle
+    return simulate_droplet(
+        naalg(0.15, model="lagrangian"), duration_s=80e-6, frame_interval_s=5e-6,
+        model="lagrangian",
+    )  # fmt: skip
 
 
 def test_liquid_out_of_the_nozzle_matches_the_acoustic_displacement(early_jet) -> None:
@@ -111,7 +115,11 @@ def test_a_shorter_run_is_the_prefix_of_a_longer_one() -> None:
     n = short.run.t.size - 1  # the last step of the short run is cut at its end time
     np.testing.assert_allclose(short.run.t[:n], long.run.t[:n], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(short.run.tip_z[:n], long.run.tip_z[:n], rtol=1e-12, atol=1e-12)
-    assert short.flow.t_s[-1] == pytest.approx(61e-6, abs=1e-7)  # the flow is cut to the run
+    # the flow is the one the coupled acoustics produced over the run
+    assert short.flow.t_s[-1] == pytest.approx(60e-6, abs=1e-7)
+    np.testing.assert_array_equal(
+        short.flow.velocity_m_s, long.flow.velocity_m_s[: short.flow.velocity_m_s.size]
+    )
 
 
 # The Lagrangian 1 % jet is chaotic near its pinch: with OpenBLAS's Haswell kernels (the
@@ -131,7 +139,15 @@ _THIN_THREAD = pytest.mark.xfail(
     [
         ("lagrangian", 0.15),
         pytest.param("lagrangian", 1.0, marks=_THIN_THREAD),
-        ("eulerian", 0.15),
+        pytest.param(
+            "eulerian",
+            0.15,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="by design: the 0.15 % thread breaks at the retracted meniscus, 90 µm "
+                "inside the bore, where a camera outside the nozzle cannot see it",
+            ),
+        ),
         ("eulerian", 1.0),
     ],
 )

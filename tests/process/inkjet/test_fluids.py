@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from microfab.process.inkjet.fluids import (
+    DEFAULT_JET_MODEL,
     SEED_CONCENTRATIONS_PCT,
     WATER,
     Fluid,
@@ -160,9 +161,13 @@ def test_relaxation_law() -> None:
     t = load_table()
     for c in (0.15, 0.4, 1.0, 2.0):
         expect = t.lambda_ref_s * (c / t.reference_pct) ** t.exponent
-        assert naalg(c).relaxation_time_s == pytest.approx(expect, rel=1e-12)
-        assert t.relaxation_time_s(c) == pytest.approx(expect, rel=1e-12)
-    assert naalg(1.0).relaxation_time_s == t.lambda_ref_s
+        # the table's top-level law ([relaxation]) is the Lagrangian model's
+        assert naalg(c, model="lagrangian").relaxation_time_s == pytest.approx(expect, rel=1e-12)
+        assert t.relaxation_time_s(c, "lagrangian") == pytest.approx(expect, rel=1e-12)
+    assert naalg(1.0, model="lagrangian").relaxation_time_s == t.lambda_ref_s
+    # without a model the default jet model's law
+    law = t.law(DEFAULT_JET_MODEL)
+    assert naalg(1.0).relaxation_time_s == law.lambda_ref_s
     assert naalg(1.0, relaxation_time_s=5e-4).relaxation_time_s == 5e-4
     assert naalg(1.0).extensibility_l2 == t.extensibility_l2
 
@@ -232,8 +237,10 @@ def test_load_table_from_path(tmp_path: Path) -> None:
     p.write_text(text, encoding="utf-8")
     t = load_table(p)
     assert (t.relaxation_status, t.lambda_ref_s, t.exponent) == ("calibrated", 3.0e-4, 2.0)
-    assert naalg(1.0, table=t).relaxation_time_s == 3.0e-4
-    assert naalg(0.5, table=t).relaxation_time_s == pytest.approx(3.0e-4 * 0.25)
+    assert naalg(1.0, table=t, model="lagrangian").relaxation_time_s == 3.0e-4
+    assert naalg(0.5, table=t, model="lagrangian").relaxation_time_s == pytest.approx(
+        3.0e-4 * 0.25
+    )
     assert t.exponent_bounds == (0.0, 4.0)
 
 

@@ -46,6 +46,7 @@ from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import printhead
 from microfab.machines.printhead import DropletSettings, SweepPoint, model_sweep, sweep_points
+from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 from microfab.report.inkjet_tables import breakup_tables, breakup_trend, row_model
 from microfab.report.tables import Table
 
@@ -74,7 +75,7 @@ _DURATION = Key(name="duration_us", type="float", default=400.0, low=DURATION_RA
 _AFTER = Key(name="after_breakup_us", type="float", default=20.0, low=1.0,
              high=DURATION_RANGE_US[1], unit="µs",
              help="how long the bodies are followed after the first breakup")
-_MODELS = Key(name="models", type="str", default="lagrangian",
+_MODELS = Key(name="models", type="str", default=DEFAULT_JET_MODEL,
               help="jet models, comma-separated: lagrangian, eulerian (each runs every point)")
 #: The reproduction shows both models beside the seed by default.
 _REPRO_MODELS = dataclasses.replace(_MODELS, default="lagrangian,eulerian")
@@ -130,7 +131,7 @@ class DropletSweepConfig:
     voltages_v: tuple[float, ...] = SEED_VOLTAGES_V
     voltage_concentration_pct: float = 1.0
     settings: DropletSettings = field(default_factory=DropletSettings)
-    models: tuple[str, ...] = ("lagrangian",)
+    models: tuple[str, ...] = (DEFAULT_JET_MODEL,)
     workers: int = 1
     scheduler: str | None = None
 

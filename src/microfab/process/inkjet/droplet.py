@@ -24,13 +24,21 @@ import numpy as np
 
 from microfab.core.validate import check_positive
 from microfab.plants.printhead import NozzleFlow, Printhead, nozzle_flow
+from microfab.plants.printhead_coupled import discrete_acoustics, drive_slopes
 from microfab.process.inkjet.breakup import BreakupMode
 from microfab.process.inkjet.dimensionless import Dimensionless, numbers
 from microfab.process.inkjet.dispenser import default_printhead
+from microfab.process.inkjet.fluids import DEFAULT_JET_MODEL as _DEFAULT_MODEL
 from microfab.process.inkjet.fluids import Fluid
 from microfab.process.inkjet.head_tail import HeadTail, Thinning, head_and_tail, thinning_rate
 from microfab.process.inkjet.jet import Body, JetModel, JetRun, Numerics, run_jet
-from microfab.process.inkjet.jet_euler import EulerNumerics, run_jet_euler
+from microfab.process.inkjet.jet_euler import (
+    MENISCUS_KINDS,
+    EulerNumerics,
+    MeniscusKind,
+    Upstream,
+    run_jet_euler,
+)
 from microfab.process.inkjet.silhouette import Silhouette
 from microfab.trajectory.waveform import Waveform, seed003_waveform
 
@@ -44,6 +52,7 @@ __all__ = [
     "DropletResult",
     "JetModelKind",
     "Scales",
+    "coupled_upstream",
     "jet_inflow",
     "simulate_droplet",
 ]
@@ -71,8 +80,9 @@ FLOW_RECORD_S = 5.001e-3
 #: The two jet models of :func:`simulate_droplet`.
 JetModelKind = Literal["lagrangian", "eulerian"]
 JET_MODELS: tuple[JetModelKind, ...] = ("lagrangian", "eulerian")
-#: The jet model every command runs unless asked for another (one place for the default).
-DEFAULT_JET_MODEL: JetModelKind = "lagrangian"
+#: The jet model every command runs unless asked for another (one place for the default,
+#: kept in :mod:`.fluids` so that the table's default law follows it).
+DEFAULT_JET_MODEL: JetModelKind = _DEFAULT_MODEL  # type: ignore[assignment]
 
 
 #: Settings of the Eulerian model for drop-on-demand runs: its documented defaults (25
@@ -170,6 +180,10 @@ class DropletResult:
         Ligament thinning over the 40 µs of silhouettes before the first breakup.
     model : {"lagrangian", "eulerian"}
         The jet model that ran.
+    meniscus : {"pinned", "retracting"}
+        How the meniscus behaved: held at the rim with the acoustics' own lumped meniscus
+        (the Lagrangian model, and the Eulerian one when asked), or retracting into the
+        bore with the acoustics coupled both ways (the Eulerian default).
     """
 
     fluid: Fluid
@@ -191,11 +205,20 @@ class DropletResult:
     head_tail: HeadTail | None = None
     thinning: Thinning | None = None
     model: JetModelKind = DEFAULT_JET_MODEL
+    meniscus: MeniscusKind = "pinned"
+
+    @property
+    def meniscus_depth_m(self) -> float:
+        """Deepest retraction of the meniscus centre into the bore over the run, m (>= 0)."""
+        z = self.run.meniscus_z
+        return 0.0 if z is None or z.size == 0 else float(-min(0.0, z.min())) * self.scales.length_m
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary; keys carry their units."""
         return {
             "jet_model": self.model,
+            "meniscus": self.meniscus,
+            "meniscus_max_depth_m": self.meniscus_depth_m,
             "breakup_time_s": self.breakup_time_s,
             "breakup_mode": self.breakup_mode,
             "breakup_z_m": self.breakup_z_m,
@@ -243,6 +266,7 @@ def simulate_droplet(
     numerics: Numerics | EulerNumerics | None = None,
     model: JetModelKind = DEFAULT_JET_MODEL,
     progress: Callable[[float], None] | None = None,
+    meniscus: MeniscusKind | None = None,
 ) -> DropletResult:
     """Simulate one drop-on-demand ejection.
 
@@ -271,6 +295,12 @@ def simulate_droplet(
         (:mod:`.jet_euler`, fixed grid, TVD mass flux, a thin film through pinch-offs).
     progress : callable, optional
         Called with the simulated time in s as the run advances.
+    meniscus : {"pinned", "retracting"}, optional
+        Eulerian model only (default "retracting"): the meniscus retracts into the bore
+        and the acoustics feel the jet (:func:`coupled_upstream`,
+        :mod:`.jet_euler_meniscus`), or it is held at the rim and fed the part of the
+        acoustic flow that leaves the nozzle (:func:`jet_inflow`), as in the Lagrangian
+        model.
 
     Returns
     -------
@@ -317,12 +347,15 @@ def simulate_droplet(
         displacement_m=flow.displacement_m[:keep],
         nozzle_radius_m=flow.nozzle_radius_m,
     )
-    flow_jet = jet_inflow(flow)
+    if meniscus is not None and meniscus not in MENISCUS_KINDS:
+        raise ValueError(f"meniscus must be one of {', '.join(MENISCUS_KINDS)}, got {meniscus!r}")
+    if meniscus == "retracting" and model != "eulerian":
+        raise ValueError("only the Eulerian jet model has a retracting meniscus (model='eulerian')")
+    menisc: MeniscusKind = meniscus or ("retracting" if model == "eulerian" else "pinned")
     sc = Scales.of(fluid, radius)
     frames = np.arange(0.0, duration_s + 0.5 * frame_interval_s, frame_interval_s)
     common: dict[str, Any] = {
         "t_end": duration_s / sc.time_s,
-        "inflow": _ScaledInflow(flow_jet, sc),
         "on_pinch": "split",
         "snapshot_times": frames / sc.time_s,
         "after_first_pinch": after_breakup_s / sc.time_s,
@@ -332,16 +365,94 @@ def simulate_droplet(
         if numerics is not None and not isinstance(numerics, Numerics):
             raise TypeError("the Lagrangian model takes jet.Numerics settings")
         nu = dataclasses.replace(numerics or DOD_NUMERICS, h_break=breakup_radius_m / radius)
-        run = run_jet([], sc.model(fluid), nu, land_on_snapshots=False, **common)
+        inflow = _ScaledInflow(jet_inflow(flow), sc)
+        run = run_jet([], sc.model(fluid), nu, land_on_snapshots=False, inflow=inflow, **common)
     elif model == "eulerian":
         if numerics is not None and not isinstance(numerics, EulerNumerics):
             raise TypeError("the Eulerian model takes jet_euler.EulerNumerics settings")
         base = numerics or EULER_DOD_NUMERICS
         nu_e = dataclasses.replace(base, h_break=breakup_radius_m / radius)
-        run = run_jet_euler(sc.model(fluid), nu_e, **common)
+        if menisc == "retracting":
+            up = coupled_upstream(printhead, fluid, waveform, duration_s=duration_s)
+            run = run_jet_euler(sc.model(fluid), nu_e, upstream=up, meniscus=menisc, **common)
+            flow = _coupled_flow(run, sc, radius)
+        else:
+            inflow = _ScaledInflow(jet_inflow(flow), sc)
+            run = run_jet_euler(sc.model(fluid), nu_e, inflow=inflow, **common)
     else:
         raise ValueError(f"model must be one of {', '.join(JET_MODELS)}, got {model!r}")
-    return _summarise(fluid, waveform, printhead, flow, sc, run, model)
+    return _summarise(fluid, waveform, printhead, flow, sc, run, model, menisc)
+
+
+#: Step of the coupled acoustics, s: the step of the one-way orifice flow (50 ns, which hits
+#: every corner of the seed's waveform).
+COUPLED_DT_S = 50e-9
+
+
+def coupled_upstream(
+    printhead: Printhead,
+    fluid: Fluid,
+    waveform: Waveform,
+    *,
+    duration_s: float,
+    dt_s: float = COUPLED_DT_S,
+) -> Upstream:
+    """The dispenser's acoustics as the Eulerian jet's upstream model (dimensionless).
+
+    The acoustics of :mod:`microfab.plants.printhead` without their lumped meniscus
+    (:func:`microfab.plants.printhead_coupled.discrete_acoustics`), scaled to the jet's
+    units (:class:`Scales`): the meniscus pressure in ``sigma / R`` goes in, the mean
+    nozzle velocity in ``R / t_c`` comes out, at a step of ``dt_s``. The viscosity of the
+    channel and nozzle friction is the zero-shear one (quasi-steady Poiseuille, as in the
+    one-way model).
+
+    Parameters
+    ----------
+    printhead : Printhead
+        Dispenser model.
+    fluid : Fluid
+        The ink.
+    waveform : Waveform
+        Drive voltage.
+    duration_s : float
+        Simulated time from the start of the pulse, s (the drive's slopes are tabulated
+        that far; after it the drive is held).
+    dt_s : float, optional
+        Step of the acoustics, s.
+
+    Returns
+    -------
+    Upstream
+    """
+    sc = Scales.of(fluid, printhead.nozzle_radius_m)
+    ac = discrete_acoustics(
+        printhead,
+        density_kg_m3=fluid.density_kg_m3,
+        viscosity_pa_s=fluid.zero_shear_viscosity_pa_s,
+        dt_s=dt_s,
+    )
+    area = math.pi * printhead.nozzle_radius_m**2
+    pressure_unit = fluid.surface_tension_n_m / printhead.nozzle_radius_m  # Pa
+    return Upstream(
+        phi=ac.phi,
+        g_drive=ac.gamma_drive,
+        g_pressure=ac.gamma_pressure * pressure_unit,
+        c_row=ac.flow_row / (area * sc.velocity_m_s),
+        slopes=drive_slopes(waveform, duration_s=duration_s + 2 * dt_s, dt_s=dt_s),
+        dt=dt_s / sc.time_s,
+    )
+
+
+def _coupled_flow(run: JetRun, sc: Scales, radius_m: float) -> NozzleFlow:
+    """The nozzle velocity the coupled acoustics produced, as a `NozzleFlow` (SI)."""
+    assert run.upstream_velocity is not None
+    v = np.asarray(run.upstream_velocity) * sc.velocity_m_s
+    if v.size < 2:
+        v = np.zeros(2)
+    dt = run.upstream_dt * sc.time_s
+    t = np.arange(v.size) * dt
+    disp = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)))
+    return NozzleFlow(t_s=t, velocity_m_s=v, displacement_m=disp, nozzle_radius_m=radius_m)
 
 
 def jet_inflow(flow: NozzleFlow) -> NozzleFlow:
@@ -402,6 +513,7 @@ def _summarise(
     sc: Scales,
     run: JetRun,
     model: JetModelKind = "lagrangian",
+    meniscus: MeniscusKind = "pinned",
 ) -> DropletResult:
     t_s = run.t * sc.time_s
     tip_z = run.tip_z * sc.length_m
@@ -465,4 +577,5 @@ def _summarise(
         head_tail=head_tail,
         thinning=thinning,
         model=model,
+        meniscus=meniscus,
     )

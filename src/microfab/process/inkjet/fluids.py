@@ -47,6 +47,7 @@ from microfab.core.validate import check_finite, check_nonnegative, check_positi
 from microfab.data import read_text as read_data_text
 
 __all__ = [
+    "DEFAULT_JET_MODEL",
     "SEED_CONCENTRATIONS_PCT",
     "WATER",
     "Fluid",
@@ -62,6 +63,11 @@ __all__ = [
 SEED_CONCENTRATIONS_PCT: tuple[float, ...] = (0.15, 0.20, 0.25, 1.0, 1.5, 2.0)
 
 _TABLE_FILE = "naalg.toml"
+
+#: The jet model every command runs unless asked for another, and whose calibrated
+#: relaxation law the table gives by default (re-exported by :mod:`.droplet`). The
+#: Eulerian model (meniscus in the bore) is closer to the seed and faster.
+DEFAULT_JET_MODEL = "eulerian"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -292,7 +298,7 @@ class NaAlgTable:
     global_sources: dict[str, str] = field(default_factory=dict)
     model_laws: dict[str, RelaxationLaw] = field(default_factory=dict)
 
-    def law(self, model: str = "lagrangian") -> RelaxationLaw:
+    def law(self, model: str = DEFAULT_JET_MODEL) -> RelaxationLaw:
         """The relaxation law calibrated with jet model ``model``.
 
         Raises
@@ -326,7 +332,7 @@ class NaAlgTable:
         """Specific viscosity η_sp = η0/η_s - 1 at the table points."""
         return self.zero_shear_viscosity_pa_s / self.solvent_viscosity_pa_s - 1.0
 
-    def relaxation_time_s(self, concentration_pct: float, model: str = "lagrangian") -> float:
+    def relaxation_time_s(self, concentration_pct: float, model: str = DEFAULT_JET_MODEL) -> float:
         """Relaxation time λ(c) = lambda_ref_s · (c/reference_pct)^exponent, s.
 
         Parameters
@@ -519,7 +525,7 @@ def naalg(
     *,
     relaxation_time_s: float | None = None,
     table: NaAlgTable | None = None,
-    model: str = "lagrangian",
+    model: str = DEFAULT_JET_MODEL,
 ) -> Fluid:
     """Sodium alginate in deionised water at 25 °C, at any concentration of the table range.
 
@@ -532,8 +538,8 @@ def naalg(
     table : NaAlgTable, optional
         Property table; default: ``load_table()`` (package data, read once).
     model : str, optional
-        Jet model whose calibrated relaxation law to use (`NaAlgTable.law`): "lagrangian"
-        (default) or "eulerian".
+        Jet model whose calibrated relaxation law to use (`NaAlgTable.law`): "eulerian"
+        (default, `DEFAULT_JET_MODEL`) or "lagrangian".
 
     Returns
     -------

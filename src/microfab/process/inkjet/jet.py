@@ -277,6 +277,14 @@ class JetRun:
         Accepted and rejected time steps.
     stop_reason : str
         Why the run ended.
+    meniscus_z : numpy.ndarray or None
+        Position of the meniscus centre per step (0 at the rim, negative inside the
+        bore); None for a model that holds it at the rim (:func:`run_jet`).
+    upstream_velocity : numpy.ndarray or None
+        Nozzle velocity of a coupled upstream model at its own samples (spacing
+        ``upstream_dt`` from the first time of `t`); None without one.
+    upstream_dt : float
+        Sample spacing of `upstream_velocity` (0 without one).
     """
 
     t: np.ndarray
@@ -293,6 +301,9 @@ class JetRun:
     steps: int
     rejected: int
     stop_reason: str
+    meniscus_z: np.ndarray | None = None
+    upstream_velocity: np.ndarray | None = None
+    upstream_dt: float = 0.0
 
 
 def thread_body(

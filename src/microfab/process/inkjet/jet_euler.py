@@ -79,10 +79,26 @@ import numpy as np
 
 from microfab.core.arrays import readonly
 from microfab.process.inkjet import jet_euler_kernels as ek
+from microfab.process.inkjet import jet_euler_meniscus as em
 from microfab.process.inkjet.breakup import classify_pinch
 from microfab.process.inkjet.jet import Body, Inflow, JetModel, JetRun, PinchEvent
 
-__all__ = ["EulerInitial", "EulerNumerics", "euler_thread", "run_jet_euler"]
+__all__ = [
+    "MENISCUS_KINDS",
+    "EulerInitial",
+    "EulerNumerics",
+    "MeniscusKind",
+    "Upstream",
+    "euler_thread",
+    "run_jet_euler",
+]
+
+#: How the meniscus behaves (:mod:`.jet_euler_meniscus`): held at the rim, suction
+#: draining the grid's first cell ("pinned"), or free to retract into the bore with the
+#: liquid column and come back ("retracting").
+MeniscusKind = Literal["pinned", "retracting"]
+MENISCUS_KINDS: tuple[MeniscusKind, ...] = ("pinned", "retracting")
+_MENISCUS = {"pinned": ek.MENISCUS_PINNED, "retracting": ek.MENISCUS_RETRACTING}
 
 LeftEnd = Literal["nozzle", "wall"]
 RightEnd = Literal["outflow", "wall"]
@@ -125,6 +141,13 @@ class EulerNumerics:
         (default 1e-3).
     max_steps : int
         Safety limit on time steps (default 2 000 000).
+    cap_cells : float
+        With a retracting meniscus: a bulge out of the rim is held as a lumped spherical
+        cap (:mod:`.jet_euler_meniscus`) until its centre is this many cells high
+        (default 5), then handed to the grid with that shape. A bulge of a cell or two
+        is not a free surface the grid can carry: liquid pushed into the film at the
+        rim at full speed spreads into cells a few percent of the bore wide, which the
+        discrete curvature flings forward at tens of times the jet's speed.
 
     Examples
     --------
@@ -142,6 +165,7 @@ class EulerNumerics:
     dt_max: float = 0.02
     inflow_dt: float = 1e-3
     max_steps: int = 2_000_000
+    cap_cells: float = 5.0
 
     def __post_init__(self) -> None:
         for name in ("dz", "length", "film", "h_break", "dt_max", "inflow_dt"):
@@ -167,6 +191,13 @@ class EulerNumerics:
         if self.cells_for(self.length) < 8:
             raise ValueError(
                 f"length {self.length} holds fewer than 8 cells of dz {self.dz}: lower `dz`"
+            )
+        if not (math.isfinite(self.cap_cells) and self.cap_cells >= 1.0):
+            raise ValueError(f"cap_cells must be a finite number >= 1, got {self.cap_cells!r}")
+        if self.cap_cells * self.dz >= 0.5:
+            raise ValueError(
+                f"cap_cells {self.cap_cells} x dz {self.dz} must stay below half the nozzle "
+                "radius: lower `cap_cells` or `dz`"
             )
         if not (isinstance(self.max_steps, int) and self.max_steps >= 1):
             raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
@@ -239,6 +270,68 @@ class EulerInitial:
         return self.length / self.a.size
 
 
+@dataclass(frozen=True, kw_only=True)
+class Upstream:
+    """A linear model upstream of the meniscus that feeds the nozzle (dimensionless).
+
+    Sampled at a fixed step ``dt`` with its inputs held over each step (zero-order
+    hold): ``x_{k+1} = phi x_k + g_drive s_k + g_pressure p_m``, nozzle velocity
+    ``u_c = c_row · x`` (positive out of the nozzle), where ``s_k`` is the drive over step
+    ``k`` and ``p_m`` the meniscus pressure from the grid (:mod:`.jet_euler_meniscus`). The
+    dispenser's acoustics without its lumped meniscus are one
+    (:func:`microfab.process.inkjet.droplet.coupled_upstream`).
+
+    Parameters
+    ----------
+    phi : numpy.ndarray
+        State transition over one step, shape ``(nx, nx)``.
+    g_drive : numpy.ndarray
+        State increment per unit drive held over a step, shape ``(nx,)``.
+    g_pressure : numpy.ndarray
+        State increment per unit meniscus pressure (``sigma / R``) held over a step,
+        shape ``(nx,)``.
+    c_row : numpy.ndarray
+        Nozzle velocity (``R / t_c``) per state, shape ``(nx,)``.
+    slopes : numpy.ndarray
+        Drive per step from the start of the run, shape ``(m,)``; 0 after the last.
+    dt : float
+        Step, capillary times, > 0.
+    x0 : numpy.ndarray, optional
+        Initial state, shape ``(nx,)`` (default at rest).
+    """
+
+    phi: np.ndarray
+    g_drive: np.ndarray
+    g_pressure: np.ndarray
+    c_row: np.ndarray
+    slopes: np.ndarray
+    dt: float
+    x0: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        phi = np.array(self.phi, float)
+        if phi.ndim != 2 or phi.shape[0] != phi.shape[1] or phi.shape[0] < 1:
+            raise ValueError(f"phi must be a square matrix, got shape {phi.shape}")
+        nx = phi.shape[0]
+        object.__setattr__(self, "phi", readonly(np.ascontiguousarray(phi)))
+        for name in ("g_drive", "g_pressure", "c_row"):
+            v = np.array(getattr(self, name), float)
+            if v.shape != (nx,):
+                raise ValueError(f"{name} needs shape ({nx},), got {v.shape}")
+            object.__setattr__(self, name, readonly(v))
+        x0 = np.zeros(nx) if self.x0 is None else np.array(self.x0, float)
+        if x0.shape != (nx,):
+            raise ValueError(f"x0 needs shape ({nx},), got {x0.shape}")
+        object.__setattr__(self, "x0", readonly(x0))
+        slopes = np.array(self.slopes, float).reshape(-1)
+        object.__setattr__(self, "slopes", readonly(slopes))
+        for name in ("phi", "g_drive", "g_pressure", "c_row", "slopes", "x0"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise ValueError(f"{name} holds NaN or inf")
+        if not (math.isfinite(self.dt) and self.dt > 0.0):
+            raise ValueError(f"dt must be a finite number > 0, got {self.dt!r}")
+
+
 def euler_thread(
     length: float,
     radius: Callable[[np.ndarray], np.ndarray],
@@ -292,6 +385,10 @@ def run_jet_euler(
     after_first_pinch: float = math.inf,
     on_pinch: Literal["stop", "split"] = "split",
     progress: Callable[[float], None] | None = None,
+    meniscus: MeniscusKind = "pinned",
+    upstream: Upstream | None = None,
+    meniscus_z0: float = 0.0,
+    bore_length: float = math.inf,
 ) -> JetRun:
     """Integrate the Eulerian slender-jet model from ``t0`` to ``t_end`` (dimensionless).
 
@@ -324,6 +421,18 @@ def run_jet_euler(
     progress : callable, optional
         Called with the current time whenever the kernels hand back control (at
         snapshots, breakups and every few thousand steps).
+    meniscus : {"pinned", "retracting"}, optional
+        Held at the rim (suction drains the grid's first cell), or free to retract into
+        the bore with the liquid column, pulling the jet's root with it
+        (:mod:`.jet_euler_meniscus`). Needs a nozzle at the left end.
+    upstream : Upstream, optional
+        A linear model that produces the nozzle flow from the meniscus pressure (two-way
+        coupling), instead of a given ``inflow``.
+    meniscus_z0 : float, optional
+        Initial meniscus position, <= 0 (below 0 only with ``meniscus="retracting"``).
+    bore_length : float, optional
+        Depth of the straight bore behind the exit; the run stops if the meniscus
+        retracts deeper (default: no limit).
 
     Returns
     -------
@@ -339,7 +448,9 @@ def run_jet_euler(
         injected`` is conserved to round-off. Bodies are the wet runs of at least two
         cells converted to :class:`.jet.Body` (nodes at the cell faces, ``w = a dz``);
         the left end of a run at the nozzle is "nozzle" (at a wall "wall"), other ends
-        are "tip" (at a right wall "wall").
+        are "tip" (at a right wall "wall"). With a retracting meniscus all positions are
+        in the lab frame (the grid's left end is the meniscus, ``meniscus_z``), and a
+        body on the nozzle starts there.
 
     Raises
     ------
@@ -356,6 +467,16 @@ def run_jet_euler(
         raise ValueError(f"after_first_pinch must be >= 0, got {after_first_pinch}")
     if not a_nozzle > 0.0:
         raise ValueError(f"a_nozzle must be > 0, got {a_nozzle}")
+    if meniscus not in _MENISCUS:
+        raise ValueError(f"meniscus must be one of {list(MENISCUS_KINDS)}, got {meniscus!r}")
+    if not (math.isfinite(meniscus_z0) and meniscus_z0 <= 0.0):
+        raise ValueError(f"meniscus_z0 must be <= 0 (inside the bore), got {meniscus_z0}")
+    if meniscus_z0 < 0.0 and meniscus != "retracting":
+        raise ValueError("a meniscus inside the bore (meniscus_z0 < 0) needs meniscus='retracting'")
+    if not bore_length > 0.0:
+        raise ValueError(f"bore_length must be > 0, got {bore_length}")
+    if upstream is not None and inflow is not None:
+        raise ValueError("give either an inflow or an upstream model, not both")
     if initial is None:
         n = nu.cells_for(nu.length)
         initial = EulerInitial(
@@ -364,8 +485,10 @@ def run_jet_euler(
             left="nozzle",
             right="outflow",
         )
-    if inflow is not None and initial.left != "nozzle":
+    if (inflow is not None or upstream is not None) and initial.left != "nozzle":
         raise ValueError("an inflow needs a nozzle at the left end (initial.left='nozzle')")
+    if meniscus == "retracting" and initial.left != "nozzle":
+        raise ValueError("a retracting meniscus needs a nozzle at the left end")
     dz = initial.dz
     par = np.zeros(ek.N_PAR)
     par[ek.P_DZ] = dz
@@ -379,10 +502,27 @@ def run_jet_euler(
     par[ek.P_H_BREAK] = nu.h_break
     par[ek.P_REWET] = nu.rewet_factor
     par[ek.P_DT_MAX] = nu.dt_max
+    par[ek.P_BORE] = bore_length
+    cap = nu.cap_cells * dz  # centre height of the bulge the grid takes over
+    par[ek.P_CAP] = cap * (3.0 + cap * cap) / 6.0 if meniscus == "retracting" else math.inf
     ipar = np.array(
-        [_LEFT[initial.left], _RIGHT[initial.right], _LIMITERS[nu.limiter]], dtype=np.int64
+        [
+            _LEFT[initial.left],
+            _RIGHT[initial.right],
+            _LIMITERS[nu.limiter],
+            _MENISCUS[meniscus],
+            int(upstream is not None),
+        ],
+        dtype=np.int64,
     )
-    d_tab, tab_dt = _inflow_table(inflow, t0, t_end, nu.inflow_dt)
+    if upstream is None:
+        d_tab, tab_dt = _inflow_table(inflow, t0, t_end, nu.inflow_dt)
+        up = _Upstream.idle()
+    else:
+        tab_dt = upstream.dt
+        size = math.ceil((t_end - t0) / tab_dt) + 3
+        d_tab = np.zeros(size)
+        up = _Upstream.of(upstream, size)
 
     a = np.array(initial.a, float)
     u = np.array(initial.u, float)
@@ -393,13 +533,16 @@ def run_jet_euler(
     snaps_t = sorted(float(s) for s in snapshot_times if t0 <= s <= t_end)
     snapshots: list[tuple[float, tuple[Body, ...]]] = []
     events: list[PinchEvent] = []
-    counters = np.zeros(2, dtype=np.int64)
-    acc = np.zeros(2)
+    counters = np.zeros(3, dtype=np.int64)
+    acc = np.array([0.0, 0.0, meniscus_z0, 0.0])
     ev = np.zeros((32, ek.EV_COLS))
     hist = np.empty((ek.HIST_ROWS, 4096))
     stats = np.empty(5)
-    ek.analyse(a, a, u, wet, wet, par, ipar, t0, t0, stats, ev)
-    hist[:, 0] = (t0, stats[0], stats[1], stats[2], stats[3], a.sum() * dz, 0.0, stats[4])
+    ek.analyse(a, a, u, wet, wet, par, ipar, t0, t0, stats, ev, meniscus_z0)
+    hist[:, 0] = (
+        t0, stats[0], stats[1], stats[2], stats[3], a.sum() * dz, 0.0, stats[4], meniscus_z0,
+    )  # fmt: skip
+    field.z_off = meniscus_z0
     n_hist = 1
     t = t0
     stop_at = t_end
@@ -409,10 +552,12 @@ def run_jet_euler(
     while True:
         target = min(stop_at, snaps_t[0]) if snaps_t else stop_at
         limit = min(nu.max_steps, int(counters[0]) + chunk)
-        t, n_hist, status, n_ev = ek.advance(
+        t, n_hist, status, n_ev = em.advance(
             a, u, azz, arr, wet, t, target, par, ipar, d_tab, t0, tab_dt,
             hist, n_hist, limit, counters, acc, ev,
+            up.u_tab, up.x, up.phi, up.g_drive, up.g_pressure, up.c_row, up.slopes,
         )  # fmt: skip
+        field.z_off = float(acc[2])
         if progress is not None:
             progress(t)
         if status == 2:
@@ -428,6 +573,12 @@ def run_jet_euler(
             break
         if status == 5:
             stop_reason = f"liquid reached the end of the domain at t = {t:.6g}"
+            break
+        if status == 6:
+            stop_reason = (
+                f"the meniscus retracted deeper than the bore ({bore_length:g} radii) at "
+                f"t = {t:.6g}"
+            )
             break
         if status == 1:
             for row in ev[:n_ev]:
@@ -458,7 +609,45 @@ def run_jet_euler(
         steps=int(counters[0]),
         rejected=int(counters[1]),
         stop_reason=stop_reason,
+        meniscus_z=readonly(h[8]) if meniscus == "retracting" else None,
+        upstream_velocity=None if upstream is None else readonly(up.u_tab[: counters[2] + 1]),
+        upstream_dt=0.0 if upstream is None else upstream.dt,
     )
+
+
+@dataclass
+class _Upstream:
+    """Working arrays of the coupled upstream model handed to the kernels."""
+
+    u_tab: np.ndarray
+    x: np.ndarray
+    phi: np.ndarray
+    g_drive: np.ndarray
+    g_pressure: np.ndarray
+    c_row: np.ndarray
+    slopes: np.ndarray
+
+    @classmethod
+    def idle(cls) -> _Upstream:
+        """Placeholders for a run without an upstream model (never read)."""
+        one = np.zeros(1)
+        return cls(np.zeros(2), one.copy(), np.zeros((1, 1)), one, one, one, one)
+
+    @classmethod
+    def of(cls, up: Upstream, size: int) -> _Upstream:
+        """Arrays for ``size`` table entries, the state at ``up.x0``."""
+        assert up.x0 is not None
+        u_tab = np.zeros(size)
+        u_tab[0] = float(up.c_row @ up.x0)
+        return cls(
+            u_tab,
+            np.array(up.x0, float),
+            np.ascontiguousarray(up.phi),
+            np.asarray(up.g_drive),
+            np.asarray(up.g_pressure),
+            np.asarray(up.c_row),
+            np.asarray(up.slopes),
+        )
 
 
 def _inflow_table(
@@ -491,6 +680,7 @@ class _Field:
     dz: float
     left: LeftEnd
     right: RightEnd
+    z_off: float = 0.0
 
     def bodies(self) -> tuple[Body, ...]:
         """Wet runs of at least two cells as :class:`.jet.Body` (nodes at the cell faces)."""
@@ -509,7 +699,7 @@ class _Field:
                 right = "wall" if (j == n - 1 and self.right == "wall") else "tip"
                 out.append(
                     Body(
-                        z=self.dz * np.arange(i, j + 2),
+                        z=self.z_off + self.dz * np.arange(i, j + 2),
                         v=self.u[i : j + 2],
                         w=self.a[i : j + 1] * self.dz,
                         a_zz=self.azz[i : j + 1],

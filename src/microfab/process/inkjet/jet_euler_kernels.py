@@ -25,7 +25,16 @@ area, CFL number, breakup radius, re-wetting factor, largest time step.
 
 Integer vector ``ipar`` (int64)
 -------------------------------
-Indexed by ``I_*``: left and right boundary codes, flux limiter (0: van Leer, 1: minmod).
+Indexed by ``I_*``: left and right boundary codes, flux limiter (0: van Leer, 1: minmod),
+meniscus code (``MENISCUS_*``), coupled upstream acoustics (0/1).
+
+Moving meniscus
+---------------
+With a retracting meniscus the grid's left end is the meniscus at ``z_m <= 0`` (lab
+frame), and cell ``i`` spans ``[z_m + i dz, z_m + (i + 1) dz]``: the grid moves with the
+meniscus (frame velocity ``w``, uniform), so every flux is carried by the velocity
+relative to the grid, ``u - w``, while ``u`` stays the lab velocity (no fictitious force:
+only the coordinate moves). Positions handed back are in the lab frame.
 """
 
 from __future__ import annotations
@@ -38,7 +47,6 @@ __all__ = [
     "BC_OUTFLOW",
     "BC_WALL",
     "HIST_ROWS",
-    "advance",
     "analyse",
     "step",
 ]
@@ -50,15 +58,22 @@ BC_WALL = 1
 #: Open far end: zero gradient, liquid leaves the domain.
 BC_OUTFLOW = 2
 
-P_DZ, P_OH, P_GP, P_INV_DE, P_INV_L2, P_A_FILM, P_A_NOZ, P_CFL, P_H_BREAK, P_REWET, P_DT_MAX = (
-    range(11)
-)
-N_PAR = 11
-I_BL, I_BR, I_LIMITER = range(3)
-N_IPAR = 3
+(
+    P_DZ, P_OH, P_GP, P_INV_DE, P_INV_L2, P_A_FILM, P_A_NOZ, P_CFL, P_H_BREAK, P_REWET,
+    P_DT_MAX, P_BORE, P_CAP,
+) = range(13)  # fmt: skip
+N_PAR = 13
+I_BL, I_BR, I_LIMITER, I_MENISCUS, I_COUPLED = range(5)
+N_IPAR = 5
 
-#: Rows of the history array: t, neck radius, neck z, tip z, tip v, volume, injected, bodies.
-HIST_ROWS = 8
+#: Meniscus codes (``ipar[I_MENISCUS]``): held at the rim (suction empties the root), or
+#: free to retract into the bore (:mod:`.jet_euler_meniscus`).
+MENISCUS_PINNED = 0
+MENISCUS_RETRACTING = 1
+
+#: Rows of the history array: t, neck radius, neck z, tip z, tip v, volume, injected,
+#: bodies, meniscus position.
+HIST_ROWS = 9
 #: Columns of the event array: t, neck z, tip z, tail z, attached (0/1), neck cell.
 EV_COLS = 6
 #: Bodies shorter than this many cells are not followed as bodies (their volume stays).
@@ -142,11 +157,17 @@ def _tension(am: float, a0: float, ap: float, dz: float) -> float:
 
 @njit(cache=True)
 def time_step_limit(
-    a: np.ndarray, u: np.ndarray, azz: np.ndarray, arr: np.ndarray, par: np.ndarray
+    a: np.ndarray,
+    u: np.ndarray,
+    azz: np.ndarray,
+    arr: np.ndarray,
+    par: np.ndarray,
+    w: float = 0.0,
 ) -> float:
     """Largest stable explicit step: advection, capillary waves, polymer waves.
 
-    * advection (TVD fluxes, Burgers momentum): ``cfl dz / max |u|``;
+    * advection (TVD fluxes, Burgers momentum): ``cfl dz / max |u|`` (and ``|u - w|``
+      on a grid moving at ``w``);
     * capillary waves, treated explicitly in forward-backward order (velocity from the
       old profile, profile from the new velocity, stable for ``omega dt <= 2``), the
       grid-scale frequency being ``omega = (4 / dz^2) sqrt(h / 2)``:
@@ -165,7 +186,7 @@ def time_step_limit(
     inv_l2 = par[P_INV_L2]
     umax = 0.0
     for j in range(u.size):
-        umax = max(umax, abs(u[j]))
+        umax = max(umax, abs(u[j]), abs(u[j] - w))
     amax = par[P_A_NOZ]
     geff = 0.0
     for i in range(a.size):
@@ -260,8 +281,17 @@ def step(
     u_new: np.ndarray,
     azz_new: np.ndarray,
     arr_new: np.ndarray,
+    w_grid: float = 0.0,
+    rel_left: float = np.nan,
+    a_left: float = np.nan,
 ) -> tuple:
     """One time step; returns ``(ok, flux_in, flux_out)``.
+
+    ``u_left`` is the lab velocity of the left face (a nozzle's), ``w_grid`` the velocity of
+    the grid (a moving meniscus; 0 on a fixed grid) and ``rel_left`` the velocity of the
+    liquid through the left face relative to it (default ``u_left - w``); all fluxes are
+    carried by ``u - w``. ``a_left`` replaces the nozzle's ghost area (default
+    ``a_nozzle``), e.g. the film when a meniscus with nothing attached moves through it.
 
     Order (forward-backward, first order in time): (1) face velocities from the old
     profile and conformation (momentum advection in the conservative staggered form of
@@ -289,7 +319,7 @@ def step(
     lam = dt / dz
 
     ae = np.empty(n + 4)
-    _ghost_cells(a, bl, br, a_noz, ae)
+    _ghost_cells(a, bl, br, a_noz if np.isnan(a_left) else a_left, ae)
     ef = np.empty(n + 4)  # regularised area
     for i in range(n + 4):
         ef[i] = max(ae[i], a_film)
@@ -316,12 +346,18 @@ def step(
     flux = np.empty(n + 1)
     fz = np.zeros(n + 1)
     fr = np.zeros(n + 1)
-    _face_fluxes(ae, cz, cr, u, lam, bl, br, lim, False, flux, fz, fr)
+    rel0 = u_left - w_grid if np.isnan(rel_left) else rel_left
+    ur = np.empty(n + 1)
+    for j in range(n + 1):
+        ur[j] = u[j] - w_grid
+    if bl == BC_NOZZLE:
+        ur[0] = rel0
+    _face_fluxes(ae, cz, cr, ur, lam, bl, br, lim, False, flux, fz, fr)
     qc = np.empty(n)
     mflux = np.empty(n)
     for i in range(n):
         qc[i] = 0.5 * (flux[i] + flux[i + 1])
-        nu = 0.5 * abs(ue[i + 1] + ue[i + 2]) * lam
+        nu = 0.5 * abs(ue[i + 1] + ue[i + 2] - 2.0 * w_grid) * lam
         if qc[i] >= 0.0:
             us = _limited(ue, i + 1, i + 2, i, nu, lim)
         else:
@@ -361,8 +397,12 @@ def step(
         u_new[k + 1] = (rhs[k] - up[k] * u_new[k + 2]) / di[k]
     u_new[n] = u_new[n - 1] if br == BC_OUTFLOW else 0.0
 
-    # --- TVD fluxes of a (and of a A) with the new velocities ---
-    _face_fluxes(ae, cz, cr, u_new, lam, bl, br, lim, poly, flux, fz, fr)
+    # --- TVD fluxes of a (and of a A) with the new velocities (relative to the grid) ---
+    for j in range(n + 1):
+        ur[j] = u_new[j] - w_grid
+    if bl == BC_NOZZLE:
+        ur[0] = rel0
+    _face_fluxes(ae, cz, cr, ur, lam, bl, br, lim, poly, flux, fz, fr)
 
     ok = True
     for i in range(n):
@@ -393,7 +433,7 @@ def step(
             if inv_l2 > 0.0:
                 bb = 1.0 + c * b + big * inv_l2
                 tr = 2.0 * big / (bb + np.sqrt(max(bb * bb - 4.0 * big * inv_l2, 0.0)))
-                f = b / (1.0 - tr * inv_l2)
+                f = b / max(1.0 - tr * inv_l2, 1e-12)
             else:
                 f = 1.0
             azz_new[i] = (qz + c) / (1.0 + c * f)
@@ -461,6 +501,7 @@ def analyse(
     t: float,
     stats: np.ndarray,
     ev: np.ndarray,
+    z_off: float = 0.0,
 ) -> int:
     """Update the wet mask, find breakups, and measure neck and tip; returns the event count.
 
@@ -478,6 +519,8 @@ def analyse(
     ``h_break`` by linear interpolation between cell centres), tip velocity (face to the
     right of the last wet cell), number of bodies. ``ev`` rows: t, neck z, tip z and tail
     z of the body that broke (tail 0 when it hung on the nozzle), attached (1/0), cell.
+    Positions are in the lab frame: the grid's left end lies at ``z_off`` (a retracted
+    meniscus), which is then also the tail of a body hanging on the nozzle.
     """
     n = a.size
     dz = par[P_DZ]
@@ -523,7 +566,8 @@ def analyse(
         if ns < 2:
             continue
         z_tip = _cross_right(h, sig_e[ns - 1], hb, dz)
-        z_tail = 0.0 if on_nozzle else _cross_left(h, sig_s[0], hb, dz)
+        z_tip += z_off
+        z_tail = z_off if on_nozzle else _cross_left(h, sig_s[0], hb, dz) + z_off
         for q in range(ns - 1):
             g0 = sig_e[q] + 1
             g1 = sig_s[q + 1] - 1
@@ -536,7 +580,7 @@ def analyse(
                 frac = min(max((hp[kmin] - hb) / (hp[kmin] - h[kmin]), 0.0), 1.0)
             if n_ev < ev.shape[0]:
                 ev[n_ev, 0] = t_prev + frac * (t - t_prev)
-                ev[n_ev, 1] = (kmin + 0.5) * dz
+                ev[n_ev, 1] = (kmin + 0.5) * dz + z_off
                 ev[n_ev, 2] = z_tip
                 ev[n_ev, 3] = z_tail
                 ev[n_ev, 4] = 1.0 if on_nozzle else 0.0
@@ -571,121 +615,12 @@ def analyse(
                 neck = h[i]
                 neck_z = (i + 0.5) * dz
     stats[0] = neck
-    stats[1] = neck_z
+    stats[1] = neck_z + z_off
     if last >= 0:
-        stats[2] = _cross_right(h, last, hb, dz)
+        stats[2] = _cross_right(h, last, hb, dz) + z_off
         stats[3] = u[last + 1]
     else:
-        stats[2] = 0.0
+        stats[2] = z_off
         stats[3] = 0.0
     stats[4] = n_bodies
     return n_ev
-
-
-@njit(cache=True)
-def _displacement(d_tab: np.ndarray, t0: float, dtab: float, t: float) -> float:
-    """Inflow displacement at ``t`` by linear interpolation in the table."""
-    x = (t - t0) / dtab
-    if x <= 0.0:
-        return d_tab[0]
-    k = int(x)
-    if k >= d_tab.size - 1:
-        return d_tab[d_tab.size - 1]
-    return d_tab[k] + (x - k) * (d_tab[k + 1] - d_tab[k])
-
-
-@njit(cache=True)
-def advance(
-    a: np.ndarray,
-    u: np.ndarray,
-    azz: np.ndarray,
-    arr: np.ndarray,
-    wet: np.ndarray,
-    t: float,
-    t_stop: float,
-    par: np.ndarray,
-    ipar: np.ndarray,
-    d_tab: np.ndarray,
-    tab_t0: float,
-    tab_dt: float,
-    hist: np.ndarray,
-    n_hist: int,
-    max_steps: int,
-    counters: np.ndarray,
-    acc: np.ndarray,
-    ev: np.ndarray,
-) -> tuple:
-    """Step from ``t`` towards ``t_stop`` (landing on it exactly); state updated in place.
-
-    Returns ``(t, n_hist, status, n_events)``. Status: 0 ``t_stop`` reached, 1 breakup
-    (events in ``ev``), 2 history array full, 3 step limit, 4 step size collapsed, 5
-    liquid reached the open far end. ``counters`` holds accepted and rejected steps,
-    ``acc`` the volume over pi injected at the left end and lost at the right end.
-    One history column (``HIST_ROWS`` rows) is written per accepted step.
-    """
-    n = a.size
-    a_new = np.empty(n)
-    u_new = np.empty(n + 1)
-    zz_new = np.empty(n)
-    rr_new = np.empty(n)
-    a_old = np.empty(n)
-    wet_new = np.empty(n, dtype=np.bool_)
-    stats = np.empty(5)
-    dz = par[P_DZ]
-    eps_t = 1e-12 * max(1.0, abs(t_stop))
-    while True:
-        if t >= t_stop - eps_t:
-            return t, n_hist, 0, 0
-        if counters[0] >= max_steps:
-            return t, n_hist, 3, 0
-        if n_hist >= hist.shape[1]:
-            return t, n_hist, 2, 0
-        dt = time_step_limit(a, u, azz, arr, par)
-        last = False
-        if t + dt >= t_stop - eps_t:
-            dt = t_stop - t
-            last = True
-        elif t + 1.5 * dt > t_stop:
-            dt = 0.5 * (t_stop - t)  # two even steps rather than a sliver
-        while True:
-            d0 = _displacement(d_tab, tab_t0, tab_dt, t)
-            d1 = _displacement(d_tab, tab_t0, tab_dt, t + dt)
-            u_left = (d1 - d0) / dt
-            ok, f_in, f_out = step(
-                a, u, azz, arr, dt, u_left, par, ipar, a_new, u_new, zz_new, rr_new
-            )
-            if ok:
-                break
-            counters[1] += 1
-            dt *= 0.5
-            last = False
-            if dt < 1e-13:
-                return t, n_hist, 4, 0
-        t_prev = t
-        t = t_stop if last else t + dt
-        acc[0] += f_in * dt
-        acc[1] += f_out * dt
-        a_old[:] = a
-        a[:] = a_new
-        u[:] = u_new
-        azz[:] = zz_new
-        arr[:] = rr_new
-        counters[0] += 1
-        n_ev = analyse(a, a_old, u, wet, wet_new, par, ipar, t_prev, t, stats, ev)
-        wet[:] = wet_new
-        vol = 0.0
-        for i in range(n):
-            vol += a[i]
-        hist[0, n_hist] = t
-        hist[1, n_hist] = stats[0]
-        hist[2, n_hist] = stats[1]
-        hist[3, n_hist] = stats[2]
-        hist[4, n_hist] = stats[3]
-        hist[5, n_hist] = vol * dz + acc[1]
-        hist[6, n_hist] = acc[0]
-        hist[7, n_hist] = stats[4]
-        n_hist += 1
-        if n_ev > 0:
-            return t, n_hist, 1, n_ev
-        if ipar[I_BR] == BC_OUTFLOW and (wet[n - 1] or wet[n - 2] or wet[n - 3]):
-            return t, n_hist, 5, 0
