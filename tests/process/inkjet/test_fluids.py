@@ -238,9 +238,7 @@ def test_load_table_from_path(tmp_path: Path) -> None:
     t = load_table(p)
     assert (t.relaxation_status, t.lambda_ref_s, t.exponent) == ("calibrated", 3.0e-4, 2.0)
     assert naalg(1.0, table=t, model="lagrangian").relaxation_time_s == 3.0e-4
-    assert naalg(0.5, table=t, model="lagrangian").relaxation_time_s == pytest.approx(
-        3.0e-4 * 0.25
-    )
+    assert naalg(0.5, table=t, model="lagrangian").relaxation_time_s == pytest.approx(3.0e-4 * 0.25)
     assert t.exponent_bounds == (0.0, 4.0)
 
 

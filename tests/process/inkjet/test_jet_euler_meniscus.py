@@ -4,6 +4,7 @@ mass through the hand-over and back."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -24,9 +25,7 @@ def _column(oh: float, length: float, dt: float = 1e-3) -> Upstream:
     k = 8.0 * oh
     phi = math.exp(-k * dt)
     gain = -(1.0 - phi) / (k * length) if k > 0 else -dt / length
-    return Upstream(
-        phi=[[phi]], g_drive=[0.0], g_pressure=[gain], c_row=[1.0], slopes=[0.0], dt=dt
-    )
+    return Upstream(phi=[[phi]], g_drive=[0.0], g_pressure=[gain], c_row=[1.0], slopes=[0.0], dt=dt)
 
 
 def _column_displacement(run) -> np.ndarray:
@@ -76,8 +75,8 @@ def test_small_meniscus_oscillation_has_the_capillary_frequency_and_viscous_deca
     assert up.size >= 3
     assert np.diff(up).mean() == pytest.approx(2.0 * math.pi / omega, rel=0.01)
     # amplitude of the troughs against exp(-4 Oh t)
-    troughs = [np.min(delta[(run.t >= a) & (run.t < b)]) for a, b in zip(up[:-1], up[1:])]
-    mids = [0.5 * (a + b) for a, b in zip(up[:-1], up[1:])]
+    troughs = [np.min(delta[(run.t >= a) & (run.t < b)]) for a, b in itertools.pairwise(up)]
+    mids = [0.5 * (a + b) for a, b in itertools.pairwise(up)]
     rate = -np.polyfit(mids, np.log(-np.array(troughs)), 1)[0]
     assert rate == pytest.approx(4.0 * oh, abs=0.01)
 
@@ -120,9 +119,7 @@ def test_a_retracting_meniscus_pulls_the_jet_root_into_the_bore() -> None:
     k_push = int(t_push / dt)
     slopes[0] = u_out / dt  # the drive steps the velocity: +3 at t = 0, -6 at t_push
     slopes[k_push] = -2.0 * u_out / dt
-    up = Upstream(
-        phi=[[1.0]], g_drive=[dt], g_pressure=[0.0], c_row=[1.0], slopes=slopes, dt=dt
-    )
+    up = Upstream(phi=[[1.0]], g_drive=[dt], g_pressure=[0.0], c_row=[1.0], slopes=slopes, dt=dt)
     run = run_jet_euler(
         JetModel(ohnesorge=0.1),
         EulerNumerics(length=8.0),
