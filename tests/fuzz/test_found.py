@@ -89,6 +89,10 @@ FOUND: dict[str, tuple[tuple[str, ...], str]] = {
             "25",
             "--concentration",
             "1e-12",
+            # the Lagrangian solver stops early on this water-like jet and leaves no frame
+            # with liquid; the default (Eulerian) model follows it out and renders it
+            "--model",
+            "lagrangian",
         ),
         "no liquid outside the nozzle",
     ),

@@ -10,7 +10,7 @@ import typer
 
 from microfab.cli._kit import check_option, check_output_path, console, fail, progress
 from microfab.io.atomic import atomic_write_text
-from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
+from microfab.process.inkjet.fluids import DEFAULT_JET_MODEL
 
 __all__ = ["MAX_DURATION_US", "droplet_app"]
 

@@ -13,6 +13,7 @@ from microfab.io.job import JobFileError
 from microfab.io.sweep import SweepResult
 from microfab.machines import printhead
 from microfab.machines.printhead import DropletSettings, SweepPoint
+from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 
 EXAMPLES = Path(__file__).parents[3] / "examples"
 
@@ -35,6 +36,7 @@ def test_example_is_the_seed_sweep() -> None:
     assert len(cfg.points) == 6 + 6  # 50 V at 1 % is in both series, run once
     assert cfg.settings == DropletSettings(duration_s=400e-6, after_breakup_s=20e-6)
     assert cfg.workers == 2 and cfg.scheduler is None
+    assert cfg.models == (DEFAULT_JET_MODEL,)  # the example runs the default model
 
 
 def test_job_file_values_are_checked(tmp_path: Path) -> None:

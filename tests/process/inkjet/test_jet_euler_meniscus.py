@@ -140,3 +140,49 @@ def test_a_retracting_meniscus_pulls_the_jet_root_into_the_bore() -> None:
     assert first.mode == "exit"
     balance = run.volume - run.volume[0] - run.injected
     assert np.max(np.abs(balance)) < 1e-10
+
+
+def test_bad_meniscus_and_upstream_inputs_are_refused() -> None:
+    model = JetModel(ohnesorge=0.1)
+    up = _column(0.1, 2.0)
+    with pytest.raises(ValueError, match="meniscus must be one of"):
+        run_jet_euler(model, t_end=0.1, meniscus="sliding")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="meniscus_z0 must be <= 0"):
+        run_jet_euler(model, t_end=0.1, meniscus="retracting", meniscus_z0=0.1)
+    with pytest.raises(ValueError, match="needs meniscus='retracting'"):
+        run_jet_euler(model, t_end=0.1, meniscus_z0=-0.1)
+    with pytest.raises(ValueError, match="either an inflow or an upstream"):
+        run_jet_euler(model, t_end=0.1, upstream=up, inflow=_Still())
+    with pytest.raises(ValueError, match="bore_length must be > 0"):
+        run_jet_euler(model, t_end=0.1, bore_length=0.0)
+    with pytest.raises(ValueError, match="square matrix"):
+        Upstream(phi=[1.0, 2.0], g_drive=[0.0], g_pressure=[0.0], c_row=[1.0], slopes=[], dt=1.0)
+    with pytest.raises(ValueError, match="g_pressure needs shape"):
+        Upstream(phi=[[1.0]], g_drive=[0.0], g_pressure=[0.0, 1.0], c_row=[1.0], slopes=[],
+                 dt=1.0)  # fmt: skip
+    with pytest.raises(ValueError, match="NaN or inf"):
+        Upstream(phi=[[np.nan]], g_drive=[0.0], g_pressure=[0.0], c_row=[1.0], slopes=[], dt=1.0)
+    with pytest.raises(ValueError, match="dt must be"):
+        Upstream(phi=[[1.0]], g_drive=[0.0], g_pressure=[0.0], c_row=[1.0], slopes=[], dt=0.0)
+    with pytest.raises(ValueError, match="cap_cells"):
+        EulerNumerics(cap_cells=0.5)
+
+
+def test_a_meniscus_deeper_than_the_bore_stops_the_run_with_its_reason() -> None:
+    run = run_jet_euler(
+        JetModel(ohnesorge=0.1),
+        upstream=_column(0.0, 2.0),
+        meniscus="retracting",
+        meniscus_z0=-0.3,
+        bore_length=0.2,
+        t_end=1.0,
+    )
+    assert run.stop_reason.startswith("the meniscus retracted deeper than the bore (0.2 radii)")
+
+
+class _Still:
+    def velocity(self, t: float) -> float:
+        return 0.0
+
+    def displacement(self, t: float) -> float:
+        return 0.0

@@ -389,6 +389,7 @@ def run_jet_euler(
     upstream: Upstream | None = None,
     meniscus_z0: float = 0.0,
     bore_length: float = math.inf,
+    depin_area: float = em.DEPIN_AREA,
 ) -> JetRun:
     """Integrate the Eulerian slender-jet model from ``t0`` to ``t_end`` (dimensionless).
 
@@ -433,6 +434,10 @@ def run_jet_euler(
     bore_length : float, optional
         Depth of the straight bore behind the exit; the run stops if the meniscus
         retracts deeper (default: no limit).
+    depin_area : float, optional
+        Squared radius of the liquid at the rim (over the bore's) below which suction
+        lets the meniscus go into the bore instead of draining the bulge through the rim
+        (default `jet_euler_meniscus.DEPIN_AREA`, an assumption), in ``(0, 1]``.
 
     Returns
     -------
@@ -475,6 +480,8 @@ def run_jet_euler(
         raise ValueError("a meniscus inside the bore (meniscus_z0 < 0) needs meniscus='retracting'")
     if not bore_length > 0.0:
         raise ValueError(f"bore_length must be > 0, got {bore_length}")
+    if not 0.0 < depin_area <= 1.0:
+        raise ValueError(f"depin_area must lie in (0, 1], got {depin_area}")
     if upstream is not None and inflow is not None:
         raise ValueError("give either an inflow or an upstream model, not both")
     if initial is None:
@@ -503,6 +510,7 @@ def run_jet_euler(
     par[ek.P_REWET] = nu.rewet_factor
     par[ek.P_DT_MAX] = nu.dt_max
     par[ek.P_BORE] = bore_length
+    par[ek.P_DEPIN] = depin_area
     cap = nu.cap_cells * dz  # centre height of the bulge the grid takes over
     par[ek.P_CAP] = cap * (3.0 + cap * cap) / 6.0 if meniscus == "retracting" else math.inf
     ipar = np.array(

@@ -391,7 +391,7 @@ def advance(
             d1 = _displacement(d_tab, tab_t0, tab_dt, t + dt)
             adv = d1 - d0
             z_new = z_m
-            if retracting and (z_m != 0.0 or not wet[0] or (adv < 0.0 and a[0] < DEPIN_AREA)):
+            if retracting and (z_m != 0.0 or not wet[0] or (adv < 0.0 and a[0] < par[ek.P_DEPIN])):
                 z_new = z_m + adv  # the meniscus moves with the column
             w = (z_new - z_m) / dt
             rel = (adv - (z_new - z_m)) / dt
