@@ -162,3 +162,14 @@ def test_fig4_reproduction_options() -> None:
     }
     with pytest.raises(JobFileError, match="workers"):
         rep.parse_options({"workers": 0})
+
+
+def test_the_report_names_the_fitted_parameters() -> None:
+    from microfab.experiments.seed003_inkjet.job import _fitted
+    from microfab.process.inkjet.fluids import load_table
+
+    law = load_table().law("eulerian")
+    note = _fitted("eulerian")
+    assert f"λ_ref = {law.lambda_ref_s * 1e6:.3g} µs" in note
+    assert f"m = {law.exponent:.3g}" in note
+    assert "microfab droplet calibrate --model eulerian" in note

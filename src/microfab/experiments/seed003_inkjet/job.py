@@ -372,7 +372,7 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
     rows, failed = _sweep(config, None, "seed 003 Fig. 4", progress)
     return ReproductionResult(
         tables=breakup_tables(rows),
-        notes=tuple(f"failed: {f}" for f in failed),
+        notes=(*(_fitted(m) for m in config.models), *(f"failed: {f}" for f in failed)),
         data={"rows": rows, "failed": failed},
     )
 
