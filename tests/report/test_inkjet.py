@@ -125,6 +125,13 @@ def test_fig_nozzle_flow() -> None:
     np.testing.assert_allclose(ax_u.lines[0].get_ydata(), flow.velocity_m_s)
     np.testing.assert_allclose(ax_v.lines[0].get_xdata(), flow.t_s * 1e6)
     assert "µs" in ax_u.get_xlabel()
+    # with the meniscus: a third axis in µm, 0 at the rim
+    t = np.linspace(0.0, 100 * US, 11)
+    z = -np.linspace(0.0, 50e-6, 11)
+    fig = fig_nozzle_flow(flow, wave, (t, z))
+    ax_v, ax_u, ax_m = fig.axes
+    np.testing.assert_allclose(ax_m.lines[0].get_ydata(), z * 1e6)
+    assert "meniscus" in ax_m.get_ylabel() and "µs" in ax_m.get_xlabel()
 
 
 def test_fig_regime_map_builds() -> None:

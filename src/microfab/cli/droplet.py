@@ -142,7 +142,8 @@ def _write_report(res: Any, out: Path) -> None:
     from microfab.report.inkjet import fig_montage, fig_nozzle_flow
 
     out.mkdir(parents=True, exist_ok=True)
-    save_figure(fig_nozzle_flow(res.flow, res.waveform), out / "nozzle_flow.png")
+    flow_fig = fig_nozzle_flow(res.flow, res.waveform, res.meniscus_trace)
+    save_figure(flow_fig, out / "nozzle_flow.png")
     sil = [s for s in res.silhouettes if s.bodies]
     if sil:
         cam = _camera(sil)

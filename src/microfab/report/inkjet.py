@@ -61,8 +61,12 @@ CATEGORY_COLORS: tuple[str, ...] = ("#8c6bb1", "#41ab5d", "#fdae61", "#bdbdbd", 
 _DIAMETER_RULE = "nozzle diameter"
 
 
-def fig_nozzle_flow(flow: NozzleFlow, waveform: Waveform) -> Figure:
-    """Drive voltage and mean orifice velocity against time.
+def fig_nozzle_flow(
+    flow: NozzleFlow,
+    waveform: Waveform,
+    meniscus: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Figure:
+    """Drive voltage, mean orifice velocity and the meniscus position against time.
 
     Parameters
     ----------
@@ -70,12 +74,16 @@ def fig_nozzle_flow(flow: NozzleFlow, waveform: Waveform) -> Figure:
         Orifice velocity history.
     waveform : Waveform
         The drive waveform that produced it.
+    meniscus : (numpy.ndarray, numpy.ndarray), optional
+        Times in s and meniscus centre positions in m, both shape ``(n,)``
+        (`microfab.process.inkjet.droplet.DropletResult.meniscus_trace`): 0 at the rim,
+        negative inside the bore. Adds a third axis.
 
     Returns
     -------
     matplotlib.figure.Figure
-        Two stacked axes sharing the time axis in µs: voltage (V) on top, velocity (m/s)
-        below, with the peak marked.
+        Stacked axes sharing the time axis in µs: voltage (V) on top, velocity (m/s)
+        below with the peak marked, and the meniscus (µm) if given.
 
     Examples
     --------
@@ -88,8 +96,9 @@ def fig_nozzle_flow(flow: NozzleFlow, waveform: Waveform) -> Figure:
     2
     """
     t_us = flow.t_s * 1e6
-    fig = new_figure(6.4, 4.6)
-    ax_v, ax_u = fig.subplots(2, 1, sharex=True)
+    fig = new_figure(6.4, 4.6 if meniscus is None else 6.4)
+    axes = fig.subplots(2 if meniscus is None else 3, 1, sharex=True)
+    ax_v, ax_u = axes[0], axes[1]
     ax_v.plot(t_us, waveform.voltage(flow.t_s), color="black")
     ax_v.set_ylabel("voltage (V)")
     ax_v.set_title(f"{waveform.kind} drive, {waveform.amplitude_v:g} V")
@@ -105,9 +114,16 @@ def fig_nozzle_flow(flow: NozzleFlow, waveform: Waveform) -> Figure:
         fontsize=8,
     )
     ax_u.axhline(0.0, color="gray", lw=0.8)
-    ax_u.set_xlabel("time (µs)")
     ax_u.set_ylabel("orifice velocity (m/s)")
     ax_u.grid(True, alpha=0.3)
+    if meniscus is not None:
+        ax_m = axes[2]
+        t_m, z_m = meniscus
+        ax_m.plot(np.asarray(t_m) * 1e6, np.asarray(z_m) * 1e6, color="tab:green")
+        ax_m.axhline(0.0, color="gray", lw=0.8)
+        ax_m.set_ylabel("meniscus (µm)\n0: rim, < 0: in the bore")
+        ax_m.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("time (µs)")
     return fig
 
 

@@ -208,6 +208,18 @@ class DropletResult:
     meniscus: MeniscusKind = "pinned"
 
     @property
+    def meniscus_trace(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Times (s) and meniscus centre positions (m, < 0 in the bore) per step, or None.
+
+        None when the meniscus was held at the rim (the Lagrangian model, or
+        ``meniscus="pinned"``).
+        """
+        z = self.run.meniscus_z
+        if z is None:
+            return None
+        return self.run.t * self.scales.time_s, z * self.scales.length_m
+
+    @property
     def meniscus_depth_m(self) -> float:
         """Deepest retraction of the meniscus centre into the bore over the run, m (>= 0)."""
         z = self.run.meniscus_z
@@ -546,7 +558,12 @@ def _summarise(
     if lead is not None:
         drop_volume = math.pi * lead.volume * sc.length_m**3
         tiny = (BREAKUP_RADIUS_M / sc.length_m) ** 3
-        satellites = sum(1 for b in bodies if b is not lead and b.left == "tip" and b.volume > tiny)
+        # detached bodies out of the nozzle (one still in the bore is not seen, nor ejected)
+        satellites = sum(
+            1
+            for b in bodies
+            if b is not lead and b.left == "tip" and b.volume > tiny and b.z[-1] > 0.0
+        )
     speed_for_numbers = head_speed if head_speed > 0 else flow.peak_velocity_m_s
     silhouettes = tuple(_silhouette(t, b, sc) for t, b in run.snapshots)
     head_tail = thinning = None
