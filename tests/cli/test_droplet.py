@@ -208,3 +208,23 @@ def test_calibrate_refuses_a_missing_table_before_running(tmp_path: Path) -> Non
     assert res.output.strip().startswith("error: --write") and not (tmp_path / "no.toml").exists()
     res = runner.invoke(app, ["droplet", "calibrate", "--model", "smooth"])
     assert res.exit_code == 2 and "--model must be one of" in res.output
+
+
+def test_every_model_option_defaults_to_the_one_constant() -> None:
+    import typer.main
+
+    from microfab.cli.droplet import droplet_app
+    from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
+
+    group = typer.main.get_command(droplet_app)
+    with_model = {
+        name: param
+        for name, cmd in group.commands.items()  # type: ignore[attr-defined]
+        for param in cmd.params
+        if param.name == "model"
+    }
+    # the commands that run the jet model (guards against a command dropping out unseen)
+    assert {"simulate", "render", "sweep"} <= set(with_model)
+    for name, param in with_model.items():
+        assert param.default == DEFAULT_JET_MODEL, name
+        assert f"(default: {DEFAULT_JET_MODEL})" in (param.help or ""), name

@@ -144,3 +144,18 @@ def test_play_a_voltage_or_its_waveform_is_one_run_on_the_twin() -> None:
     by_wave = play(seed003_waveform(50.0), naalg(0.15), settings)
     assert by_volts.printhead is twin() and by_wave.printhead is twin()
     assert by_wave.to_dict() == by_volts.to_dict()
+
+
+def test_model_defaults_follow_the_one_constant() -> None:
+    import inspect
+
+    from microfab.machines import printhead_calibration, printhead_sensitivity
+    from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
+
+    assert DropletSettings().model == DEFAULT_JET_MODEL
+    for fn in (
+        printhead_calibration.simulated_breakup,
+        printhead_calibration.write_relaxation,
+        printhead_sensitivity.perturbed_fluid,
+    ):
+        assert inspect.signature(fn).parameters["model"].default == DEFAULT_JET_MODEL, fn

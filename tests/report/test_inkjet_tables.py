@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from microfab.report.inkjet_tables import breakup_tables
+from microfab.report.inkjet_tables import LEGACY_ROW_MODEL, breakup_tables, row_model
 
 
 def _row(c: float, v: float, t: float | None, mode: str | None = "exit") -> dict[str, Any]:
@@ -41,3 +41,11 @@ def test_tables_put_the_seed_beside_ours_and_judge_the_trend() -> None:
     assert tables[1].rows[0][1] == "no: no breakup at 2 %"
     assert tables[0].rows[1][1] == "— / —"
     assert len(tables) == 2  # no voltage series in these rows
+
+
+def test_rows_without_a_model_are_the_legacy_lagrangian_runs() -> None:
+    # rows saved before they named their model came from the Lagrangian model, whatever
+    # the default model is now
+    assert LEGACY_ROW_MODEL == "lagrangian"
+    assert row_model(_row(1.0, 50, 2e-4)) == "lagrangian"
+    assert row_model({**_row(1.0, 50, 2e-4), "jet_model": "eulerian"}) == "eulerian"

@@ -52,6 +52,14 @@ def test_job_file_values_are_checked(tmp_path: Path) -> None:
     assert cfg.points == [SweepPoint(0.15, 50.0)]
 
 
+def test_models_default_to_the_one_constant(tmp_path: Path) -> None:
+    assert DropletSweepConfig().models == (DEFAULT_JET_MODEL,)
+    # a job file that names no models runs the default one
+    cfg = load_job(_write(tmp_path, "concentrations_pct = [0.15]\nvoltages_v = []")).config
+    assert cfg.models == (DEFAULT_JET_MODEL,)
+    assert cfg.settings.model == DEFAULT_JET_MODEL
+
+
 def _row(c: float, v: float, t: float | None, mode: str | None = "exit") -> dict[str, Any]:
     return {
         "concentration_pct": c,
