@@ -96,10 +96,16 @@ def simulate_cmd(
     console.print_json(json.dumps(summary, default=float))
 
 
+#: What each jet model is, for --model's help (the default is named from `DEFAULT_JET_MODEL`).
+_MODEL_TRAITS = {
+    "eulerian": "fixed grid, a thin film through pinch-offs, the meniscus retracting into "
+    "the bore, acoustics coupled both ways",
+    "lagrangian": "moving nodes, bodies split at each pinch, meniscus held at the rim",
+}
 _MODEL_HELP = (
-    "Jet model: 'eulerian' (fixed grid, a thin film through pinch-offs, the meniscus "
-    "retracting into the bore, acoustics coupled both ways; the default) or 'lagrangian' "
-    "(moving nodes, bodies split at each pinch, meniscus held at the rim)."
+    "Jet model: "
+    + " or ".join(f"'{m}' ({traits})" for m, traits in _MODEL_TRAITS.items())
+    + f" (default: {DEFAULT_JET_MODEL})."
 )
 
 

@@ -28,16 +28,22 @@ from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, versus
 
-__all__ = ["breakup_tables", "breakup_trend", "row_model"]
+__all__ = ["LEGACY_ROW_MODEL", "breakup_tables", "breakup_trend", "row_model"]
 
 
 def _us(seconds: float | None) -> float | None:
     return None if seconds is None else seconds * 1e6
 
 
+#: The jet model of sweep rows saved before rows named theirs (no ``jet_model`` key): those
+#: runs were all Lagrangian. This describes old data, so it stays "lagrangian" whatever
+#: `DEFAULT_JET_MODEL` (the model new runs use unless asked) is.
+LEGACY_ROW_MODEL = "lagrangian"
+
+
 def row_model(row: dict[str, Any]) -> str:
-    """The jet model of a sweep row (``jet_model``; rows without one are Lagrangian)."""
-    return str(row.get("jet_model", "lagrangian"))
+    """The jet model of a sweep row (``jet_model``; rows without one: `LEGACY_ROW_MODEL`)."""
+    return str(row.get("jet_model", LEGACY_ROW_MODEL))
 
 
 def breakup_trend(at50: Sequence[dict[str, Any]]) -> str:
@@ -84,7 +90,7 @@ def breakup_tables(rows: Sequence[dict[str, Any]]) -> tuple[Table, ...]:
         Sweep rows (`microfab.machines.printhead.droplet_sweep`): ``concentration_pct``,
         ``voltage_v``, ``breakup_time_s``, ``breakup_mode``, ``breakup_z_m``,
         ``head_speed_m_s``, ``satellites``, ``drop_diameter_m`` and ``jet_model``
-        (default "lagrangian").
+        (rows without one are `LEGACY_ROW_MODEL`'s).
 
     Returns
     -------
