@@ -524,7 +524,7 @@ def _summarise(
     flow: NozzleFlow,
     sc: Scales,
     run: JetRun,
-    model: JetModelKind = "lagrangian",
+    model: JetModelKind = DEFAULT_JET_MODEL,
     meniscus: MeniscusKind = "pinned",
 ) -> DropletResult:
     t_s = run.t * sc.time_s
