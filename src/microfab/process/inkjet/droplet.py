@@ -344,21 +344,8 @@ def simulate_droplet(
             f"breakup radius {breakup_radius_m} m must lie between 0 and the nozzle radius "
             f"{radius} m"
         )
-    flow = nozzle_flow(
-        printhead,
-        waveform,
-        density_kg_m3=fluid.density_kg_m3,
-        viscosity_pa_s=fluid.zero_shear_viscosity_pa_s,
-        surface_tension_n_m=fluid.surface_tension_n_m,
-        duration_s=max(duration_s + 1e-6, FLOW_RECORD_S),
-    )
-    keep = int(np.searchsorted(flow.t_s, duration_s + 1e-6, side="right"))
-    flow = NozzleFlow(
-        t_s=flow.t_s[:keep],
-        velocity_m_s=flow.velocity_m_s[:keep],
-        displacement_m=flow.displacement_m[:keep],
-        nozzle_radius_m=flow.nozzle_radius_m,
-    )
+    if model not in JET_MODELS:
+        raise ValueError(f"model must be one of {', '.join(JET_MODELS)}, got {model!r}")
     if meniscus is not None and meniscus not in MENISCUS_KINDS:
         raise ValueError(f"meniscus must be one of {', '.join(MENISCUS_KINDS)}, got {meniscus!r}")
     if meniscus == "retracting" and model != "eulerian":
@@ -377,9 +364,10 @@ def simulate_droplet(
         if numerics is not None and not isinstance(numerics, Numerics):
             raise TypeError("the Lagrangian model takes jet.Numerics settings")
         nu = dataclasses.replace(numerics or DOD_NUMERICS, h_break=breakup_radius_m / radius)
+        flow = _one_way_flow(printhead, fluid, waveform, duration_s)
         inflow = _ScaledInflow(jet_inflow(flow), sc)
         run = run_jet([], sc.model(fluid), nu, land_on_snapshots=False, inflow=inflow, **common)
-    elif model == "eulerian":
+    else:
         if numerics is not None and not isinstance(numerics, EulerNumerics):
             raise TypeError("the Eulerian model takes jet_euler.EulerNumerics settings")
         base = numerics or EULER_DOD_NUMERICS
@@ -389,11 +377,35 @@ def simulate_droplet(
             run = run_jet_euler(sc.model(fluid), nu_e, upstream=up, meniscus=menisc, **common)
             flow = _coupled_flow(run, sc, radius)
         else:
+            flow = _one_way_flow(printhead, fluid, waveform, duration_s)
             inflow = _ScaledInflow(jet_inflow(flow), sc)
             run = run_jet_euler(sc.model(fluid), nu_e, inflow=inflow, **common)
-    else:
-        raise ValueError(f"model must be one of {', '.join(JET_MODELS)}, got {model!r}")
     return _summarise(fluid, waveform, printhead, flow, sc, run, model, menisc)
+
+
+def _one_way_flow(
+    printhead: Printhead, fluid: Fluid, waveform: Waveform, duration_s: float
+) -> NozzleFlow:
+    """The acoustics' orifice flow with their own lumped meniscus, cut to the run.
+
+    Computed over `FLOW_RECORD_S` (or the run, if longer) so that a run is the prefix of
+    any longer run of the same point.
+    """
+    flow = nozzle_flow(
+        printhead,
+        waveform,
+        density_kg_m3=fluid.density_kg_m3,
+        viscosity_pa_s=fluid.zero_shear_viscosity_pa_s,
+        surface_tension_n_m=fluid.surface_tension_n_m,
+        duration_s=max(duration_s + 1e-6, FLOW_RECORD_S),
+    )
+    keep = int(np.searchsorted(flow.t_s, duration_s + 1e-6, side="right"))
+    return NozzleFlow(
+        t_s=flow.t_s[:keep],
+        velocity_m_s=flow.velocity_m_s[:keep],
+        displacement_m=flow.displacement_m[:keep],
+        nozzle_radius_m=flow.nozzle_radius_m,
+    )
 
 
 #: Step of the coupled acoustics, s: the step of the one-way orifice flow (50 ns, which hits
@@ -459,8 +471,6 @@ def _coupled_flow(run: JetRun, sc: Scales, radius_m: float) -> NozzleFlow:
     """The nozzle velocity the coupled acoustics produced, as a `NozzleFlow` (SI)."""
     assert run.upstream_velocity is not None
     v = np.asarray(run.upstream_velocity) * sc.velocity_m_s
-    if v.size < 2:
-        v = np.zeros(2)
     dt = run.upstream_dt * sc.time_s
     t = np.arange(v.size) * dt
     disp = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)))

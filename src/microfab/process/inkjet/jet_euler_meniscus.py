@@ -137,7 +137,9 @@ def _take_back(
     while j < n and wet[j]:
         vol += (a[j] - a_film) * dz
         j += 1
-    if j == n or vol > par[ek.P_CAP] or vol <= 0.0:
+        if vol > par[ek.P_CAP]:
+            return 0.0  # a jet, not a bulge: no need to measure all of it
+    if j == n or vol <= 0.0:
         return 0.0
     for i in range(j):
         a[i] = a_film
