@@ -129,6 +129,7 @@ def test_sweep_refuses_bad_input(tmp_path: Path) -> None:
         pytest.param(
             "eulerian",
             marks=pytest.mark.xfail(
+                raises=AssertionError,
                 strict=True,
                 reason="by design: the Eulerian 0.15 % thread breaks at the retracted meniscus, "
                 "90 µm inside the bore, where the camera outside the nozzle cannot see it",

@@ -32,8 +32,8 @@ def runs(reproduced):
 # ------------------------------------------------------------------------ Table 1
 @pytest.mark.parametrize("axis", AXES)
 @pytest.mark.parametrize("rate", RATES)
-def test_table1_feedback_rows_within_20pct(tables, axis, rate):
-    ours = tables["table1"][axis][str(rate)]
+def test_table1_feedback_rows_within_20pct(tables, axis, rate, scaled):
+    ours = scaled(tables["table1"][axis][str(rate)])
     seed = seed000.TABLE1_MV[axis][rate]  # seed 000 Table 1
     for key in ("fb_rms", "fb_pp"):
         assert ours[key] == pytest.approx(seed[key], rel=0.20), (axis, rate, key, ours[key])
@@ -41,10 +41,14 @@ def test_table1_feedback_rows_within_20pct(tables, axis, rate):
 
 @pytest.mark.parametrize("axis", AXES)
 @pytest.mark.parametrize("rate", RATES)
-def test_table1_ilc_rms_at_most_1p5_times_seed(tables, axis, rate):
-    ours = tables["table1"][axis][str(rate)]["ilc_rms"]
+def test_table1_ilc_rms_within_30pct(tables, axis, rate, scaled):
+    # Two-sided: the residual after learning is set by the twin's calibrated noise and
+    # dynamics, so one far below the seed's is as wrong as one above. The old one-sided
+    # "at most 1.5x the seed" passed with our number halved or x1.5 (the mutation check,
+    # issue 43). Measured ours / seed: 1.04, 1.00, 0.96 (x), 1.01, 1.26, 1.05 (y).
+    ours = scaled(tables["table1"][axis][str(rate)]["ilc_rms"])
     seed = seed000.TABLE1_MV[axis][rate]["ilc_rms"]  # seed 000 Table 1
-    assert ours <= 1.5 * seed, (axis, rate, ours, seed)
+    assert ours == pytest.approx(seed, rel=0.30), (axis, rate, ours, seed)
 
 
 @pytest.mark.parametrize("axis", AXES)
@@ -109,8 +113,8 @@ def test_table2_velocity_std_drops_at_400_features(tables):
     assert t2["ilc_std"] <= 0.6 * t2["fb_std"], (t2["ilc_std"], t2["fb_std"])
 
 
-def test_table2_max_velocity_error_at_400_features(tables):
-    t2 = tables["table2"]["400"]
+def test_table2_max_velocity_error_at_400_features(tables, scaled):
+    t2 = scaled(tables["table2"]["400"])
     target = seed000.TARGET_SPEED_MM_S[400]  # seed 000 §4.2: 960 mm/s
     # seed 000 §4.2: (1401 - 960)/960 = 45.8 % (FB) and (1101 - 960)/960 = 14.6 % (ILC);
     # the table's rounded speeds give 45.9 % and 14.7 %, hence the 0.2 % tolerance
@@ -124,10 +128,10 @@ def test_table2_max_velocity_error_at_400_features(tables):
     assert ilc_err < fb_err
 
 
-def test_table2_mean_speed_near_target(tables):
+def test_table2_mean_speed_near_target(tables, scaled):
     # seed 000 §4.2: target speeds 240, 480, 960 mm/s; Table 2 means within ~10 %
     for rate in RATES:
-        t2 = tables["table2"][str(rate)]
+        t2 = scaled(tables["table2"][str(rate)])
         target = seed000.TARGET_SPEED_MM_S[rate]
         assert t2["fb_mean"] == pytest.approx(target, rel=0.12)
         assert t2["ilc_mean"] == pytest.approx(target, rel=0.12)

@@ -50,18 +50,19 @@ def test_sized_times_are_the_seeds(times):
 
 
 @pytest.mark.parametrize("case", ["u", "r", "c", "h"])
-def test_letters_speed_up_like_the_seeds_with_a_max(times, case):
-    ratio = times[(case, 3.0)] / times[(case, 1.0)]
+def test_letters_speed_up_like_the_seeds_with_a_max(times, case, scaled):
+    ratio = scaled(times[(case, 3.0)] / times[(case, 1.0)])
     assert abs(ratio - 0.586) <= 0.04, ratio
 
 
 @pytest.mark.parametrize("case", ["u", "c"])
 @pytest.mark.parametrize("a", [1.0, 3.0])
-def test_letter_times_within_a_fifth_of_table_iii(times, case, a):
-    assert times[(case, a)] == pytest.approx(paper.TABLE_III[case][a].time_s, rel=0.2)
+def test_letter_times_within_a_fifth_of_table_iii(times, case, a, scaled):
+    assert scaled(times[(case, a)]) == pytest.approx(paper.TABLE_III[case][a].time_s, rel=0.2)
 
 
-@pytest.mark.xfail(strict=True, reason="DejaVu's 'h' takes 1.253 s at 1 m/s² and 0.724 s at "
+@pytest.mark.xfail(raises=AssertionError, strict=True,
+                   reason="DejaVu's 'h' takes 1.253 s at 1 m/s² and 0.724 s at "
                    "3 m/s² against Table III's 0.971 and 0.568 s (+29 %, +27 %): its stem and "
                    "arch are longer than the ETH logo's")  # fmt: skip
 @pytest.mark.parametrize("a", [1.0, 3.0])
@@ -69,11 +70,12 @@ def test_letter_h_within_a_fifth_of_table_iii(times, a):
     assert times[("h", a)] == pytest.approx(paper.TABLE_III["h"][a].time_s, rel=0.2)
 
 
-def test_airfoil_at_two_within_fifteen_percent(times):
-    assert times[("airfoil", 2.0)] == pytest.approx(paper.AIRFOIL_TIMES_S[2.0], rel=0.15)
+def test_airfoil_at_two_within_fifteen_percent(times, scaled):
+    assert scaled(times[("airfoil", 2.0)]) == pytest.approx(paper.AIRFOIL_TIMES_S[2.0], rel=0.15)
 
 
-@pytest.mark.xfail(strict=True, reason="the airfoil takes 0.764 s at 3 m/s² against the "
+@pytest.mark.xfail(raises=AssertionError, strict=True,
+                   reason="the airfoil takes 0.764 s at 3 m/s² against the "
                    "seed's 1.024 s (-25 %): on the twin's model its time falls like "
                    "1/sqrt(a_max) (T(3)/T(1) = 0.58) where the seed's falls to 0.77")  # fmt: skip
 def test_airfoil_at_three_within_fifteen_percent(times):

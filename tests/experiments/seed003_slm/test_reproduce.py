@@ -17,18 +17,20 @@ def data():
     return res.data
 
 
-def test_fit_on_the_noisy_twin_is_within_two_percent(data):
+def test_fit_on_the_noisy_twin_is_within_two_percent(data, scaled):
     seed = np.array([paper.MODEL_NUM[0], *paper.MODEL_DEN[1:]])
-    np.testing.assert_allclose(data["fit"]["coefficients"], seed, rtol=0.02)
+    ours = scaled(np.asarray(data["fit"]["coefficients"]))
+    np.testing.assert_allclose(ours, seed, rtol=0.02)
 
 
-def test_lag_settling_and_speed_of_the_continuous_design(data):
+@pytest.mark.mutate(only=1.5, reason="the seed's 'reduced by a factor two' is a floor")
+def test_lag_settling_and_speed_of_the_continuous_design(data, scaled):
     lag0, lag1 = data["lag_us"]
     assert lag0 == pytest.approx(453.9, rel=0.005) and lag1 == pytest.approx(159.2, rel=0.005)
-    assert lag1 / lag0 <= 1 / paper.LAG_FACTOR
+    assert scaled(lag1 / lag0) <= 1 / paper.LAG_FACTOR
     set0, set1 = data["settling_us"]
     assert set0 == pytest.approx(870, rel=0.05) and set1 == pytest.approx(362, rel=0.05)
-    assert set1 / set0 <= 1 / paper.SETTLING_FACTOR
+    assert scaled(set1 / set0) <= 1 / paper.SETTLING_FACTOR
     spd0, spd1 = data["speed95_us"]
     assert spd0 == pytest.approx(788, rel=0.05) and spd1 == pytest.approx(309, rel=0.05)
 
@@ -40,6 +42,7 @@ def test_jump_delay_of_one_cell(data):
 
 
 @pytest.mark.xfail(
+    raises=AssertionError,
     strict=True,
     reason="the seed's ZOH-discretised shaper on the 10 µs axis: jump delay 570 µs, not "
     "260 ± 40 (its 23.7x spike reaches the axis as a 10 µs staircase; settling 724 µs)",
@@ -54,5 +57,6 @@ def test_sampled_settling_shows_the_discretisation_gap(data):
     assert s["zoh"] > 1.5 * s["zpetc"]
 
 
-def test_lattice_layer_scan_time_cut(data):
-    assert data["layer_cut"] >= paper.SCAN_TIME_REDUCTION
+@pytest.mark.mutate(only=0.5, reason="the seed's 'scan time reduction of 10%' is a floor")
+def test_lattice_layer_scan_time_cut(data, scaled):
+    assert scaled(data["layer_cut"]) >= paper.SCAN_TIME_REDUCTION
