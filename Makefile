@@ -1,4 +1,5 @@
-# microfab: `make run` runs the default job on the digital twin and writes report/;
+# microfab: `make run` runs the default job on the digital twin and writes report/msl-ilc/
+# (every default output has its own folder under report/, which `make clean` removes);
 # `make test` runs the test suite. Both create .venv and install everything first.
 PYTHON ?= python3
 VENV := .venv

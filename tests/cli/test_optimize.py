@@ -26,12 +26,23 @@ def test_optimize_writes_a_checked_command_and_resumes(tiny_models, tmp_path):
     res = runner.invoke(app, args)
     assert res.exit_code == 0, res.output
     names = {p.name for p in out.iterdir()}
-    assert {"command.csv", "input_400hz.csv", "predicted.csv", "stage1.npz", "summary.json",
-            "contour.png", "deviation.png", "stage2_checkpoint.npz"} <= names  # fmt: skip
-    cols = read_columns(out / "command.csv")
-    pos = np.column_stack([cols["x"], cols["y"]])
-    check_trajectory(Trajectory(dt=1e-4, position=pos), MachineLimits.seed002_stage())
+    assert {"command.csv", "baseline.csv", "input_400hz.csv", "predicted.csv", "stage1.npz",
+            "summary.json", "contour.png", "deviation.png",
+            "stage2_checkpoint.npz"} <= names  # fmt: skip
     summary = json.loads((out / "summary.json").read_text())
+    # the stage's command files (what `stage play` reads): time, input_x, input_y at 10 kHz
+    for f in ("command.csv", "baseline.csv"):
+        cols = read_columns(out / f)
+        assert list(cols) == ["time", "input_x", "input_y"]
+        pos = np.column_stack([cols["input_x"], cols["input_y"]])
+        check_trajectory(Trajectory(dt=1e-4, position=pos, at_rest=True),
+                         MachineLimits.seed002_stage())  # fmt: skip
+    # the baseline reaches t_M (the reference job scores t_1 … t_M), the command starts 2
+    # input samples early (LEAD)
+    assert cols["time"][-1] == pytest.approx(summary["m"] / 400, abs=1e-9)
+    cmds = summary["commands"]
+    assert cmds["optimised"] == {"file": "command.csv", "t0_sample": 50, "lead": 2}
+    assert cmds["baseline"]["t0_sample"] == 0
     assert summary["stage2"]["merit_end"] <= summary["stage2"]["merit_start"]
     assert summary["predicted"]["linf"] > 0
     # a rerun resumes stage 2 from its checkpoint
@@ -104,7 +115,7 @@ def test_bad_drawing_and_model_refused(tiny_models, tmp_path, one_error_line):
     one_error_line(res, "contours: choose one with --contour")
     res = runner.invoke(app, ["optimize", "circle:radius=0.002", "--model", str(tmp_path),
                               "--out", str(out)])  # fmt: skip
-    one_error_line(res, "no linear model")
+    one_error_line(res, "linear_model.json; make it with `microfab identify linear RUNS")
     assert not out.exists()
 
 

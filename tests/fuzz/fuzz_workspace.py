@@ -24,6 +24,8 @@ workspace path           what it is, made by
 ``linear_model.json``    ``identify linear runs/*`` (``identify validate``)
 ``excited/``             ``stage excite --duration 0.6``: one command run (``stage play``)
 ``models/``              a stage model folder: ``linear_model.json`` (``optimize``)
+``opt_done/``            ``optimize --stage 1`` on it, .h5 command files (``stage score``)
+``opt_played/``          ``stage play`` of its command and baseline (``stage score``)
 ``ilc_trial.csv``        the next trial (`fuzz_cases.base_trial_csv`) on ...
 ``ilc_state/``           ... the ILC state after one ``ilc step``
 ``rc_trial.csv``         the next period on ...
@@ -174,6 +176,9 @@ RECIPES: dict[str, Recipe] = {
     "stage play": Recipe(("stage", "play", "excited", "--out", "played", "--seed", "1",
                           "--hold", "0.1", "--format", "csv"),
                          inputs=("excited",), outputs=("played",)),
+    "stage score": Recipe(("stage", "score", "opt_played/command.h5", "--drawing", "opt_done",
+                           "--baseline", "opt_played/baseline.h5", "--json", "score.json"),
+                          inputs=("opt_played", "opt_done"), outputs=("score.json",)),
     "trajectory": Recipe(
         ("trajectory", "part.dxf", "--time-optimal", "--n-grid", "50", "--rate", "2000",
          "--out", "reference.csv", "--plot", "profile.png"),
@@ -282,6 +287,10 @@ def _models(work: Path) -> None:
     (work / "models").mkdir()
     write_stage_model(work / "models" / "linear_model.json",
                       StageLinearModel(model=sub, input_dt=1e-4, decimate=10))  # fmt: skip
+    _cli(work, "optimize", "circle:radius=0.002", "--model", "models", "--out", "opt_done",
+         "--stage", "1", "--n", "20", "--format", "h5")  # fmt: skip
+    _cli(work, "stage", "play", "opt_done/command.h5", "opt_done/baseline.h5", "--out",
+         "opt_played", "--format", "h5")  # fmt: skip
 
 
 def _ilc(work: Path) -> None:

@@ -51,7 +51,7 @@ def simulate_cmd(
         float,
         typer.Option(help="How long to follow the bodies after breakup, µs (at most 5000)."),
     ] = 20.0,
-    out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet"),
+    out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet/simulate"),
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Also write the summary to this JSON file.")
     ] = None,
@@ -297,7 +297,7 @@ def sweep_cmd(
     duration: Annotated[
         float, typer.Option(help="Simulated time per point, µs (10 to 5000).")
     ] = 400.0,
-    out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet-sweep"),
+    out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet/sweep"),
     jobs: Annotated[
         int,
         typer.Option(
@@ -439,7 +439,7 @@ def sensitivity_cmd(
     concentrations: Annotated[
         str, typer.Option(help="NaAlg concentrations at 50 V, % w/v, comma-separated.")
     ] = "0.15,1,2",
-    out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet-sensitivity"),
+    out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet/sensitivity"),
     model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
     jobs: Annotated[
         int, typer.Option("--jobs", min=1, max=256, help="Local Dask worker processes.")

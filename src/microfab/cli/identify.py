@@ -304,7 +304,14 @@ def _model_table(m: Any, decimate: int, input_rate: float, n_runs: int) -> Table
 @identify_app.command("linear")
 def linear_cmd(
     runs: Annotated[list[Path], typer.Argument(help=_RUN_HELP)],
-    out: Annotated[Path, typer.Option("--out", help="Write the model file (JSON) here.")],
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            help="Write the model file (JSON) here; `optimize --model DIR` reads "
+            "DIR/linear_model.json.",
+        ),
+    ],
     order: Annotated[int, typer.Option(min=1, help="States n (seed 002 §III-A: 4).")] = 4,
     block_rows: Annotated[
         int | None, typer.Option(min=2, help="Block rows of past and future (default 2n + 2).")

@@ -43,7 +43,9 @@ def ann_cmd(
     out: Annotated[
         Path,
         typer.Option(
-            "--out", help="Model directory (model.json, weights.npz; checkpoints/ while training)."
+            "--out",
+            help="Model directory (model.json, weights.npz; checkpoints/ while training); "
+            "`optimize --model DIR` reads DIR/ann/model.",
         ),
     ],
     axis: Annotated[str, typer.Option(help="x, y or both (one network per axis).")] = "both",

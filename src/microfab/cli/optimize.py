@@ -2,15 +2,21 @@
 
 Stage 1 (eqs. 8-12, linear model, minimum time within the tolerance) and stage 2 (eqs.
 13-14, the networks refine the 400 Hz input), then the 10 kHz command, checked against
-Table I. The models are those of a ``stage-identify`` job (``--model DIR``, default the
-shipped ones, `microfab.optimize.models.resolve_models_dir`: ``linear_model.json`` and
-``ann/model``).
+Table I. The models are read from one folder (``--model DIR``, default the shipped ones,
+`microfab.optimize.models.resolve_models_dir`): ``DIR/linear_model.json`` (``identify
+linear RUNS --out DIR/linear_model.json``) and ``DIR/ann/model`` (``identify ann RUNS --out
+DIR/ann/model``), the layout a ``stage-identify`` job writes too; a missing one is refused
+naming the file and the command that makes it.
 
-Writes into ``--out``: ``command.<fmt>`` (the columns of ``microfab trajectory``: time,
-x, y, m, 10 kHz), ``input_400hz.csv`` (``r``), ``predicted.csv`` (the networks' output
-and the target at 400 Hz), ``stage1.npz``, ``summary.json`` and two figures (the contour
-with the input and the predicted output, the deviation along ``s``). Stage 2 saves a
-checkpoint (``stage2_checkpoint.npz``) every few iterations and a rerun resumes it;
+Writes into ``--out``: ``command.<fmt>`` (the stage's command file, as ``stage excite``
+writes and ``stage play`` reads: time, input_x, input_y, m, 10 kHz), ``baseline.<fmt>``
+(the time-optimal command under Table I stretched to the same ``T``, the reference job's
+stronger baseline, held to ``t_M``; eq. (15)'s baseline breaks Table I and no machine
+plays it as given), ``input_400hz.csv`` (``r``), ``predicted.csv`` (the networks' output
+and the target at 400 Hz), ``stage1.npz``, ``summary.json`` (with the drawing's sizing and
+each command file's ``t_0`` sample, which ``stage score`` reads) and two figures (the
+contour with the input and the predicted output, the deviation along ``s``). Stage 2 saves
+a checkpoint (``stage2_checkpoint.npz``) every few iterations and a rerun resumes it;
 ``--stage 1`` stops after stage 1 (no networks needed). A refusal is one ``error:``
 line, exit code 2, and nothing is written (a stage-2 checkpoint already saved is kept
 for the resume).
@@ -52,8 +58,10 @@ def optimize_cmd(
         Path | None,
         typer.Option(
             "--model",
-            help="Output directory of a stage-identify job (linear_model.json, ann/model); "
-            "default: the models shipped with microfab (the built-in twin's).",
+            help="Models folder: DIR/linear_model.json (identify linear --out "
+            "DIR/linear_model.json) and DIR/ann/model (identify ann --out DIR/ann/model), "
+            "as a stage-identify job writes them; default: the models shipped with microfab "
+            "(the built-in twin's).",
         ),
     ] = None,
     amax: Annotated[
@@ -138,12 +146,36 @@ def optimize_cmd(
         fail(f"{exc}; the optimised input breaks Table I: raise the tolerance or lower --amax")
     except ValueError as exc:
         fail(str(exc))
-    _write(out, res, fmt, drawing, k, models.networks)
+    sizing = {"chord": chord, "text_height": text_height, "units": units}
+    _write(out, res, fmt, drawing, k, sizing, models.networks)
+
+
+#: The model files of a models folder and the command that writes each (README).
+LINEAR_FILE = "linear_model.json"
+ANN_DIR = "ann/model"
 
 
 def _models(directory: Path | None, need_networks: bool) -> Any:
-    from microfab.optimize.models import load_models
+    """The models of ``--model``; a missing file is refused naming it and its command."""
+    from microfab.optimize.models import builtin_models_dir, load_models, resolve_models_dir
 
+    d = resolve_models_dir(directory)
+    if d != builtin_models_dir():  # the shipped folder's own message says to reinstall
+        if d.is_file():
+            fail(f"--model {d} is a file: give the folder that holds {LINEAR_FILE} and {ANN_DIR}/")
+        lin = d / LINEAR_FILE
+        if not lin.is_file():
+            fail(
+                f"--model {d}: no {lin}; make it with `microfab identify linear RUNS --out "
+                f"{lin}` (or give a stage-identify job's output folder)"
+            )
+        ann = d / ANN_DIR
+        if need_networks and not (ann / "model.json").is_file():
+            fail(
+                f"--model {d}: no network model in {ann}/ (model.json); make it with "
+                f"`microfab identify ann RUNS --out {ann}`, or use --stage 1 (linear model "
+                "only)"
+            )
     try:
         return load_models(directory, networks=need_networks)
     except ValueError as exc:
@@ -166,16 +198,68 @@ def _stage2(problem: Any, models: Any, st1: Any, stage: str, checkpoint: str | N
                    checkpoint=checkpoint, progress=report)  # fmt: skip
 
 
-def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, networks: Any) -> None:
+def _file_digest(drawing: str) -> str | None:
+    """SHA-256 of the drawing's file, or None for a shape, text or airfoil spec."""
+    from microfab.io.runstore import content_digest
+
+    p = Path(drawing)
+    return content_digest(p) if p.is_file() else None
+
+
+def _command_columns(position: Any) -> dict[str, Any]:
+    """A 10 kHz command as the stage's command file: time, input_x, input_y (m)."""
+    import numpy as np
+
+    from microfab.optimize.pipeline import RUN_RATE_HZ
+
+    pos = np.asarray(position, dtype=float)
+    t = np.arange(pos.shape[0]) / RUN_RATE_HZ
+    return {"time": t, "input_x": pos[:, 0], "input_y": pos[:, 1]}
+
+
+def _baseline(res: Any) -> tuple[Any, str | None]:
+    """The stretched time-optimal command at ``T``, held to ``t_M`` (or None and why)."""
+    import numpy as np
+
+    from microfab.optimize.baseline import stretched_time_optimal
+    from microfab.optimize.pipeline import MODEL_RATE_HZ, RUN_RATE_HZ
+
+    p = res.problem
+    try:
+        pos = stretched_time_optimal(p.path, res.duration, p.limits, RUN_RATE_HZ)
+    except ValueError as exc:
+        return None, f"no baseline command: {exc}"
+    n = round(res.m * RUN_RATE_HZ / MODEL_RATE_HZ) + 1  # to t_M, as the reference job scores
+    if pos.shape[0] < n:
+        pos = np.vstack([pos, np.repeat(pos[-1:], n - pos.shape[0], axis=0)])
+    return pos, None
+
+
+def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, sizing: dict[str, Any],
+           networks: Any) -> None:  # fmt: skip
     from microfab.io.atomic import atomic_write_json
     from microfab.io.trace import write_columns
-    from microfab.optimize.pipeline import training_warning
+    from microfab.optimize.command import LEAD
+    from microfab.optimize.pipeline import MODEL_RATE_HZ, RUN_RATE_HZ, training_warning
     from microfab.report.canvas import save_figure
     from microfab.report.reference import plot_contour, plot_deviation
 
     cmd = res.command
+    q = round(RUN_RATE_HZ / MODEL_RATE_HZ)
+    base, no_base = _baseline(res)
+    commands: dict[str, Any] = {
+        "optimised": {"file": f"command.{fmt}", "t0_sample": LEAD * q, "lead": LEAD}
+    }
+    if base is not None:
+        commands["baseline"] = {
+            "file": f"baseline.{fmt}", "t0_sample": 0, "lead": 0,
+            "what": "the time-optimal command under Table I stretched to T (seed 002 §V: "
+            "the stronger baseline of the reference job), held to t_M",
+        }  # fmt: skip
     try:
-        write_columns(out / f"command.{fmt}", cmd.columns(), unit="m")
+        write_columns(out / f"command.{fmt}", _command_columns(cmd.position), unit="m")
+        if base is not None:
+            write_columns(out / f"baseline.{fmt}", _command_columns(base), unit="m")
         r_cols = {"time": res.t[:-1], "x": res.r[:, 0], "y": res.r[:, 1]}
         write_columns(out / "input_400hz.csv", r_cols, unit="m")
         if res.predicted is not None:
@@ -187,6 +271,12 @@ def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, networks: 
         summary = {
             "drawing": drawing,
             "contour": contour,
+            "sizing": sizing,
+            # what `stage score` checks the drawing it reads again against
+            "path_length_m": res.problem.length,
+            "drawing_sha256": _file_digest(drawing),
+            "rate_hz": RUN_RATE_HZ,
+            "commands": commands,
             "a_max": res.problem.a_max,
             "tolerance_m": res.problem.tolerance_m,
             "duration_s": res.duration,
@@ -199,6 +289,7 @@ def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, networks: 
                 w
                 for w in (
                     res.warning,  # stage 1 alone predicted worse than the stretched baseline
+                    no_base,
                     None if networks is None else training_warning(networks, res.problem.a_max),
                 )
                 if w

@@ -12,6 +12,13 @@ and writes what a real controller must record instead: per run, ``time``, ``inpu
 10 kHz), the file ``identify linear`` and ``identify ann`` read; and an index
 ``played.json`` (the twin's settings, per run the samples the set-point guard changed).
 
+``stage score RUN --drawing OPT [--baseline RUN0]`` scores measured runs of the command
+files ``microfab optimize`` wrote into ``OPT`` (``command.csv``, ``baseline.csv``) against
+the drawing: seed 002 eqs. (16)-(18) at the 400 Hz instants, with the reference job's
+scorer (`microfab.machines.xy_stage_score`), and the improvement over the baseline run.
+``OPT/summary.json`` gives the drawing, its sizing and contour, ``M`` and each command
+file's ``t_0``; each run is matched to the command file it played by its set-points.
+
 A refusal is one ``error:`` line, exit code 2, and nothing is written; every file is
 written whole (atomically), the index last.
 """
@@ -286,3 +293,215 @@ def _read_commands(paths: list[Path]) -> tuple[list[Any], list[Path]]:
     if dup:
         fail(f"two runs are named {dup[0]!r}: their measured files would be the same file")
     return commands, sources
+
+
+# --- stage score: a measured run against the drawing (seed 002 eqs. 16-18) ---------------
+
+#: How far a run's recorded set-points may lie from the command file's and still be a run of
+#: it, m (assumed: 0.1 µm, above float32 rounding of set-points below 1 m (6e-8 m) and 20x
+#: below the twin's 2 µm noise; ``stage play`` writes them exactly, %.17g).
+_MATCH_M = 1e-7
+_SUMMARY = "summary.json"
+
+
+@stage_app.command("score")
+def score_cmd(
+    run: Annotated[
+        Path,
+        typer.Argument(
+            help="A measured run (.csv, .mat, .h5: time [s], input_x, input_y, output_x, "
+            "output_y [m], 10 kHz, from the command's first sample, its last set-point held "
+            "0.5 s) of a command file of the --drawing folder."
+        ),
+    ],
+    drawing: Annotated[
+        Path,
+        typer.Option(
+            "--drawing",
+            help="The folder `microfab optimize --out` wrote: its summary.json names the "
+            "drawing (sizing, contour), M and where each command file's t_0 lies.",
+        ),
+    ],
+    baseline: Annotated[
+        Path | None,
+        typer.Option(
+            help="A measured run of another command of the folder (its baseline file), "
+            "scored alike: prints the improvement over it."
+        ),
+    ] = None,
+    json_path: Annotated[
+        Path | None, typer.Option("--json", help="Write the norms and the improvement (JSON).")
+    ] = None,
+) -> None:
+    """Score measured runs against the drawing: seed 002 eqs. (16)-(18) (L1, L2, L∞).
+
+    As the reference job scores its runs on the twin (`machines.xy_stage_score`): the
+    output at the 400 Hz instants t_1 … t_M of eq. (13) projected on the exact contour,
+    and the 500 ms after T (the last set-point held) scored apart as the tail's L∞. Each
+    run is matched to the command file it played (its input columns), which gives its
+    t_0. With --baseline, prints the improvement 100 (baseline - run) / baseline per norm
+    (seed 002 Table III).
+    """
+    runs = [run] if baseline is None else [run, baseline]
+    check_output_path("--json", json_path, inputs=[*runs, drawing])
+    summary, path = _optimized(drawing)
+    from microfab.machines.xy_stage_score import score_run
+
+    commands = _command_files(drawing, summary)
+    scored: list[tuple[str, Path, str, Any]] = []
+    for label, f in zip(("run", "baseline"), runs, strict=False):
+        rec, dt = _measured(f)
+        name, lead = _played_command(f, rec.u, dt, commands)
+        try:
+            norms = score_run(path, rec.y, summary["m"], lead)
+        except ValueError as exc:
+            fail(f"{f}: {exc}; record the hold after the command (`stage play --hold 0.5`)")
+        scored.append((label, f, name, norms))
+    _print_scores(scored, drawing, summary)
+    if json_path is not None:
+        from microfab.io.atomic import atomic_write_json
+
+        data: dict[str, Any] = {
+            "what": "seed 002 eqs. (16)-(18) at the 400 Hz instants, m; tail: the 500 ms after T",
+            "optimized": str(drawing),
+            "drawing": summary["drawing"],
+            "m": summary["m"],
+            "runs": {
+                label: {"file": str(f), "command": name, **n.as_dict()}
+                for label, f, name, n in scored
+            },
+        }
+        if len(scored) == 2:
+            data["improvement_percent"] = scored[0][3].improvement_over(scored[1][3])
+        atomic_write_json(json_path, data)
+        console.print(f"wrote {json_path}", highlight=False)
+
+
+def _optimized(folder: Path) -> tuple[dict[str, Any], Any]:
+    """The optimize folder's summary (the keys `stage score` reads) and its contour."""
+    import json
+
+    from microfab.cli.geometry import _load
+
+    f = folder / _SUMMARY
+    if not folder.is_dir() or not f.is_file():
+        fail(f"--drawing {folder}: no {f}; give the folder `microfab optimize --out` wrote")
+    try:
+        raw = json.loads(f.read_text())
+    except (OSError, ValueError) as exc:
+        fail(f"{f}: cannot read it: {exc}")
+    need = ("drawing", "contour", "sizing", "m", "commands", "path_length_m")
+    lacks = [k for k in need if not isinstance(raw, dict) or k not in raw]
+    if lacks:
+        fail(
+            f"{f} lacks {', '.join(lacks)}: written by an older microfab optimize? run "
+            "`microfab optimize` again"
+        )
+    try:
+        sizing = raw["sizing"]
+        summary = {
+            "drawing": str(raw["drawing"]),
+            "contour": int(raw["contour"]),
+            "m": int(raw["m"]),
+            "length": float(raw["path_length_m"]),
+            "digest": raw.get("drawing_sha256"),
+            "units": sizing.get("units"),
+            "chord": float(sizing["chord"]),
+            "text_height": float(sizing["text_height"]),
+            "commands": [(str(c["file"]), int(c["lead"])) for c in raw["commands"].values()],
+        }
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        fail(f"{f}: not a summary of microfab optimize ({type(exc).__name__}: {exc})")
+    spec, k = summary["drawing"], summary["contour"]
+    if summary["digest"] is not None:
+        from microfab.io.runstore import content_digest
+
+        if not Path(spec).is_file():
+            fail(f"{f}: its drawing {spec} is not found from here: run where optimize ran")
+        if content_digest(spec) != summary["digest"]:
+            fail(f"{spec} has changed since {folder} was optimised on it")
+    layer = _load(spec, summary["units"], summary["chord"], summary["text_height"])
+    if not 0 <= k < len(layer):
+        fail(f"{f}: contour {k} of {spec}, which has {len(layer)}")
+    path = layer[k]
+    # the same drawing read by the same code has the same length to the last bit (JSON
+    # keeps 17 digits); 1e-9 only admits round-off, a resized drawing differs far more
+    if not abs(path.length / summary["length"] - 1.0) <= 1e-9:
+        fail(
+            f"{spec} (contour {k}) is {path.length * 1e3:.6g} mm long, {f} says "
+            f"{summary['length'] * 1e3:.6g} mm: not the drawing it was optimised on"
+        )
+    return summary, path
+
+
+def _command_files(folder: Path, summary: dict[str, Any]) -> list[tuple[str, Any, int]]:
+    """``(file name, set-points (n, 2) m, lead)`` of each command file the folder holds."""
+    out = []
+    for name, lead in summary["commands"]:
+        f = folder / name
+        if not f.is_file():
+            continue  # removed by the user: a run of it is not matched (said below)
+        tr = read_trace_file(f)
+        if not all(c in tr.axes for c in ("input_x", "input_y")):
+            fail(f"{f}: no input_x, input_y columns: not a command file of microfab optimize")
+        cols = tr.values[:, [tr.axes.index("input_x"), tr.axes.index("input_y")]]
+        out.append((name, cols, lead))
+    return out
+
+
+def _measured(f: Path) -> tuple[Any, float]:
+    """A measured run (`stage_record`) and its sample time, s."""
+    from microfab.identify.stage_runs import stage_record
+    from microfab.machines.xy_stage_score import RUN_RATE_HZ
+
+    tr = read_trace_file(f)
+    try:
+        rec = stage_record(tr, str(f))
+    except ValueError as exc:
+        fail(str(exc))
+    if abs(tr.dt * RUN_RATE_HZ - 1.0) > 1e-9:
+        fail(
+            f"{f}: sampled at {1 / tr.dt:.6g} Hz; the command files are 10 kHz: record one "
+            "row per command sample"
+        )
+    return rec, float(tr.dt)
+
+
+def _played_command(
+    f: Path, u: Any, dt: float, commands: list[tuple[str, Any, int]]
+) -> tuple[str, int]:
+    """The command file whose set-points ``u`` starts with, and its lead."""
+    import numpy as np
+
+    for name, cmd, lead in commands:
+        n = cmd.shape[0]
+        if u.shape[0] >= n and float(np.max(np.abs(u[:n] - cmd))) <= _MATCH_M:
+            return name, lead
+    names = ", ".join(c[0] for c in commands) or "none left"
+    fail(
+        f"{f}: its input_x, input_y are not those of a command file of --drawing ({names}): "
+        "score the run of one of them, recorded from its first sample"
+    )
+
+
+def _print_scores(scored: list[tuple[str, Path, str, Any]], folder: Path, summary: Any) -> None:
+    um = 1e6
+    rows = [
+        (f"{label}: {f.name}", name, f"{n.l1 * um:.2f}", f"{n.l2 * um:.2f}",
+         f"{n.linf * um:.2f}", f"{n.tail_linf * um:.2f}")
+        for label, f, name, n in scored
+    ]  # fmt: skip
+    if len(scored) == 2:
+        imp = scored[0][3].improvement_over(scored[1][3])
+        rows.append(("improvement [%]", "", *(f"{imp[k]:.1f}" for k in ("l1", "l2", "linf")), ""))
+    print_table(
+        Table(
+            title=f"Deviation from {summary['drawing']} (contour {summary['contour']}), seed 002 "
+            "eqs. (16)-(18)",
+            columns=("run", "command", "L1 [µm]", "L2 [µm]", "L∞ [µm]", "tail L∞ [µm]"),
+            rows=rows,
+            note=f"at the 400 Hz instants t_1 … t_{summary['m']} of the commands in {folder}, "
+            "by exact foot-point projection; tail: the 500 ms after T; improvement: 100 "
+            "(baseline - run) / baseline",
+        )
+    )

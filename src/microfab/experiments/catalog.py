@@ -309,7 +309,7 @@ def _job(file: JobFile) -> Job:
     return Job(
         kind=kind,
         title=file.name or kind.default_title,
-        out=file.out or Path("report"),
+        out=file.out or Path("report") / kind.name,  # each kind its own default folder
         sections=sections,
         config=kind.make_config_of(sections, file.source),
     )

@@ -6,7 +6,8 @@ the kind, which declares it as a schema of `Key` entries::
     [job]
     kind = "msl-ilc"          # a registered job kind (``microfab kinds`` lists them)
     name = "..."              # report title (optional)
-    out = "report"            # report folder, relative to the working directory
+    out = "report/msl-ilc"    # report folder, relative to the working directory
+                              # (default: report/<kind>)
 
     [scan]                    # sections and keys of the kind
     features_per_s = 400
@@ -249,7 +250,7 @@ def _beside(folder: Path, value: str) -> str:
 _JOB_KEYS = (
     Key(name="kind", type="str", default=None, help="registered job kind"),
     Key(name="name", type="str", default=None, help="report title"),
-    Key(name="out", type="str", default=None, help="report folder"),
+    Key(name="out", type="str", default=None, help="report folder (default: report/<kind>)"),
 )
 
 

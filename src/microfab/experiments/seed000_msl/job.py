@@ -4,7 +4,7 @@ Job file (``examples/galvo_msl_default.toml``)::
 
     [job]
     kind = "msl-ilc"
-    out = "report"
+    out = "report/msl-ilc"
 
     [scan]
     features_per_s = 400              # laps of the 0.6 mm square per second (seed 000 §4)
