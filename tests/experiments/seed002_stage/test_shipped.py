@@ -1,8 +1,10 @@
 """The models shipped for the built-in XY stage twin: made as recorded, scoring as recorded.
 
 No training here: the networks' data are made again from the recorded settings and must
-digest as the training recorded; the shipped networks are scored on the validation runs
-and on the letters (Table II), and the paper's network cells are checked per cell.
+match the record's summary of them within a tolerance measured across BLAS kernels (their
+bytes differ from CPU to CPU, so no digest of them is compared); the shipped networks
+are scored on the validation runs and on the letters (Table II), and the paper's network
+cells are checked per cell.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ pytest.importorskip("torch")
 
 from microfab.experiments.seed002_stage import paper
 from microfab.experiments.seed002_stage.shipped import RECORD, recheck
+from microfab.identify.ann_data import summary_deviation
 from microfab.optimize.models import builtin_models_dir, load_models
 
 FOLDER = builtin_models_dir()
@@ -30,25 +33,51 @@ def test_the_shipped_folder_holds_models_and_their_record():
     assert size < 4e6  # "a few MB at most" (issue 34)
 
 
+#: Largest difference allowed between the networks' data made again and the record's
+#: summary, relative to each signal's RMS over the runs (`summary_deviation`). Measured
+#: spread (issue 43: `recheck` under OpenBLAS SkylakeX at 1 and 2 threads, Haswell at 1
+#: thread, SandyBridge with PyTorch's default kernels): 1.02e-5 on the training runs,
+#: 2.0e-6 on the validation runs (the twin's friction amplifies last-bit differences;
+#: threads alone change nothing; the record is of Haswell kernels, which remake its digests).
+#: Five times the spread: a difference of the order of the twin's 2 µm encoder noise
+#: (seed 002 Table I; 3.4e-5 of the positions' 58 mm RMS), no more.
+DATA_TOL = 5e-5
+#: Validation and letter cells, µm: σ relative, μ absolute. Measured spread across the
+#: same kernels: σ 1.8e-5 relative, μ 0.0036 µm (μ is a mean of errors of σ ≈ 20-60 µm,
+#: so it moves in absolute terms, not relative to its near-zero value); five times that.
+SIGMA_REL = 1e-4
+MU_ABS_UM = 0.02
+
+
 def test_the_training_data_are_made_again_from_the_recorded_settings(again):
-    rec = again["recorded"]
+    rec = again["recorded"]["data"]
     info = again["model"].model.info
-    assert again["train_digest"] == rec["data"]["train_digest"] == info["train_digest"]
-    assert again["val_digest"] == rec["data"]["val_digest"] == info["val_digest"]
+    # the record and the model agree on what the training saw (bytes: the same file set)
+    assert rec["train_digest"] == info["train_digest"] and rec["val_digest"] == info["val_digest"]
+    # the data made again are those data, to the tolerance above (not to the bit)
+    for part in ("train", "val"):
+        dev = summary_deviation(again[f"{part}_summary"], rec[f"{part}_summary"])
+        assert dev <= DATA_TOL, f"{part}: data differ from the record by {dev:.3g} of scale"
+
+
+def _close(got: float, want: float, key: str) -> bool:
+    if key.startswith("mu"):
+        return abs(got - want) <= MU_ABS_UM
+    return abs(got - want) <= SIGMA_REL * abs(want)
 
 
 def test_the_shipped_networks_score_as_recorded_on_the_validation_runs(again):
     for a in ("x", "y"):
         got, want = again["validation"][a], again["recorded"]["validation"][a]
-        assert got["sigma_um"] == pytest.approx(want["sigma_um"], rel=1e-4)
-        assert got["mu_um"] == pytest.approx(want["mu_um"], rel=1e-3, abs=1e-3)
+        for key in ("mu_um", "sigma_um"):
+            assert _close(got[key], want[key], key), (a, key, got[key], want[key])
 
 
 def test_the_letter_cells_score_as_recorded(again):
     for a, cells in again["letters"].items():
         want = again["recorded"]["letters"][a]["ann"]
         for key, value in cells.items():
-            assert value == pytest.approx(want[key], rel=1e-4, abs=1e-3), (a, key)
+            assert _close(value, want[key], key), (a, key, value, want[key])
 
 
 def test_the_models_load_as_the_builtin_default():
@@ -62,7 +91,7 @@ def _cell(again, axis: str, column: str) -> tuple[float, float]:
         ours = again["validation"][axis]["sigma_um"]
     else:
         ours = again["letters"][column.split("_")[1]][f"sigma_{axis}_um"]
-    return ours, paper.TABLE_II["ann"][axis][column].sigma * 1e6
+    return ours, paper.TABLE_II["ann"][axis][column].sigma_m * 1e6
 
 
 CELLS = [(a, c) for a in ("x", "y") for c in ("training", "letters_1", "letters_3")]
@@ -84,7 +113,9 @@ CAUSE = (
 
 
 def _xfail(a: str, c: str) -> pytest.MarkDecorator:
-    return pytest.mark.xfail(strict=True, reason=f"{MEASURED[a, c]} um; {CAUSE}")
+    return pytest.mark.xfail(
+        raises=AssertionError, strict=True, reason=f"{MEASURED[a, c]} um; {CAUSE}"
+    )
 
 
 @pytest.mark.parametrize(

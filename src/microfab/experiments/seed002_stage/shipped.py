@@ -14,11 +14,14 @@ studies off, Table II's letter columns only), made by::
 
 (``make shipped-models``). Besides ``linear_model.json`` and ``ann/model`` the folder holds
 ``trained.json`` (`write_record`): the sections that made them, the data digests the
-training recorded, the validation σ per axis, Table II's letter cells, the wall times and
-the versions. `recheck` recomputes, without training, what can be recomputed: the
-networks' data from the recorded settings (its digests must equal the recorded ones) and
-the networks' errors on the validation runs (σ must equal the recorded one); the test
-suite runs it (``tests/experiments/seed002_stage/test_shipped.py``).
+training recorded and a summary of those data that can be compared with a tolerance
+(`microfab.identify.ann_data.data_summary`), the validation σ per axis, Table II's letter
+cells, the wall times and the versions. `recheck` recomputes, without training, what can
+be recomputed: the networks' data from the recorded settings and the networks' errors on
+the validation runs and the letters. The data are floats made by a simulation, so their
+bytes (the digests) depend on the CPU's BLAS kernels: the test suite
+(``tests/experiments/seed002_stage/test_shipped.py``) compares the summaries and the
+errors within tolerances measured across kernels and thread counts, never the digests.
 """
 
 from __future__ import annotations
@@ -88,8 +91,19 @@ def _stats(mean: Any, std: Any, axes: Any) -> dict[str, float]:
     return out
 
 
-def write_record(folder: Path, study: Any, sections: dict[str, Any], wall_s: float) -> Path:
-    """Write ``trained.json`` (module docstring) into ``folder``, atomically."""
+def write_record(
+    folder: Path,
+    study: Any,
+    sections: dict[str, Any],
+    wall_s: float,
+    summaries: dict[str, Any] | None = None,
+) -> Path:
+    """Write ``trained.json`` (module docstring) into ``folder``, atomically.
+
+    ``summaries`` holds ``"train_summary"`` and ``"val_summary"``
+    (`microfab.identify.ann_data.data_summary` of the networks' data), which `recheck`
+    compares with a tolerance; the digests only tell whether the bytes are the same.
+    """
     import torch
 
     import microfab
@@ -105,6 +119,7 @@ def write_record(folder: Path, study: Any, sections: dict[str, Any], wall_s: flo
             "train_digest": info["train_digest"],
             "val_digest": info["val_digest"],
             "train_windows": info["train_windows"],
+            **(summaries or {}),
         },
         "validation": {
             a: {"mu_um": ann.validation[a].mu * 1e6, "sigma_um": ann.validation[a].sigma * 1e6}
@@ -135,8 +150,10 @@ def train_shipped(
     end, so an interrupted run leaves the old models as they were.
     """
     from microfab.experiments.seed002_stage.study import run_study
-    from microfab.identify.stage_ann import save_ann_model
+    from microfab.identify.ann_data import data_summary
+    from microfab.identify.stage_ann import runs_of, save_ann_model
     from microfab.identify.stage_data import write_stage_model
+    from microfab.machines.xy_stage_ann import ann_records
 
     out = Path(out)
     settings = shipped_settings()
@@ -144,12 +161,18 @@ def train_shipped(
     with tempfile.TemporaryDirectory(prefix="shipped-work-") as tmp:
         study = run_study(settings, Path(work) if work else Path(tmp), progress)
     wall = time.perf_counter() - t0
+    # the networks' data again (deterministic, this process): their comparable summary
+    train, val = ann_records(dataclasses.replace(settings.ann, twin=settings.twin))
+    summaries = {
+        "train_summary": data_summary(runs_of(train.records)),
+        "val_summary": data_summary(runs_of(val.records)),
+    }
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
     try:
         write_stage_model(stage / "linear_model.json", study.linear.stage_model())
         save_ann_model(study.ann.model, stage / "ann" / "model")
-        write_record(stage, study, canonical_settings(_sections(SECTIONS)), wall)
+        write_record(stage, study, canonical_settings(_sections(SECTIONS)), wall, summaries)
         old = out.with_name(f".{out.name}-old")
         if old.exists():
             shutil.rmtree(old)
@@ -171,11 +194,13 @@ def recheck(folder: str | Path) -> dict[str, Any]:
     -------
     dict
         ``"recorded"`` (the record), ``"train_digest"`` and ``"val_digest"`` (of the data
-        made again from the recorded settings), ``"validation"`` (the shipped networks'
+        made again from the recorded settings: equal to the record's only on a CPU that
+        computes the same bits), ``"train_summary"`` and ``"val_summary"`` (their
+        `data_summary`), ``"validation"`` (the shipped networks'
         μ, σ per axis on those validation runs, µm), ``"letters"`` (Table II's letter
         cells of the shipped networks, per a_max, µm), ``"model"`` and ``"settings"``.
     """
-    from microfab.identify.ann_data import data_digest
+    from microfab.identify.ann_data import data_digest, data_summary
     from microfab.identify.stage_ann import read_ann_stage_model, runs_of
     from microfab.machines.xy_stage_ann import ann_records
 
@@ -191,6 +216,8 @@ def recheck(folder: str | Path) -> dict[str, Any]:
         "recorded": record,
         "train_digest": data_digest(runs_of(train.records)),
         "val_digest": data_digest(runs_of(val.records)),
+        "train_summary": data_summary(runs_of(train.records)),
+        "val_summary": data_summary(runs_of(val.records)),
         "validation": {
             a: {"mu_um": float(errors.mean[j]) * 1e6, "sigma_um": float(errors.std[j]) * 1e6}
             for j, a in enumerate(errors.axes)
