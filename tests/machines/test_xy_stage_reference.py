@@ -26,3 +26,28 @@ def test_baseline_pools_contours_traced_at_one_speed():
     assert baseline_l2([a, b], 2 * total, tw) < pooled  # slower: closer to the contour
     with pytest.raises(ValueError, match="duration"):
         baseline_l2([a], 0.0, tw)
+
+
+def test_a_point_saved_in_an_older_format_is_run_again(tmp_path, monkeypatch):
+    """Issue 43: points saved before the stages' measured constraints are not reused."""
+    import json
+
+    from microfab.machines import xy_stage_reference as xr
+    from microfab.optimize.problem import ContourProblem
+    from microfab.optimize.stage1 import Stage1Error
+
+    calls = []
+
+    def fails(*args, **kwargs):
+        calls.append(1)
+        raise Stage1Error("stage 1 is infeasible: eq. 12h (tolerance) broken", None)
+
+    monkeypatch.setattr(xr, "run_point", fails)
+    problem = ContourProblem(circle(2e-3), a_max=1.0, tolerance_m=20e-6)
+    old = {"case": "c", "a_max": 1.0, "fingerprint": "f", "stage2": {"converged": True}}
+    (tmp_path / "c_a1.json").write_text(json.dumps(old))
+    kw = {"twin": TwinSettings(), "stage2_max_iter": 1, "folder": tmp_path, "fingerprint": "f"}
+    got = xr.saved_point("c", problem, None, **kw)
+    assert calls == [1] and got["format"] == xr.POINT_FORMAT and "12h" in got["error"]
+    again = xr.saved_point("c", problem, None, **kw)  # the current format: read back
+    assert calls == [1] and again == json.loads((tmp_path / "c_a1.json").read_text())

@@ -33,3 +33,19 @@ def test_a_models_folder_is_checked_before_any_work(tmp_path) -> None:
     (tmp_path / "ann" / "model").mkdir(parents=True)
     (tmp_path / "ann" / "model" / "model.json").write_text("{}")
     check_models_dir(tmp_path)
+
+
+def test_the_recorded_validation_sigma_is_read(tmp_path):
+    """Shipped models: trained.json (µm); a stage-identify output: summary.json (m)."""
+    import json
+
+    from microfab.optimize.models import recorded_validation_sigma
+
+    shipped = recorded_validation_sigma("builtin")
+    assert shipped is not None and shipped["y"] > 20e-6  # the shipped y network: 38.2 µm
+    assert recorded_validation_sigma(tmp_path) is None  # none recorded: no warning by σ
+    (tmp_path / "summary.json").write_text(json.dumps(
+        {"ann": {"validation": {"x": {"std_m": 3e-6}, "y": {"std_m": 4e-6}}}}))  # fmt: skip
+    assert recorded_validation_sigma(tmp_path) == {"x": 3e-6, "y": 4e-6}
+    (tmp_path / "trained.json").write_text("{not json")
+    assert recorded_validation_sigma(tmp_path) == {"x": 3e-6, "y": 4e-6}

@@ -110,3 +110,22 @@ def test_stage1_alone_is_kept_when_predicted_better():
     assert check.stretched.linf > 3 * check.stage1.linf  # the lagging stage: stage 1 pays
     assert _predicted(problem, res, SLOW).linf == pytest.approx(check.stage1.linf)
     assert res.wall_s["check"] < 10.0
+
+
+def test_the_prediction_warning_fires_when_sigma_or_rms_exceeds_mu():
+    """Issue 43: the shipped y network's validation σ (38.2 µm) exceeds μ = 20 µm."""
+    from microfab.optimize.models import recorded_validation_sigma
+    from microfab.optimize.pipeline import PredictionCheck
+
+    small = {"x": 5e-6, "y": 6e-6}
+    assert PredictionCheck(20e-6, small, small).warning is None
+    assert PredictionCheck(20e-6, small, None).warning is None
+    shipped = PredictionCheck(20e-6, small, recorded_validation_sigma("builtin"))
+    assert "recorded validation σ y 38.2 µm exceeds μ = 20 µm" in shipped.warning
+    assert "x 19.7" not in shipped.warning  # x (19.7 µm) is within μ
+    assert "good to about 38 µm" in shipped.warning
+    assert shipped.sigma_warning is not None and not shipped.rms_over_tolerance
+    apart = PredictionCheck(20e-6, {"x": 5e-6, "y": 45e-6}, None)
+    assert "differ by RMS y 45.0 µm (> μ = 20 µm)" in apart.warning
+    assert apart.rms_over_tolerance and apart.sigma_warning is None
+    assert apart.as_dict()["warning"] == apart.warning

@@ -144,6 +144,65 @@ def test_stage1_not_converged_keeps_the_last_iterate(square_problem):
     assert info.value.result is not None and info.value.result.n == 60
 
 
+def test_stage1_reports_the_constraints_measured_on_its_answer(square_problem):
+    """Eqs. 12b-12j on the returned input, re-simulated: every one holds (issue 43)."""
+    model = stage_model()
+    res = solve_stage1(square_problem, model, Stage1Settings(n=150))
+    feas = res.feasibility
+    assert res.converged and feas.feasible and feas.worst is None
+    names = {r.constraint: r for r in feas.residuals}
+    assert set(names) == {"dynamics", "along-track", "tolerance", "workspace", "velocity",
+                          "acceleration"}  # fmt: skip
+    assert names["tolerance"].equation == "12h" and names["tolerance"].unit == "µm"
+    assert names["tolerance"].largest == pytest.approx(np.abs(res.deviation).max() * 1e6, abs=1e-3)
+    assert names["dynamics"].largest < 1e-3  # µm: the returned γ is the model's output
+    s = res.summary()
+    assert s["converged"] is True and s["feasibility"]["feasible"] is True
+
+
+def test_a_broken_answer_is_named_by_its_constraint(square_problem):
+    """The answer moved 30 µm along the normal at one knot: 12h broken there, by 10 µm."""
+    from microfab.optimize.stage1_check import stage1_feasibility
+
+    model = stage_model()
+    res = solve_stage1(square_problem, model, Stage1Settings(n=150))
+    k = 40
+    tan = square_problem.path.tangent(res.s[k : k + 1])[0]
+    nor = np.array([-tan[1], tan[0]]) / np.linalg.norm(tan)
+    target = res.target[k] + 30e-6 * nor
+    # the input of knot k set so that the output there lands on `target` (D is diagonal)
+    rho = res.rho.copy()
+    rho[k] += np.linalg.solve(model.d, target - res.gamma[k])
+    feas = stage1_feasibility(square_problem, model, t=res.t, s=res.s, rho=rho,
+                              gamma=res.gamma, rho_rest=np.array(res.info["rho_rest"]),
+                              substeps=res.info["rk4_substeps"])  # fmt: skip
+    assert not feas.feasible
+    tol = {r.constraint: r for r in feas.residuals}["tolerance"]
+    assert not tol.holds and tol.sample == k and tol.time_s == pytest.approx(res.t[k])
+    assert tol.excess == pytest.approx(10.0, abs=0.5)  # µm beyond μ = 20 µm
+    assert "eq. 12h (tolerance) broken by" in feas.describe()
+
+
+def test_ipopt_success_alone_is_not_converged(square_problem, monkeypatch):
+    """An answer IPOPT calls solved but that breaks a constraint is refused, named."""
+    from microfab.optimize import stage1_check
+    from microfab.optimize.feasibility import Feasibility, measure
+
+    def broken(problem, model, **kw):
+        rows = np.array([19.0, 25.0])  # µm against μ = 20 µm
+        tol = measure("tolerance", "12h", "µm", rows, 20.0, samples=np.array([0, 1]),
+                      times=np.array([0.0, 0.01]))  # fmt: skip
+        return Feasibility((tol,))
+
+    monkeypatch.setattr(stage1_check, "stage1_feasibility", broken)
+    says = r"IPOPT reports Solve_Succeeded, but its answer breaks.*12h \(tolerance\) broken by 5"
+    with pytest.raises(Stage1Error, match=says) as info:
+        solve_stage1(square_problem, stage_model(), Stage1Settings(n=60))
+    res = info.value.result
+    assert res.status == "Solve_Succeeded" and not res.converged
+    assert res.summary()["converged"] is False
+
+
 @pytest.mark.parametrize(
     ("kw", "match"),
     [

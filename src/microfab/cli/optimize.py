@@ -194,8 +194,12 @@ def _stage2(problem: Any, models: Any, st1: Any, stage: str, checkpoint: str | N
         def report(it: int, cost: float) -> None:
             prog.update(task, completed=it, description=f"stage 2: cost {cost:.4g}")
 
+        def warn(text: str) -> None:  # before stage 2: what the prediction is worth
+            prog.console.print(f"[yellow]warning:[/] {text}", highlight=False)
+
         return run(problem, models.linear, models.networks, stage="both", stage1=st1,
-                   checkpoint=checkpoint, progress=report)  # fmt: skip
+                   checkpoint=checkpoint, progress=report,
+                   validation_sigma_m=models.validation_sigma_m, warn=warn)  # fmt: skip
 
 
 def _file_digest(drawing: str) -> str | None:

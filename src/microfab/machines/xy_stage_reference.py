@@ -17,11 +17,19 @@ Deviations (eqs. 16-18, `microfab.optimize.metrics.DeviationNorms`) are taken at
 400 Hz instants ``t_1 … t_M`` of eq. (13), as the seed defines them over ``φ_1 … φ_M``;
 the ``TAIL`` samples after ``T`` (the input held) are scored separately as the tail.
 
+What each stage reached is in the summary, measured on its answer (issue 43): stage 1's
+and stage 2's ``converged`` and ``feasibility`` (every hard constraint of seed 002 eqs.
+12b-12j and 14c-14f: largest residual with unit, sample, time, rows beyond), stage 2's
+``status`` ("converged", "infeasible": the least violating iterate returned, or "not
+converged") and ``prediction`` (`microfab.optimize.pipeline.PredictionCheck`: the
+networks against the linear model on stage 1's input, the recorded validation σ, the
+warning when either exceeds μ). ``warnings`` lists what the user is told.
+
 `saved_point` is the resumable form: a point's summary is written atomically
 (`write_point`: ``<case>_a<a_max>.json`` and ``.npz``) with the fingerprint of the
-settings that decide its numbers, and read back instead of rerun while it matches; a
-failed stage is recorded with its message. `baseline_l2` scores the eq. (15) baseline
-alone at a given time (the trade-off curves, Figs. 16-17).
+settings that decide its numbers, and read back instead of rerun while it matches and is
+of the current `POINT_FORMAT`; a failed stage is recorded with its message. `baseline_l2`
+scores the eq. (15) baseline alone at a given time (the trade-off curves, Figs. 16-17).
 
 The models are the linear model and the networks of a ``stage-identify`` output
 (`microfab.optimize.models.load_models`).
@@ -56,6 +64,7 @@ from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 
 __all__ = [
     "HOLD_S",
+    "POINT_FORMAT",
     "RUN_RATE_HZ",
     "TAIL",
     "PointResult",
@@ -69,6 +78,9 @@ __all__ = [
 RUN_RATE_HZ = 1e4  # seed 002 Table I: the 10 kHz loop
 TAIL = 200  # issue 18: after T the input is held for h = 200 samples (500 ms)
 HOLD_S = TAIL / MODEL_RATE_HZ + 0.01  # the twin's hold: the tail and one 10 ms margin
+#: A point summary's format: 2 since issue 43 (the stages' measured constraints, the
+#: prediction check); a saved point of another format is run again.
+POINT_FORMAT = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,10 +128,22 @@ class PointResult:
         ours = self.scores[f"optimised_{output}"]
         return ours.improvement_over(self.scores[f"{baseline}_{output}"])
 
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the user is told about this point, in order.
+
+        The networks' training range (`training_warning`), then the reference's own
+        (`microfab.optimize.pipeline.ReferenceResult.warnings`).
+        """
+        first = training_warning(self.reference_networks, self.a_max)
+        return tuple(w for w in (first, *self.reference.warnings) if w)
+
     def summary(self) -> dict[str, Any]:
-        """JSON-ready."""
+        """JSON-ready (module docstring)."""
         st2 = self.reference.stage2
+        pred = self.reference.prediction
         return {
+            "format": POINT_FORMAT,
             "case": self.case,
             "a_max": self.a_max,
             "duration_s": self.duration,
@@ -130,7 +154,10 @@ class PointResult:
             "improvement": {"twin": self.improvement("twin"), "ann": self.improvement("ann")},
             "limited": self.limited,
             "wall_s": self.wall_s,
-            "warning": training_warning(self.reference_networks, self.a_max),
+            "prediction": None if pred is None else pred.as_dict(),
+            "training_warning": training_warning(self.reference_networks, self.a_max),
+            "warnings": list(self.warnings),
+            "warning": "; ".join(self.warnings) or None,
         }
 
 
@@ -163,6 +190,7 @@ def run_point(
     stage2: Any = None,
     checkpoint: str | None = None,
     progress: Callable[[int, float], None] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> PointResult:
     """Optimise, play and score one case at one ``a_max`` (module docstring).
 
@@ -182,6 +210,9 @@ def run_point(
         Stage 2's checkpoint file (a rerun resumes).
     progress : callable, optional
         Stage 2's ``progress(iteration, cost)``.
+    warn : callable, optional
+        ``warn(text)`` before stage 2 when the networks' prediction is not good to μ
+        (`microfab.optimize.pipeline.PredictionCheck`; also in the summary).
 
     Raises
     ------
@@ -194,7 +225,8 @@ def run_point(
     wall: dict[str, float] = {}
     t0 = time.perf_counter()
     ref = optimize_reference(problem, models.linear, models.networks, stage1=stage1,
-                             stage2=stage2, checkpoint=checkpoint, progress=progress)  # fmt: skip
+                             stage2=stage2, checkpoint=checkpoint, progress=progress,
+                             validation_sigma_m=models.validation_sigma_m, warn=warn)  # fmt: skip
     wall["optimise"] = time.perf_counter() - t0
     m = ref.m
     base = constant_progress(problem.path, ref.duration, RUN_RATE_HZ)  # eq. (15)
@@ -277,7 +309,8 @@ def saved_point(
     point's numbers) is returned as it is; otherwise the point is run (stage 2 checkpoints
     to ``<case>_a<a_max>_stage2.ckpt.npz`` in ``folder``) and written (`write_point`). A
     stage that fails (`Stage1Error`, ValueError) gives ``{"case", "a_max", "error"}``
-    instead, saved too. ``folder`` None: nothing is read or written.
+    instead, saved too (with ``"stage1"``, the measured summary of stage 1's last iterate,
+    when stage 1 failed). ``folder`` None: nothing is read or written.
     """
     from microfab.io.atomic import atomic_write_json
     from microfab.optimize.stage2 import Stage2Settings
@@ -285,7 +318,8 @@ def saved_point(
     a = problem.a_max
     if folder is not None:
         saved = read_point_summary(folder, case, a)
-        if saved is not None and saved.get("fingerprint") == fingerprint:
+        if (saved is not None and saved.get("fingerprint") == fingerprint
+                and saved.get("format") == POINT_FORMAT):  # fmt: skip
             return saved
     ckpt = None if folder is None else str(folder / f"{case}_a{a:g}_stage2.ckpt.npz")
     try:
@@ -293,7 +327,10 @@ def saved_point(
         res = run_point(case, problem, models, twin=twin, stage1=Stage1Settings(), stage2=s2,
                         checkpoint=ckpt)  # fmt: skip
     except (Stage1Error, ValueError) as exc:
-        summary = {"case": case, "a_max": a, "error": f"{type(exc).__name__}: {exc}"}
+        summary = {"format": POINT_FORMAT, "case": case, "a_max": a,
+                   "error": f"{type(exc).__name__}: {exc}"}  # fmt: skip
+        if isinstance(exc, Stage1Error) and exc.result is not None:
+            summary["stage1"] = exc.result.summary()  # what it reached, measured
     else:
         summary = res.summary()
         if folder is not None:

@@ -15,11 +15,20 @@ the settings, seed, data digest and validation σ that produced them, written by
 means them (`resolve_models_dir`), so the reference optimisation runs straight after
 install; a user's own folder is any other path. `models_digest` hashes the model files
 themselves, so that a result computed on other models is never taken for this one.
+
+**Recorded validation σ** (`recorded_validation_sigma`): the networks' σ per axis on their
+validation runs, as the folder records it — ``trained.json`` (the shipped models:
+``validation.<axis>.sigma_um``) or the ``summary.json`` of a ``stage-identify`` job
+(``ann.validation.<axis>.std_m``); None when neither holds it (``identify ann`` writes
+no such file). The reference optimisation warns when it exceeds μ
+(`microfab.optimize.pipeline.PredictionCheck`).
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
+import math
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -34,6 +43,7 @@ __all__ = [
     "check_models_dir",
     "load_models",
     "models_digest",
+    "recorded_validation_sigma",
     "resolve_models_dir",
 ]
 
@@ -87,11 +97,39 @@ class Models:
         Eq. (7), one per axis.
     source : str
         Where they were read from.
+    validation_sigma_m : dict of str to float or None
+        The networks' recorded validation σ per axis, m (`recorded_validation_sigma`).
     """
 
     linear: ContinuousModel
     networks: Any
     source: str = ""
+    validation_sigma_m: dict[str, float] | None = None
+
+
+def recorded_validation_sigma(directory: str | Path | None) -> dict[str, float] | None:
+    """The networks' validation σ per axis (m) recorded in a models folder, or None.
+
+    ``trained.json`` (``validation.<axis>.sigma_um``, µm) first, then a stage-identify
+    job's ``summary.json`` (``ann.validation.<axis>.std_m``, m); a file that is missing,
+    unreadable or without the numbers is skipped (module docstring).
+    """
+    d = resolve_models_dir(directory)
+    sources = (
+        ("trained.json", ("validation",), 1e-6, "sigma_um"),
+        ("summary.json", ("ann", "validation"), 1.0, "std_m"),
+    )
+    for name, path, scale, key in sources:
+        try:
+            node: Any = json.loads((d / name).read_text())
+            for part in path:
+                node = node[part]
+            out = {str(a): float(v[key]) * scale for a, v in node.items()}
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            continue
+        if out and all(math.isfinite(v) and v >= 0 for v in out.values()):
+            return out
+    return None
 
 
 def check_models_dir(directory: str | Path, *, networks: bool = True) -> None:
@@ -149,4 +187,5 @@ def load_models(directory: str | Path, *, networks: bool = True) -> Models:
     if not networks:
         return Models(linear=cont, networks=None, source=source)
     ann = read_ann_stage_model(d / "ann" / "model")
-    return Models(linear=cont, networks=ann.model, source=source)
+    return Models(linear=cont, networks=ann.model, source=source,
+                  validation_sigma_m=recorded_validation_sigma(d))  # fmt: skip

@@ -22,6 +22,14 @@
    stretched command is returned instead (issue 34 item 6: on the twin, that star's L∞
    550 µm against the stretched command's 279).
 
+Before stage 2 (issue 43), `PredictionCheck` says what the networks' prediction is worth on
+this contour: the RMS difference per axis between the networks' and the linear model's
+outputs for stage 1's input, and the networks' recorded validation σ
+(`microfab.optimize.models.recorded_validation_sigma`). When either exceeds μ a warning is
+given (``warn``, and `ReferenceResult.warning`): stage 2 meets its constraints on the
+networks' prediction (`microfab.optimize.stage2.Stage2Result.feasibility`), and a
+prediction that is not good to μ cannot tell whether the machine will meet them.
+
 The result keeps each stage's output and its wall time (the seed reports about 1 min and
 1-4 h, §IV-C).
 """
@@ -44,10 +52,12 @@ from microfab.trajectory.base import Trajectory
 
 __all__ = [
     "MODEL_RATE_HZ",
+    "PredictionCheck",
     "ReferenceResult",
     "Stage1Check",
     "linear_output",
     "optimize_reference",
+    "prediction_check",
     "training_warning",
 ]
 
@@ -104,6 +114,107 @@ class Stage1Check:
         )
 
 
+@dataclass(frozen=True)
+class PredictionCheck:
+    """What the networks' prediction is worth on one contour, checked before stage 2.
+
+    Attributes
+    ----------
+    tolerance_m : float
+        μ, m.
+    rms_m : dict of str to float
+        Per axis, the RMS of the networks' minus the linear model's output at ``t_1 …
+        t_M`` for stage 1's input ``r_init``, played from rest like the command, m.
+    validation_sigma_m : dict of str to float or None
+        The networks' recorded validation σ per axis, m; None: none recorded.
+    """
+
+    tolerance_m: float
+    rms_m: dict[str, float]
+    validation_sigma_m: dict[str, float] | None = None
+
+    def _over(self, values: dict[str, float] | None) -> dict[str, float]:
+        return {a: v for a, v in (values or {}).items() if v > self.tolerance_m}
+
+    @staticmethod
+    def _axes(d: dict[str, float]) -> str:
+        return ", ".join(f"{a} {v * 1e6:.1f} µm" for a, v in d.items())
+
+    @property
+    def sigma_warning(self) -> str | None:
+        """The recorded σ part of `warning` alone (the same on every contour); or None."""
+        sig = self._over(self.validation_sigma_m)
+        if not sig:
+            return None
+        return (f"the networks' recorded validation σ {self._axes(sig)} exceeds the tolerance "
+                f"μ = {self.tolerance_m * 1e6:g} µm: their prediction is good to about "
+                f"{max(sig.values()) * 1e6:.0f} µm, and stage 2 meets eq. 14c on that "
+                "prediction only")  # fmt: skip
+
+    @property
+    def rms_over_tolerance(self) -> bool:
+        """An axis's RMS difference between the networks and the linear model exceeds μ."""
+        return bool(self._over(self.rms_m))
+
+    @property
+    def warning(self) -> str | None:
+        """The warning when an RMS difference or a recorded σ exceeds μ; None otherwise."""
+        sig, rms = self._over(self.validation_sigma_m), self._over(self.rms_m)
+        if not sig and not rms:
+            return None
+        mu = self.tolerance_m * 1e6
+        why = []
+        if sig:
+            why.append(f"their recorded validation σ {self._axes(sig)} exceeds μ = {mu:g} µm")
+        if rms:
+            why.append(f"on stage 1's input they and the linear model differ by RMS "
+                       f"{self._axes(rms)} (> μ = {mu:g} µm)")  # fmt: skip
+        worth = max([*sig.values(), *rms.values()]) * 1e6
+        return (
+            f"the networks' prediction is good to about {worth:.0f} µm, not to the tolerance: "
+            + "; ".join(why)
+            + ". Stage 2 meets eq. 14c on the prediction only: the machine's deviation may "
+            "differ from the predicted one by that much"
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready, with the warnings and ``rms_over_tolerance``."""
+        return {"tolerance_m": self.tolerance_m, "rms_m": dict(self.rms_m),
+                "validation_sigma_m": self.validation_sigma_m,
+                "rms_over_tolerance": self.rms_over_tolerance, "warning": self.warning,
+                "sigma_warning": self.sigma_warning}  # fmt: skip
+
+
+def prediction_check(
+    linear: ContinuousModel,
+    networks: Any,
+    r: np.ndarray,
+    rest: np.ndarray,
+    tolerance_m: float,
+    validation_sigma_m: dict[str, float] | None = None,
+) -> PredictionCheck:
+    """`PredictionCheck` of the 400 Hz input ``r`` (M, 2), m, from ``rest`` (2,), m.
+
+    Both models see the same input: the networks its 400 Hz samples from rest
+    (`microfab.optimize.ann_torch.NetworkMap.predict`), the linear model the 10 kHz command
+    through them (`microfab.optimize.command.command_from_input`, not checked against the
+    limits: stage 1's raw input), held, sampled at ``t_1 … t_M``.
+    """
+    from microfab.optimize.ann_torch import NetworkMap
+    from microfab.optimize.command import LEAD, command_from_input
+
+    r = np.asarray(r, dtype=float)
+    m = r.shape[0]
+    q = round(RUN_RATE_HZ / MODEL_RATE_HZ)
+    pos = command_from_input(r, rest=rest, rate_hz=MODEL_RATE_HZ, run_rate_hz=RUN_RATE_HZ)
+    pos = np.vstack([pos, np.repeat(pos[-1:], (m + LEAD + 1) * q, axis=0)])  # held
+    lin = _at_model_rate(linear_output(linear, pos), m, LEAD)
+    net = np.asarray(NetworkMap(networks).predict(r, rest), dtype=float)[:m]
+    rms = np.sqrt(np.mean((net - lin) ** 2, axis=0))
+    return PredictionCheck(tolerance_m=tolerance_m, rms_m={"x": float(rms[0]), "y": float(rms[1])},
+                           validation_sigma_m=validation_sigma_m)  # fmt: skip
+
+
 @dataclass(frozen=True, eq=False)
 class ReferenceResult:
     """The optimised reference of one contour.
@@ -135,6 +246,8 @@ class ReferenceResult:
     stage1_check : Stage1Check or None
         Stage 1 alone: its command against the stretched one on the linear model (when
         ``fell_back``, ``r`` and ``command`` are the stretched command's).
+    prediction : PredictionCheck or None
+        What the networks' prediction is worth on this contour (when networks were given).
     """
 
     problem: ContourProblem
@@ -149,11 +262,27 @@ class ReferenceResult:
     predicted: np.ndarray | None = None
     wall_s: dict[str, float] = field(default_factory=dict)
     stage1_check: Stage1Check | None = None
+    prediction: PredictionCheck | None = None
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the user should be told, in order.
+
+        Stage 1 alone predicted worse than the stretched command (`Stage1Check`); the
+        networks' prediction not good to μ (`PredictionCheck`); stage 2 infeasible
+        (`microfab.optimize.stage2.Stage2Result.describe`).
+        """
+        out = [
+            None if self.stage1_check is None else self.stage1_check.warning,
+            None if self.prediction is None else self.prediction.warning,
+            None if self.stage2 is None or self.stage2.feasible else self.stage2.describe(),
+        ]
+        return tuple(w for w in out if w)
 
     @property
     def warning(self) -> str | None:
-        """Stage 1 alone predicted worse than the stretched command (`Stage1Check`)."""
-        return None if self.stage1_check is None else self.stage1_check.warning
+        """`warnings` joined by "; ", or None."""
+        return "; ".join(self.warnings) or None
 
     @property
     def duration(self) -> float:
@@ -195,6 +324,8 @@ def optimize_reference(
     checkpoint: str | None = None,
     progress: Callable[[int, float], None] | None = None,
     fallback: bool = True,
+    validation_sigma_m: dict[str, float] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> ReferenceResult:
     """Run the stages on ``problem`` (module docstring).
 
@@ -216,6 +347,10 @@ def optimize_reference(
     fallback : bool
         Stage 1 alone: return the stretched time-optimal command when the linear model
         predicts it better (step 5); else only warn.
+    validation_sigma_m : dict of str to float, optional
+        The networks' recorded validation σ per axis, m (`PredictionCheck`).
+    warn : callable, optional
+        ``warn(text)``: the prediction's warning, given before stage 2 runs.
 
     Returns
     -------
@@ -250,6 +385,12 @@ def optimize_reference(
     r = r_init
     st2 = None
     predicted = None
+    pred = None
+    if networks is not None:
+        pred = prediction_check(linear, networks, r_init, rest, problem.tolerance_m,
+                                validation_sigma_m)  # fmt: skip
+        if pred.warning is not None and warn is not None:
+            warn(pred.warning)
     if stage == "both":
         from microfab.optimize.stage2 import solve_stage2
 
@@ -302,6 +443,7 @@ def optimize_reference(
         predicted=predicted,
         wall_s=wall,
         stage1_check=check,
+        prediction=pred,
     )
 
 

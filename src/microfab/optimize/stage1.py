@@ -72,6 +72,7 @@ import numpy as np
 from microfab.identify.subspace_model import ContinuousModel
 from microfab.io.atomic import atomic_save_npz
 from microfab.optimize.blocks import Block, BlockNLP
+from microfab.optimize.feasibility import Feasibility
 from microfab.optimize.linear_steps import balanced, rk4_matrices, rk4_poly, warm_inputs
 from microfab.optimize.problem import ContourProblem, n_points
 from microfab.trajectory.optimal import time_optimal
@@ -92,13 +93,17 @@ _DT_MIN = 1e-3  # assumed: lower bound of Δτ in units of τ_ref (module docstr
 _RK4_HL = 1.0  # assumed: RK4 sub-steps with h |λ|_max ≤ 1 (module docstring)
 _STEP_MAX = 3.0  # assumed: Δτ ≤ 3 sqrt(Δs / a_max) (module docstring)
 _ACTIVE = 1e-5  # a row within this (relative, scaled) of its bound is reported active
+#: IPOPT's return statuses of a finished solve (`Stage1Result.converged` also measures).
+_SUCCESS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
 
 class Stage1Error(RuntimeError):
     """Stage 1 found no solution.
 
-    Infeasible (the message names the tolerance and the ``s`` where it fails) or not
-    converged; the last iterate is in ``result``.
+    Infeasible (the message names the tolerance and the ``s`` where it fails), not
+    converged, or reported solved by IPOPT while a hard constraint measured on its answer
+    is broken (`Stage1Result.feasibility`: the constraint, its residual and knot); the
+    last iterate is in ``result``.
     """
 
     def __init__(self, message: str, result: Stage1Result | None = None) -> None:
@@ -186,6 +191,9 @@ class Stage1Result:
         Build and solve time, s.
     info : dict
         Settings, a_max, μ, costs.
+    feasibility : Feasibility or None
+        Eqs. 12b-12j measured on the returned input and times
+        (`microfab.optimize.stage1_check.stage1_feasibility`).
     """
 
     t: np.ndarray
@@ -200,6 +208,16 @@ class Stage1Result:
     iterations: int
     wall_s: float
     info: dict[str, Any] = field(default_factory=dict)
+    feasibility: Feasibility | None = None
+
+    @property
+    def converged(self) -> bool:
+        """IPOPT stopped with success *and* every hard constraint holds on the answer.
+
+        Never from IPOPT's flag alone (`microfab.optimize.feasibility.FEASIBILITY_RTOL`).
+        """
+        ok = self.status in _SUCCESS
+        return ok and self.feasibility is not None and self.feasibility.feasible
 
     @property
     def duration(self) -> float:
@@ -254,11 +272,14 @@ class Stage1Result:
         atomic_save_npz(path, **arrays)
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready: T, N, status, iterations, time, active counts, info."""
+        """JSON-ready: T, N, status, converged, 12b-12j measured, iterations, time, info."""
+        feas = self.feasibility
         return {
             "duration_s": self.duration,
             "n": self.n,
             "status": self.status,
+            "converged": self.converged,
+            "feasibility": None if feas is None else feas.as_dict(),
             "iterations": self.iterations,
             "wall_s": self.wall_s,
             "max_deviation_m": float(np.abs(self.deviation).max()),
@@ -405,7 +426,10 @@ def solve_stage1(
     ------
     Stage1Error
         IPOPT reports the problem infeasible (the message names μ and the ``s`` of the
-        worst tolerance row of the last iterate) or stops without converging.
+        worst tolerance row of the last iterate) or stops without converging, or a hard
+        constraint of eq. (12) measured on its answer is broken
+        (`microfab.optimize.stage1_check.stage1_feasibility`; every message names the
+        measured residuals).
     """
     import casadi as ca
 
@@ -500,6 +524,11 @@ def solve_stage1(
     act_acc = np.zeros(n, bool)
     act_acc[1:-1] = np.any(np.abs(num) - den > -_ACTIVE * den, axis=0)
     status = str(stats.get("return_status", ""))
+    from microfab.optimize.stage1_check import stage1_feasibility
+
+    feas = stage1_feasibility(problem, bal, t=t, s=s, rho=rho_opt.T / _MM,
+                              gamma=gamma_opt.T / _MM, rho_rest=rho0 / _MM,
+                              substeps=substeps)  # fmt: skip
     result = Stage1Result(
         t=t,
         s=s,
@@ -524,19 +553,27 @@ def solve_stage1(
             "warm_duration_s": float(t_warm[-1]),
             "cost": float(sol["f"]) * t_scale,
         },
+        feasibility=feas,
     )
+    measured = f"measured on it: {feas.describe()}"
     if not stats.get("success", False):
         if "Infeasible" in status:
             k = int(np.argmax(np.abs(dev)))
             raise Stage1Error(
                 f"stage 1 is infeasible at tolerance {problem.tolerance_m * 1e6:g} µm: the "
                 f"worst point is s = {s[k] * 1e3:.3f} mm (deviation {abs(dev[k]) * 1e6:.1f} µm); "
-                "raise the tolerance or a_max",
+                f"raise the tolerance or a_max ({measured})",
                 result,
             )
         raise Stage1Error(
             f"stage 1 did not converge ({status}, {result.iterations} iterations); the last "
-            "iterate is kept; raise max_iter",
+            f"iterate is kept; raise max_iter ({measured})",
+            result,
+        )
+    if not result.converged:
+        raise Stage1Error(
+            f"stage 1 is infeasible: IPOPT reports {status}, but its answer breaks a hard "
+            f"constraint ({measured}); the answer is kept",
             result,
         )
     return result

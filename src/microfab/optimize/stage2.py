@@ -30,15 +30,23 @@ never rises above its start (the input made feasible for the command's bounds fi
 the nearest such input). Exact Hessians through the network are avoided: one took about
 72 s per evaluation in a trial (issue 18).
 
-Checkpoints: with ``checkpoint`` a file path, the iterate, the trust radius, the penalty
-weight and the iteration count are saved atomically every ``checkpoint_every`` accepted
-iterations, keyed by a fingerprint of the inputs and settings; a rerun with the same ones
-resumes (another fingerprint is refused, naming the file).
+**What it reached** (issue 43). The stop (a step below ``tol``, a zero step, a collapsed
+trust region) is not convergence: 14c-14f are measured on the networks' prediction of the
+returned input (`_Problem.feasibility`, `microfab.optimize.feasibility`), and the result
+is "converged" only when the solver stopped by itself and every one holds. Otherwise the
+least violating accepted iterate (smallest `Feasibility.score`) is returned, marked
+"infeasible", with the constraint, its largest residual and its sample
+(`Stage2Result.describe`).
+
+Checkpoints (`microfab.optimize.stage2_state`): with ``checkpoint`` a file path, the
+iterate, the trust radius, the iteration count, the history and the least violating
+iterate are saved atomically every ``checkpoint_every`` accepted iterations, keyed by a
+fingerprint of the inputs and settings; a rerun with the same ones resumes (another
+fingerprint is refused, naming the file).
 """
 
 from __future__ import annotations
 
-import hashlib
 import math
 import time
 from collections.abc import Callable
@@ -49,9 +57,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from microfab.core.limits import MachineLimits
-from microfab.io.checkpoint import read_state, save_state
 from microfab.optimize.ann_torch import NetworkMap
 from microfab.optimize.command import input_bounds
+from microfab.optimize.feasibility import Feasibility, finite_or_none, measure
+from microfab.optimize.stage2_state import Best, fingerprint, load_state, save_iterate
 
 __all__ = ["Stage2Result", "Stage2Settings", "feasible_input", "solve_stage2"]
 
@@ -159,14 +168,18 @@ class Stage2Result:
     cost_history : list of float
         The merit (cost 14a + penalties, µm²) at the start and after every accepted step.
     cost_start, cost_end : float
-        Cost 14a alone (µm²) at the start (stage 1's input made feasible) and the end.
+        Cost 14a alone (µm²) at the start (stage 1's input made feasible) and of the
+        returned iterate.
     violation : dict of str to float
-        Largest violation at the end: "tolerance" (µm beyond μ), "velocity" (m/s beyond
-        v_max), "acceleration" (m/s² beyond a_max).
+        Largest violation of the returned iterate: "tolerance" (µm beyond μ), "velocity"
+        (m/s beyond v_max), "acceleration" (m/s² beyond a_max).
     iterations : int
         Gauss-Newton iterations.
     converged : bool
-        Stopped by ``tol`` (or a zero step) rather than ``max_iter``.
+        True only when the solver stopped by itself (``tol``, a zero step or a collapsed
+        trust region, not ``max_iter``) *and* every hard constraint 14c-14f holds on the
+        networks' predicted output of the returned input (`feasibility`,
+        `microfab.optimize.feasibility.FEASIBILITY_RTOL`); never from the stop alone.
     wall_s : float
     resumed_from : int
         Iterations done before a resume (0: fresh).
@@ -177,6 +190,18 @@ class Stage2Result:
         Wall time per phase, s (not in `summary`: bookkeeping): ``project_s`` (the start
         made feasible), ``networks_s`` (predictions and Jacobians), ``qp_s`` (the steps'
         QPs).
+    feasibility : Feasibility or None
+        14c-14f measured on ``phi`` (`_Problem.feasibility`): per constraint the largest
+        residual, its sample and time, the rows beyond.
+    stopped : bool
+        The solver stopped by itself (see ``converged``).
+    score_history : list of float
+        `Feasibility.score` of each iterate of ``cost_history`` (0: every constraint holds);
+        NaN for the iterates before a resume from a checkpoint written before issue 43.
+    returned : int
+        Index in ``cost_history`` of the returned iterate: the last one, unless the last
+        breaks a constraint; then the least violating accepted iterate (smallest
+        `Feasibility.score`, the later one on a tie), which may be the start.
     """
 
     r: np.ndarray
@@ -193,12 +218,50 @@ class Stage2Result:
     resumed_from: int = 0
     info: dict[str, Any] = field(default_factory=dict)
     phase_s: dict[str, float] = field(default_factory=dict)
+    feasibility: Feasibility | None = None
+    stopped: bool = False
+    returned: int = -1
+    score_history: list[float] = field(default_factory=list)
+
+    @property
+    def feasible(self) -> bool:
+        """Every hard constraint 14c-14f holds on the returned input's prediction."""
+        return self.feasibility is not None and self.feasibility.feasible
+
+    @property
+    def status(self) -> str:
+        """The outcome: "converged", "infeasible" or "not converged".
+
+        "infeasible": a hard constraint is broken on the returned iterate; "not converged":
+        every one holds, but ``max_iter`` was reached or an earlier iterate is returned.
+        """
+        if not self.feasible:
+            return "infeasible"
+        return "converged" if self.converged else "not converged"
+
+    def describe(self) -> str:
+        """One line: the status and, when infeasible, each broken constraint."""
+        if self.feasibility is None:
+            return self.status
+        last = len(self.cost_history) - 1
+        which = (
+            ""
+            if self.returned in (-1, last)
+            else (f" (returned: accepted iterate {self.returned} of {last}, the least violating)")
+        )
+        return f"stage 2 {self.status}{which}: {self.feasibility.describe()}"
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready."""
+        """JSON-ready: the stop, the status, 14c-14f measured (``feasibility``), costs."""
         return {
             "iterations": self.iterations,
             "converged": self.converged,
+            "status": self.status,
+            "stopped": self.stopped,
+            "returned_iterate": self.returned,
+            "score_history": [finite_or_none(x) for x in self.score_history],
+            "least_violating": self.returned not in (-1, len(self.cost_history) - 1),
+            "feasibility": None if self.feasibility is None else self.feasibility.as_dict(),
             "merit_start": self.cost_history[0],
             "merit_end": self.cost_history[-1],
             "cost_start": self.cost_start,
@@ -240,6 +303,40 @@ class _Problem:
         acc = np.maximum(np.abs(np.diff(full, 2, axis=1)) - self.a_step, 0.0)
         ws = np.maximum(self.ws[:, :1] - phi, 0.0) + np.maximum(phi - self.ws[:, 1:], 0.0)
         return {"tolerance": tol, "velocity": vel, "acceleration": acc, "workspace": ws}
+
+    def feasibility(self, phi: np.ndarray) -> Feasibility:
+        """14c-14f measured on ``phi`` (2, M) µm: per constraint its largest residual.
+
+        Rows and units: 14c the deviation ``|φ_i - Ξ̄_i|`` (µm, the norm of the settings)
+        against μ; 14d the signed distance outside the workspace (µm) against 0; 14e
+        ``|Δφ_i| / Δt`` per axis (m/s) against ``v_max``; 14f ``|Δ²φ_i| / Δt²`` per axis
+        (m/s²) against ``a_max``, both from rest (``φ_0 = φ_{-1}`` = rest). A row's sample
+        is the newest ``i`` it holds, its time ``t_i = i Δt``.
+        """
+        m, dt = self.m, self.dt
+        e = phi - self.tgt.reshape(2, m)
+        idx = np.arange(1, m + 1)
+        both = np.concatenate([idx, idx])
+        ax = np.repeat(np.array(["x", "y"]), m)
+        if self.st.norm == "euclidean":
+            dev, dev_i, dev_ax = np.hypot(e[0], e[1]), idx, None
+        else:
+            dev, dev_i, dev_ax = np.abs(e).ravel(), both, ax
+        full = np.hstack([self.rest[:, None], self.rest[:, None], phi])
+        vel = np.abs(np.diff(full[:, 1:], axis=1)) / _UM / dt
+        acc = np.abs(np.diff(full, 2, axis=1)) / _UM / dt**2
+        out = np.maximum(self.ws[:, :1] - phi, phi - self.ws[:, 1:])
+        v_max, a_max = self.v_step / _UM / dt, self.a_step / _UM / dt**2
+        return Feasibility((
+            measure("tolerance", "14c", "µm", dev, self.mu, samples=dev_i, times=dev_i * dt,
+                    axes=dev_ax),
+            measure("workspace", "14d", "µm", out.ravel(), 0.0, samples=both,
+                    times=both * dt, scale=self.mu, axes=ax),
+            measure("velocity", "14e", "m/s", vel.ravel(), v_max, samples=both,
+                    times=both * dt, axes=ax),
+            measure("acceleration", "14f", "m/s²", acc.ravel(), a_max, samples=both,
+                    times=both * dt, axes=ax),
+        ))  # fmt: skip
 
     def merit(self, phi: np.ndarray) -> tuple[float, float]:
         """(merit, cost 14a) of ``phi`` (2, M), µm²."""
@@ -288,17 +385,6 @@ def feasible_input(
     pb = _Problem(r, np.asarray(rest, dtype=float), 1e-6, 1.0, 1.0, limits, st)
     qp = Subproblem(pb, st, _diff_ops(pb.m), [_rest_terms(pb.m, float(x)) for x in pb.rest])
     return (qp.project(r.T.ravel() * _UM) / _UM).reshape(2, pb.m).T
-
-
-def fingerprint(target: np.ndarray, r_init: np.ndarray, rest: np.ndarray, extra: dict) -> str:
-    """SHA-256 of the inputs of a stage-2 problem (checkpoint key)."""
-    h = hashlib.sha256()
-    for a in (target, r_init, rest):
-        arr = np.ascontiguousarray(a, dtype=np.float64)
-        h.update(repr(arr.shape).encode())
-        h.update(arr.tobytes())
-    h.update(repr(sorted(extra.items())).encode())
-    return h.hexdigest()
 
 
 def solve_stage2(
@@ -365,9 +451,10 @@ def solve_stage2(
            "tolerance_m": tolerance_m, "v_max": v_max, "a_max": a_max,
            "limits.workspace": limits.workspace, "limits.acceleration": limits.acceleration,
            "limits.velocity": limits.velocity}  # fmt: skip
-    state = _load(checkpoint, key)
+    state = load_state(checkpoint, key)
     # wall time per phase (s), `Stage2Result.phase_s`
     spent = {"project_s": 0.0, "networks_s": 0.0, "qp_s": 0.0}
+    best: Best | None = None
     if state is None:
         t0 = time.perf_counter()
         r = qp.project(r_init.T.ravel() * _UM)  # the nearest input within the command bounds
@@ -378,16 +465,18 @@ def solve_stage2(
         spent["networks_s"] += time.perf_counter() - t0
         band = jacobian_band(jac, pb.m, st.band_mass) if st.band_mass < 1 else None
     else:  # the band chosen at the start, not at the resumed iterate: bit-identical resume
-        r, trust, it0, history, band = state
+        r, trust, it0, history, band, best = state
     if band is not None or state is not None:
         t0 = time.perf_counter()
         phi, jac = _linearize(nm, r, pb, band)
         spent["networks_s"] += time.perf_counter() - t0
     merit, cost = pb.merit(phi)
+    score = pb.feasibility(phi).score
     cost_start = cost if not history else float(history[0][1])
-    if not history:
-        history = [(merit, cost)]
-    converged = False
+    if not history:  # rows (merit, cost, feasibility score) per accepted iterate
+        history = [(merit, cost, score)]
+    best = Best.better(best, score, merit, cost, r, len(history) - 1)
+    stopped = False
     accepted = 0
     it = it0
     while it < st.max_iter:
@@ -396,7 +485,7 @@ def solve_stage2(
         step = qp.solve(r, phi, jac, trust)
         spent["qp_s"] += time.perf_counter() - t0
         if step is None or np.max(np.abs(step)) < 1e-9:
-            converged = True
+            stopped = True
             break
         r_new = r + step
         t0 = time.perf_counter()
@@ -408,46 +497,60 @@ def solve_stage2(
             gain = merit - m_new
             ratio = gain / predicted if predicted > 0 else 0.0
             r, merit, cost = r_new, m_new, c_new
+            score = pb.feasibility(phi_new).score
+            history.append((merit, cost, score))
+            best = Best.better(best, score, merit, cost, r, len(history) - 1)
             t0 = time.perf_counter()
             phi, jac = _linearize(nm, r, pb, band)
             spent["networks_s"] += time.perf_counter() - t0
-            history.append((merit, cost))
             accepted += 1
             trust = min(trust * 2.0, 1e4) if ratio > 0.75 else trust
             if accepted % st.checkpoint_every == 0:
-                _save(checkpoint, key, r, trust, it, history, band)
+                save_iterate(checkpoint, key, r, trust, it, history, band, best)
             if gain < st.tol * max(merit, 1e-12):
-                converged = True
+                stopped = True
                 break
         else:
             trust *= 0.25
             if trust < 1e-4:
-                converged = True
+                stopped = True
                 break
         if progress is not None:
             progress(it, merit)
-    _save(checkpoint, key, r, trust, it, history, band)
+    save_iterate(checkpoint, key, r, trust, it, history, band, best)
+    last = len(history) - 1
     full = nm.predict((r / _UM).reshape(2, pb.m).T, pb.rest / _UM)
+    feas = pb.feasibility(full[: pb.m].T * _UM)
+    returned, cost_end = last, cost
+    if not feas.feasible and best is not None and best.index != last:
+        # the last iterate breaks a hard constraint: return the least violating one
+        r, returned, cost_end = best.r, best.index, best.cost
+        full = nm.predict((r / _UM).reshape(2, pb.m).T, pb.rest / _UM)
+        feas = pb.feasibility(full[: pb.m].T * _UM)
     viol = pb.violations(full[: pb.m].T * _UM)
     return Stage2Result(
         r=(r / _UM).reshape(2, pb.m).T,
         phi=full[: pb.m],
         phi_tail=full[pb.m :],
         target=target,
-        cost_history=[float(mv) for mv, _ in history],
+        cost_history=[float(row[0]) for row in history],
         cost_start=float(cost_start),
-        cost_end=float(cost),
+        cost_end=float(cost_end),
         violation={
             "tolerance": float(viol["tolerance"].max(initial=0.0)),
             "velocity": float(viol["velocity"].max(initial=0.0)) / _UM / pb.dt,
             "acceleration": float(viol["acceleration"].max(initial=0.0)) / _UM / pb.dt**2,
         },
         iterations=it,
-        converged=converged,
+        converged=stopped and feas.feasible and returned == last,
         wall_s=time.perf_counter() - t_start,
         resumed_from=it0,
         info={"norm": st.norm, "penalty": st.penalty, "band": band, "qp": st.qp},
         phase_s=spent,
+        feasibility=feas,
+        stopped=stopped,
+        returned=returned,
+        score_history=[float(row[2]) for row in history],
     )
 
 
@@ -473,38 +576,3 @@ def jacobian_band(jac: sp.spmatrix, m: int, mass: float) -> int:
     prof = np.bincount(lag[lag >= 0], weights=np.abs(coo.data[lag >= 0]))
     cum = np.cumsum(prof) / max(prof.sum(), 1e-300)
     return int(np.searchsorted(cum, mass) + 1)
-
-
-#: The stage-2 checkpoint as `microfab.io.checkpoint` knows it (format 2: the run store's
-#: state file, every setting named; format 1 kept one digest of everything).
-_KIND, _VERSION = "stage-2 iterate", 2
-
-
-def _load(
-    path: str | None, key: dict[str, Any]
-) -> tuple[np.ndarray, float, int, list, int | None] | None:
-    if path is None:
-        return None
-    saved = read_state(path, kind=_KIND, versions=(_VERSION,), settings=key,
-                       fix="remove it, or rerun with --fresh, to start afresh")  # fmt: skip
-    if saved is None:
-        return None
-    z, meta = saved.arrays, saved.meta
-    try:
-        hist = [tuple(row) for row in z["history"].tolist()]
-        band = meta["band"]
-        return (np.array(z["r"]), float(meta["trust"]), int(meta["iteration"]), hist,
-                None if band is None else int(band))  # fmt: skip
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: an incomplete stage-2 checkpoint ({exc}); remove it") from None
-
-
-def _save(
-    path: str | None, key: dict[str, Any], r: np.ndarray, trust: float, it: int, hist: list,
-    band: int | None,
-) -> None:  # fmt: skip
-    if path is None:
-        return
-    save_state(path, kind=_KIND, version=_VERSION, settings=key,
-               arrays={"r": r, "history": np.array(hist, dtype=float)},
-               meta={"trust": float(trust), "iteration": int(it), "band": band})  # fmt: skip

@@ -129,3 +129,35 @@ def test_tables_and_report(small):
     page = write_report(study, out, "t")
     assert page.is_file() and "Table III" in page.read_text()
     json.dumps(res.summary())
+
+
+def test_every_point_reports_what_its_stages_reached(small):
+    """Issue 43: no point says converged with a broken constraint; the page and summary.json
+    show each point's status, and for an infeasible one the constraint, residual, sample."""
+    from microfab.experiments.seed002_reference.job import ReferenceResult
+    from microfab.experiments.seed002_reference.report import write_report
+    from microfab.experiments.seed002_reference.tables import reached_table
+
+    _, out, study = small
+    p = study.points[("r", 2.0)]
+    s1, s2 = p["stage1"], p["stage2"]
+    assert s1["converged"] is s1["feasibility"]["feasible"] is True
+    res2 = s2["feasibility"]["residuals"]
+    assert set(res2) == {"tolerance", "workspace", "velocity", "acceleration"}
+    all_hold = all(r["holds"] for r in res2.values())
+    assert s2["converged"] <= all_hold  # converged implies every constraint holds
+    # the tiny networks' prediction turns at 10-20 m/s², far beyond a_max = 2 m/s² (14f)
+    assert not all_hold and s2["status"] == "infeasible" and not s2["converged"]
+    summary = ReferenceResult(study=study).summary()
+    row = summary["reached"][0]
+    assert row["stage2"] == s2["status"]
+    table = reached_table(study)
+    page = write_report(study, out, "t").read_text()
+    assert "What the optimisation reached" in page
+    worst = s2["feasibility"]["worst"]
+    assert (row["constraint"], row["excess"], row["sample"]) == (
+        worst["constraint"], worst["excess"], worst["sample"])  # fmt: skip
+    assert table.rows[0][3] == "infeasible" and worst["equation"] in table.rows[0][4]
+    assert "stage 2 ended infeasible on 1 of 1 points" in page
+    assert any("infeasible" in w for w in ReferenceResult(study=study).warnings())
+    assert p["prediction"]["rms_m"]["x"] > 0 and "warnings" in summary

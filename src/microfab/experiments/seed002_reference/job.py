@@ -35,7 +35,7 @@ from microfab.experiments.seed002_reference.study import (
     ReferenceStudy,
     run_reference,
 )
-from microfab.experiments.seed002_reference.tables import comparison_tables
+from microfab.experiments.seed002_reference.tables import comparison_tables, study_warnings
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import xy_stage, xy_stage_cases
@@ -187,9 +187,22 @@ class ReferenceResult:
         return comparison_tables(self.study)
 
     def failures(self) -> tuple[str, ...]:
-        """Points whose optimisation failed, with the reason."""
+        """Points whose optimisation failed, with the reason.
+
+        A point whose stage 2 ended infeasible is not a failure (it ran and returned its
+        least violating iterate): it is in `warnings`, the report's notes and the table
+        of what the optimisation reached.
+        """
         return tuple(f"{c} at {a:g} m/s²: {p['error']}" for (c, a), p in
                      sorted(self.study.points.items()) if "error" in p)  # fmt: skip
+
+    def warnings(self) -> tuple[str, ...]:
+        """What the user should be told though nothing failed (issue 43).
+
+        The networks' recorded σ above μ, stage 2 infeasible, the networks and the linear
+        model apart by more than μ (`tables.study_warnings`).
+        """
+        return tuple(study_warnings(self.study))
 
     def summary(self) -> dict[str, Any]:
         """The numbers of the tables, JSON-ready."""

@@ -4,6 +4,12 @@ With the networks' generations (seed 002 Fig. 7) the page also shows Table III p
 generation and the networks against the twin per generation
 (`microfab.experiments.seed002_reference.tables.comparison_tables`), and notes where
 each generation's models are; it reads the study and computes nothing.
+
+What the optimisation reached (issue 43) is a table of every point
+(`microfab.experiments.seed002_reference.tables.reached_table`: each stage's status, the
+broken constraint, its residual and sample), and the notes carry the warnings the points
+recorded: the networks' training range, their recorded validation σ above μ, and how many
+points ended infeasible or with the networks and the linear model apart by more than μ.
 """
 
 from __future__ import annotations
@@ -15,7 +21,11 @@ import numpy as np
 
 from microfab.experiments.seed002_reference import figures as f
 from microfab.experiments.seed002_reference.study import ReferenceStudy
-from microfab.experiments.seed002_reference.tables import NOTES, comparison_tables
+from microfab.experiments.seed002_reference.tables import (
+    NOTES,
+    comparison_tables,
+    study_warnings,
+)
 from microfab.machines.xy_stage_cases import case_paths
 
 __all__ = ["write_report"]
@@ -105,10 +115,9 @@ def write_report(study: ReferenceStudy, out: Path, title: str) -> Path:
     figs = [Figure(name=n, png=render_png(fig), caption=cap) for n, fig, cap in
             _figures(study, out)]  # fmt: skip
     s = study.settings
-    warnings = sorted({p["warning"] for p in study.points.values() if p.get("warning")})
     notes = [
         *NOTES,
-        *(f"Warning: {w}." for w in warnings),
+        *(f"Warning: {w}." for w in study_warnings(study)),
         f"Models: {s.models_dir}. Sizes: letter height "
         f"{study.sizes.letter_height_m * 1e3:.2f} mm, airfoil chord "
         f"{study.sizes.airfoil_chord_m * 1e3:.1f} mm.",

@@ -26,9 +26,12 @@ __all__ = [
     "NOTES",
     "comparison_tables",
     "generations_table",
+    "point_reached",
     "points_table",
+    "reached_table",
     "stages_table",
     "study_summary",
+    "study_warnings",
     "table_iii",
     "times_table",
     "tradeoff_reduction",
@@ -151,6 +154,106 @@ def stages_table(study: ReferenceStudy) -> Table:
         ),
         OURS,
     )
+
+
+def point_reached(p: dict[str, Any]) -> dict[str, Any]:
+    """What one point's optimisation reached, read from its summary (nothing computed).
+
+    Keys: ``case``, ``a_max``, ``stage1`` ("converged", "failed" or None when not
+    recorded), ``stage2`` (`microfab.optimize.stage2.Stage2Result.status`, "failed", or
+    None), and for a broken constraint (stage 2's worst, or stage 1's when it failed)
+    ``constraint``, ``equation``, ``excess``, ``unit``, ``sample``, ``time_s``,
+    ``rows_over``, ``rows``; ``rms_m`` and ``rms_over_tolerance`` of the prediction check,
+    ``warning`` (its text); ``error``.
+    """
+    s1, s2 = p.get("stage1") or {}, p.get("stage2") or {}
+    out: dict[str, Any] = {"case": p.get("case"), "a_max": p.get("a_max"), "error": p.get("error")}
+    if "converged" in s1:
+        out["stage1"] = "converged" if s1["converged"] else "failed"
+    else:
+        out["stage1"] = "failed" if "error" in p else None
+    out["stage2"] = s2.get("status") or ("failed" if "error" in p else None)
+    worst = (s2.get("feasibility") or {}).get("worst")
+    if worst is None and out["stage1"] == "failed":
+        worst = (s1.get("feasibility") or {}).get("worst")
+    for k in ("constraint", "equation", "excess", "unit", "sample", "time_s", "rows_over",
+              "rows"):  # fmt: skip
+        out[k] = None if worst is None else worst.get(k)
+    pred = p.get("prediction") or {}
+    out["rms_m"] = pred.get("rms_m")
+    out["rms_over_tolerance"] = pred.get("rms_over_tolerance")
+    out["warning"] = pred.get("warning")
+    return out
+
+
+def reached_table(study: ReferenceStudy) -> Table:
+    """Per point: what each stage reached, measured on its answer (issue 43).
+
+    Stage 1's and stage 2's status, the broken constraint of the largest relative excess
+    (seed 002 eq.), by how much, where (the 400 Hz sample ``i`` of ``φ_i`` and ``t_i``; a
+    knot for stage 1) and the share of rows beyond; and the RMS difference between the
+    networks' and the linear model's outputs on stage 1's input, marked when above μ.
+    """
+    rows = []
+    for _, p in sorted(study.points.items()):
+        r = point_reached(p)
+        if r["constraint"] is None:
+            broken = where = rows_cell = DASH
+        else:
+            broken = f"{r['constraint']} ({r['equation']}): +{r['excess']:.3g} {r['unit']}"
+            where = f"{r['sample']} (t = {r['time_s']:.3f} s)"
+            rows_cell = f"{r['rows_over']} / {r['rows']}"
+        rms = r["rms_m"]
+        rms_cell = DASH if not rms else " / ".join(f"{rms[a] * 1e6:.1f}" for a in ("x", "y"))
+        if r["rms_over_tolerance"]:
+            rms_cell += " > μ"
+        status = (r["stage1"] or DASH, r["stage2"] or "not recorded")
+        rows.append([str(r["case"]), f"{r['a_max']:g}", *status, broken, where, rows_cell,
+                     rms_cell])  # fmt: skip
+    mu = study.settings.tolerance_m * 1e6
+    return labelled(
+        Table(
+            title="What the optimisation reached, measured on its answer: stage 2's hard "
+            "constraints (eqs. 14c-14f) on the networks' prediction",
+            columns=("shape", "a_max", "stage 1", "stage 2", "worst broken constraint",
+                     "sample (time)", "rows beyond", "networks - linear RMS x / y [µm]"),
+            rows=rows,
+            note=f"converged: every hard constraint holds within 1e-3 of its bound (μ = "
+            f"{mu:g} µm); infeasible: the least violating iterate is returned; sample i of "
+            "φ_i at 400 Hz (stage 1: knot k); RMS on stage 1's input",
+        ),
+        OURS,
+    )  # fmt: skip
+
+
+def study_warnings(study: ReferenceStudy) -> list[str]:
+    """The points' recorded warnings, read from their summaries.
+
+    Those shared by points once; the rest counted (stage 2 infeasible; the networks and
+    the linear model apart by more than μ).
+    """
+    pts = [p for _, p in sorted(study.points.items())]
+    shared = {p.get("training_warning") for p in pts}
+    shared |= {(p.get("prediction") or {}).get("sigma_warning") for p in pts}
+    if not any("format" in p for p in pts):  # points saved before issue 43
+        shared |= {p.get("warning") for p in pts}
+    out = sorted(w for w in shared if w)
+    reached = [point_reached(p) for p in pts]
+    bad = [f"{r['case']} at {r['a_max']:g} m/s²" for r in reached if r["stage2"] == "infeasible"]
+    if bad:
+        out.append(
+            f"stage 2 ended infeasible on {len(bad)} of {len(pts)} points ({', '.join(bad)}): "
+            "a hard constraint of eqs. 14c-14f is broken on the networks' prediction, and the "
+            "least violating iterate was played (table 'What the optimisation reached')"
+        )
+    apart = [f"{r['case']} at {r['a_max']:g} m/s²" for r in reached if r["rms_over_tolerance"]]
+    if apart:
+        out.append(
+            f"on {len(apart)} of {len(pts)} points the networks and the linear model differ by "
+            f"more than μ RMS on stage 1's input ({', '.join(apart)}): the prediction stage 2 "
+            "optimises is not good to the tolerance there"
+        )
+    return out
 
 
 def points_table(study: ReferenceStudy) -> Table:
@@ -297,6 +400,8 @@ def study_summary(study: ReferenceStudy) -> dict[str, Any]:
                   "airfoil_chord_m": study.sizes.airfoil_chord_m},
         "sizing_steps": study.sizing_steps,
         "points": [p for _, p in sorted(study.points.items())],
+        "reached": [point_reached(p) for _, p in sorted(study.points.items())],
+        "warnings": study_warnings(study),
         "table_iii_means": means,
         "table_iii_means_seed": {k: float(np.mean([getattr(r, k) for rows in
                                                    paper.TABLE_III.values()
@@ -335,5 +440,5 @@ def comparison_tables(study: ReferenceStudy) -> tuple[Table, ...]:
     out.append(times_table(study))
     if study.tradeoff:
         out.append(tradeoff_table(study))
-    out += [stages_table(study), points_table(study)]
+    out += [reached_table(study), stages_table(study), points_table(study)]
     return tuple(out)
