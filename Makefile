@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test fuzz bench lint clean shipped-models
+.PHONY: install run test test-kernel fuzz bench lint clean shipped-models
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,13 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2
+
+# the suite again on a second BLAS code path, one thread per worker, PyTorch's baseline CPU
+# kernels: a check that holds only on the kernels that recorded it shows up here (CI runs it)
+KERNEL ?= SandyBridge
+test-kernel: $(STAMP)
+	OPENBLAS_CORETYPE=$(KERNEL) OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 \
+	ATEN_CPU_CAPABILITY=default $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider
 
 # 10 000 generated bad (and some good) inputs through every command that reads a file or
 # parameters; prints the table and fails on a traceback, a hang, or an untidy refusal
