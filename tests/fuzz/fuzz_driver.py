@@ -17,13 +17,21 @@ every file in that folder before and after, and returns an `Outcome`:
 ``dirty``
     a clean refusal that changed, created or deleted a file in the working folder;
 ``hang``
-    the case ran longer than the per-case timeout;
+    the case used more than the per-case CPU time (its process and the processes it
+    started), or made no progress (used next to no CPU) for as long (`_watch`);
 ``clobbered``
     whatever the exit, a file the case names in ``keep`` (an input: measured data, a
     drawing, a job file) was changed or deleted — an output that was also an input.
 
 `run_pool` runs many cases in worker processes, so that a case stuck in compiled code
 is killed and reported as a hang without stopping the run.
+
+A hang is measured in CPU time, not wall time, so that a loaded machine does not turn
+slow cases into hangs (``make fuzz`` counted 3 hangs at 20 s of wall time on a loaded
+2-core machine, none on an idle one): a case that computes gets ``TIMEOUT_S`` CPU seconds
+however many other processes share the cores, and a case that waits forever (a deadlock,
+a dead worker it waits for) is caught by its lack of progress, which load only makes
+slower, never zero.
 """
 
 from __future__ import annotations
@@ -38,6 +46,7 @@ import shutil
 import signal
 import sys
 import tempfile
+import threading
 import time
 import traceback
 from collections import Counter
@@ -59,7 +68,16 @@ __all__ = [
 #: Every outcome, in table order; those after ``accepted`` are failures.
 OUTCOMES = ("refused", "accepted", "uncaught", "hang", "messy", "dirty", "clobbered")
 FAILURES = ("uncaught", "hang", "messy", "dirty", "clobbered")
+#: CPU seconds a case may use (its process and every process it started) before it is a
+#: hang. Assumed: 20, the old wall-time limit, on which every accepted case of an idle
+#: machine stays under 10 s.
 TIMEOUT_S = 20.0
+#: A case that used less than `STALL_CPU_S` CPU seconds over `TIMEOUT_S` seconds of wall
+#: time made no progress: a hang. Assumed: 0.05 s, 0.25 % of a core, while a runnable
+#: process on a 2-core machine at a load of 20 still gets about 10 %.
+STALL_CPU_S = 0.05
+#: Seconds between two looks at a case's CPU time (assumed: cheap, and fine against 20 s).
+WATCH_EVERY_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -171,17 +189,76 @@ def _hashes(root: Path) -> dict[str, str]:
     return out
 
 
+def cpu_seconds(pid: int | None = None) -> float:
+    """CPU seconds (user and system) of a process and of every process it started.
+
+    Live descendants are read one by one (a sweep's workers); those that ended count
+    through their parent's children's times once it waited for them.
+    """
+    import psutil
+
+    proc = psutil.Process(pid)
+    t = proc.cpu_times()
+    total = t.user + t.system + t.children_user + t.children_system
+    for child in proc.children(recursive=True):
+        with contextlib.suppress(psutil.Error):
+            c = child.cpu_times()
+            total += c.user + c.system
+    return total
+
+
+class _Progress:
+    """A case's CPU time against `TIMEOUT_S` and `STALL_CPU_S` (module docstring)."""
+
+    def __init__(self, pid: int | None, cpu_s: float, stall_s: float) -> None:
+        self.pid, self.cpu_s, self.stall_s = pid, cpu_s, stall_s
+        self.start = self.last = cpu_seconds(pid)
+        self.since = time.monotonic()
+
+    def hang(self) -> str | None:
+        """Why the case is a hang now (``"over N s of CPU"``, ``"no progress ..."``), or None."""
+        now, cpu = time.monotonic(), cpu_seconds(self.pid)
+        if cpu - self.start > self.cpu_s:
+            return f"over {self.cpu_s:g} s of CPU"
+        if cpu - self.last >= STALL_CPU_S:
+            self.last, self.since = cpu, now
+        elif now - self.since > self.stall_s:
+            return f"no progress: under {STALL_CPU_S:g} s of CPU in {self.stall_s:g} s"
+        return None
+
+
 @contextlib.contextmanager
 def _alarm(seconds: float) -> Iterator[None]:
+    """Raise `CaseTimeoutError` in this thread once the block hangs (`_Progress`).
+
+    A watcher thread looks every `WATCH_EVERY_S` and sends SIGALRM to this thread, whose
+    handler raises; compiled code that never returns to Python is left to `run_pool`.
+    """
+    why: list[str] = []
+    stop = threading.Event()
+    main = threading.get_ident()
+
     def on_alarm(signum: int, frame: Any) -> None:
-        raise CaseTimeoutError(f"over {seconds:g} s")
+        if why and not stop.is_set():
+            raise CaseTimeoutError(why[0])
+
+    def watch() -> None:
+        progress = _Progress(None, seconds, seconds)
+        while not stop.wait(WATCH_EVERY_S):
+            reason = progress.hang()
+            if reason is not None:
+                why.append(reason)
+                signal.pthread_kill(main, signal.SIGALRM)
+                return
 
     old = signal.signal(signal.SIGALRM, on_alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    watcher = threading.Thread(target=watch, name="fuzz-watch", daemon=True)
+    watcher.start()
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
+        stop.set()
+        watcher.join()
         signal.signal(signal.SIGALRM, old)
 
 
@@ -306,8 +383,8 @@ def run_case(case: Case, timeout_s: float = TIMEOUT_S) -> Outcome:
         try:
             with _in_folder(work), _alarm(timeout_s):
                 code, output, exc = invoke(case.argv)
-        except CaseTimeoutError:
-            return Outcome(case, "hang", None, time.perf_counter() - t0, f"over {timeout_s:g} s")
+        except CaseTimeoutError as exc:
+            return Outcome(case, "hang", None, time.perf_counter() - t0, str(exc))
         seconds = time.perf_counter() - t0
         outcome = classify(code, output, exc)
         if outcome == "uncaught":
@@ -363,13 +440,15 @@ def run_pool(
     timeout_s: float = TIMEOUT_S,
     on_result: Callable[[Outcome], None] | None = None,
 ) -> list[Outcome]:
-    """Run cases in ``workers`` processes; a case over ``timeout_s`` is a hang.
+    """Run cases in ``workers`` processes; a case that hangs (`_Progress`) is a hang.
 
-    A worker whose case does not return within ``timeout_s`` plus a grace period (stuck
-    in compiled code, where the in-process alarm cannot reach) is killed and replaced.
+    A worker whose case does not return although it hangs by ``timeout_s`` plus a grace
+    period (stuck in compiled code, where the in-process alarm cannot reach) is killed
+    and replaced; its CPU time is read from here.
     """
     ctx = mp.get_context("fork")
     grace = 10.0
+    watch: dict[int, tuple[_Progress, float]] = {}  # slot: its case's progress, next look
 
     def start() -> _Slot:
         parent, child = ctx.Pipe()
@@ -393,6 +472,8 @@ def run_pool(
                 if s.case is None and todo:
                     s.case, s.started = todo.pop(), time.monotonic()
                     s.conn.send(s.case)
+                    watch[i] = (_Progress(s.proc.pid, timeout_s + grace, timeout_s + grace),
+                                s.started + WATCH_EVERY_S)  # fmt: skip
                 if s.case is None:
                     continue
                 if s.conn.poll(0.005):
@@ -405,11 +486,18 @@ def run_pool(
                     else:
                         s.case = None
                     done(out)
-                elif not s.proc.is_alive() or time.monotonic() - s.started > timeout_s + grace:
+                    continue
+                why = None
+                progress, due = watch[i]
+                if s.proc.is_alive() and time.monotonic() >= due:
+                    with contextlib.suppress(Exception):  # the worker just ended: next round
+                        why = progress.hang()
+                    watch[i] = (progress, time.monotonic() + WATCH_EVERY_S)
+                if not s.proc.is_alive() or why is not None:
                     alive = s.proc.is_alive()
                     s.proc.kill()
                     s.proc.join(5)
-                    detail = f"over {timeout_s:g} s (killed)" if alive else "worker died"
+                    detail = f"{why} (killed)" if alive else "worker died"
                     kind = "hang" if alive else "uncaught"
                     done(Outcome(s.case, kind, None, time.monotonic() - s.started, detail))
                     slots[i] = start()
@@ -445,7 +533,7 @@ def format_table(results: Sequence[Outcome]) -> str:
         "clean refusals",
         "accepted",
         "uncaught",
-        "hangs >20 s",
+        f"hangs >{TIMEOUT_S:g} s CPU",
         "messy refusals",
         "refusals that changed files",
         "inputs overwritten",

@@ -331,13 +331,37 @@ def test_scheduler_address_connects_to_running_cluster(cluster) -> None:
     assert os.getpid() not in {r["pid"] for r in res.rows}
 
 
+def square_and_pools(p: Pt) -> dict[str, Any]:
+    """`square`, and the thread pools of the worker once the heavy libraries are loaded."""
+    import contextlib
+
+    import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS)
+
+    from microfab.core.threads import THREAD_ENV, thread_counts, usable_cores
+
+    with contextlib.suppress(ImportError):  # Ipopt loads CasADi's bundled OpenBLAS
+        import casadi
+
+        x = casadi.SX.sym("x")
+        casadi.nlpsol("s", "ipopt", {"x": x, "f": x**2}, {"print_time": 0, "ipopt.print_level": 0})
+    env = {name: os.environ.get(name) for name in THREAD_ENV}  # for what loads later
+    return {**square(p), "pools": thread_counts(), "cores": usable_cores(), "env": env}
+
+
 def test_runner_starts_and_closes_its_own_local_cluster(tmp_path: Path) -> None:
+    """Its workers run their pools on policy_threads(workers): workers × threads ≤ cores."""
     pytest.importorskip("distributed")
     before = set(multiprocessing.active_children())
-    res = run_sweep(square, pts(1, 2, 3), results_dir=tmp_path, workers=2)
+    res = run_sweep(square_and_pools, pts(1, 2, 3), results_dir=tmp_path, workers=2)
     assert [r["sq"] for r in res.rows] == [1, 4, 9]
     assert os.getpid() not in {r["pid"] for r in res.rows}
     assert set(multiprocessing.active_children()) <= before  # its workers are gone
+    for row in res.rows:
+        pools = row["pools"]
+        assert any(k.startswith("blas:") for k in pools), pools
+        assert set(pools.values()) == {1}, pools  # MICROFAB_THREADS unset: one each
+        assert set(row["env"].values()) == {"1"}, row["env"]  # Dask sets only three
+        assert 2 * max(pools.values()) <= max(2, row["cores"])
 
 
 @pytest.mark.parametrize(

@@ -8,31 +8,44 @@
 the ``identify`` group when imported here), ``shaper design`` (`shaper.py`), ``slm scan-time``
 (`slm.py`), ``stage excite`` (`stage.py`), ``optimize`` (`optimize.py`); `_kit.py` holds
 the console, errors, progress bars, tables and the readers several groups share
-(``LOW:HIGH`` ranges, measured traces).
+(``LOW:HIGH`` ranges, measured traces); `_sigint.py` how a Ctrl-C is taken, from the
+first import on, so that it always ends as one line and exit 130.
 """
 
 from __future__ import annotations
 
 import sys
-from typing import Annotated
+from typing import Annotated, Any
 
-import typer
+from microfab.cli import _sigint
 
-from microfab.cli._kit import OneLineErrors
-from microfab.cli.calibrate import calibrate_app
-from microfab.cli.droplet import droplet_app
-from microfab.cli.geometry import path_app, trajectory_cmd
-from microfab.cli.identify import identify_app
-from microfab.cli.identify_ann import ann_cmd as _ann_cmd  # noqa: F401 (registers it)
-from microfab.cli.ilc import ilc_app
-from microfab.cli.laser import laser_app
-from microfab.cli.nanomanipulator import nanomanipulator_app
-from microfab.cli.optimize import optimize_cmd
-from microfab.cli.rc import rc_app
-from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
-from microfab.cli.shaper import shaper_app
-from microfab.cli.slm import slm_app
-from microfab.cli.stage import stage_app
+# A Ctrl-C while the command's modules load is held and answered once they are loaded
+# (`microfab.cli._sigint`); the handler is Python's again when this module is imported.
+_sigint.hold()
+try:
+    import typer
+
+    from microfab.cli._kit import OneLineErrors, print_interrupted
+    from microfab.cli.calibrate import calibrate_app
+    from microfab.cli.droplet import droplet_app
+    from microfab.cli.geometry import path_app, trajectory_cmd
+    from microfab.cli.identify import identify_app
+    from microfab.cli.identify_ann import ann_cmd as _ann_cmd  # noqa: F401 (registers it)
+    from microfab.cli.ilc import ilc_app
+    from microfab.cli.laser import laser_app
+    from microfab.cli.nanomanipulator import nanomanipulator_app
+    from microfab.cli.optimize import optimize_cmd
+    from microfab.cli.rc import rc_app
+    from microfab.cli.run import kinds_cmd, reproduce_cmd, run_cmd
+    from microfab.cli.shaper import shaper_app
+    from microfab.cli.slm import slm_app
+    from microfab.cli.stage import stage_app
+finally:
+    _INTERRUPTED_WHILE_LOADING = _sigint.pending()
+    _sigint.restore()
+if _INTERRUPTED_WHILE_LOADING:
+    print_interrupted([a for a in sys.argv[1:] if a[:1] != "-"])
+    sys.exit(130)
 
 __all__ = ["app", "main"]
 
@@ -68,7 +81,23 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
-app = typer.Typer(
+class _Microfab(typer.Typer):
+    """The ``microfab`` application: SIGINT held while typer builds the command.
+
+    Building resolves every command's signature (seconds under load); a Ctrl-C then is
+    raised when the command starts (`OneLineErrors.invoke`), as one line and exit 130.
+    """
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        """Build and run the command (`typer.Typer.__call__`) with SIGINT held until it runs."""
+        _sigint.hold()
+        try:
+            return super().__call__(*args, **kwargs)
+        finally:
+            _sigint.restore()  # no-op once the command took SIGINT over
+
+
+app = _Microfab(
     cls=OneLineErrors,
     add_completion=False,
     no_args_is_help=True,

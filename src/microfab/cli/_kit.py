@@ -29,6 +29,9 @@ from rich.progress import (
 from rich.table import Table as RichTable
 from typer.core import TyperGroup
 
+from microfab.cli import _sigint
+from microfab.core.threads import apply_thread_policy
+
 if TYPE_CHECKING:
     from collections.abc import Callable
     from pathlib import Path
@@ -49,6 +52,7 @@ __all__ = [
     "interrupted_hint",
     "one_line",
     "parse_range",
+    "print_interrupted",
     "print_table",
     "progress",
     "read_trace_file",
@@ -221,7 +225,30 @@ _CLICK_ERROR: type[Exception] = next(
 
 
 def _ignore_signal(signum: int, frame: Any) -> None:
-    """A signal handler that does nothing (see `OneLineErrors.invoke`)."""
+    """A signal handler that does nothing (see `print_interrupted`)."""
+
+
+def print_interrupted(words: Sequence[str]) -> None:
+    """Print the one ``interrupted`` line for the command of ``words``; ignore SIGINT after.
+
+    The shutdown has begun: a second SIGINT (another Ctrl-C, or one still pending from a
+    handler that held it while a cluster started) must not cut the message or turn exit
+    130 into death by signal (seen twice in the interrupt tests, under load). A Python
+    handler, not SIG_IGN, which processes started later would inherit (a test's CliRunner
+    runs this in the test process).
+
+    Parameters
+    ----------
+    words : sequence of str
+        The command line's words that are not options (`interrupted_hint`).
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _ignore_signal)
+    err_console.print(
+        f"[bold red]interrupted[/]; {escape(interrupted_hint(words))}",
+        highlight=False,
+        soft_wrap=True,
+    )
 
 
 class OneLineErrors(TyperGroup):
@@ -233,26 +260,25 @@ class OneLineErrors(TyperGroup):
     """
 
     def invoke(self, ctx: Any) -> Any:
-        """Run the command; Ctrl-C is one line saying what to do, and exit code 130."""
+        """Run the command; Ctrl-C is one line saying what to do, and exit code 130.
+
+        SIGINT is taken by `microfab.cli._sigint` while the command runs (one held while
+        it loaded is raised first); the previous handler is back when it returns.
+        """
         # the command's words, read before the group hands them to the subcommand
         given = [*getattr(ctx, "_protected_args", getattr(ctx, "protected_args", [])), *ctx.args]
         words = [str(a) for a in given if str(a)[:1] != "-"]
         try:
-            return super().invoke(ctx)
+            _sigint.arm()
+            result = super().invoke(ctx)
         except KeyboardInterrupt:
-            # the shutdown has begun: a second SIGINT (another Ctrl-C, or one still pending
-            # from a handler that held it while a cluster started) must not cut the message
-            # or turn exit 130 into death by signal (seen twice in the interrupt tests, under
-            # load). A Python handler, not SIG_IGN, which processes started later would
-            # inherit (a test's CliRunner runs this in the test process).
-            if threading.current_thread() is threading.main_thread():
-                signal.signal(signal.SIGINT, _ignore_signal)
-            err_console.print(
-                f"[bold red]interrupted[/]; {escape(interrupted_hint(words))}",
-                highlight=False,
-                soft_wrap=True,
-            )
+            print_interrupted(words)  # SIGINT ignored from now on: the guard is gone
             raise typer.Exit(130) from None
+        except BaseException:
+            _sigint.restore()
+            raise
+        _sigint.restore()
+        return result
 
     def main(  # type: ignore[override]
         self,
@@ -262,7 +288,17 @@ class OneLineErrors(TyperGroup):
         standalone_mode: bool = True,
         **extra: Any,
     ) -> Any:
-        """Run the command; in standalone mode, report usage errors on one line."""
+        """Run the command; in standalone mode, report usage errors on one line.
+
+        First the process's thread pools are set (`microfab.core.threads.apply_thread_policy`:
+        one thread per BLAS/OpenMP/PyTorch pool unless ``MICROFAB_THREADS`` says otherwise).
+        """
+        try:
+            apply_thread_policy()
+        except ValueError as exc:  # a bad MICROFAB_THREADS
+            err_console.print(f"[bold red]error:[/] {escape(one_line(str(exc)))}",
+                              highlight=False, soft_wrap=True)  # fmt: skip
+            sys.exit(2)
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, False, **extra)
         try:

@@ -23,7 +23,10 @@ JSON: stable, file-name safe, distinct per point. JSON tells ``50`` from ``50.0`
 in this process, without Dask (the cheap path for callers' tests). Otherwise a
 ``LocalCluster`` of ``workers`` single-threaded processes is started and closed around the
 sweep, or the given cluster is used. Workers are *spawned*: a script running a sweep on
-them needs an ``if __name__ == "__main__":`` guard.
+them needs an ``if __name__ == "__main__":`` guard. A worker sets its thread pools before
+each task (`microfab.core.threads.apply_thread_policy`): ``policy_threads(workers)`` on a
+local cluster, so workers × threads ≤ cores; one on a given cluster (a Dask worker may
+run several tasks at once).
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
+from microfab.core.threads import apply_thread_policy, policy_threads
 from microfab.io.atomic import atomic_write_json
 from microfab.io.runstore import RunRefusedError, canonical_settings, settings_difference
 
@@ -483,6 +487,7 @@ def _run_on_cluster(
             f"cannot send the task {task!r} or its points to worker processes ({exc}); "
             "make the task a module-level function"
         ) from exc
+    own = client is None and scheduler is None  # a local cluster of our own
     with contextlib.ExitStack() as stack:
         if client is None and scheduler is not None:
             client = stack.enter_context(Client(scheduler))
@@ -520,7 +525,8 @@ def _run_on_cluster(
                 raise KeyboardInterrupt
         # pure=False: never reuse a result cached by the scheduler (a failed point retried
         # on the same client must run again).
-        running = {client.submit(_run_pickled, blob, payloads[p], pure=False): p for p in todo}
+        n = policy_threads(workers) if own else 1
+        running = {client.submit(_run_pickled, blob, payloads[p], n, pure=False): p for p in todo}
         try:
             for fut in as_completed(list(running)):
                 p = running.pop(fut)
@@ -591,9 +597,11 @@ def _closed_quietly_on_error(resource: Any) -> Iterator[Any]:
     resource.close()
 
 
-def _run_pickled(task: bytes, point: bytes) -> Any:
+def _run_pickled(task: bytes, point: bytes, threads: int = 1) -> Any:
     # On a worker. Task and point travel as cloudpickle bytes and are unpickled here, so a
     # worker that cannot import the task's module fails that point (reported) instead of
     # its connection to the scheduler (a hang), and modules registered with
-    # cloudpickle.register_pickle_by_value (e.g. test modules) travel by value.
+    # cloudpickle.register_pickle_by_value (e.g. test modules) travel by value. The thread
+    # pools are set first (module docstring), as the task's libraries may load with it.
+    apply_thread_policy(threads=threads)
     return pickle.loads(task)(pickle.loads(point))

@@ -19,7 +19,11 @@ fingerprint is in the point's JSON):
    time at a given L2 (`microfab.machines.xy_stage_reference.baseline_l2`).
 
 Points are independent; a failed stage (infeasible, not converged) is recorded in the
-point's JSON with its message and the study goes on.
+point's JSON with its message and the study goes on. The points not yet saved run side by
+side, one worker process each (`microfab.io.sweep.run_sweep` on a local cluster of
+``ReferenceSettings.workers``; a single point, or one worker, runs in this process); each
+process runs its BLAS/OpenMP/PyTorch pools on `microfab.core.threads.policy_threads`
+threads, so a point's numbers do not depend on where it ran.
 
 Generations (seed 002 §III-C.2, Fig. 7; ``generations`` ≥ 2): first the networks'
 generations are run or resumed under ``out/generations/``
@@ -43,6 +47,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from microfab.core.threads import usable_cores
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.machines.xy_stage import TwinSettings
 from microfab.machines.xy_stage_ann import AnnSettings
@@ -108,6 +113,10 @@ class ReferenceSettings:
     retrain_workers : int
         Axes retrained at once, one process each (assumed 2, the ``stage-identify``
         job's: on 2 cores two processes halve the time; not fingerprinted).
+    workers : int
+        Points run at once, one process each; 0 (default): one per usable core
+        (`microfab.core.threads.usable_cores`), never more than the points left to run.
+        Not fingerprinted: where a point runs does not change its numbers.
     """
 
     models_dir: str = ""
@@ -128,6 +137,7 @@ class ReferenceSettings:
     retrain_epochs: int = 20  # assumed (xy_stage_generations.GenerationSettings)
     generation_data_s: float | None = None
     retrain_workers: int = 2  # assumed, see above
+    workers: int = 0
 
     def generation_settings(self) -> GenerationSettings:
         """The generations' settings: these models, twin, tolerance and stage 2."""
@@ -272,15 +282,7 @@ def _study(
     todo += [(c, a) for a in st.tradeoff_letters for c in letters if (c, a) not in todo]
     if "airfoil" in st.cases:
         todo += [("airfoil", a) for a in st.tradeoff_airfoil if ("airfoil", a) not in todo]
-    points: dict[tuple[str, float], dict[str, Any]] = {}
-    for k, (case, a) in enumerate(todo):
-        report("points", k, len(todo))
-        problem = ContourProblem(paths[case], a_max=a, tolerance_m=st.tolerance_m)
-        points[(case, a)] = saved_point(
-            case, problem, models, twin=st.twin, stage2_max_iter=st.stage2_max_iter,
-            folder=folder, fingerprint=st.fingerprint(),
-        )  # fmt: skip
-    report("points", len(todo), len(todo))
+    points = _run_points(st, todo, paths, models, folder, report)
     tradeoff: dict[str, list[dict[str, float]]] = {}
     if letters:
         rows = []
@@ -297,6 +299,71 @@ def _study(
     curve = _baseline_curves(st, paths, tradeoff, letters)
     return ReferenceStudy(settings=st, sizes=sizes, sizing_steps=steps, points=points,
                           tradeoff=tradeoff, baseline_curve=curve)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _Point:
+    """One point as the sweep sends it: a case at an ``a_max`` (m/s²)."""
+
+    case: str
+    a_max: float
+
+
+@dataclass(frozen=True, eq=False)
+class _PointTask:
+    """`saved_point` of a `_Point`; pickled once for every worker process (models too).
+
+    Returns ``{"summary": ...}``: the point's summary, kept apart from the sweep's row
+    (whose point fields would otherwise mix with the summary's own).
+    """
+
+    settings: ReferenceSettings
+    paths: dict[str, Any]
+    models: Models
+    folder: Path | None
+    fingerprint: str
+
+    def __call__(self, point: _Point) -> dict[str, Any]:
+        st = self.settings
+        problem = ContourProblem(self.paths[point.case], a_max=point.a_max,
+                                 tolerance_m=st.tolerance_m)  # fmt: skip
+        return {"summary": saved_point(
+            point.case, problem, self.models, twin=st.twin,
+            stage2_max_iter=st.stage2_max_iter, folder=self.folder,
+            fingerprint=self.fingerprint,
+        )}  # fmt: skip
+
+
+def _run_points(
+    st: ReferenceSettings, todo: list[tuple[str, float]], paths: dict[str, Any],
+    models: Models, folder: Path | None, report: Progress,
+) -> dict[tuple[str, float], dict[str, Any]]:  # fmt: skip
+    """Every point's summary, in ``todo`` order: read back if saved, else run.
+
+    The points left run side by side on worker processes (module docstring).
+    """
+    from microfab.io.sweep import run_sweep
+    from microfab.machines.xy_stage_reference import read_point_summary
+
+    fingerprint = st.fingerprint()
+    done: dict[tuple[str, float], dict[str, Any]] = {}
+    for case, a in todo if folder is not None else ():
+        saved = read_point_summary(folder, case, a)
+        if saved is not None and saved.get("fingerprint") == fingerprint:
+            done[(case, a)] = saved
+    left = [_Point(c, a) for c, a in todo if (c, a) not in done]
+    workers = max(1, min(st.workers or usable_cores(), len(left)))
+    report("points", len(done), len(todo))
+
+    def finished(n: int, total: int, point: _Point, ok: bool) -> None:
+        report("points", len(done) + n, len(todo))
+
+    task = _PointTask(settings=st, paths=paths, models=models, folder=folder,
+                      fingerprint=fingerprint)  # fmt: skip
+    res = run_sweep(task, left, workers=workers, progress=finished)
+    for point, row in zip(left, res.rows, strict=True):
+        done[(point.case, point.a_max)] = row["summary"]
+    return {key: done[key] for key in todo}
 
 
 def _baseline_curves(
