@@ -178,7 +178,8 @@ RECIPES: dict[str, Recipe] = {
                          inputs=("excited",), outputs=("played",)),
     "stage score": Recipe(("stage", "score", "opt_played/command.h5", "--drawing", "opt_done",
                            "--baseline", "opt_played/baseline.h5", "--json", "score.json"),
-                          inputs=("opt_played", "opt_done"), outputs=("score.json",)),
+                          inputs=("opt_played/command.h5", "opt_played/baseline.h5",
+                                  "opt_done"), outputs=("score.json",)),
     "trajectory": Recipe(
         ("trajectory", "part.dxf", "--time-optimal", "--n-grid", "50", "--rate", "2000",
          "--out", "reference.csv", "--plot", "profile.png"),

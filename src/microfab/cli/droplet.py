@@ -10,6 +10,7 @@ import typer
 
 from microfab.cli._kit import check_option, check_output_path, console, fail, progress
 from microfab.io.atomic import atomic_write_text
+from microfab.io.lock import hold_for_command
 from microfab.process.inkjet.fluids import DEFAULT_JET_MODEL
 
 __all__ = ["MAX_DURATION_US", "droplet_app"]
@@ -65,6 +66,7 @@ def simulate_cmd(
     """
     check_output_path("--out", out, kind="folder")
     check_output_path("--json", json_out)
+    hold_for_command(out, "--out", on_refused=fail)
     from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.process.inkjet.fluids import naalg
 
@@ -172,6 +174,7 @@ def render_cmd(
 ) -> None:
     """Simulate a droplet and write shadowgraph frames that droplet analyze can read."""
     check_output_path("OUT", out, kind="folder")
+    hold_for_command(out, "OUT", on_refused=fail)
     from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.measure.shadowgraph import render_sequence, write_frames
     from microfab.process.inkjet.fluids import naalg
@@ -321,6 +324,7 @@ def sweep_cmd(
     job and writes a report with the seed's numbers beside ours.
     """
     check_output_path("--out", out, kind="folder")
+    hold_for_command(out, "--out", on_refused=fail)
     from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
     from microfab.machines.printhead import DropletSettings, droplet_sweep, sweep_points
     from microfab.process.inkjet.fluids import naalg
@@ -452,6 +456,7 @@ def sensitivity_cmd(
     hang on. Points are kept in OUT/points/ as they finish; a rerun resumes.
     """
     check_output_path("--out", out, kind="folder")
+    hold_for_command(out, "--out", on_refused=fail)
     from microfab.machines.printhead import DropletSettings
     from microfab.machines.printhead_sensitivity import (
         markdown,

@@ -29,6 +29,7 @@ from microfab.cli._kit import (
     renamed,
 )
 from microfab.cli.identify import _RUN_HELP, ANN_COMPARED, _error_table, _read_runs, identify_app
+from microfab.io.lock import hold_for_command
 from microfab.report.tables import Table
 
 __all__ = ["ann_cmd"]
@@ -109,6 +110,7 @@ def ann_cmd(
     μ, σ per axis on the validation runs at every run sample, beside seed 002 Table II.
     """
     check_output_path("--out", out, kind="folder", inputs=runs)
+    hold_for_command(out, "--out", on_refused=fail)
     if axis not in _AXES:
         fail(f"--axis must be x, y or both, got {axis!r}")
     if device not in ("auto", "cpu", "cuda"):

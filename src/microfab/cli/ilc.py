@@ -8,8 +8,15 @@ from typing import Annotated
 import typer
 
 from microfab.cli._kit import check_option, check_output_path, console, fail
+from microfab.io.lock import hold_for_command
 
-__all__ = ["ilc_app"]
+__all__ = ["ONE_STEP_HINT", "ilc_app"]
+
+#: What a second step on a state another step is writing should do (it is refused).
+ONE_STEP_HINT = (
+    "one step at a time: let it finish, then measure the input it writes (this trial "
+    "was measured on the input it replaces, so it is not learned from)"
+)
 
 ilc_app = typer.Typer(no_args_is_help=True, help="Iterative learning control on hardware.")
 
@@ -60,6 +67,9 @@ def ilc_step_cmd(
     """
     check_output_path("--state", state, kind="folder", inputs=[trial, frf])
     check_output_path("--out", out, inputs=[trial, frf, state / "ilc_state.npz"])
+    # one step at a time, locked before the state is read; never wait: this trial was
+    # measured on the input the state held, which the running step is replacing
+    hold_for_command(state, "--state", on_refused=fail, hint=ONE_STEP_HINT)
     from microfab.control.ilc import ILCConfig
     from microfab.core.limits import AxisLimits
     from microfab.machines import galvo

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
 from microfab.cli._kit import check_output_path, console, fail, print_table
+from microfab.io.lock import hold_for_command
 
 __all__ = ["laser_app"]
 
@@ -51,27 +53,30 @@ def analyze_cmd(
     """
     check_output_path("--out", out, kind="folder", inputs=[trace, job])
     check_output_path("--json", json_path, inputs=[trace, job, Path(drawing)])
+    hold_for_command(out, "--out", on_refused=fail)
     from microfab.io.atomic import atomic_write_json
-    from microfab.measure.contour_trace import analyze_file
+    from microfab.measure.contour_trace import analyze_trace
     from microfab.report.contour import analysis_table, write_analysis
+    from microfab.trajectory.contour_laps import contour_path
 
     if not reference_tol_um > 0:
         fail(f"--reference-tol-um must be positive, got {reference_tol_um:g} µm")
     cfg = _laser_job(job) if job is not None else None  # before any work or output
+    measured = _measured_trace(trace, cfg)
     try:
-        a = analyze_file(trace, drawing, contour, reference_tol_m=reference_tol_um * 1e-6)
+        path = contour_path(drawing, contour)
+        a = analyze_trace(measured, path, reference_tol_m=reference_tol_um * 1e-6)
     except (OSError, ValueError) as exc:
         fail(f"{trace}: {exc}")
     summary = a.summary()
     replayed = None
     if replay:
-        from microfab.io.trace import read_trace
         from microfab.machines.laser_stage_files import replay_trace
 
         control = None if cfg is None else cfg.run.control
         twin = None if cfg is None else cfg.run.twin
         try:
-            replayed = replay_trace(read_trace(trace), control, twin)
+            replayed = replay_trace(measured, control, twin)
         except (OSError, ValueError) as exc:
             fail(f"{trace}: {exc}")
         summary["replay"] = {
@@ -95,6 +100,34 @@ def analyze_cmd(
         console.print(f"report: {write_analysis(a, out, f'Measured trace {trace.name}')}")
 
 
+def _measured_trace(path: Path, cfg: Any) -> Any:
+    """The measured trace, checked against the stage it was recorded on (exits 2 otherwise).
+
+    Its sample time must be the controller's (a time column in ms is 1000 times it), its
+    positions in m, and it must last at least one period of the position loop's
+    bandwidth: shorter, the errors are the loop's transient, not its tracking.
+    """
+    from microfab.io.trace import read_trace
+    from microfab.machines import laser_stage
+
+    cs = laser_stage.ControlSettings() if cfg is None else cfg.run.control
+    dt = laser_stage.stage().dt
+    n_min = math.ceil(1.0 / (cs.bandwidth_hz * dt))
+    try:
+        tr = read_trace(path, min_samples=n_min)
+    except (OSError, ValueError) as exc:
+        msg = str(exc)
+        fail(msg if str(path) in msg else f"{path}: {msg}")
+    if abs(tr.dt - dt) > 1e-6 * dt:
+        fail(
+            f"{path}: sample time {tr.dt:g} s, but the stage's controller samples every "
+            f"{dt:g} s; the time column must be in s, at the controller's rate"
+        )
+    if tr.unit not in ("", "m"):
+        fail(f"{path}: unit {tr.unit!r}; the stage's positions are read in m")
+    return tr
+
+
 def _laser_job(path: Path) -> Any:
     """The checked config of a laser-micromachining job file (exits 2 otherwise)."""
     from microfab.experiments.catalog import load_job
@@ -116,6 +149,7 @@ def export_cmd(
 ) -> None:
     """Write a job's reference and discrete controller for a real-time target (seed 004)."""
     check_output_path("--out", out, kind="folder", inputs=[job])
+    hold_for_command(out, "--out", on_refused=fail)
     from microfab.machines.laser_stage_files import export_job
 
     cfg = _laser_job(job)

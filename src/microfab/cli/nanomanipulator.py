@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from microfab.cli._kit import check_option, check_output_path, console, fail, print_table
+from microfab.io.lock import hold_for_command
 
 __all__ = ["nanomanipulator_app"]
 
@@ -60,6 +61,7 @@ def analyze_cmd(
     """
     check_output_path("--out", out, kind="folder", inputs=[trace, job])
     check_output_path("--json", json_path, inputs=[trace, job])
+    hold_for_command(out, "--out", on_refused=fail)
     from microfab.io.atomic import atomic_write_json
     from microfab.measure.circle_trace import analyze_trace, pattern_from_job
     from microfab.report.circle_tracking import tracking_table, write_analysis

@@ -30,6 +30,7 @@ from typing import Annotated, Any
 import typer
 
 from microfab.cli._kit import check_option, check_output_path, console, fail
+from microfab.io.lock import hold_for_command
 
 __all__ = ["optimize_cmd"]
 
@@ -95,6 +96,7 @@ def optimize_cmd(
     check_output_path(
         "--out", out, kind="folder", inputs=[Path(drawing), resolve_models_dir(model)]
     )
+    hold_for_command(out, "--out", on_refused=fail)
     from microfab.optimize.problem import ContourProblem
     from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 

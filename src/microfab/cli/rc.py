@@ -8,8 +8,15 @@ from typing import Annotated
 import typer
 
 from microfab.cli._kit import check_option, check_output_path, console, fail
+from microfab.io.lock import hold_for_command
 
-__all__ = ["rc_app"]
+__all__ = ["ONE_PERIOD_HINT", "rc_app"]
+
+#: What a second step on a state another step is writing should do (it is refused).
+ONE_PERIOD_HINT = (
+    "one period at a time: let it finish, then measure the command it writes (this trial "
+    "was measured on the command it replaces, so it is not learned from)"
+)
 
 rc_app = typer.Typer(no_args_is_help=True, help="Plug-in repetitive control on hardware.")
 
@@ -49,6 +56,8 @@ def rc_step_cmd(
     """
     check_output_path("--state", state, kind="folder", inputs=[trial])
     check_output_path("--out", out, inputs=[trial, *state.glob("*")])
+    # one period at a time, locked before the state is read (never wait: see ilc step)
+    hold_for_command(state, "--state", on_refused=fail, hint=ONE_PERIOD_HINT)
     from microfab.machines.nanomanipulator_files import rc_file_step
 
     check_option("--tau-ms", tau_ms, "ms")

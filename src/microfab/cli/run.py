@@ -34,6 +34,14 @@ def run_cmd(
             "to its _previous/ folder instead of resuming (or refusing other settings).",
         ),
     ] = False,
+    wait: Annotated[
+        bool,
+        typer.Option(
+            "--wait",
+            help="When another microfab is writing the report folder, wait for it to "
+            "finish (then resume or refuse as usual) instead of refusing at once.",
+        ),
+    ] = False,
 ) -> None:
     """Run a job of any registered kind and write its report (report.html + figures + JSON).
 
@@ -41,7 +49,8 @@ def run_cmd(
     learning state are saved as the run goes; running the same job again resumes, and a
     report folder that holds a run of other settings (or input files that changed) is
     refused, naming the first difference, unless --fresh is given. With --check the job
-    file is read and checked and nothing runs or is written.
+    file is read and checked and nothing runs or is written. One writer per report
+    folder: while another microfab writes it, the run is refused (or waits, --wait).
     """
     check_output_path("--out", out, kind="folder", inputs=[job_file])
     from microfab.experiments.catalog import default_job, load_job
@@ -70,7 +79,17 @@ def run_cmd(
         )
         return
     try:
-        with open_run(out_dir, settings, fresh=fresh) as store, progress() as prog:
+        with (
+            open_run(
+                out_dir,
+                settings,
+                fresh=fresh,
+                wait=wait,
+                busy_hint="rerun with --wait to wait for it",
+                on_wait=lambda msg: console.print(msg, highlight=False, soft_wrap=True),
+            ) as store,
+            progress() as prog,
+        ):
             if store.moved_to is not None:
                 console.print(f"moved the earlier run's files to {store.moved_to}")
             result = job.kind.run(job.config, out_dir, reporter(prog))

@@ -67,12 +67,30 @@ def _read_model(path: Path) -> TFModel:
         fail(f"{path}: {exc}")
 
 
+#: Fewest frequencies a shaper is designed from. Assumed: a mode's frequency and damping
+#: need points on both flanks of its peak and at it, a few each; with 3 rows the "mode" is
+#: whichever row is largest.
+MIN_FRF_POINTS = 16
+
+
 def _frf_of_file(path: Path, axis: str | None, dt: float) -> tuple[np.ndarray, np.ndarray, float]:
     """``(freq_hz, response, dt)`` of an FRF file (``freq_hz`` column) or of a trace.
 
     A trace (time, input_<a>, output_<a>) gives H1 on segments of the largest power of two
-    up to a quarter of the record, Hann window, half overlap, on the excited band.
+    up to a quarter of the record, Hann window, half overlap, on the excited band. Either
+    must give at least `MIN_FRF_POINTS` frequencies.
     """
+    f, resp, f_dt = _frf_or_trace(path, axis, dt)
+    if f.size < MIN_FRF_POINTS:
+        fail(
+            f"{path}: an FRF of {f.size} frequencies; a shaper is designed from at least "
+            f"{MIN_FRF_POINTS} (points on both flanks of the mode and at its peak)"
+        )
+    return f, resp, f_dt
+
+
+def _frf_or_trace(path: Path, axis: str | None, dt: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """`_frf_of_file` before its size check."""
     from microfab.identify.frf import FRF, frf_h1
     from microfab.io.frf import read_frf
     from microfab.io.trace import read_columns

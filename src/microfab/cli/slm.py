@@ -27,6 +27,7 @@ from microfab.cli._kit import (
     print_table,
     renamed,
 )
+from microfab.io.lock import hold_for_command
 from microfab.process.slm.timing import RTCDelays
 
 if TYPE_CHECKING:
@@ -326,6 +327,7 @@ def build_cmd(
     ):
         check_option(option, value, unit)
     check_output_path("--results-dir", results_dir, kind="folder")
+    hold_for_command(results_dir, "--results-dir", on_refused=fail)
     check_output_path("--json", json_path)
     try:
         settings = BuildSettings(

@@ -39,6 +39,7 @@ from microfab.cli._kit import (
     progress,
     read_trace_file,
 )
+from microfab.io.lock import hold_for_command
 from microfab.report.tables import Table
 
 __all__ = ["stage_app"]
@@ -95,6 +96,7 @@ def excite_cmd(
     input_x, input_y, output_x, output_y (m), then fit with ``microfab identify linear``.
     """
     check_output_path("--out", out, kind="folder")
+    hold_for_command(out, "--out", on_refused=fail)
     from microfab.identify import excitation as ex
 
     if kind not in _KINDS:
@@ -181,6 +183,7 @@ def play_cmd(
     (README). Prints the samples of each run and the set-points the twin's guard changed.
     """
     check_output_path("--out", out, kind="folder", inputs=runs)
+    hold_for_command(out, "--out", on_refused=fail)
     if fmt not in _FORMATS:
         fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
     check_option("--hold", hold, "s", high=_HOLD_MAX_S, low_closed=True)

@@ -46,8 +46,10 @@ from typing import Literal
 
 import numpy as np
 
+from microfab.control.ilc_state import checked_state
 from microfab.core.validate import check_in_range, check_nonnegative, check_positive
 from microfab.io.checkpoint import StateFileError, read_state, save_state
+from microfab.io.schema import SchemaError
 
 __all__ = ["ConvergenceError", "FrequencyILC", "ILCConfig", "Trial"]
 
@@ -636,23 +638,21 @@ class FrequencyILC:
         )
         if saved is None:
             raise FileNotFoundError(f"no ILC state in {directory} (expected {STATE_FILE})")
-        meta, data = saved.meta, saved.arrays
-        missing = [k for k in ("dt", "axes", "config", "iteration") if k not in meta]
-        needed = ("reference", "inputs", "pinv", "mask", "rms", "pp")
-        missing += [k for k in needed if k not in data]
-        if missing:
-            raise StateFileError(f"{path}: an ILC state without {missing}; remove it")
+        try:
+            meta, data = checked_state(path, saved.meta, saved.arrays)
+        except SchemaError as exc:
+            raise StateFileError(
+                f"{exc}; remove it, or give a new state folder, to start learning again"
+            ) from None
         try:
             user_meta = _arrays_in(meta.get("meta", {}), data)
         except KeyError as exc:
             raise StateFileError(f"{path}: an ILC state without member {exc}; remove it") from None
-        obj = cls(
-            data["reference"],
-            meta["dt"],
-            tuple(meta["axes"]),
-            ILCConfig(**meta["config"]),
-            true_frf=true_frf,
-        )
+        try:
+            config = ILCConfig(**meta["config"])
+        except (TypeError, ValueError) as exc:
+            raise StateFileError(f"{path}: the saved ILC settings are not valid: {exc}") from None
+        obj = cls(data["reference"], meta["dt"], tuple(meta["axes"]), config, true_frf=true_frf)
         st = obj.state
         st.iteration = int(meta["iteration"])
         st.inputs = list(data["inputs"])

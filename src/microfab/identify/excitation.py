@@ -42,12 +42,13 @@ if any run fails its check. `read_runs` reads them back.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from pathlib import Path as FsPath
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 from microfab.core.limits import LimitViolation
 from microfab.core.validate import check_in_range, check_positive
@@ -71,6 +72,7 @@ from microfab.identify.excitation_signals import (
     shape_runs,
 )
 from microfab.io.atomic import atomic_write_json
+from microfab.io.schema import MAX_SAMPLES, inside, read_json, validated
 from microfab.io.trace import read_columns, write_trace
 
 __all__ = [
@@ -109,6 +111,36 @@ INDEX_FILE = "runs.json"
 _FORMAT = 1
 _SUFFIX = {"csv": ".csv", "h5": ".h5", "mat": ".mat"}
 _SLACK_S = 1.0  # ann_dataset: stop adding shapes within this of the total, s
+
+
+#: What `microfab.io.schema.read_json` calls the index.
+INDEX_KIND = "a stage run list (runs.json of stage excite)"
+
+
+class _RunEntry(BaseModel):
+    """One run of the index (what `write_runs` writes; other keys are kept aside)."""
+
+    model_config = ConfigDict(strict=True, extra="allow", allow_inf_nan=False)
+
+    name: str = Field(min_length=1)
+    kind: str = Field(min_length=1)
+    file: str = Field(min_length=1)
+    seed: int = Field(ge=0)
+    dt_s: float = Field(gt=0, le=1.0)
+    n_samples: int = Field(ge=2, le=MAX_SAMPLES)
+    sha256: str = Field(pattern=r"^[0-9a-f]{64}$")
+    params: dict[str, Any] = Field(default_factory=dict)
+
+
+class _RunIndex(BaseModel):
+    """The schema of `INDEX_FILE`."""
+
+    model_config = ConfigDict(strict=True, extra="allow", allow_inf_nan=False)
+
+    format: Literal[1]
+    runs: list[_RunEntry] = Field(min_length=1)
+    unit: Literal["m"] = "m"
+    total_samples: int | None = Field(None, ge=0)
 
 
 # --- random --------------------------------------------------------------------------------
@@ -389,30 +421,44 @@ def read_runs(out_dir: str | FsPath) -> list[ExcitationRun]:
     Raises
     ------
     ValueError
-        Another format, a missing column, or a command whose SHA-256 differs from the
-        index's (the message names the file).
+        Another format, an index that does not follow its schema (strict types: a
+        ``dt_s`` of ``true`` or an ``n_samples`` of ``"100"`` is refused; a run file
+        outside the folder; counts that disagree with the files), a missing column, or a
+        command whose SHA-256 differs from the index's (the message names the file).
     """
     out = FsPath(out_dir)
-    meta = json.loads((out / INDEX_FILE).read_text(encoding="utf-8"))
-    if meta.get("format") != _FORMAT:
-        raise ValueError(f"{out / INDEX_FILE}: format {meta.get('format')!r}, expected {_FORMAT}")
+    where = str(out / INDEX_FILE)
+    doc = read_json(out / INDEX_FILE, INDEX_KIND)
+    if isinstance(doc, dict) and doc.get("format") != _FORMAT:
+        raise ValueError(f"{where}: format {doc.get('format')!r}, expected {_FORMAT}")
+    index = validated(_RunIndex, doc, where)
+    total = sum(e.n_samples for e in index.runs)
+    if index.total_samples is not None and index.total_samples != total:
+        raise ValueError(f"{where}: total_samples is {index.total_samples}, the runs hold {total}")
+    names = [e.name for e in index.runs]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"{where}: run names must be unique; repeated: {dup}")
     runs = []
-    for e in meta["runs"]:
-        cols = read_columns(out / e["file"])
+    for k, e in enumerate(index.runs):
+        path = inside(out, e.file, f"{where}: runs.{k}.file")
+        cols = read_columns(path)
         missing = [c for c in ("time", *AXES) if c not in cols]
         if missing:
-            raise ValueError(f"{out / e['file']}: missing columns {missing}")
+            raise ValueError(f"{path}: missing columns {missing}")
+        if cols["time"].size != e.n_samples:
+            raise ValueError(
+                f"{path}: {cols['time'].size} samples, the index says n_samples {e.n_samples}"
+            )
+        step = np.diff(cols["time"])
+        if np.max(np.abs(step - e.dt_s)) > 1e-6 * e.dt_s:
+            raise ValueError(f"{path}: the time column does not step by dt_s {e.dt_s:g} s")
         cmd = np.column_stack([cols[c] for c in AXES])
-        if command_digest(cmd) != e["sha256"]:
-            raise ValueError(f"{out / e['file']}: command differs from the index (SHA-256)")
+        if command_digest(cmd) != e.sha256:
+            raise ValueError(f"{path}: command differs from the index (SHA-256)")
         runs.append(
             ExcitationRun(
-                kind=e["kind"],
-                name=e["name"],
-                dt=float(e["dt_s"]),
-                command=cmd,
-                seed=int(e["seed"]),
-                params=e["params"],
+                kind=e.kind, name=e.name, dt=e.dt_s, command=cmd, seed=e.seed, params=e.params
             )
         )
     return runs

@@ -43,6 +43,7 @@ import numpy as np
 
 from microfab.io.atomic import atomic_save_npz
 from microfab.io.runstore import RunRefusedError, canonical_settings, settings_difference
+from microfab.io.schema import check_npz, describe_file
 
 __all__ = ["StateFile", "StateFileError", "read_state", "save_state"]
 
@@ -153,6 +154,7 @@ def save_state(
 
 
 def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    check_npz(path)  # the members' declared sizes, from their headers, before any is read
     with np.load(path, allow_pickle=False) as z:
         if META not in z.files:
             raise KeyError(f"no {META!r} member")
@@ -215,6 +217,9 @@ def read_state(
     try:
         doc, arrays = _read(p)
     except _UNREADABLE as exc:
+        other = describe_file(p)
+        if other is not None and other not in ("a zip archive", f"a {kind} file"):
+            raise StateFileError(f"{p}: this is {other}, not a {kind} file; {fix}") from None
         reason = str(exc) or type(exc).__name__
         raise StateFileError(
             f"{p}: not a readable {kind} file ({reason}; cut short or damaged?); {fix}"

@@ -16,6 +16,10 @@ state and model versions. Opening the folder again
 A folder that exists, is not empty and holds no ``run.json`` is refused: the store cannot
 tell what wrote it, so it neither reuses nor moves anything there.
 
+One writer per run folder: `open_run` holds the folder's lock (`microfab.io.lock`) from
+before it reads ``run.json`` until the block ends, so a second run on the same folder is
+refused on one line (or waits, ``wait=True``) instead of mixing its files with the first's.
+
 Example::
 
     with open_run("report", {"scan.rate": 400, "model": "1"}, fresh=False) as run:
@@ -36,12 +40,13 @@ import json
 import math
 import os
 import threading
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from microfab.io.atomic import atomic_write_json, watch_writes
+from microfab.io.lock import folder_lock
 
 __all__ = [
     "MANIFEST",
@@ -359,6 +364,9 @@ def open_run(
     fresh: bool = False,
     fresh_hint: str = _FRESH_HINT,
     other_hint: str = _OTHER_HINT,
+    wait: bool = False,
+    busy_hint: str = "wait for it to finish",
+    on_wait: Callable[[str], Any] | None = None,
 ) -> Iterator[RunStore]:
     """Open a run folder for these settings; record every file written under it.
 
@@ -373,6 +381,13 @@ def open_run(
         Move an earlier run's files aside and start clean instead of resuming or refusing.
     fresh_hint, other_hint : str
         How the caller's user starts fresh or elsewhere, for the refusal.
+    wait : bool
+        When another process writes the folder (holds its lock, `microfab.io.lock`):
+        wait for it instead of refusing.
+    busy_hint : str
+        How the caller's user waits, for the refusal of a busy folder.
+    on_wait : callable, optional
+        Told once, with a one-line message, when ``wait`` is set and the folder is busy.
 
     Yields
     ------
@@ -385,13 +400,29 @@ def open_run(
     RunRefusedError
         ``root`` is not a folder, holds a run of other settings (naming the first
         difference, old -> new), or holds files of no recorded run. Nothing is changed.
+    microfab.io.lock.FolderLockedError
+        Another process writes the folder and ``wait`` is not set (also a `ValueError`).
+        Nothing is changed.
+
+    Notes
+    -----
+    The folder's lock (`microfab.io.lock.folder_lock`, a ``.<name>.lock`` file beside the
+    folder, removed on exit) is taken before ``run.json`` is read and held until the block
+    ends: one writer per run folder.
     """
     path = Path(root)
-    store, move = _plan(path, settings, fresh, fresh_hint, other_hint)
-    if move is not None:
-        store.moved_to = _move_previous(path, move)
-    if not store._created:
-        store._created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    store._real_root = os.path.realpath(path)
-    with watch_writes(store.record, when="before"):
-        yield store
+    with folder_lock(
+        path,
+        what="the run folder",
+        wait=wait,
+        hint=f"{busy_hint}, or {other_hint}",
+        on_wait=on_wait,
+    ):
+        store, move = _plan(path, settings, fresh, fresh_hint, other_hint)
+        if move is not None:
+            store.moved_to = _move_previous(path, move)
+        if not store._created:
+            store._created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+        store._real_root = os.path.realpath(path)
+        with watch_writes(store.record, when="before"):
+            yield store

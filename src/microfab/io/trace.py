@@ -6,6 +6,14 @@ A file holds named 1-D columns of equal length: ``time`` (in s) and one column p
 The format follows the suffix: ``.csv``, ``.mat`` or ``.h5`` / ``.hdf5``. All writers are
 atomic (see :mod:`microfab.io.atomic`).
 
+What a file may declare is checked before anything of that size is read (sample counts
+against :data:`microfab.io.schema.MAX_SAMPLES` and ``MAX_VALUES``: an HDF5 dataset's shape,
+a MAT variable's header, a CSV's size), and every declared unit must be one of
+:data:`microfab.io.schema.UNITS`: the file's unit (CSV ``# unit:`` line, MAT ``unit``
+variable, HDF5 root attribute ``unit``) and, in HDF5, a dataset's own ``unit`` attribute,
+which is converted (``time`` to s, a data column to the file's unit, else to the SI unit of
+its quantity).
+
 The signal itself, its checks and the column-name rule live in
 :mod:`microfab.core.signals`; ``Trace`` is re-exported here, so
 ``from microfab.io.trace import Trace`` keeps working.
@@ -26,6 +34,15 @@ import numpy as np
 
 from microfab.core.signals import TIME, Trace, check_name, check_unit
 from microfab.io.atomic import atomic_path, atomic_write_text
+from microfab.io.schema import (
+    MAX_SAMPLES,
+    MAX_TEXT_BYTES,
+    MAX_VALUES,
+    SI,
+    check_count,
+    parse_unit,
+    unit_factor,
+)
 
 __all__ = ["Trace", "read_columns", "read_trace", "write_columns", "write_trace"]
 
@@ -145,7 +162,8 @@ def _parse_rows(path: Path, rows: list[tuple[int, str]], header: list[str]) -> n
     return data
 
 
-def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], str]:
+def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], str, dict[str, str]]:
+    check_count(str(path), "bytes of text", path.stat().st_size, MAX_TEXT_BYTES)
     unit, header, rows = "", None, []
     for lineno, line in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
         stripped = line.strip()
@@ -171,35 +189,129 @@ def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], str]:
                 raise ValueError("shape mismatch")
         except ValueError:
             data = _parse_rows(path, rows, header)
-    return {name: data[:, j].copy() for j, name in enumerate(header)}, unit
+    return {name: data[:, j].copy() for j, name in enumerate(header)}, unit, {}
 
 
-def _read_mat(path: Path) -> tuple[dict[str, np.ndarray], str]:
-    from scipy.io import loadmat
+#: MAT classes read as numeric columns (``whosmat`` names them so).
+_MAT_NUMERIC = {
+    "double",
+    "single",
+    "int8",
+    "int16",
+    "int32",
+    "int64",
+    "uint8",
+    "uint16",
+    "uint32",
+    "uint64",
+    "logical",
+}
+
+
+def _check_declared(path: Path, name: str, shape: tuple[int, ...], total: int) -> int:
+    """Budget of one declared column (a 1-D or n x 1 shape) before it is read."""
+    n = 1
+    for d in shape:
+        n *= int(d)
+    check_count(f"{path}", f"samples in column {name!r}", n, MAX_SAMPLES)
+    return check_count(f"{path}", "values in all columns", total + n, MAX_VALUES)
+
+
+def _read_mat(path: Path) -> tuple[dict[str, np.ndarray], str, dict[str, str]]:
+    from scipy.io import loadmat, whosmat
     from scipy.io.matlab import MatReadError
 
     try:
+        total = 0
+        for name, shape, cls in whosmat(path):  # headers only: sizes before any allocation
+            if name == "unit" and cls == "char":
+                check_count(f"{path}", "characters in 'unit'", int(np.prod(shape)), 1000)
+                continue
+            if cls not in _MAT_NUMERIC or sum(int(d) > 1 for d in shape) > 1:
+                raise ValueError(
+                    f"{path}: variable {name!r} is not a numeric 1-D column ({cls}, {tuple(shape)})"
+                )
+            total = _check_declared(path, name, tuple(shape), total)
         raw = loadmat(path, squeeze_me=True)
+    except ValueError as exc:
+        if str(path) in str(exc):  # a refusal above
+            raise
+        why = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"{path}: not a readable MAT file (v7.3 files are HDF5): {why}") from exc
     except (MatReadError, NotImplementedError, OSError, *_DAMAGED) as exc:  # cut or damaged
         why = " ".join(str(exc).split()) or type(exc).__name__
         raise ValueError(f"{path}: not a readable MAT file (v7.3 files are HDF5): {why}") from exc
     unit = raw.pop("unit", "") if isinstance(raw.get("unit"), str) else ""
-    return {k: _column(path, k, v) for k, v in raw.items() if not k.startswith("__")}, unit
+    cols = {k: _column(path, k, v) for k, v in raw.items() if not k.startswith("__")}
+    return cols, unit, {}
 
 
-def _read_h5(path: Path) -> tuple[dict[str, np.ndarray], str]:
+def _attr_text(value: object) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def _read_h5(path: Path) -> tuple[dict[str, np.ndarray], str, dict[str, str]]:
     h5py = _h5py()
     if not h5py.is_hdf5(path):
         raise ValueError(f"{path}: not an HDF5 file")
     try:
         with h5py.File(path, "r") as f:
-            unit = f.attrs.get("unit", "")
-            unit = unit.decode() if isinstance(unit, bytes) else str(unit)
-            raw = {k: v[()] for k, v in f.items() if isinstance(v, h5py.Dataset)}
+            unit = _attr_text(f.attrs.get("unit", ""))
+            sets = {k: v for k, v in f.items() if isinstance(v, h5py.Dataset)}
+            total = 0
+            for k, v in sets.items():  # the declared shape, before any data is read
+                if v.dtype.kind not in "biuf" or sum(int(d) > 1 for d in v.shape) > 1:
+                    raise ValueError(
+                        f"{path}: variable {k!r} is not a numeric 1-D column ({v.dtype}, {v.shape})"
+                    )
+                total = _check_declared(path, k, tuple(v.shape), total)
+            units = {k: _attr_text(v.attrs["unit"]) for k, v in sets.items() if "unit" in v.attrs}
+            raw = {k: v[()] for k, v in sets.items()}
+    except ValueError as exc:
+        if str(path) in str(exc):  # a refusal above
+            raise
+        why = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"{path}: damaged HDF5 file: {why}") from exc
     except (OSError, RuntimeError, *_DAMAGED) as exc:  # HDF5's own errors on damage
         why = " ".join(str(exc).split()) or type(exc).__name__
         raise ValueError(f"{path}: damaged HDF5 file: {why}") from exc
-    return {k: _column(path, k, v) for k, v in raw.items()}, unit
+    return {k: _column(path, k, v) for k, v in raw.items()}, unit, units
+
+
+def _convert_units(
+    path: Path, cols: dict[str, np.ndarray], unit: str, units: Mapping[str, str]
+) -> tuple[dict[str, np.ndarray], str]:
+    """Columns with their declared units converted; the unit of the data columns.
+
+    ``time`` is converted to s; a data column with its own unit to the file's unit, or,
+    without one, all to that unit when they share it, else each to the SI unit of its
+    quantity (the trace's unit is then that SI unit, or ``""`` when they differ).
+    """
+    parse_unit(unit, f"{path}: the file's unit")
+    for k, u in units.items():
+        parse_unit(u, f"{path}: unit of column {k!r}")
+    if TIME in units:
+        cols[TIME] = cols[TIME] * unit_factor(units[TIME], "s", f"{path}: column 'time'")
+    data = {k: u for k, u in units.items() if k != TIME and k in cols and u.strip()}
+    if not data:
+        return cols, unit
+    target = unit
+    if not target:
+        plain = [k for k in cols if k != TIME and k not in data]
+        same = set(data.values())
+        if len(same) == 1 and not plain:
+            return cols, same.pop()  # every column in one declared unit: kept as is
+        quantities = {parse_unit(u)[0] for u in data.values()}
+        target = _si(quantities.pop()) if len(quantities) == 1 else ""
+    for k, u in data.items():
+        to = target or _si(parse_unit(u)[0])
+        cols[k] = cols[k] * unit_factor(u, to, f"{path}: column {k!r}")
+    return cols, target
+
+
+def _si(quantity: str) -> str:
+    """The SI unit of a quantity of `microfab.io.schema.UNITS` (or of a ratio ``a/b``)."""
+    return "/".join(SI[q] for q in quantity.split("/"))
 
 
 def _read(path: PathLike) -> tuple[dict[str, np.ndarray], str]:
@@ -207,7 +319,8 @@ def _read(path: PathLike) -> tuple[dict[str, np.ndarray], str]:
     fmt = _format(path)
     if not path.is_file():
         raise FileNotFoundError(f"trace file not found: {path}")
-    return {"csv": _read_csv, "mat": _read_mat, "h5": _read_h5}[fmt](path)
+    cols, unit, units = {"csv": _read_csv, "mat": _read_mat, "h5": _read_h5}[fmt](path)
+    return _convert_units(path, cols, unit, units)
 
 
 def read_columns(path: PathLike) -> dict[str, np.ndarray]:
@@ -237,7 +350,9 @@ def read_columns(path: PathLike) -> dict[str, np.ndarray]:
     return _read(path)[0]
 
 
-def read_trace(path: PathLike, unit: str = "") -> Trace:
+def read_trace(
+    path: PathLike, unit: str = "", *, to_unit: str | None = None, min_samples: int = 2
+) -> Trace:
     """Read a :class:`Trace` from a file with a ``time`` column (in s) and axis columns.
 
     Parameters
@@ -247,6 +362,12 @@ def read_trace(path: PathLike, unit: str = "") -> Trace:
         file order.
     unit : str, optional
         Unit of the values; if empty, the unit stored in the file (or ``""``).
+    to_unit : str, optional
+        The unit the caller needs (a unit of :data:`microfab.io.schema.UNITS`): values
+        in another unit of the same quantity are converted, of another quantity refused;
+        a file that declares no unit is taken to be in ``to_unit``.
+    min_samples : int, optional
+        Fewest samples the caller can use (at least 2, to infer the sample time).
 
     Returns
     -------
@@ -258,15 +379,26 @@ def read_trace(path: PathLike, unit: str = "") -> Trace:
     FileNotFoundError
         If ``path`` does not exist.
     ValueError
-        As for :func:`read_columns`, if ``time`` is missing or not uniform, or the data are
-        not a valid :class:`Trace`; the message names the file.
+        As for :func:`read_columns`, if ``time`` is missing or not uniform, the data are
+        not a valid :class:`Trace`, there are fewer than ``min_samples`` samples, or the
+        unit is unknown or of another quantity than ``to_unit``; the message names the
+        file.
     """
     cols, file_unit = _read(path)
     if TIME not in cols:
         raise ValueError(f"{os.fspath(path)}: no 'time' column; columns are {list(cols)}")
     time = cols.pop(TIME)
+    if time.size < max(2, min_samples):
+        raise ValueError(
+            f"{os.fspath(path)}: {time.size} samples; this needs at least {max(2, min_samples)}"
+        )
+    unit = unit or file_unit
+    if to_unit is not None:
+        k = unit_factor(unit, to_unit, f"{os.fspath(path)}: the trace's unit")
+        cols = {name: col * k for name, col in cols.items()} if k != 1.0 else cols
+        unit = to_unit
     try:
-        return Trace.from_columns(time, cols, unit=unit or file_unit)
+        return Trace.from_columns(time, cols, unit=unit)
     except ValueError as exc:
         raise ValueError(f"{os.fspath(path)}: {exc}") from exc
 

@@ -10,7 +10,8 @@ just measured: it learns with `microfab.control.ilc.FrequencyILC`, keeps the lea
 state in a directory, and writes the next input file (``time`` and ``input_<a>``). Every
 check runs before anything is written; the input file is written first and the state
 last, both atomically, so an interrupted or refused step leaves the state as it was and
-repeating the call is safe.
+repeating the call is safe. A step holds the state's lock (`microfab.io.lock`) from reading
+the state to saving it: a second step on the same state meanwhile is refused.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import numpy as np
 from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
 from microfab.core.limits import AxisLimits
 from microfab.io.frf import read_frf
+from microfab.io.lock import folder_lock
 from microfab.io.trace import read_columns, write_columns
 from microfab.machines.base import Measurement
 from microfab.machines.learning import TrialError, learn
@@ -310,7 +312,23 @@ def ilc_step(
         any harmonic below the cutoff, or no content above the noise).
     microfab.core.limits.LimitViolation
         The next input would exceed the declared limits (nothing is written).
+    microfab.io.lock.FolderLockedError
+        Another process is writing the state (nothing is read or written): steps on one
+        state run one at a time, each holding its lock from reading the state to saving it.
     """
+    with folder_lock(state_dir, what="learning state"):
+        return _ilc_step(trial_path, state_dir, out_path, config, limits, frf_path)
+
+
+def _ilc_step(
+    trial_path: str | Path,
+    state_dir: str | Path,
+    out_path: str | Path,
+    config: ILCConfig | None,
+    limits: Mapping[str, AxisLimits] | None,
+    frf_path: str | Path | None,
+) -> StepReport:
+    """`ilc_step` once the state's lock is held."""
     machine = FileMachine(trial_path)
     trial = machine.peek()
     sd = Path(state_dir)

@@ -26,6 +26,7 @@ import numpy as np
 from microfab.control.ilc import Trial
 from microfab.control.learning import Learner
 from microfab.core.limits import AxisLimits, check_command
+from microfab.io.schema import SchemaError, check_array
 from microfab.machines.base import Machine, Measurement, Resumable
 
 __all__ = ["LearnRecord", "TrialError", "learn", "trial_digest"]
@@ -133,8 +134,24 @@ class LearnRecord:
         }
 
     @classmethod
-    def from_meta(cls, meta: Mapping[str, Any]) -> LearnRecord:
-        """Read the record from a learner's ``meta`` (also the flat layout of format 1)."""
+    def from_meta(
+        cls, meta: Mapping[str, Any], shape: tuple[int, ...] | None = None
+    ) -> LearnRecord:
+        """Read the record from a learner's ``meta`` (also the flat layout of format 1).
+
+        Parameters
+        ----------
+        meta : mapping
+            The learner's ``meta``.
+        shape : tuple of int, optional
+            Shape (N, n_axes) of the learner's signals, which the saved ones must have.
+
+        Raises
+        ------
+        microfab.io.schema.SchemaError
+            A saved signal that is not a finite real array of ``shape``, digests that are
+            not strings, or limits that are not valid.
+        """
         raw = meta.get(RECORD_KEY)
         if not isinstance(raw, Mapping):  # format 1: flat keys
             raw = {
@@ -143,17 +160,31 @@ class LearnRecord:
                 "first_output": meta.get("fb_output"),
                 "last_output": meta.get("last_output"),
             }
+        where = "the learning state's record"
 
-        def arr(v: Any) -> np.ndarray | None:
-            return None if v is None else np.asarray(v, dtype=float)
+        def arr(name: str) -> np.ndarray | None:
+            v = raw.get(name)
+            if v is None:
+                return None
+            v = np.asarray(v) if isinstance(v, list) else v
+            if isinstance(v, np.ndarray) and v.dtype.kind in "iu":
+                v = v.astype(float)
+            return check_array(where, name, v, shape=shape or (None, None))
 
+        digests = raw.get("digests") or []
+        if not isinstance(digests, list) or not all(isinstance(d, str) for d in digests):
+            raise SchemaError(f"{where}: digests must be a list of strings, got {digests!r}")
         lim = raw.get("limits")
+        try:
+            limits = None if not lim else {a: AxisLimits(**v) for a, v in lim.items()}
+        except (AttributeError, TypeError, ValueError) as exc:
+            raise SchemaError(f"{where}: limits are not valid: {exc}") from None
         return cls(
-            digests=list(raw.get("digests") or []),
-            limits=None if not lim else {a: AxisLimits(**v) for a, v in lim.items()},
-            first_output=arr(raw.get("first_output")),
-            last_output=arr(raw.get("last_output")),
-            last_input=arr(raw.get("last_input")),
+            digests=list(digests),
+            limits=limits,
+            first_output=arr("first_output"),
+            last_output=arr("last_output"),
+            last_input=arr("last_input"),
             machine=raw.get("machine"),
         )
 
@@ -258,7 +289,7 @@ def learn(
         raise ValueError(f"iterations must be >= 1, got {iterations}")
     if not save_every_s >= 0:
         raise ValueError(f"save_every_s must be >= 0 s, got {save_every_s}")
-    record = LearnRecord.from_meta(learner.meta)
+    record = LearnRecord.from_meta(learner.meta, learner.current_input().shape)
     if limits is not None:
         record.limits = dict(limits)
     if record.machine is not None and isinstance(machine, Resumable):

@@ -7,7 +7,8 @@ Fig. 6) on hardware: one measured period in (a trace of `microfab.io.xy_trace`, 
 simulated RC's (`microfab.control.repetitive.PluginRC.save_state`). Every check runs
 before anything is written; the contour (first call only), the command file and the
 state are then written in that order, each atomically, so a refused or interrupted step
-leaves the state as it was.
+leaves the state as it was. A step holds the state's lock (`microfab.io.lock`) from reading
+the state to saving it: a second step on the same state meanwhile is refused.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import RCConfig, period_samples
 from microfab.io.atomic import atomic_save_npz
+from microfab.io.lock import folder_lock
 from microfab.io.trace import write_columns
 from microfab.io.xy_trace import REF_TOL_MM, largest_deviation, read_measured
 
@@ -149,7 +151,33 @@ def rc_file_step(
         or not the trial's length, a trial whose length or sample time differs from the
         state's, a reference that is not the state's contour, a trial learned from
         already, settings that differ from the state's, or an unreadable state.
+    microfab.io.lock.FolderLockedError
+        Another process is writing the state (nothing is read or written; also a
+        `ValueError`).
     """
+    with folder_lock(state_dir, what="RC state"):
+        return _rc_file_step(
+            trial,
+            state_dir,
+            out,
+            tau_s=tau_s,
+            gain=gain,
+            lead_samples=lead_samples,
+            period_s=period_s,
+        )
+
+
+def _rc_file_step(
+    trial: str | Path,
+    state_dir: str | Path,
+    out: str | Path,
+    *,
+    tau_s: float | None,
+    gain: float | None,
+    lead_samples: int | None,
+    period_s: float | None,
+) -> RCStepReport:
+    """`rc_file_step` once the state's lock is held."""
     o = Path(out)
     if o.suffix.lower() not in _OUT_SUFFIXES or o.is_dir():
         raise ValueError(

@@ -4,22 +4,30 @@ Step 1 of the analysis described in :mod:`microfab.measure.imaging`: 8/16-bit, g
 RGB(A), multi-page TIFF stacks, natural order (``frame_2`` before ``frame_10``), and the
 ``frames.json`` sidecar that :func:`microfab.measure.shadowgraph.write_frames` writes
 beside them (pixel size, frame interval, first frame time).
+
+The sidecar is read through its schema (`FrameIndex`, :mod:`microfab.io.schema`): strict
+types, a pixel size and a frame interval in the ranges a shadowgraph camera has, a bit
+depth of 8 or 16, and frame files listed relative to the folder, inside it, all present
+(then exactly those files are the frames, in the order listed).
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import re
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from microfab.io.schema import inside, read_json, validated
 
 __all__ = [
     "IMAGE_SUFFIXES",
     "SIDECAR_NAME",
+    "FrameIndex",
     "MissingSettingError",
     "as_frames",
     "load_frames",
@@ -31,6 +39,50 @@ __all__ = [
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
 #: Sidecar with acquisition metadata (written by ``shadowgraph.write_frames``).
 SIDECAR_NAME = "frames.json"
+#: What `microfab.io.schema.read_json` calls a sidecar.
+SIDECAR_KIND = "a frame index (frames.json)"
+#: Pixel sizes a sidecar may give, m: the range ``droplet analyze --pixel-size`` takes
+#: (0.1-100 µm; assumed: from a microscope objective to a plain lens on the nozzle).
+PIXEL_SIZE_RANGE_M = (1e-7, 1e-4)
+#: Frame intervals a sidecar may give, s: the range ``droplet analyze --frame-interval``
+#: takes (0.1-1000 µs; assumed: a droplet's flight of about 100 µs needs frames in it).
+FRAME_INTERVAL_RANGE_S = (1e-7, 1e-3)
+#: Most frames a sidecar may list (assumed: 1e5 frames of 64 x 64 px are 3 GB as floats).
+MAX_FRAMES = 100_000
+
+
+class FrameIndex(BaseModel):
+    """The schema of ``frames.json`` (every key optional; other keys are kept aside).
+
+    Attributes
+    ----------
+    pixel_size_m : float, optional
+        Pixel size, m, in `PIXEL_SIZE_RANGE_M`.
+    frame_interval_s : float, optional
+        Time between frames, s, in `FRAME_INTERVAL_RANGE_S`.
+    t0_s : float, optional
+        Time of the first frame, s, finite.
+    nozzle_row : int or None, optional
+        Last image row of the nozzle (>= 0); null: detected.
+    bit_depth : {8, 16}, optional
+        Bits per pixel of the files.
+    n_frames : int, optional
+        Number of frame files (>= 1); equal to the length of ``files`` when both are given.
+    files : list of str, optional
+        The frame files, relative to the folder.
+    """
+
+    model_config = ConfigDict(strict=True, extra="allow", allow_inf_nan=False)
+
+    pixel_size_m: float | None = Field(None, ge=PIXEL_SIZE_RANGE_M[0], le=PIXEL_SIZE_RANGE_M[1])
+    frame_interval_s: float | None = Field(
+        None, ge=FRAME_INTERVAL_RANGE_S[0], le=FRAME_INTERVAL_RANGE_S[1]
+    )
+    t0_s: float | None = None
+    nozzle_row: int | None = Field(None, ge=0)
+    bit_depth: Literal[8, 16] | None = None
+    n_frames: int | None = Field(None, ge=1, le=MAX_FRAMES)
+    files: list[str] | None = Field(None, min_length=1, max_length=MAX_FRAMES)
 
 
 class MissingSettingError(ValueError):
@@ -157,7 +209,10 @@ def load_frames(
     folder = Path(directory)
     if not folder.is_dir():
         raise ValueError(f"frame folder not found (or not a folder): {folder}")
-    if pattern is None:
+    listed = _listed_files(folder) if pattern is None else None
+    if listed is not None:
+        files = listed
+    elif pattern is None:
         files = [
             p
             for p in folder.iterdir()
@@ -168,7 +223,8 @@ def load_frames(
     if not files:
         wanted = pattern if pattern is not None else "/".join(IMAGE_SUFFIXES)
         raise ValueError(f"no image files ({wanted}) in folder {folder}")
-    files.sort(key=lambda p: natural_key(p.name))
+    if listed is None:
+        files.sort(key=lambda p: natural_key(p.name))
     frames: list[np.ndarray] = []
     names: list[str] = []
     for path in files:
@@ -224,14 +280,54 @@ def as_frames(frames: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
 
 
 def read_sidecar(folder: Path) -> dict[str, Any]:
-    """The ``frames.json`` sidecar of ``folder`` as a dict ({} if there is none)."""
+    """The ``frames.json`` sidecar of ``folder``, checked by `FrameIndex` ({} if none).
+
+    Returns
+    -------
+    dict
+        The keys the file gives (other keys too), values checked.
+
+    Raises
+    ------
+    ValueError
+        Not a JSON object of the schema (the message names the file and the key), or a
+        file of another kind.
+    """
     path = folder / SIDECAR_NAME
-    if not path.is_file():
+    if not path.exists():
         return {}
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"cannot read sidecar {path}: {exc}") from exc
-    if not isinstance(meta, dict):
-        raise ValueError(f"sidecar {path} must hold a JSON object, got {type(meta).__name__}")
-    return meta
+        doc = read_json(path, SIDECAR_KIND)
+    except ValueError as exc:
+        raise ValueError(f"cannot read sidecar {exc}") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"sidecar {path} must hold a JSON object, got {type(doc).__name__}")
+    index = validated(FrameIndex, doc, str(path))
+    if (
+        index.files is not None
+        and index.n_frames is not None
+        and len(index.files) != index.n_frames
+    ):
+        raise ValueError(
+            f"{path}: n_frames is {index.n_frames} but files lists {len(index.files)} frames"
+        )
+    return index.model_dump(exclude_unset=True)
+
+
+def _listed_files(folder: Path) -> list[Path] | None:
+    """The frame files ``frames.json`` lists (inside ``folder``, all present), or None."""
+    files = read_sidecar(folder).get("files")
+    if files is None:
+        return None
+    where = f"{folder / SIDECAR_NAME}: files"
+    out = [inside(folder, name, where) for name in files]
+    seen: set[Path] = set()
+    for name, p in zip(files, out, strict=True):
+        if p in seen:
+            raise ValueError(f"{where}: {name!r} is listed twice")
+        seen.add(p)
+    missing = [p for p in out if not p.is_file()]
+    if missing:
+        more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+        raise ValueError(f"{where}: the frame {missing[0].name!r} is missing{more}")
+    return out

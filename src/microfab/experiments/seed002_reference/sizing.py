@@ -92,6 +92,7 @@ def reference_sizes(
     tolerance_m: float = 20e-6,
     settings: Stage1Settings | None = None,
     guess: CaseSizes | None = None,
+    workers: int = 1,
 ) -> SizingResult:
     """Letter height and airfoil chord from stage 1 on ``model`` (module docstring).
 
@@ -105,6 +106,10 @@ def reference_sizes(
         Stage-1 settings of every solve.
     guess : CaseSizes, optional
         Starting sizes (default 20 mm and 0.18 m).
+    workers : int
+        With 2 or more, the letter and the airfoil searches run side by side in two
+        worker processes (`microfab.io.sweep.run_sweep`, each on
+        `microfab.core.threads.policy_threads` threads); the same solves either way.
 
     Returns
     -------
@@ -112,10 +117,48 @@ def reference_sizes(
     """
     st = Stage1Settings() if settings is None else settings
     g = CaseSizes(20e-3, 0.18) if guess is None else guess
-    h, steps_h = _fit(lambda k: letters_seed002(k)["r"].contours[0], model, R_TIME_S,
-                      g.letter_height_m, tolerance_m, st)  # fmt: skip
-    c, steps_c = _fit(
-        lambda k: airfoil_path(chord=k, start="leading", direction="cw"),
-        model, AIRFOIL_TIME_S, g.airfoil_chord_m, tolerance_m, st,
-    )  # fmt: skip
-    return SizingResult(CaseSizes(h, c), {"letter": steps_h, "airfoil": steps_c})
+    task = _FitTask(model=model, tolerance_m=tolerance_m, settings=st, guess=g)
+    families = [_Family("letter"), _Family("airfoil")]
+    if workers > 1:  # the two searches are independent: one process each
+        from microfab.io.sweep import run_sweep
+
+        rows = run_sweep(task, families, workers=min(workers, 2)).rows
+    else:
+        rows = [task(f) for f in families]
+    fit = {f.name: row for f, row in zip(families, rows, strict=True)}
+    steps = {k: [(float(a), float(b)) for a, b in v["steps"]] for k, v in fit.items()}
+    sizes = CaseSizes(float(fit["letter"]["size"]), float(fit["airfoil"]["size"]))
+    return SizingResult(sizes, steps)
+
+
+@dataclass(frozen=True)
+class _Family:
+    """One sizing search: ``"letter"`` (the height of "r") or ``"airfoil"`` (its chord)."""
+
+    name: str
+
+
+def _letter_r(height_m: float) -> Path:
+    return letters_seed002(height_m)["r"].contours[0]
+
+
+def _airfoil(chord_m: float) -> Path:
+    return airfoil_path(chord=chord_m, start="leading", direction="cw")
+
+
+@dataclass(frozen=True)
+class _FitTask:
+    """`_fit` of one family, picklable for a worker process (`reference_sizes`)."""
+
+    model: ContinuousModel
+    tolerance_m: float
+    settings: Stage1Settings
+    guess: CaseSizes
+
+    def __call__(self, family: _Family) -> dict[str, object]:
+        if family.name == "letter":
+            make, target, guess = _letter_r, R_TIME_S, self.guess.letter_height_m
+        else:
+            make, target, guess = _airfoil, AIRFOIL_TIME_S, self.guess.airfoil_chord_m
+        size, steps = _fit(make, self.model, target, guess, self.tolerance_m, self.settings)
+        return {"size": size, "steps": [list(step) for step in steps]}

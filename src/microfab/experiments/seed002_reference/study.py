@@ -215,7 +215,8 @@ def _sizes(st: ReferenceSettings, models: Models, out: Path | None) -> tuple[Cas
         saved = json.loads(path.read_text())
         if saved.get("fingerprint") == st.fingerprint():
             return CaseSizes(**saved["sizes"]), saved["steps"]
-    res = reference_sizes(models.linear, tolerance_m=st.tolerance_m)
+    res = reference_sizes(models.linear, tolerance_m=st.tolerance_m,
+                          workers=st.workers or usable_cores())  # fmt: skip
     if path is not None:
         atomic_write_json(path, {"fingerprint": st.fingerprint(), "sizes": asdict(res.sizes),
                                  "steps": res.steps})  # fmt: skip
