@@ -30,6 +30,7 @@ from rich.table import Table as RichTable
 from typer.core import TyperGroup
 
 from microfab.cli import _sigint
+from microfab.core.memory import apply_allocator_policy
 from microfab.core.threads import apply_thread_policy
 
 if TYPE_CHECKING:
@@ -291,8 +292,11 @@ class OneLineErrors(TyperGroup):
         """Run the command; in standalone mode, report usage errors on one line.
 
         First the process's thread pools are set (`microfab.core.threads.apply_thread_policy`:
-        one thread per BLAS/OpenMP/PyTorch pool unless ``MICROFAB_THREADS`` says otherwise).
+        one thread per BLAS/OpenMP/PyTorch pool unless ``MICROFAB_THREADS`` says otherwise)
+        and its allocator keeps freed memory for the next array
+        (`microfab.core.memory.apply_allocator_policy`).
         """
+        apply_allocator_policy()
         try:
             apply_thread_policy()
         except ValueError as exc:  # a bad MICROFAB_THREADS

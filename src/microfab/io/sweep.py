@@ -48,6 +48,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
+from microfab.core.memory import apply_allocator_policy
 from microfab.core.threads import apply_thread_policy, policy_threads
 from microfab.io.atomic import atomic_write_json
 from microfab.io.runstore import RunRefusedError, canonical_settings, settings_difference
@@ -603,5 +604,6 @@ def _run_pickled(task: bytes, point: bytes, threads: int = 1) -> Any:
     # its connection to the scheduler (a hang), and modules registered with
     # cloudpickle.register_pickle_by_value (e.g. test modules) travel by value. The thread
     # pools are set first (module docstring), as the task's libraries may load with it.
+    apply_allocator_policy()
     apply_thread_policy(threads=threads)
     return pickle.loads(task)(pickle.loads(point))
