@@ -67,7 +67,7 @@ CASES: list[tuple[str, Argv, str]] = [
             "--plot",
             f"{p}/m.json",
         ],
-        "also an input",
+        "the same path",
     ),
     (
         "identify linear --out RUN",
@@ -132,7 +132,7 @@ CASES: list[tuple[str, Argv, str]] = [
     (
         "calibrate xy-stage --json = --write",
         lambda p: ["calibrate", "xy-stage", "--write", f"{p}/m.json", "--json", f"{p}/m.json"],
-        "also an input",
+        "the same path",
     ),
     ("run --out JOB", lambda p: ["run", f"{p}/j.toml", "--out", f"{p}/j.toml"], "is a file"),
     # class 2: a folder where a file goes

@@ -12,7 +12,7 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import typer
@@ -46,6 +46,7 @@ __all__ = [
     "RESUMING_COMMANDS",
     "OneLineErrors",
     "check_output_path",
+    "check_outputs",
     "console",
     "err_console",
     "fail",
@@ -88,18 +89,36 @@ def fail(msg: str, code: int = 2) -> NoReturn:
     raise typer.Exit(code)
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    """Whether two paths name one file: the same resolved path, or the same inode.
+def check_outputs(
+    *,
+    files: Mapping[str, Path | None] | None = None,
+    folders: Mapping[str, Path | None] | None = None,
+    inputs: Mapping[str, Path | Iterable[Path | None] | None] | None = None,
+) -> None:
+    """Refuse a command's outputs together, before any work (`microfab.cli._guard`).
 
-    A path no file system can hold (a NUL byte: a ``text:`` specification taken for a
-    path) names no file, so it is nobody's alias.
+    Every command that writes calls it once with every path it will write and every path
+    it reads, before it reads or computes anything, so that a refusal is one ``error:``
+    line (exit 2) and nothing is created: an output of the wrong kind, not writable, one
+    of the inputs or inside an input folder, two outputs on one path or one inside an
+    output folder, a symbolic-link loop, or a special file (FIFO, socket, device) among
+    the outputs or inputs (looked at, never opened).
+
+    Parameters
+    ----------
+    files : mapping of str to pathlib.Path or None
+        Output files by option as typed (``{"--json": path}``); ``None`` values pass.
+    folders : mapping of str to pathlib.Path or None
+        Output folders by option (``{"--out": path}``): owned by the command.
+    inputs : mapping of str to pathlib.Path, sequence of pathlib.Path, or None
+        What the command reads, by option or argument (``{"TRACE": path}``).
     """
+    from microfab.cli._guard import PathRefusedError, check_paths
+
     try:
-        if a.resolve() == b.resolve():
-            return True
-        return a.exists() and b.exists() and os.path.samefile(a, b)
-    except (OSError, ValueError):
-        return False
+        check_paths(files or {}, folders or {}, inputs or {})
+    except PathRefusedError as exc:
+        fail(str(exc))
 
 
 def check_output_path(
@@ -109,10 +128,7 @@ def check_output_path(
     kind: str = "file",
     inputs: Sequence[Path | None] = (),
 ) -> None:
-    """Refuse an output before any work: wrong kind, not writable, or one of the inputs.
-
-    Every command calls it for each path it will write, before it reads or computes
-    anything, so that a refusal is one ``error:`` line (exit 2) and nothing is created.
+    """`check_outputs` for one output: wrong kind, not writable, or one of the inputs.
 
     Parameters
     ----------
@@ -124,31 +140,13 @@ def check_output_path(
         What the command writes there: a file may replace a file, never a folder; a
         folder may be reused (the command then resumes or refuses itself), never a file.
     inputs : sequence of pathlib.Path or None
-        What the command reads (files or folders; ``None`` entries are skipped): an
-        output file that is one of them (the same path, or a link or hard link to it)
-        would destroy it, and so would an output folder that is an input folder.
+        What the command reads (files or folders; ``None`` entries are skipped).
     """
-    if path is None:
-        return
-    if "\x00" in str(path):
-        fail(f"{option} {str(path)!r}: a path cannot hold a NUL byte")
-    if path.exists():
-        if kind == "file" and path.is_dir():
-            fail(f"{option} {path} is a folder; give a file name")
-        if kind == "folder" and not path.is_dir():
-            fail(f"{option} {path} is a file; give a folder")
-    for inp in inputs:
-        if inp is not None and _same_file(path, inp):
-            fail(f"{option} {path} is also an input ({inp}); writing it would destroy that input")
-    # The folders the writer will create: the nearest one that exists must be a writable
-    # folder (not a file).
-    parent = path.resolve().parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if not parent.is_dir():
-        fail(f"{option} {path}: {parent} is a file, not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        fail(f"{option} {path}: the folder {parent} is not writable")
+    named = {str(p): p for p in inputs if p is not None}
+    if kind == "folder":
+        check_outputs(folders={option: path}, inputs=named)
+    else:
+        check_outputs(files={option: path}, inputs=named)
 
 
 def check_option(

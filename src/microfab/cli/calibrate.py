@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_output_path, console, fail, renamed, status
+from microfab.cli._kit import check_output_path, check_outputs, console, fail, renamed, status
 
 __all__ = ["calibrate_app"]
 
@@ -44,7 +44,7 @@ def calibrate_nanomanipulator_cmd(
     ] = None,
 ) -> None:
     """Fit the nanomanipulator twin's sensor noise to seed 001 §4.2's axial RMS."""
-    check_output_path("--write", write, inputs=[job])
+    check_outputs(files={"--write": write}, inputs={"--job": job})
     from microfab.machines.nanomanipulator_calibration import fit_noise, write_noise
     from microfab.machines.nanomanipulator_job import JobConfig
 
@@ -131,8 +131,7 @@ def calibrate_xy_stage_cmd(
     ] = False,
 ) -> None:
     """Fit the XY stage twin's friction + cogging per axis to seed 002 Table II column 1."""
-    check_output_path("--write", write)
-    check_output_path("--json", json_out, inputs=[write])
+    check_outputs(files={"--write": write, "--json": json_out})
     from microfab.machines.xy_stage_calibration import (
         CalibrationSettings,
         fit_scales,

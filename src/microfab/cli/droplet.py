@@ -8,7 +8,14 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_option, check_output_path, console, fail, progress
+from microfab.cli._kit import (
+    check_option,
+    check_output_path,
+    check_outputs,
+    console,
+    fail,
+    progress,
+)
 from microfab.io.atomic import atomic_write_text
 from microfab.io.lock import hold_for_command
 from microfab.process.inkjet.fluids import DEFAULT_JET_MODEL
@@ -64,8 +71,7 @@ def simulate_cmd(
     the printhead machine) with the same defaults, so both give the same answer for the
     same point.
     """
-    check_output_path("--out", out, kind="folder")
-    check_output_path("--json", json_out)
+    check_outputs(folders={"--out": out}, files={"--json": json_out})
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.process.inkjet.fluids import naalg
@@ -233,8 +239,7 @@ def analyze_cmd(
     json_out: Annotated[Path | None, typer.Option("--json", help="Write JSON here.")] = None,
 ) -> None:
     """Measure head speed, breakup frame and mode, satellites and drop volume from frames."""
-    check_output_path("--out", out, inputs=[frames_dir])
-    check_output_path("--json", json_out, inputs=[frames_dir, out])
+    check_outputs(files={"--out": out, "--json": json_out}, inputs={"FRAMES": frames_dir})
     from microfab.measure.imaging import (
         SIDECAR_NAME,
         MissingSettingError,

@@ -12,7 +12,7 @@ import typer
 
 from microfab.cli._kit import (
     check_option,
-    check_output_path,
+    check_outputs,
     console,
     err_console,
     fail,
@@ -86,11 +86,11 @@ def path_show_cmd(
     then how many more there are and of which kinds; --json prints every contour. A
     progress bar on stderr follows reading, nesting, drawing and writing.
     """
-    check_output_path("--out", out, inputs=[Path(drawing)])
+    target = out or Path(_stem(drawing) + ".png")
+    check_outputs(files={"--out": target}, inputs={"DRAWING": Path(drawing)})
     from microfab.report.canvas import save_figure
     from microfab.report.geometry import fig_layer
 
-    target = out or Path(_stem(drawing) + ".png")
     with progress() as prog:
         task = prog.add_task("reading the drawing", total=4)
         layer = _load(drawing, units, chord, text_height)
@@ -203,8 +203,7 @@ def trajectory_cmd(
     limit); each option overrides one. Nothing is written if the reference would break
     a limit.
     """
-    check_output_path("--out", out, inputs=[Path(drawing)])
-    check_output_path("--plot", plot, inputs=[Path(drawing), out])
+    check_outputs(files={"--out": out, "--plot": plot}, inputs={"DRAWING": Path(drawing)})
     from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
     from microfab.io.trace import write_columns
     from microfab.report.canvas import save_figure

@@ -24,7 +24,7 @@ import typer
 
 from microfab.cli._kit import (
     check_option,
-    check_output_path,
+    check_outputs,
     console,
     fail,
     input_output,
@@ -100,8 +100,7 @@ def chirp_cmd(
     data. Prints the coefficients, poles, bandwidth and fit error; writes the model JSON
     (``shaper design`` reads it).
     """
-    check_output_path("--json", json_path, inputs=[trace])
-    check_output_path("--plot", plot, inputs=[trace, json_path])
+    check_outputs(files={"--json": json_path, "--plot": plot}, inputs={"TRACE": trace})
     from microfab.identify.chirp import ChirpDesign
     from microfab.identify.fit import fit_tf
     from microfab.identify.frf import frf_h1, frf_periodic
@@ -342,7 +341,7 @@ def linear_cmd(
     μ, σ per axis on the training runs (Table II's layout); writes the model file that
     ``identify validate`` reads.
     """
-    check_output_path("--out", out, inputs=runs)
+    check_outputs(files={"--out": out}, inputs={"RUNS": runs})
     from microfab.identify.stage_data import (
         StageLinearModel,
         check_decimate,
@@ -402,7 +401,7 @@ def validate_cmd(
     networks predict every run sample (10 kHz for the seed's runs), each 400 Hz start
     offset in turn; a model of another format version, model rate or history is refused.
     """
-    check_output_path("--json", json_path, inputs=[model, *runs])
+    check_outputs(files={"--json": json_path}, inputs={"MODEL": model, "RUNS": runs})
     from microfab.identify.stage_data import read_stage_model
 
     try:

@@ -21,7 +21,7 @@ import typer
 
 from microfab.cli._kit import (
     check_option,
-    check_output_path,
+    check_outputs,
     console,
     fail,
     print_table,
@@ -109,7 +109,7 @@ def ann_cmd(
     every epoch to DIR/checkpoints, so running the same command again resumes it. Prints
     μ, σ per axis on the validation runs at every run sample, beside seed 002 Table II.
     """
-    check_output_path("--out", out, kind="folder", inputs=runs)
+    check_outputs(folders={"--out": out}, inputs={"RUNS": runs})
     hold_for_command(out, "--out", on_refused=fail)
     if axis not in _AXES:
         fail(f"--axis must be x, y or both, got {axis!r}")

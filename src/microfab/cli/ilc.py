@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_option, check_output_path, console, fail
+from microfab.cli._kit import check_option, check_outputs, console, fail
 from microfab.io.lock import hold_for_command
 
 __all__ = ["ONE_STEP_HINT", "ilc_app"]
@@ -65,8 +65,11 @@ def ilc_step_cmd(
     The first call takes the inverse model from the trial (seed 000 eq. 7). Limits default to
     the galvo twin's (10 V, 5e4 V/s, 2e10 V/s^2) on the first call and are kept in the state.
     """
-    check_output_path("--state", state, kind="folder", inputs=[trial, frf])
-    check_output_path("--out", out, inputs=[trial, frf, state / "ilc_state.npz"])
+    check_outputs(
+        folders={"--state": state},
+        files={"--out": out},
+        inputs={"TRIAL": trial, "--frf": frf, "--state": state / "ilc_state.npz"},
+    )
     # one step at a time, locked before the state is read; never wait: this trial was
     # measured on the input the state held, which the running step is replacing
     hold_for_command(state, "--state", on_refused=fail, hint=ONE_STEP_HINT)

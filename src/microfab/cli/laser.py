@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_output_path, console, fail, print_table
+from microfab.cli._kit import check_outputs, console, fail, print_table
 from microfab.io.lock import hold_for_command
 
 __all__ = ["laser_app"]
@@ -51,8 +51,11 @@ def analyze_cmd(
     With --replay the trace must also hold current_x, current_y (A) and, for an exact
     comparison, the exported reference derivatives ref_vx, ref_vy, ref_ax, ref_ay.
     """
-    check_output_path("--out", out, kind="folder", inputs=[trace, job])
-    check_output_path("--json", json_path, inputs=[trace, job, Path(drawing)])
+    check_outputs(
+        folders={"--out": out},
+        files={"--json": json_path},
+        inputs={"TRACE": trace, "--job": job, "--drawing": Path(drawing)},
+    )
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.io.atomic import atomic_write_json
     from microfab.measure.contour_trace import analyze_trace
@@ -148,7 +151,7 @@ def export_cmd(
     out: Annotated[Path, typer.Option(help="Folder for reference.csv and controller.json.")],
 ) -> None:
     """Write a job's reference and discrete controller for a real-time target (seed 004)."""
-    check_output_path("--out", out, kind="folder", inputs=[job])
+    check_outputs(folders={"--out": out}, inputs={"JOB": job})
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.machines.laser_stage_files import export_job
 

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_option, check_output_path, console, fail, print_table
+from microfab.cli._kit import check_option, check_outputs, console, fail, print_table
 from microfab.io.lock import hold_for_command
 
 __all__ = ["nanomanipulator_app"]
@@ -59,8 +59,9 @@ def analyze_cmd(
     The trace must follow the pattern's reference sample by sample (four 0.15 mm circles
     in a 0.5 mm field by default); give the pattern the job ran with the options or --job.
     """
-    check_output_path("--out", out, kind="folder", inputs=[trace, job])
-    check_output_path("--json", json_path, inputs=[trace, job])
+    check_outputs(
+        folders={"--out": out}, files={"--json": json_path}, inputs={"TRACE": trace, "--job": job}
+    )
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.io.atomic import atomic_write_json
     from microfab.measure.circle_trace import analyze_trace, pattern_from_job

@@ -29,7 +29,7 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_option, check_output_path, console, fail
+from microfab.cli._kit import check_option, check_outputs, console, fail
 from microfab.io.lock import hold_for_command
 
 __all__ = ["optimize_cmd"]
@@ -93,8 +93,9 @@ def optimize_cmd(
     from microfab.optimize.models import resolve_models_dir
 
     # the models folder is an input even when it is the shipped one (never written into)
-    check_output_path(
-        "--out", out, kind="folder", inputs=[Path(drawing), resolve_models_dir(model)]
+    check_outputs(
+        folders={"--out": out},
+        inputs={"DRAWING": Path(drawing), "--model": resolve_models_dir(model)},
     )
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.optimize.problem import ContourProblem

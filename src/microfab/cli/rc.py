@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from microfab.cli._kit import check_option, check_output_path, console, fail
+from microfab.cli._kit import check_option, check_outputs, console, fail
 from microfab.io.lock import hold_for_command
 
 __all__ = ["ONE_PERIOD_HINT", "rc_app"]
@@ -54,8 +54,7 @@ def rc_step_cmd(
     The first call creates the state (the trial must have run on the plain contour); the
     state is the simulated RC's (PluginRC.save_state), so a twin run can be continued.
     """
-    check_output_path("--state", state, kind="folder", inputs=[trial])
-    check_output_path("--out", out, inputs=[trial, *state.glob("*")])
+    check_outputs(folders={"--state": state}, files={"--out": out}, inputs={"TRIAL": trial})
     # one period at a time, locked before the state is read (never wait: see ilc step)
     hold_for_command(state, "--state", on_refused=fail, hint=ONE_PERIOD_HINT)
     from microfab.machines.nanomanipulator_files import rc_file_step

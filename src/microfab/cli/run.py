@@ -3,13 +3,22 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import tomllib
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_output_path, console, fail, print_table, progress, reporter
+from microfab.cli._kit import (
+    check_output_path,
+    check_outputs,
+    console,
+    fail,
+    print_table,
+    progress,
+    reporter,
+)
 
 if TYPE_CHECKING:
     from microfab.experiments.kinds import ReproductionResult
@@ -52,7 +61,7 @@ def run_cmd(
     file is read and checked and nothing runs or is written. One writer per report
     folder: while another microfab writes it, the run is refused (or waits, --wait).
     """
-    check_output_path("--out", out, kind="folder", inputs=[job_file])
+    check_outputs(folders={"--out": out}, inputs={"JOB": job_file})
     from microfab.experiments.catalog import default_job, load_job
     from microfab.io.runstore import check_run, open_run
 
@@ -257,15 +266,16 @@ def reproduce_cmd(
         options = rep.parse_options(_settings(settings or []))
         folder = options.get(rep.run_folder_option or "") or None
         inputs = [Path(options[k.name]) for k in rep.options if k.path and options[k.name]]
-        if folder:
-            check_output_path(
-                f"--set {rep.run_folder_option}", Path(folder), kind="folder", inputs=inputs
-            )
-        check_output_path("--json", json_path, inputs=inputs)
-        if out is not None:
-            check_output_path("--out", out, kind="folder", inputs=inputs)
-            if folder and Path(folder).resolve() == out.resolve():
-                fail(f"--out {out} is also the checkpoint folder; give --out another folder")
+        if folder and out is not None and os.path.realpath(folder) == os.path.realpath(out):
+            fail(f"--out {out} is also the checkpoint folder; give --out another folder")
+        check_outputs(
+            folders={
+                "--out": out,
+                f"--set {rep.run_folder_option}": Path(folder) if folder else None,
+            },
+            files={"--json": json_path},
+            inputs={"--set": inputs},
+        )
         # the settings' fingerprint digests inputs and data files: only when a page is asked
         page_settings = (
             {**rep.fingerprint(options), "written": "report page"} if out is not None else {}

@@ -23,7 +23,7 @@ import typer
 
 from microfab.cli._kit import (
     check_option,
-    check_output_path,
+    check_outputs,
     console,
     fail,
     input_output,
@@ -247,7 +247,7 @@ def design_cmd(
     |MODEL|² when MODEL is given: what the model does not explain) or --psd (columns
     freq_hz [Hz] and psd), as Klipper's calibrate_shaper, scored by added delay.
     """
-    check_output_path("--out", out, inputs=[model, frf, psd])
+    check_outputs(files={"--out": out}, inputs={"MODEL": model, "--frf": frf, "--psd": psd})
     from microfab.control.shaper_io import shaper_to_dict
     from microfab.control.shapers import SHAPER_NAMES
     from microfab.io.atomic import atomic_write_json
@@ -398,7 +398,7 @@ def compare_cmd(
     from microfab.report.slm_tables import comparison_table
 
     check_option("--band-pct", band_pct, "%", high=100.0)
-    check_output_path("--json", json_path)
+    check_outputs(files={"--json": json_path})
     names = SHAPER_NAMES if shapers is None else tuple(n.strip() for n in shapers.split(","))
     try:
         settings = CompareSettings(

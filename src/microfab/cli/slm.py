@@ -21,7 +21,7 @@ import typer
 
 from microfab.cli._kit import (
     check_option,
-    check_output_path,
+    check_outputs,
     console,
     fail,
     print_table,
@@ -109,7 +109,7 @@ def scan_time_cmd(
     twin is driven through the shaper (a ZPETC shaper's look-ahead counts as delay) and
     the fixed estimate uses --shaped-jump-delay-us.
     """
-    check_output_path("--json", json_path, inputs=[Path(source), shaper])
+    check_outputs(files={"--json": json_path}, inputs={"SOURCE": Path(source), "--shaper": shaper})
     from microfab.control.shaper_io import read_shaper, shaper_lti, shaper_to_dict
     from microfab.machines import slm_galvo
     from microfab.process.slm.estimate import SettleTolerance, estimate_with_shaper
@@ -326,9 +326,8 @@ def build_cmd(
         ("--jump-speed", jump_speed, "m/s"),
     ):
         check_option(option, value, unit)
-    check_output_path("--results-dir", results_dir, kind="folder")
+    check_outputs(folders={"--results-dir": results_dir}, files={"--json": json_path})
     hold_for_command(results_dir, "--results-dir", on_refused=fail)
-    check_output_path("--json", json_path)
     try:
         settings = BuildSettings(
             n_layers=layers,

@@ -32,7 +32,7 @@ import typer
 
 from microfab.cli._kit import (
     check_option,
-    check_output_path,
+    check_outputs,
     console,
     fail,
     print_table,
@@ -95,7 +95,7 @@ def excite_cmd(
     Table I before anything is written. Play each file on the machine, record time,
     input_x, input_y, output_x, output_y (m), then fit with ``microfab identify linear``.
     """
-    check_output_path("--out", out, kind="folder")
+    check_outputs(folders={"--out": out})
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.identify import excitation as ex
 
@@ -182,7 +182,7 @@ def play_cmd(
     ``identify ann`` read, and what a real stage's controller must record instead
     (README). Prints the samples of each run and the set-points the twin's guard changed.
     """
-    check_output_path("--out", out, kind="folder", inputs=runs)
+    check_outputs(folders={"--out": out}, inputs={"RUNS": runs})
     hold_for_command(out, "--out", on_refused=fail)
     if fmt not in _FORMATS:
         fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
@@ -194,7 +194,7 @@ def play_cmd(
     commands, sources = _read_commands(runs)
     files = [out / (c.name + _SUFFIX[fmt]) for c in commands]
     for f in files:  # an output file that is an input file (e.g. --out the runs' folder)
-        check_output_path("--out", f, inputs=[*runs, *sources])
+        check_outputs(files={"--out": f}, inputs={"RUNS": [*runs, *sources]})
     from microfab.identify.stage_runs import record_trace, stage_record
     from microfab.io.atomic import atomic_write_json
     from microfab.io.trace import write_trace
@@ -346,7 +346,7 @@ def score_cmd(
     (seed 002 Table III).
     """
     runs = [run] if baseline is None else [run, baseline]
-    check_output_path("--json", json_path, inputs=[*runs, drawing])
+    check_outputs(files={"--json": json_path}, inputs={"RUN": runs, "--drawing": drawing})
     summary, path = _optimized(drawing)
     from microfab.machines.xy_stage_score import score_run
 

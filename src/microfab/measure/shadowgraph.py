@@ -244,6 +244,23 @@ def _quantise(frame: np.ndarray, bit_depth: int) -> np.ndarray:
     return np.round(np.clip(frame, 0.0, 1.0) * full).astype(dtype)
 
 
+def _clear_own_frames(directory: Path, prefix: str) -> None:
+    """Remove what an earlier `write_frames` left in ``directory``, and nothing else.
+
+    The folder is written whole: the old sidecar goes first (a folder without it is no
+    frame set, so an interrupted write is never read as half old, half new), then every
+    ``{prefix}NNNN.png`` / ``.tif`` frame (another render may have had more frames, or the
+    other format). Files of other names are the user's and stay.
+    """
+    if not directory.is_dir():
+        return
+    (directory / SIDECAR_NAME).unlink(missing_ok=True)
+    own = re.compile(re.escape(prefix) + r"[0-9]{4,}\.(png|tif)")
+    for entry in directory.iterdir():
+        if own.fullmatch(entry.name) and (entry.is_file() or entry.is_symlink()):
+            entry.unlink()
+
+
 def write_frames(
     frames: np.ndarray,
     directory: str | Path,
@@ -266,7 +283,9 @@ def write_frames(
     frames : numpy.ndarray
         Float frames in [0, 1], shape ``(n, h, w)`` (or one ``(h, w)`` frame).
     directory : str or pathlib.Path
-        Target folder, created if missing; files of the same names are replaced.
+        Target folder, created if missing; the sidecar and the frames an earlier call
+        wrote there (the same ``prefix``, either format) are removed first, other files
+        are left alone.
     camera : Camera
         Camera that rendered the frames (pixel size, nozzle row, bit depth).
     frame_interval_s : float
@@ -304,6 +323,7 @@ def write_frames(
     directory = Path(directory)
     ext = "png" if fmt == "png" else "tif"
     digits = max(4, len(str(max(len(data) - 1, 0))))
+    _clear_own_frames(directory, prefix)
     paths: list[Path] = []
     for i, frame in enumerate(data):
         path = directory / f"{prefix}{i:0{digits}d}.{ext}"
