@@ -179,10 +179,6 @@ def ann_cmd(
         fail(renamed(str(exc), {"pass restart=True": "pass --restart"}))
     except ValueError as exc:
         fail(f"training on {len(train)} run(s): {exc}")
-    except KeyboardInterrupt:
-        fail(
-            f"interrupted: the checkpoints in {ckdir} are kept; run the same command to resume", 130
-        )
     model, errors = fit.model, fit.errors
     model.info["runs"] = {"training": [r.name for r in train], "validation": [r.name for r in val]}
     print_table(_training_table(model.info, trained, train, val))

@@ -69,6 +69,7 @@ from typing import Any
 
 import numpy as np
 
+from microfab.core.interrupt import interruptible
 from microfab.identify.subspace_model import ContinuousModel
 from microfab.io.atomic import atomic_save_npz
 from microfab.optimize.blocks import Block, BlockNLP
@@ -424,6 +425,8 @@ def solve_stage1(
 
     Raises
     ------
+    KeyboardInterrupt
+        Ctrl-C while IPOPT ran (`microfab.core.interrupt.interruptible`), not a status.
     Stage1Error
         IPOPT reports the problem infeasible (the message names μ and the ``s`` of the
         worst tolerance row of the last iterate) or stops without converging, or a hard
@@ -500,7 +503,8 @@ def solve_stage1(
         **st.ipopt,
     }
     solver = nlp.solver(opts)
-    sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    # a Ctrl-C inside IPOPT comes back as its status (NonIpopt_Exception_Thrown): raise it
+    sol = interruptible(solver, x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     stats = solver.stats()
     x = np.asarray(sol["x"]).ravel()
     d_opt = x[: n - 1]

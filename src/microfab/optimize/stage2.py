@@ -42,7 +42,9 @@ Checkpoints (`microfab.optimize.stage2_state`): with ``checkpoint`` a file path,
 iterate, the trust radius, the iteration count, the history and the least violating
 iterate are saved atomically every ``checkpoint_every`` accepted iterations, keyed by a
 fingerprint of the inputs and settings; a rerun with the same ones resumes (another
-fingerprint is refused, naming the file).
+fingerprint is refused, naming the file). A Ctrl-C inside the QP's solver is a
+KeyboardInterrupt, not a failed QP (`microfab.optimize.stage2_qp`), so the last checkpoint
+stays as it was and a rerun resumes from it.
 """
 
 from __future__ import annotations
@@ -429,6 +431,8 @@ def solve_stage2(
 
     Raises
     ------
+    KeyboardInterrupt
+        Ctrl-C, also inside the QP's solver (`microfab.core.interrupt.interruptible`).
     ValueError
         Mismatched shapes, non-finite values, or a checkpoint of other inputs.
     """

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from microfab.core.interrupt import interruptible
 from microfab.optimize.blocks import casadi_dm, casadi_sparsity
 
 __all__ = ["Subproblem"]
@@ -195,14 +196,15 @@ class Subproblem:
         args = {"h": casadi_dm(h), "g": np.zeros(r0.size), "a": casadi_dm(a),
                 "lba": np.concatenate([lo1, lo2]), "uba": np.concatenate([hi1, hi2])}  # fmt: skip
         highs = {"highs": {"output_flag": False}, "error_on_fail": False}
+        # a Ctrl-C inside a solver is a KeyboardInterrupt, not a failed solve
         if getattr(self.st, "qp", "piqp") == "ipopt":
-            sol = ca.conic("project", "highs", pattern, highs)(**args)
+            sol = interruptible(ca.conic("project", "highs", pattern, highs), **args)
         else:
             solver = ca.conic("project", "piqp", pattern,
                               {"piqp": {"verbose": False}, "error_on_fail": False})  # fmt: skip
-            sol = solver(**args)
+            sol = interruptible(solver, **args)
             if not solver.stats().get("success", False):  # HiGHS, as before
-                sol = ca.conic("project", "highs", pattern, highs)(**args)
+                sol = interruptible(ca.conic("project", "highs", pattern, highs), **args)
         return r0 + np.asarray(sol["x"]).ravel()
 
     def _cost_vector(self) -> np.ndarray:
@@ -214,7 +216,10 @@ class Subproblem:
 
     def solve(self, r: np.ndarray, phi: np.ndarray, jac: sp.csr_matrix,
               trust: float) -> np.ndarray | None:  # fmt: skip
-        """The step ``δ`` (2M, µm), or None when the QP fails; sets `model_merit`."""
+        """The step ``δ`` (2M, µm), or None when the QP fails; sets `model_merit`.
+
+        Ctrl-C during the solve raises KeyboardInterrupt (`microfab.core.interrupt`).
+        """
         pb, st, m = self.pb, self.st, self.m
         a = self._matrix(jac)
         solver = getattr(st, "qp", "piqp")
@@ -253,12 +258,15 @@ class Subproblem:
         ubx[self.sl["e"]] = np.repeat(pb.ws[:, 1], m) - tgt
         x0 = np.zeros(self.n)
         x0[self.sl["e"]] = res
+        # a Ctrl-C inside the solver is a KeyboardInterrupt, never a failed QP (which ends
+        # stage 2 as if it had stopped by itself)
         if solver == "ipopt":
-            sol = self._solver(p=a.data, lbg=lba, ubg=uba, lbx=lbx, ubx=ubx, x0=x0)
+            sol = interruptible(self._solver, p=a.data, lbg=lba, ubg=uba, lbx=lbx, ubx=ubx,
+                                x0=x0)  # fmt: skip
         else:
             a_dm = self._ca.DM(self._sparsity, a.data)
-            sol = self._solver(h=self._h, g=self._cost_vector(), a=a_dm, lba=lba, uba=uba,
-                               lbx=lbx, ubx=ubx, x0=x0)  # fmt: skip
+            sol = interruptible(self._solver, h=self._h, g=self._cost_vector(), a=a_dm,
+                                lba=lba, uba=uba, lbx=lbx, ubx=ubx, x0=x0)  # fmt: skip
         if not self._solver.stats().get("success", False):
             return None
         x = np.asarray(sol["x"]).ravel()

@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 from scipy import sparse
 
+from microfab.core.interrupt import interruptible
+
 __all__ = ["HighsSession"]
 
 
@@ -149,7 +151,9 @@ class HighsSession:
 
     # ----------------------------------------------------------------- internals
     def _run(self, api: Any) -> Any:
-        self._highs.run()
+        # Ctrl-C: a KeyboardInterrupt, never an "interrupted" model status (highspy's own
+        # ``run`` may catch it and return one; SciPy's bindings do not check for signals)
+        interruptible(self._highs.run)
         return self._highs.getModelStatus()
 
     def _new_model(

@@ -100,6 +100,7 @@ from scipy import sparse
 from scipy.optimize import brentq, linprog, minimize_scalar
 
 from microfab.core.arrays import readonly
+from microfab.core.interrupt import interruptible
 from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.core.validate import check_in_range, check_int, check_nonnegative, check_positive
 from microfab.trajectory.base import Trajectory
@@ -220,7 +221,9 @@ class HighsLP:
         options: dict[str, object] = {}
         if self.time_limit is not None:
             options["time_limit"] = float(self.time_limit)
-        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs", options=options)
+        res = interruptible(
+            linprog, c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs", options=options
+        )  # Ctrl-C is a KeyboardInterrupt, never a failed LP
         if res.status != 0 or res.x is None:
             raise PlanningError(f"HiGHS LP failed: {res.message}")
         return np.asarray(res.x, dtype=float)
