@@ -104,15 +104,20 @@ def _guard() -> _Guard | None:
     return handler if isinstance(handler, _Guard) else None
 
 
-def hold() -> None:
-    """Start recording SIGINT instead of raising (the command is loading)."""
-    if not _main_thread():
-        return
+def _installed() -> _Guard:
+    """The guard on SIGINT, installed over the current handler if it is not there yet."""
     guard = _guard()
     if guard is None:
         guard = _Guard(signal.getsignal(signal.SIGINT))
         signal.signal(signal.SIGINT, guard)
-    guard.armed = False
+    return guard
+
+
+def hold() -> None:
+    """Start recording SIGINT instead of raising (the command is loading)."""
+    if not _main_thread():
+        return
+    _installed().armed = False
 
 
 def pending() -> bool:
@@ -133,10 +138,7 @@ def arm() -> None:
     """
     if not _main_thread():
         return
-    guard = _guard()
-    if guard is None:
-        guard = _Guard(signal.getsignal(signal.SIGINT))
-        signal.signal(signal.SIGINT, guard)
+    guard = _installed()
     guard.armed = True
     if guard.held:
         guard.held = 0
