@@ -452,14 +452,17 @@ def frf_periodic(
     amp = np.abs(U).mean(axis=0)
     keep, band = _excited(f, amp, excited_hz, dt, _EXCITED_REL)
     U, Y = U[:, keep], Y[:, keep]
-    h = (Y / U).mean(axis=0)
-    n_avg = U.shape[0]
-    if n_avg > 1:
-        syu = (Y * U.conj()).sum(axis=0)
-        coh = np.abs(syu) ** 2 / ((np.abs(U) ** 2).sum(axis=0) * (np.abs(Y) ** 2).sum(axis=0))
-        coh = np.minimum(coh, 1.0)
-    else:
-        coh = np.full(h.size, np.nan)
+    # a period that leaves an excited bin at zero gives inf/NaN there: the callers refuse
+    # a response that holds them, naming the frequency, so no warning is printed first
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = (Y / U).mean(axis=0)
+        n_avg = U.shape[0]
+        if n_avg > 1:
+            syu = (Y * U.conj()).sum(axis=0)
+            power = (np.abs(U) ** 2).sum(axis=0) * (np.abs(Y) ** 2).sum(axis=0)
+            coh = np.minimum(np.abs(syu) ** 2 / power, 1.0)
+        else:
+            coh = np.full(h.size, np.nan)
     return FRF(
         freq_hz=f[keep],
         response=h,
