@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import re
 import shutil
+import signal
 import subprocess
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -140,3 +142,16 @@ def check_page_in_browser(page: Path) -> None:
 def page_check():
     """`check_page_in_browser`, or ``None`` where no browser is installed."""
     return None if BROWSER is None else check_page_in_browser
+
+
+@pytest.fixture(autouse=True)
+def _python_sigint_handler():
+    """Every test starts with Python's own SIGINT handler.
+
+    A command interrupted in-process (CliRunner) leaves `print_interrupted`'s do-nothing
+    handler behind on purpose (a second Ctrl-C must not cut its shutdown); in a test
+    process that would swallow the next test's SIGINT.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
