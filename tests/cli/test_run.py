@@ -96,6 +96,8 @@ def test_reproduce_check_refuses_what_a_run_would_refuse(tmp_path: Path) -> None
         ("stage-models", "--set", "magnitudes=foo"): "magnitudes",
         ("msl-ilc", "--set", "seed=-1"): "seed",
         ("reference-opt", "--set", "models=models", "--set", "checkpoints=models"): "input",
+        # issue 44 D: a repeated key kept the last value silently
+        ("msl-ilc", "--set", "iterations=3", "--set", "iterations=5"): "given twice",
     }
     for args, words in cases.items():
         for check in ((), ("--check",)):

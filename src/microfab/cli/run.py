@@ -209,6 +209,8 @@ def _settings(pairs: list[str]) -> dict[str, Any]:
         key, sep, text = pair.partition("=")
         if not sep or not key.strip():
             fail(f"--set takes key=value, got {pair!r}")
+        if key.strip() in out:  # the last would silently win over the first
+            fail(f"--set {key.strip()} is given twice; give each setting once")
         try:
             out[key.strip()] = tomllib.loads(f"v = {text.strip()}")["v"]
         except tomllib.TOMLDecodeError:
