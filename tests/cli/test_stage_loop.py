@@ -80,9 +80,10 @@ def test_score_prints_the_three_norms_of_both_runs_and_the_improvement(loop):
 def test_score_equals_the_reference_jobs_scorer_on_the_same_files(loop):
     """`stage score` reads M, t_0 and the contour as `run_point` scores its twin runs."""
     from microfab.geometry.load import load_drawing
-    from microfab.machines.xy_stage_reference import _at_model_rate
+    from microfab.machines.xy_stage_reference import TAIL
     from microfab.optimize.command import LEAD
     from microfab.optimize.metrics import DeviationNorms
+    from microfab.optimize.pipeline import at_model_rate
 
     root, _ = loop
     data = json.loads((root / "score.json").read_text())
@@ -93,7 +94,7 @@ def test_score_equals_the_reference_jobs_scorer_on_the_same_files(loop):
         tr = read_trace(root / "played" / f"{name}.csv")
         y = tr.values[:, [tr.axes.index("output_x"), tr.axes.index("output_y")]]
         # run_point's lines: the outputs at t_1 … t_{M+TAIL}, the tail scored apart
-        want = DeviationNorms.of(path, _at_model_rate(y, m, lead), tail_from=m).as_dict()
+        want = DeviationNorms.of(path, at_model_rate(y, m, lead, TAIL), tail_from=m).as_dict()
         got = data["runs"][label]
         for key in ("l1", "l2", "linf", "tail_linf", "n"):
             # the same arrays through the same functions in one process: equal but for

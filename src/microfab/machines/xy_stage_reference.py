@@ -56,6 +56,7 @@ from microfab.optimize.models import Models
 from microfab.optimize.pipeline import (
     MODEL_RATE_HZ,
     ReferenceResult,
+    at_model_rate,
     optimize_reference,
     training_warning,
 )
@@ -168,14 +169,6 @@ class _Command:
     command: np.ndarray
 
 
-def _at_model_rate(y: np.ndarray, m: int, lead: int = 0) -> np.ndarray:
-    """Rows at ``t_1 … t_{m+TAIL}`` of a 10 kHz run whose sample ``lead q`` is ``t_0``."""
-    step = round(RUN_RATE_HZ / MODEL_RATE_HZ)
-    idx = (np.arange(1, m + TAIL + 1) + lead) * step
-    idx = np.minimum(idx, y.shape[0] - 1)
-    return y[idx]
-
-
 def _twin(twin: TwinSettings | None) -> TwinSettings:
     return TwinSettings(hold_s=HOLD_S) if twin is None else twin
 
@@ -248,10 +241,10 @@ def run_point(
     t0 = time.perf_counter()
     for (name, cmd), rec, lim in zip(commands.items(), played.records, played.limited, strict=True):
         lead = LEAD if name == "optimised" else 0  # the optimised command starts 2 Δt early
-        y = _at_model_rate(rec.y, m, lead)
+        y = at_model_rate(rec.y, m, lead, TAIL)
         scores[f"{name}_twin"] = DeviationNorms.of(problem.path, y, tail_from=m)
         outputs[f"{name}_twin"] = y
-        outputs[f"{name}_input"] = _at_model_rate(rec.u, m, lead)
+        outputs[f"{name}_input"] = at_model_rate(rec.u, m, lead, TAIL)
         limited[name] = int(lim)
         records[name] = rec
         # simulated: the networks on the command's 400 Hz samples from rest (the seed's φ)
@@ -362,4 +355,4 @@ def _baseline_norms(path: Contour, duration_s: float, twin: TwinSettings | None)
     cmd = constant_progress(path, duration_s, RUN_RATE_HZ)
     played = play_runs([_Command("baseline", 1.0 / RUN_RATE_HZ, np.asarray(cmd))], _twin(twin))
     m = math.ceil(duration_s * MODEL_RATE_HZ - 1e-9)
-    return DeviationNorms.of(path, _at_model_rate(played.records[0].y, m), tail_from=m)
+    return DeviationNorms.of(path, at_model_rate(played.records[0].y, m, tail=TAIL), tail_from=m)

@@ -3,10 +3,11 @@
 ``microfab stage score`` (`microfab.cli.stage`) scores a run played on a user's stage (or on
 the twin through files, ``stage play``) with the scorer of the ``stage-reference-opt`` job
 (`microfab.machines.xy_stage_reference.run_point`): the output at the 400 Hz instants
-``t_1 … t_{M+TAIL}`` of eq. (13) (the same row selection, `xy_stage_reference._at_model_rate`,
-not a copy of it), then eqs. (16)-(18) by exact foot-point projection
-(`microfab.optimize.metrics.DeviationNorms`) over ``t_1 … t_M``, the ``TAIL`` samples after
-``T`` (the input held, 500 ms) scored apart as the tail's L∞.
+``t_1 … t_{M+TAIL}`` of eq. (13) (the same row selection,
+`microfab.optimize.pipeline.at_model_rate`, not a copy of it), then eqs. (16)-(18) by
+exact foot-point projection (`microfab.optimize.metrics.DeviationNorms`) over
+``t_1 … t_M``, the ``TAIL`` samples after ``T`` (the input held, 500 ms) scored apart as
+the tail's L∞.
 
 ``t_0`` is sample ``lead q`` of the run (``q = 25`` at 10 kHz): the optimised command of
 ``microfab optimize`` starts `microfab.optimize.command.LEAD` = 2 input samples before
@@ -19,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from microfab.geometry.path import Path as Contour
-from microfab.machines.xy_stage_reference import RUN_RATE_HZ, TAIL, _at_model_rate
+from microfab.machines.xy_stage_reference import RUN_RATE_HZ, TAIL
 from microfab.optimize.metrics import DeviationNorms
-from microfab.optimize.pipeline import MODEL_RATE_HZ
+from microfab.optimize.pipeline import MODEL_RATE_HZ, at_model_rate
 
 __all__ = ["RUN_RATE_HZ", "TAIL", "samples_needed", "score_run"]
 
@@ -76,4 +77,4 @@ def score_run(path: Contour, y: np.ndarray, m: int, lead: int = 0) -> DeviationN
             f"{(need - 1) / RUN_RATE_HZ:.4g} s: the command and {TAIL / MODEL_RATE_HZ:g} s of "
             "its last set-point held)"
         )
-    return DeviationNorms.of(path, _at_model_rate(y, m, lead), tail_from=m)
+    return DeviationNorms.of(path, at_model_rate(y, m, lead, TAIL), tail_from=m)

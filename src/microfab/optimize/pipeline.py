@@ -55,6 +55,7 @@ __all__ = [
     "PredictionCheck",
     "ReferenceResult",
     "Stage1Check",
+    "at_model_rate",
     "linear_output",
     "optimize_reference",
     "prediction_check",
@@ -208,7 +209,7 @@ def prediction_check(
     q = round(RUN_RATE_HZ / MODEL_RATE_HZ)
     pos = command_from_input(r, rest=rest, rate_hz=MODEL_RATE_HZ, run_rate_hz=RUN_RATE_HZ)
     pos = np.vstack([pos, np.repeat(pos[-1:], (m + LEAD + 1) * q, axis=0)])  # held
-    lin = _at_model_rate(linear_output(linear, pos), m, LEAD)
+    lin = at_model_rate(linear_output(linear, pos), m, LEAD)
     net = np.asarray(NetworkMap(networks).predict(r, rest), dtype=float)[:m]
     rms = np.sqrt(np.mean((net - lin) ** 2, axis=0))
     return PredictionCheck(tolerance_m=tolerance_m, rms_m={"x": float(rms[0]), "y": float(rms[1])},
@@ -480,10 +481,16 @@ def linear_output(
     return simulate_ss(e[:n, :n], e[:n, n:], linear.c, linear.d, u, x0)
 
 
-def _at_model_rate(y: np.ndarray, m: int, lead: int) -> np.ndarray:
-    """Rows at ``t_1 … t_M`` of a run at `RUN_RATE_HZ` whose sample ``lead q`` is ``t_0``."""
+def at_model_rate(y: np.ndarray, m: int, lead: int = 0, tail: int = 0) -> np.ndarray:
+    """Rows at ``t_1 … t_{M+tail}`` of a run at `RUN_RATE_HZ` whose sample ``lead q`` is ``t_0``.
+
+    The one row selection of eqs. (13)-(18) (``q`` = 25 run samples per 400 Hz instant):
+    the pipeline's checks on the linear model, the reference job's scores on the twin
+    (``tail`` = `microfab.machines.xy_stage_reference.TAIL`) and ``stage score``. Rows
+    past the run's end repeat its last sample.
+    """
     q = round(RUN_RATE_HZ / MODEL_RATE_HZ)
-    idx = (np.arange(1, m + 1) + lead) * q
+    idx = (np.arange(1, m + tail + 1) + lead) * q
     return y[np.minimum(idx, y.shape[0] - 1)]
 
 
@@ -520,7 +527,7 @@ def _check_stage1(
     for k, cmd in enumerate((command, alt)):
         pos = np.asarray(cmd.position, dtype=float)
         pos = np.vstack([pos, np.repeat(pos[-1:], (m + LEAD + 1) * q, axis=0)])  # held
-        y = _at_model_rate(linear_output(linear, pos), m, LEAD)
+        y = at_model_rate(linear_output(linear, pos), m, LEAD)
         norms.append(DeviationNorms.of(problem.path, y))
         if k == 0:
             from microfab.optimize.metrics import deviations
