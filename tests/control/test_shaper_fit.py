@@ -75,6 +75,14 @@ def test_bad_inputs(args, match):
         fit_shaper(*args, config=CFG)
 
 
+def test_an_frf_whose_square_overflows_is_refused_without_a_warning():
+    # the 0/0 and inf - inf of the scores came from this overflow (make fuzz, file-frf)
+    with np.errstate(over="raise", invalid="raise"), pytest.raises(ValueError, match="overflows"):
+        fit_shaper(FREQ, MODE * 1e200, kind="frf", config=CFG)
+    with np.errstate(over="raise", invalid="raise"), pytest.raises(ValueError, match="overflows"):
+        fit_shaper(FREQ, MODE, kind="frf", baseline=np.full(FREQ.shape, 1e-300), config=CFG)
+
+
 def test_config_refusals():
     with pytest.raises(ValueError, match="unknown shaper"):
         ShaperFitConfig(names=("zz",))  # type: ignore[arg-type]

@@ -182,14 +182,23 @@ def _weights(
             raise ValueError("a PSD must be real and >= 0")
         w = r.astype(float)
     elif kind == "frf":
-        w = np.abs(r).astype(float) ** 2
+        a = np.abs(r).astype(float)
+        if a.max(initial=0.0) > 1e150:  # its square overflows float64 (1.8e308)
+            raise ValueError(
+                f"|response| reaches {a.max():.3g}: its square overflows; give the FRF in a "
+                "unit that keeps it below 1e150"
+            )
+        w = a**2
     else:
         raise ValueError(f"kind must be 'psd' or 'frf', got {kind!r}")
     if baseline is not None:
         b = np.abs(np.asarray(baseline))
         if b.shape != f.shape or not np.all(np.isfinite(b) & (b > 0.0)):
             raise ValueError("baseline must be positive, finite and shaped like freq_hz")
-        w = w / b**2
+        with np.errstate(over="ignore", under="ignore", divide="ignore"):
+            w = w / b**2  # b**2 underflows to 0 for b < 1e-162: inf, refused next
+        if not np.all(np.isfinite(w)):
+            raise ValueError("the response over the baseline overflows float64")
     keep = f > 0.0
     if not np.any(w[keep] > 0.0):
         raise ValueError("the response is zero at every positive frequency: nothing to shape")
@@ -205,8 +214,8 @@ def _candidate(
         f, w = f[above], w[above]
     vmax = np.max([shaper.vibration(f, z) for z in tests], axis=0)
     all_vib = np.maximum(w - thr, 0.0).sum()
-    remaining = np.maximum(vmax * w - thr, 0.0).sum() / all_vib
-    v = float(remaining)
+    # > 0: w is finite (`_weights`) and thr = max(w) / reduction < max(w)
+    v = float(np.maximum(vmax * w - thr, 0.0).sum() / all_vib)
     return ShaperCandidate(
         shaper=shaper,
         vibrations=v,
