@@ -43,9 +43,8 @@ def runs(tmp_path_factory) -> list[str]:
 
 
 def _ann(runs: list[str], out: Path, *extra: str):
-    return runner.invoke(
-        app, ["identify", "ann", *runs, "--out", str(out), "--device", "cpu", *extra]
-    )
+    device = [] if "--device" in extra else ["--device", "cpu"]
+    return runner.invoke(app, ["identify", "ann", *runs, "--out", str(out), *device, *extra])
 
 
 def _val_sigma(output: str) -> list[float]:
@@ -120,10 +119,14 @@ def test_refusals_write_nothing(runs, tmp_path, one_error_line):
     d.mkdir()
     cases = [
         ([runs[0]], [], "give at least two runs"),
-        (runs, ["--axis", "z"], "--axis must be x, y or both"),
-        (runs, ["--validation", "1"], "--validation must be less than 1"),
-        (runs, ["--validation", "0"], "--validation must be more than 0"),
-        (runs, ["--device", "tpu"], "--device must be"),
+        (runs, ["--axis", "z"], "Invalid value for '--axis': 'z' is not one of x, y, both"),
+        (runs, ["--validation", "1"], "'--validation': 1 is outside the allowed range (0, 0.9]"),
+        (runs, ["--validation", "0"], "'--validation': 0 is outside the allowed range (0, 0.9]"),
+        (
+            runs,
+            ["--device", "tpu"],
+            "Invalid value for '--device': 'tpu' is not one of auto, cpu, cuda",
+        ),
         ([runs[0], _run(d / "short.csv", 9, n=800)], [], "shorter than 500 ms"),
         ([runs[0], _run(d / "rate.csv", 9, dt=1 / 1800)], [], "not a whole multiple of 400"),
         ([runs[0], _run(d / "k.csv", 9, dt=1 / 1600)], [], "sampled at 1600 Hz"),

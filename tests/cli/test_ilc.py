@@ -57,7 +57,10 @@ def test_step_with_p_type_and_axis_gain(tmp_path: Path) -> None:
     res = _step(tmp_path, "--axis-gain", "y", state="s3")
     assert res.exit_code == 2 and "AXIS=GAIN" in res.output
     res = _step(tmp_path, "--law", "q-type", state="s4")
-    assert res.exit_code == 2 and "law must be" in res.output
+    assert (
+        res.exit_code == 2
+        and "error: Invalid value for '--law': 'q-type' is not one of inverse, p-type" in res.output
+    )
     res = _step(tmp_path, "--axis-gain", "z=0.1", state="s5")
     assert res.exit_code == 2 and "a gain is given for axis ['z']" in res.output
 
@@ -65,14 +68,21 @@ def test_step_with_p_type_and_axis_gain(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("argv", "says"),
     [
-        (["--cutoff-hz", "-1"], "--cutoff-hz must be more than 0 Hz, got -1 Hz"),
-        (["--gain", "5"], "--gain must be more than 0 and at most 2, got 5"),
+        (["--cutoff-hz", "-1"], "'--cutoff-hz': -1 Hz is outside the allowed range [1, 500000] Hz"),
+        (["--gain", "5"], "'--gain': 5 is outside the allowed range [1e-06, 2]"),
         (
             ["--max-velocity", "0"],
-            "--max-velocity must be more than 0 (input unit)/s, got 0 (input unit)/s",
+            "'--max-velocity': 0 (input unit)/s is outside the allowed range (0, 5e+09] "
+            "(input unit)/s",
         ),
-        (["--advance-us", "-1"], "--advance-us must be at least 0 µs, got -1 µs"),
-        (["--axis-gain", "y=3"], "--axis-gain y must be more than 0 and at most 2, got 3"),
+        (
+            ["--advance-us", "-1"],
+            "'--advance-us': -1 µs is outside the allowed range [0, 1e+06] µs",
+        ),
+        (
+            ["--axis-gain", "y=3"],
+            "--axis-gain y=3: the gain is outside the allowed range [1e-06, 2]",
+        ),
     ],
 )
 def test_option_hints_name_the_option_and_its_unit(
@@ -83,5 +93,5 @@ def test_option_hints_name_the_option_and_its_unit(
     res = _step(tmp_path, *argv)
     assert res.exit_code == 2
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
-    assert lines == [f"error: {says}"], res.output
+    assert len(lines) == 1 and lines[0].startswith("error: ") and says in lines[0], res.output
     assert not (tmp_path / "state").exists()

@@ -184,6 +184,24 @@ def test_a_fifo_is_refused_not_opened(tmp_path: Path, argv: list[str]) -> None:
     assert _snapshot(tmp_path) == before
 
 
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs a /proc file system")
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["reproduce", "reference-opt", "--set", "checkpoints=/proc/x", "--check"],
+        ["reproduce", "reference-opt", "--out", "/proc/x", "--check"],
+        ["trajectory", "part.dxf", "--out", "/proc/x/ref.csv"],
+    ],
+    ids=["checkpoint folder", "page folder", "file"],
+)
+def test_an_output_where_nothing_can_be_written_is_refused(argv: list[str]) -> None:
+    """``os.access`` says yes to root in /proc: the file system is asked by a probe."""
+    res = runner.invoke(app, argv)
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert res.exit_code == 2 and len(lines) == 1, res.output
+    assert "/proc" in lines[0] and lines[0].startswith("error: "), lines[0]
+
+
 # --------------------------------------------------------------------------- generated
 def _pairs() -> list[tuple[str, str, str]]:
     """``(command, option A, option B)`` for every pair of a recipe's path outputs."""

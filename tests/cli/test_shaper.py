@@ -43,20 +43,26 @@ def test_shaper_design_inverse(model_file: Path, tmp_path: Path):
     [
         (["--poles-hz", "800"], "--poles-hz = 800.0 Hz (5026.55 rad/s) is not faster than"),
         (["--dt", "1e-3"], "above the Nyquist frequency 500 Hz"),
-        (["--dt", "0"], "--dt must be more than 0 s"),
+        (["--dt", "0"], "'--dt': 0 s is outside the allowed range [1e-07, 0.01] s"),
         # fuzz: a dt of 1e-300 s crashed the table, 1 µs made the settling search run
         # out of memory (the rounded ZOH filter never settles to 1e-9)
-        (["--dt", "1e-300"], "--dt must be at least 1e-07 s"),
+        (["--dt", "1e-300"], "'--dt': 1e-300 s is outside the allowed range"),
         (["--dt", "1e-6"], "does not settle within 1e-09 of its static gain"),
         (["--order", "2"], "--order = 2 is below the model's relative degree 3"),
-        (["--discretization", "tustin"], "discretization must be 'zoh'"),
-        (["--kind", "zz"], "--kind must be one of inverse, zv, mzv, zvd, ei"),
-        (["--freq-hz", "3000"], "--freq-hz applies to the classic kinds"),
+        (
+            ["--discretization", "tustin"],
+            "Invalid value for '--discretization': 'tustin' is not one of zoh, zpetc",
+        ),
+        (
+            ["--kind", "zz"],
+            "Invalid value for '--kind': 'zz' is not one of inverse, zv, mzv, zvd, ei",
+        ),
+        (["--freq-hz", "3000"], "--freq-hz has no effect with --kind inverse"),
         (["MODEL=rhp"], "in the right half-plane"),
         (["MODEL=none"], "--kind inverse needs MODEL"),
         (["MODEL=missing"], "model file not found"),
-        (["MODEL=shaper"], "unknown key 'kind' in the model"),
-        (["MODEL=deep"], "not a model JSON file (nested too deeply)"),  # fuzz: RecursionError
+        (["MODEL=shaper"], "format = 1 should be 'microfab.identify.TFModel'"),
+        (["MODEL=deep"], "nested too deeply to be a transfer-function model"),  # fuzz
     ],
 )
 def test_shaper_design_inverse_refusals(
@@ -145,13 +151,13 @@ def test_shaper_design_classic_for_a_given_mode(tmp_path: Path):
         ([], "--kind zv needs one of --freq-hz, --frf or --psd, got none"),
         (["--freq-hz", "3000", "--psd", "PSD"], "got --freq-hz and --psd"),
         (["--freq-hz", "60000"], "at or above the Nyquist frequency 50000 Hz of --dt"),
-        (["--freq-hz", "3000", "--damping", "1.5"], "--damping must be at least 0"),
-        (["--freq-hz", "-3"], "--freq-hz must be more than 0 Hz"),
+        (["--freq-hz", "3000", "--damping", "1.5"], "1.5 is outside the allowed range [0, 0.99]"),
+        (["--freq-hz", "-3"], "'--freq-hz': -3 Hz is outside the allowed range [1, 1e+06]"),
         # fuzz: taps of a shaper lasting years, or at dt 8e-294 s (negative dimensions)
-        (["--freq-hz", "1e-9"], "is too slow for --dt 1e-05 s: one period of the mode"),
-        (["--freq-hz", "3000", "--dt", "8e-294"], "--dt must be at least 1e-07 s"),
+        (["--freq-hz", "1e-9"], "'--freq-hz': 1e-09 Hz is outside the allowed range"),
+        (["--freq-hz", "3000", "--dt", "8e-294"], "'--dt': 8e-294 s is outside the allowed"),
         # fuzz: a mode of 5e-324 Hz overflowed the impulse times with warnings on stderr
-        (["--freq-hz", "5e-324"], "is too slow for --dt 1e-05 s: one period of the mode"),
+        (["--freq-hz", "5e-324"], "e-324 Hz is outside the allowed range [1, 1e+06] Hz"),
         (["--freq-hz", "3000", "MODEL"], "MODEL serves a classic kind only as the baseline"),
         (["--psd", "PSD_BAD"], "no column 'psd'"),
         (["--frf", "FRF", "--freq-range", "9:3"], "--freq-range must look like LOW:HIGH"),
@@ -198,14 +204,18 @@ def test_compare_command_gives_the_library_rows(tmp_path: Path):
 @pytest.mark.parametrize(
     "extra, says",
     [
-        (["--twin", "bunny"], "twin must be 'seed'"),
+        (["--twin", "bunny"], "Invalid value for '--twin': 'bunny' is not one of seed, mirror"),
         (["--shapers", "zv,nope"], "unknown shaper 'nope'"),
-        (["--start-bit", "40000"], "outside the twin's field"),
-        (["--inverse", "tustin"], "inverse must be 'zoh'"),
+        (["--start-bit", "40000"], "40000 bit is outside the allowed range [-32768, 32768] bit"),
+        (
+            ["--inverse", "tustin"],
+            "Invalid value for '--inverse': 'tustin' is not one of zoh, zpetc",
+        ),
         (["--band-pct", "0"], "--band-pct"),
         (["--seed", "-1"], "seed"),
     ],
 )
 def test_compare_command_refusals(extra: list[str], says: str):
-    res = runner.invoke(app, ["shaper", "compare", "--true-mode", "--shapers", "zv", *extra])
+    zv = [] if "--shapers" in extra else ["--shapers", "zv"]  # an option is given once
+    res = runner.invoke(app, ["shaper", "compare", "--true-mode", *zv, *extra])
     assert res.exit_code == 2 and says in res.output, res.output

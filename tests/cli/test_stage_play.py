@@ -121,9 +121,13 @@ def test_play_takes_a_command_file(tmp_path):
 @pytest.mark.parametrize(
     ("make", "args", "says"),
     [
-        ("none", ["--format", "xls"], "--format must be one of csv, h5, mat"),
-        ("none", ["--hold", "-1"], "--hold must be at least 0"),
-        ("none", ["--hold", "nan"], "--hold must be at least 0"),
+        (
+            "none",
+            ["--format", "xls"],
+            "Invalid value for '--format': 'xls' is not one of csv, h5, mat",
+        ),
+        ("none", ["--hold", "-1"], "'--hold': -1 s is outside the allowed range [0, 10] s"),
+        ("none", ["--hold", "nan"], "'--hold': nan is not a finite number"),
         ("none", ["--seed", "-1"], "--seed"),
         ("empty_dir", [], "holds no runs.json"),
         ("no_input_y", [], "a command file needs time, input_x, input_y (m)"),

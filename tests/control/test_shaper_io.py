@@ -61,7 +61,9 @@ def test_files_round_trip_and_name_the_file(tmp_path: Path):
     r = read_shaper(tmp_path / "zv.json")
     np.testing.assert_array_equal(r.times, s.times)
     (tmp_path / "bad.json").write_text("{not json")
-    with pytest.raises(ValueError, match=r"bad\.json: not a JSON file"):
+    with pytest.raises(
+        ValueError, match=r"bad\.json: not a shaper \(JSON of shaper design\) \(not JSON"
+    ):
         read_shaper(tmp_path / "bad.json")
     with pytest.raises(FileNotFoundError, match="shaper file not found"):
         read_shaper(tmp_path / "none.json")

@@ -1119,3 +1119,12 @@ KINDS.update(SLM_KINDS)
 from fuzz_options import OPTION_KINDS  # noqa: E402
 
 KINDS.update(OPTION_KINDS)
+
+from fuzz_concurrency import TOGETHER_KINDS  # noqa: E402
+
+KINDS.update(TOGETHER_KINDS)
+
+# a generator per file kind of microfab.io.filekinds.FILE_KINDS, from its schema
+from fuzz_files import FILE_KINDS_CASES  # noqa: E402
+
+KINDS.update(FILE_KINDS_CASES)

@@ -44,6 +44,7 @@ import multiprocessing as mp
 import os
 import shutil
 import signal
+import stat
 import sys
 import tempfile
 import threading
@@ -104,6 +105,9 @@ class Case:
     keep : tuple of str
         Relative paths that must be byte-identical after the command whatever its exit
         (inputs: an accepted command that overwrote one is ``clobbered``).
+    together : int
+        How many processes of the command run at once on the folder (`fuzz_concurrency`);
+        1: one, in process.
     """
 
     kind: str
@@ -113,6 +117,7 @@ class Case:
     note: str = ""
     damage: tuple[tuple[str, str], ...] = ()
     keep: tuple[str, ...] = ()
+    together: int = 1
 
     def describe(self) -> str:
         """One line: kind, note and command."""
@@ -185,7 +190,13 @@ def _hashes(root: Path) -> dict[str, str]:
     for dirpath, _dirs, files in os.walk(root):
         for f in files:
             p = Path(dirpath) / f
-            out[str(p.relative_to(root))] = hashlib.sha256(p.read_bytes()).hexdigest()
+            st = p.lstat()
+            if p.is_symlink():  # a loop, or a link a case planted: its target, not opened
+                out[str(p.relative_to(root))] = "link:" + os.readlink(p)
+            elif not stat.S_ISREG(st.st_mode):  # a FIFO: opening it would block
+                out[str(p.relative_to(root))] = f"special:{stat.S_IFMT(st.st_mode)}"
+            else:
+                out[str(p.relative_to(root))] = hashlib.sha256(p.read_bytes()).hexdigest()
     return out
 
 
@@ -274,6 +285,17 @@ def _in_folder(path: Path) -> Iterator[None]:
 
 def _damage(path: Path, how: str) -> None:
     """Damage one file (or every file under a folder) of the working folder."""
+    if how in ("fifo", "loop"):  # a special file where the input or output was
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists() or path.is_symlink():
+            path.unlink()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if how == "fifo":
+            os.mkfifo(path)
+        else:
+            path.symlink_to(path.name)
+        return
     if path.is_dir() and how not in ("remove", "file"):
         for f in sorted(q for q in path.rglob("*") if q.is_file()):
             _damage(f, how)
@@ -298,7 +320,7 @@ def _damage(path: Path, how: str) -> None:
 
 
 #: The ways `Case.damage` can damage an input.
-DAMAGE = ("empty", "half", "junk", "remove", "folder", "file")
+DAMAGE = ("empty", "half", "junk", "remove", "folder", "file", "fifo", "loop")
 
 
 def _prepare(case: Case, work: Path) -> None:
@@ -379,6 +401,10 @@ def run_case(case: Case, timeout_s: float = TIMEOUT_S) -> Outcome:
         work = Path(tmp)
         _prepare(case, work)
         before = _hashes(work)
+        if case.together > 1:
+            from fuzz_concurrency import run_together
+
+            return run_together(case, work, before)
         t0 = time.perf_counter()
         try:
             with _in_folder(work), _alarm(timeout_s):

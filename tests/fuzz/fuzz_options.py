@@ -22,6 +22,13 @@ state          a learning state or resume folder with every file emptied, cut or
                the folder replaced by a file
 set            ``reproduce NAME --set key=value --check`` for every key of every
                reproduction, with values of the wrong type, out of range or malformed
+special        a path the command reads or writes replaced by a FIFO or a symbolic link
+               to itself (looked at, never opened: a FIFO would block)
+opt-bound      a declared number (`microfab.cli._options`) just outside its range, or
+               on an open bound: every one must be refused
+mode           the mode-versus-option matrix: each mode of a command (a flag toggled,
+               each choice of a declared choice option) with each option the recipe
+               leaves out, at a value inside its declaration
 =============  ==========================================================================
 
 Every case also names the command's inputs in `Case.keep`: whatever the exit, an input
@@ -43,6 +50,8 @@ import fuzz_driver
 from fuzz_driver import Case
 from fuzz_workspace import RECIPES, Recipe, build_workspace
 from hypothesis import strategies as st
+
+from microfab.cli._options import declared
 
 __all__ = [
     "OPTION_KINDS",
@@ -104,6 +113,8 @@ class Param:
     is_flag: bool
     multiple: bool
     nargs: int
+    key: Any = None  # the declaration (`microfab.cli._options.declared`), if any
+    default: Any = None
 
     @property
     def argument(self) -> bool:
@@ -166,6 +177,8 @@ def params(command: str) -> tuple[Param, ...]:
                 is_flag=bool(getattr(p, "is_flag", False)),
                 multiple=bool(p.multiple),
                 nargs=int(p.nargs),
+                key=declared(p),
+                default=p.default,
             )
         )
     return tuple(out)
@@ -284,6 +297,80 @@ def _number_cases(command: str, recipe: Recipe, p: Param) -> Iterator[Case]:
         yield _case("opt-number", command, recipe, _with(command, recipe, p, [v]), f"{p.label} {v}")
 
 
+def _outside(key: Any, integer: bool) -> list[str]:
+    """Values just outside a declared range (the bound itself where it is open)."""
+    out: list[str] = []
+    for bound, is_open, sign in ((key.low, key.low_open, -1), (key.high, key.high_open, 1)):
+        if bound is None:
+            continue
+        if integer:
+            out.append(str(int(bound) + sign))
+        elif is_open:
+            out.append(repr(float(bound)))
+        else:
+            step = max(abs(bound) * 1e-6, 1e-9)
+            out.append(repr(float(bound) + sign * step))
+    return out
+
+
+def _bound_cases(command: str, recipe: Recipe, p: Param) -> Iterator[Case]:
+    """Values just outside the declared range: each must be refused (``opt-bound``)."""
+    for v in _outside(p.key, p.base_type == "int"):
+        yield _case("opt-bound", command, recipe, _with(command, recipe, p, [v]),
+                    f"{p.label} {v} outside {p.key.range_text()}")  # fmt: skip
+
+
+def _inside(p: Param) -> str | None:
+    """A value of ``p`` inside its declaration: its default, else a bound, else None."""
+    if p.key is not None and p.key.choices:
+        return str(p.key.choices[0])
+    if p.default is not None and not isinstance(p.default, bool | list | tuple):
+        return str(p.default)
+    if p.key is None:
+        return None
+    for bound, is_open in ((p.key.low, p.key.low_open), (p.key.high, p.key.high_open)):
+        if bound is not None and not is_open:
+            return str(int(bound)) if p.base_type == "int" else repr(float(bound))
+    if p.key.low is not None and p.key.high is not None:
+        mid = (p.key.low + p.key.high) / 2
+        return str(int(mid)) if p.base_type == "int" else repr(mid)
+    return None
+
+
+def _modes(p: Param) -> list[tuple[str, ...] | None]:
+    """The ways to switch the mode ``p`` sets: a flag toggled, each declared choice."""
+    if p.base_type == "bool":
+        return [None]
+    if p.key is not None and p.key.choices:
+        return [(c,) for c in p.key.choices]
+    return []
+
+
+def _mode_cases(command: str, recipe: Recipe, p: Param) -> Iterator[Case]:
+    """The mode-versus-option matrix: ``p``'s modes with each option the recipe leaves out.
+
+    Each other option is given a value inside its declaration, so that a refusal can only
+    be about the combination: an option without effect in that mode must be refused on
+    one line (`microfab.cli._options.refuse_unused`), never ignored.
+    """
+    given = {s.param.name for s in _parse(command, recipe)[1]}
+    for mode in _modes(p):
+        base = _with(command, recipe, p, mode)
+        for other in params(command):
+            if other.name in given or other.name == p.name or other.argument:
+                continue
+            if other.base_type == "path":
+                continue  # paths have their own kinds
+            value = None if other.base_type == "bool" else _inside(other)
+            if other.base_type != "bool" and value is None:
+                continue
+            flag = (other.flags or other.secondary)[0]
+            argv = (*base, flag) if value is None else (*base, flag, value)
+            what = "toggled" if mode is None else mode[0]
+            yield _case("mode", command, recipe, argv,
+                        f"{p.label} {what} with {flag} {value or ''}".rstrip())  # fmt: skip
+
+
 def _text_cases(command: str, recipe: Recipe, p: Param) -> Iterator[Case]:
     for v in TEXT:
         yield _case("opt-text", command, recipe, _with(command, recipe, p, [v]),
@@ -336,6 +423,16 @@ def _state_cases(command: str, recipe: Recipe, p: Param, given: list[str]) -> It
                         keep=_kept_inputs(recipe, v))  # fmt: skip
 
 
+def _special_cases(command: str, recipe: Recipe, p: Param, given: list[str]) -> Iterator[Case]:
+    """Each path the recipe gives ``p`` replaced by a FIFO or a symbolic link to itself:
+    looked at, never opened (a FIFO opened blocks), and refused on one line."""
+    for v in given:
+        for how in ("fifo", "loop"):
+            yield _case("special", command, recipe, _with(command, recipe, p, given),
+                        f"{p.label} {v} as a {how}", damage=((v.rstrip("/"), how),),
+                        keep=_kept_inputs(recipe, v))  # fmt: skip
+
+
 def _set_cases(command: str, recipe: Recipe, p: Param) -> Iterator[Case]:
     from microfab.experiments.catalog import REPRODUCTION_ENTRIES, reproduction
 
@@ -371,21 +468,28 @@ def _generators(command: str, p: Param) -> list[Callable[[], Iterator[Case]]]:
     if command == "reproduce" and p.label == "--set":
         return [lambda: _set_cases(command, recipe, p)]
     if t in ("int", "float"):
-        return [lambda: _number_cases(command, recipe, p)]
+        if p.key is None:
+            return []  # undeclared: `missing_generators` names it
+        return [lambda: _number_cases(command, recipe, p),
+                lambda: _bound_cases(command, recipe, p)]  # fmt: skip
     if t == "bool":
-        return [lambda: _flag_cases(command, recipe, p)]
+        return [lambda: _flag_cases(command, recipe, p), lambda: _mode_cases(command, recipe, p)]
+    if p.key is not None and p.key.choices:
+        return [lambda: _text_cases(command, recipe, p), lambda: _mode_cases(command, recipe, p)]
     if t == "path":
         role = _role(command, recipe, p)
         if role is None:
             return []
         kind, given = role
+        special = lambda: _special_cases(command, recipe, p, given)  # noqa: E731
         if kind == "out":
-            return [lambda: _out_cases(command, recipe, p, given)]
+            return [lambda: _out_cases(command, recipe, p, given), special]
         if kind == "in":
-            return [lambda: _in_cases(command, recipe, p, given)]
+            return [lambda: _in_cases(command, recipe, p, given), special]
         return [
             lambda: _state_cases(command, recipe, p, given),
             lambda: _out_cases(command, recipe, p, given),
+            special,
         ]
     return [lambda: _text_cases(command, recipe, p)]
 
@@ -398,7 +502,9 @@ def missing_generators() -> list[str]:
         if c not in RECIPES:
             continue
         for p in params(c):
-            if not _generators(c, p):
+            if p.base_type in ("int", "float") and p.key is None:
+                out.append(f"{c} {p.label} (a number without a declared range: cli._options)")
+            elif not _generators(c, p):
                 out.append(f"{c} {p.label} ({p.base_type}: give it in the recipe or EXTRA_PATHS)")
     return out
 
@@ -433,4 +539,7 @@ OPTION_KINDS: dict[str, tuple[Callable[[], st.SearchStrategy[Case]], float]] = {
     "in-path": (_strategy("in-path"), 0.055),
     "state": (_strategy("state"), 0.002),
     "set": (_strategy("set"), 0.02),
+    "opt-bound": (_strategy("opt-bound"), 0.03),
+    "mode": (_strategy("mode"), 0.03),
+    "special": (_strategy("special"), 0.01),
 }

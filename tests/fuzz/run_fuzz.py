@@ -79,6 +79,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--slow", action="store_true", help="print the three slowest cases")
     p.add_argument("--tracebacks", action="store_true", help="print whole tracebacks")
     p.add_argument("--save", type=Path, help="write each failing case's files here")
+    p.add_argument(
+        "--accepted", type=Path, help="write the accepted cases here, one line each, by kind"
+    )
     args = p.parse_args(argv)
 
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
@@ -148,6 +151,9 @@ def main(argv: list[str] | None = None) -> int:
             for rel, content in r.case.files:
                 (d / rel).parent.mkdir(parents=True, exist_ok=True)
                 (d / rel).write_bytes(content)
+    if args.accepted is not None:  # to review what was accepted: lenient or nonsense?
+        lines = sorted(r.case.describe() for r in results if r.outcome == "accepted")
+        args.accepted.write_text("\n".join(lines) + "\n", encoding="utf-8")
     slow = sorted(results, key=lambda r: r.seconds, reverse=True)[:3]
     if args.slow:
         for r in slow:

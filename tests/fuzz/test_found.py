@@ -21,6 +21,14 @@ from fuzz_driver import Case, run_case
 from fuzz_workspace import RECIPES
 
 NANO = RECIPES["nanomanipulator analyze"].argv
+
+
+def _but(argv: tuple[str, ...], opt: str) -> tuple[str, ...]:
+    """``argv`` without ``opt`` and its value (an option is given once)."""
+    i = argv.index(opt)
+    return argv[:i] + argv[i + 2 :]
+
+
 OPT = ("optimize", "circle:radius=0.002", "--model", "models", "--out", "optimized",
        "--stage", "1", "--n", "20")  # fmt: skip
 TRAJ = ("trajectory", "part.dxf", "--time-optimal", "--n-grid", "50", "--rate", "2000",
@@ -37,13 +45,27 @@ CHIRP = ("identify", "chirp", "--f0", "100", "--f1", "2000", "--period", "0.01",
          "opt_played/command.h5")  # fmt: skip
 
 FOUND: dict[str, tuple[tuple[str, ...], str]] = {
-    "chirp fit of a stage command (a period with a zero bin)": (CHIRP, "holds NaN/inf"),
-    "pattern of 2**31 circles": ((*NANO, "--circles", "2147483648"), "the pattern would be"),
-    "pattern of 1e30 circles": ((*NANO, "--circles", "1" + "0" * 30), "the pattern would be"),
-    "pattern with 1e12 s moves": ((*NANO, "--move-s", "1e12"), "the pattern would be"),
-    "stage-1 points 2**31": ((*OPT, "--n", "2147483648"), "--n must be"),
-    "a_max 1e-12": ((*OPT, "--amax", "1e-12"), "--amax must be"),
-    "tolerance 5e-324": ((*OPT, "--tolerance", "5e-324"), "--tolerance must be"),
+    # issue 44: now refused before the FFT, as the file does not repeat with that period
+    "chirp fit of a stage command (a period with a zero bin)": (CHIRP, "repeats every"),
+    # issue 44: refused while parsed, by the [pattern] keys' ranges (NANO without the option)
+    "pattern of 2**31 circles": (
+        (*_but(NANO, "--circles"), "--circles", "2147483648"),
+        "2147483648 circles is outside the allowed range [1, 100]",
+    ),
+    "pattern of 1e30 circles": (
+        (*_but(NANO, "--circles"), "--circles", "1" + "0" * 30),
+        "'--circles': 1" + "0" * 30 + " circles is outside the allowed range",
+    ),
+    "pattern with 1e12 s moves": (
+        (*_but(NANO, "--move-s"), "--move-s", "1e12"),
+        "1e+12 s is outside the allowed range (0, 60] s",
+    ),
+    "stage-1 points 2**31": (
+        (*_but(OPT, "--n"), "--n", "2147483648"),
+        "2147483648 is outside the allowed range",
+    ),
+    "a_max 1e-12": ((*OPT, "--amax", "1e-12"), "'--amax': 1e-12 m/s² is outside"),
+    "tolerance 5e-324": ((*OPT, "--tolerance", "5e-324"), "'--tolerance': 4.94066e-324 m is"),
     "inverse shaper of 1e30 poles": (
         (
             "shaper",
@@ -56,14 +78,14 @@ FOUND: dict[str, tuple[tuple[str, ...], str]] = {
             "--order",
             "1" + "0" * 30,
         ),
-        "--order must be at most",
+        "'--order': 1" + "0" * 30 + " is outside the allowed range [1, 16]",
     ),
     "settling band 1e-12 %": (
         ("shaper", "compare", "--json", "c.json", "--band-pct", "1e-12"),
         "has not settled",
     ),
-    "a_max 1e-308": ((*TRAJ, "--amax", "1e-308"), "--amax must be"),
-    "jerk 1e308": ((*TRAJ, "--jmax", "1e308"), "--jmax must be"),
+    "a_max 1e-308": ((*TRAJ, "--amax", "1e-308"), "'--amax': 1e-308 m/s² is outside"),
+    "jerk 1e308": ((*TRAJ, "--jmax", "1e308"), "'--jmax': 1e+308 m/s³ is outside"),
     "1e30 slm workers": ((*SLM, "--workers", "1" + "0" * 30), "--workers"),
     "sweep scheduler ' '": ((*SWEEP, "--scheduler", " "), "not a Dask scheduler address"),
     "sweep scheduler '10:1'": ((*SWEEP, "--scheduler", "10:1"), "no Dask scheduler answered"),

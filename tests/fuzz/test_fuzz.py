@@ -15,6 +15,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import pytest
 from fuzz_cases import KINDS
 from fuzz_driver import Case, run_case
 from fuzz_options import cases_of, missing_generators
@@ -23,13 +24,13 @@ from hypothesis import HealthCheck, given, settings
 #: Cases per kind: 1000 in all, weighted to the cheap kinds (a drawing that is read is
 #: also drawn, a third of a second each).
 SUBSET = {
-    "dxf": 100,
-    "svg": 100,
+    "dxf": 88,
+    "svg": 88,
     "dat": 40,
     "shape": 50,
     "traj": 30,
-    "job": 200,
-    "trial": 170,
+    "job": 130,
+    "trial": 120,
     "droplet": 60,
     "frames": 50,
     # seed 003 part 2 (fuzz_slm): a run accepted costs 0.1 to 1 s, so a few each
@@ -44,6 +45,24 @@ SUBSET = {
     "in-path": 40,
     "state": 10,
     "set": 40,
+    "mode": 30,
+    "special": 0,
+    # two processes at once per writing command (fuzz_concurrency): ~10 s each, make fuzz
+    "together": 0,
+    # every declared bound (fuzz_options): all of them, in their own test below
+    "opt-bound": 0,
+    # a generator per file kind (fuzz_files, from microfab.io.filekinds): 0.1 s a case
+    "file-trace": 12,
+    "file-frf": 6,
+    "file-ilc-state": 12,
+    "file-rc-contour": 6,
+    "file-frame-index": 8,
+    "file-run-list": 8,
+    "file-ann-model": 8,
+    "file-tf-model": 8,
+    "file-shaper": 8,
+    "file-stage-model": 8,
+    "file-optimize-summary": 8,
 }
 
 
@@ -86,6 +105,62 @@ test_out_path = _fuzz_test("out-path")
 test_in_path = _fuzz_test("in-path")
 test_state = _fuzz_test("state")
 test_set = _fuzz_test("set")
+test_mode = _fuzz_test("mode")
+test_file_trace = _fuzz_test("file-trace")
+test_file_frf = _fuzz_test("file-frf")
+test_file_optimize_summary = _fuzz_test("file-optimize-summary")
+test_file_ilc_state = _fuzz_test("file-ilc-state")
+test_file_rc_contour = _fuzz_test("file-rc-contour")
+test_file_frame_index = _fuzz_test("file-frame-index")
+test_file_run_list = _fuzz_test("file-run-list")
+test_file_ann_model = _fuzz_test("file-ann-model")
+test_file_tf_model = _fuzz_test("file-tf-model")
+test_file_shaper = _fuzz_test("file-shaper")
+test_file_stage_model = _fuzz_test("file-stage-model")
+
+
+def test_every_writing_command_has_a_together_case() -> None:
+    from fuzz_concurrency import together_cases
+    from fuzz_workspace import RECIPES
+
+    writing = {name for name, r in RECIPES.items() if r.outputs}
+    assert {c.note.split(":")[0] for c in together_cases()} == writing
+
+
+@pytest.mark.parametrize("command", ["ilc step", "stage excite"])
+def test_two_at_once_leave_a_usable_folder(command: str) -> None:
+    """Two of a command released at once on one folder (``make fuzz`` runs them all)."""
+    from fuzz_concurrency import together_cases
+
+    case = next(c for c in together_cases() if c.note.startswith(f"{command}:"))
+    out = run_case(case)
+    assert out.outcome in ("accepted", "refused"), f"{out.outcome}: {out.detail}"
+
+
+def test_every_special_file_is_refused_unopened() -> None:
+    """Every path of every command as a FIFO or a symbolic-link loop: refused on one
+    line, nothing changed (a FIFO opened would hang the case)."""
+    cases = cases_of("special")
+    assert len(cases) >= 100
+    bad = []
+    for case in cases:
+        out = run_case(case, timeout_s=10.0)
+        if out.outcome != "refused":
+            bad.append(f"{out.outcome}: {case.describe()} {out.detail[:200]}")
+    assert not bad, "\n".join(bad)
+
+
+def test_every_declared_bound_is_enforced() -> None:
+    """Each number just outside its declared range (`microfab.cli._options`) is refused
+    on one line with every file as it was, for every option of every command."""
+    cases = cases_of("opt-bound")
+    assert len(cases) >= 100  # two bounds of most of the ~115 numbers
+    bad = []
+    for case in cases:
+        out = run_case(case)
+        if out.outcome != "refused":
+            bad.append(f"{out.outcome}: {case.describe()} {out.detail[:200]}")
+    assert not bad, "\n".join(bad)
 
 
 def test_the_subset_covers_every_kind_with_about_1000_cases() -> None:

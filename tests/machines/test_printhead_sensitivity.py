@@ -64,7 +64,7 @@ def test_cli_refuses_an_unknown_model_on_one_line(tmp_path) -> None:
         app, ["droplet", "sensitivity", "--model", "smoothed", "--out", str(tmp_path / "s")]
     )
     assert res.exit_code == 2
-    assert res.output.strip().startswith("error: --model must be one of")
+    assert res.output.strip().startswith("error: Invalid value for '--model': 'smoothed' is not")
     assert not (tmp_path / "s").exists()
 
 

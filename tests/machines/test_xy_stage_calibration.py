@@ -140,10 +140,10 @@ def test_cli_calibrate_xy_stage(tmp_path):
     d = json.loads(js.read_text(encoding="utf-8"))
     assert scales_of(load_params(out)) == pytest.approx(d["scales"], rel=1e-4)
     for argv, says in (
-        (["--duration", "-1"], "--duration must be positive"),
+        (["--duration", "-1"], "-1 s is outside the allowed range"),
         # issue 32: --duration 1e308 ran until killed (it sized 1e312 samples at the end)
-        (["--duration", "1e308"], "--duration = 1e+308 s is more than 3600 s"),
-        (["--duration", "60", "--search", "600"], "--search = 600 s is longer than --duration"),
+        (["--duration", "1e308"], "1e+308 s is outside the allowed range [0.5, 3600] s"),
+        (["--duration", "60", "--search", "600"], "--search 600 s is longer than --duration 60 s"),
     ):
         bad = CliRunner().invoke(app, ["calibrate", "xy-stage", *argv])
         assert bad.exit_code == 2 and says in bad.output, bad.output

@@ -22,6 +22,7 @@ from __future__ import annotations
 import errno
 import os
 import stat
+import tempfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,6 +111,16 @@ def _writable_parent(out: _Seen) -> None:
         raise PathRefusedError(f"{out.name} {out.path}: {parent} is a file, not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise PathRefusedError(f"{out.name} {out.path}: the folder {parent} is not writable")
+    # os.access answers yes to root everywhere, also in /proc, /sys or on a read-only
+    # mount: a folder made and removed at once is the answer of the file system itself
+    where = out.real if out.real.is_dir() else parent
+    try:
+        probe = tempfile.mkdtemp(prefix=".microfab-probe-", dir=where)
+    except OSError as exc:
+        raise PathRefusedError(
+            f"{out.name} {out.path}: nothing can be written in {where} ({exc.strerror})"
+        ) from None
+    os.rmdir(probe)
 
 
 def _flat(

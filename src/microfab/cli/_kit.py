@@ -30,6 +30,7 @@ from rich.table import Table as RichTable
 from typer.core import TyperGroup
 
 from microfab.cli import _sigint
+from microfab.cli._options import repeated_option, resolve_choice_help
 from microfab.core.memory import apply_allocator_policy
 from microfab.core.threads import apply_thread_policy
 
@@ -149,41 +150,6 @@ def check_output_path(
         check_outputs(files={option: path}, inputs=named)
 
 
-def check_option(
-    name: str,
-    value: float | None,
-    unit: str,
-    *,
-    low: float = 0.0,
-    high: float | None = None,
-    low_closed: bool = False,
-) -> None:
-    """Refuse an option value outside (``low``, ``high``], naming the option and its unit.
-
-    Parameters
-    ----------
-    name : str
-        The option as the user typed it, e.g. ``"--speed"``.
-    value : float or None
-        The value in the option's unit; ``None`` (not given) passes.
-    unit : str
-        The option's unit as its help states it (``"m/s"``, ``"µs"``).
-    low, high : float
-        Bounds; ``high=None`` for none. ``low`` is excluded unless ``low_closed``.
-    low_closed : bool
-        Accept ``value == low``.
-    """
-    if value is None:
-        return
-    above = value >= low if low_closed else value > low
-    if math.isfinite(value) and above and (high is None or value <= high):
-        return
-    lower = f"at least {low:g}" if low_closed else f"more than {low:g}"
-    upper = "" if high is None else f" and at most {high:g}"
-    unit = f" {unit}" if unit else ""
-    fail(f"{name} must be {lower}{upper}{unit}, got {value:g}{unit}")
-
-
 #: Commands that save their work as they go and resume it when run again (the first
 #: word, or the first two for a group's command).
 RESUMING_COMMANDS = frozenset(
@@ -220,6 +186,12 @@ def interrupted_hint(words: Sequence[str]) -> str:
 #: click's base exception, whether typer vendors click or uses it (``BadParameter``'s base).
 _CLICK_ERROR: type[Exception] = next(
     c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException"
+)
+
+
+#: click's usage error (an unknown option, an option given twice).
+_USAGE_ERROR: type[Exception] = next(
+    c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError"
 )
 
 
@@ -267,6 +239,10 @@ class OneLineErrors(TyperGroup):
         # the command's words, read before the group hands them to the subcommand
         given = [*getattr(ctx, "_protected_args", getattr(ctx, "protected_args", [])), *ctx.args]
         words = [str(a) for a in given if str(a)[:1] != "-"]
+        twice = repeated_option(self, [str(a) for a in given])
+        if twice is not None:
+            raise _USAGE_ERROR(twice)
+        resolve_choice_help(self, [str(a) for a in given])  # the command's own, for --help
         try:
             _sigint.arm()
             result = super().invoke(ctx)

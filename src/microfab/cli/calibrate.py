@@ -8,6 +8,8 @@ from typing import Annotated
 import typer
 
 from microfab.cli._kit import check_output_path, check_outputs, console, fail, renamed, status
+from microfab.cli._options import given, integer, number
+from microfab.experiments.seed002_stage.keys import MAX_TOTAL_S, RUNS_SEED, RUNS_TOTAL_S
 
 __all__ = ["calibrate_app"]
 
@@ -116,6 +118,7 @@ def calibrate_laser_cmd(
 
 @calibrate_app.command("xy-stage")
 def calibrate_xy_stage_cmd(
+    ctx: typer.Context,
     write: Annotated[
         Path | None,
         typer.Option(help="Write an XY stage twin data file with the fitted magnitudes here."),
@@ -123,15 +126,35 @@ def calibrate_xy_stage_cmd(
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the fit (and checks) as JSON here.")
     ] = None,
-    duration: Annotated[float, typer.Option(help="Random-run data of the fit, s.")] = 600.0,
-    search: Annotated[float, typer.Option(help="Shorter data to search on first, s.")] = 120.0,
-    seed: Annotated[int, typer.Option(help="Seed of the runs and the noise.")] = 0,
+    duration: Annotated[
+        float, number("--duration", key=RUNS_TOTAL_S, help="Random-run data of the fit.")
+    ] = 600.0,
+    search: Annotated[
+        float,
+        number(
+            "--search",
+            help="Shorter data to search on first (at most --duration).",
+            unit="s",
+            low=0.0,
+            low_open=True,
+            high=MAX_TOTAL_S,
+        ),
+    ] = 120.0,
+    seed: Annotated[
+        int, integer("--seed", key=RUNS_SEED, help="Seed of the runs and the noise.")
+    ] = 0,
     check: Annotated[
         bool, typer.Option(help="Then measure the checks (order scan 2..8, time constant).")
     ] = False,
 ) -> None:
     """Fit the XY stage twin's friction + cogging per axis to seed 002 Table II column 1."""
     check_outputs(files={"--write": write, "--json": json_out})
+    if search > duration:
+        default = "" if given(ctx, "search") else " (its default)"
+        fail(
+            f"--search {search:g} s{default} is longer than --duration {duration:g} s: the "
+            "search runs on a shorter data set"
+        )
     from microfab.machines.xy_stage_calibration import (
         CalibrationSettings,
         fit_scales,

@@ -9,21 +9,33 @@ from typing import Annotated, Any
 import typer
 
 from microfab.cli._kit import (
-    check_option,
     check_output_path,
     check_outputs,
     console,
     fail,
     progress,
 )
+from microfab.cli._options import choice, given, integer, number, refuse_unused
+from microfab.experiments.seed003_inkjet.keys import (
+    AFTER_BREAKUP,
+    CONCENTRATION,
+    DURATION,
+    VOLTAGE,
+    VOLTAGE_CONCENTRATION,
+    WORKERS,
+)
 from microfab.io.atomic import atomic_write_text
+from microfab.io.job import Key
 from microfab.io.lock import hold_for_command
 from microfab.process.inkjet.fluids import DEFAULT_JET_MODEL
 
 __all__ = ["MAX_DURATION_US", "droplet_app"]
 
 #: Longest simulated time a command accepts, µs (the seed's runs are 100 to 400 µs).
-MAX_DURATION_US = 5000.0
+MAX_DURATION_US = DURATION.high
+#: Shortest simulated time of `droplet simulate`, µs (assumed: a few solver steps, a look at
+#: the meniscus before any breakup; a sweep point needs the 10 µs of `DURATION`).
+MIN_SIMULATE_US = 1.0
 
 droplet_app = typer.Typer(
     no_args_is_help=True,
@@ -33,8 +45,27 @@ droplet_app = typer.Typer(
 
 #: Camera settings accepted, as the render command's (assumed: a shadowgraph of a 10-100 µm
 #: nozzle has pixels of 0.1-100 µm and frames 0.1-1000 µs apart; outside, the unit is wrong).
+#: The same ranges as frames.json's (`microfab.measure.frames.PIXEL_SIZE_RANGE_M`,
+#: `FRAME_INTERVAL_RANGE_S`, restated in µm and µs so that the CLI does not import pydantic
+#: at start-up; a test checks that they agree).
 _PIXEL_RANGE_UM = (0.1, 100.0)
 _INTERVAL_RANGE_US = (0.1, 1000.0)
+PIXEL_SIZE = Key(name="pixel_size_um", type="float", default=2.0, low=_PIXEL_RANGE_UM[0],
+                 high=_PIXEL_RANGE_UM[1], unit="µm", help="Camera pixel size, in the object "
+                 "plane.")  # fmt: skip
+FRAME_INTERVAL = Key(name="frame_interval_us", type="float", default=10.0,
+                     low=_INTERVAL_RANGE_US[0], high=_INTERVAL_RANGE_US[1], unit="µs",
+                     help="Time between frames.")  # fmt: skip
+#: Most frames one render writes (assumed: a high-speed camera's burst is a few hundred to
+#: a few thousand frames; 1000 frames of the default camera are already about 1 GB of
+#: float64 while they are rendered).
+MAX_RENDER_FRAMES = 1000
+#: Most bytes the rendered frames may take (assumed: the 2 GB peak of issue 44 for a
+#: command, float64 frames).
+MAX_RENDER_BYTES = 2e9
+#: Tallest image row accepted as the nozzle's, px (assumed: 10 times the 10 000 rows of the
+#: tallest scientific camera sensors).
+MAX_IMAGE_ROWS = 100_000
 
 
 def _json(data: dict[str, Any], path: Path | None) -> None:
@@ -48,22 +79,30 @@ def _json(data: dict[str, Any], path: Path | None) -> None:
 
 @droplet_app.command("simulate")
 def simulate_cmd(
-    concentration: Annotated[
-        float, typer.Option(help="NaAlg concentration, % w/v (0 to 2).")
-    ] = 1.0,
-    voltage: Annotated[float, typer.Option(help="Bipolar drive amplitude, V.")] = 50.0,
+    ctx: typer.Context,
+    concentration: Annotated[float, number(help="NaAlg concentration.", key=CONCENTRATION)] = 1.0,
+    voltage: Annotated[float, number(help="Bipolar drive amplitude.", key=VOLTAGE)] = 50.0,
     duration: Annotated[
-        float, typer.Option(help="Simulated time, µs (at most 5000; the sweep's default).")
+        float,
+        number(
+            help="Simulated time (the sweep's default).",
+            unit="µs",
+            low=MIN_SIMULATE_US,
+            high=MAX_DURATION_US,
+        ),
     ] = 400.0,
     after_breakup: Annotated[
         float,
-        typer.Option(help="How long to follow the bodies after breakup, µs (at most 5000)."),
+        number(
+            help="How long to follow the bodies after breakup (less than --duration).",
+            key=AFTER_BREAKUP,
+        ),
     ] = 20.0,
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet/simulate"),
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Also write the summary to this JSON file.")
     ] = None,
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
+    model: ModelOpt = DEFAULT_JET_MODEL,
 ) -> None:
     """Predict breakup time, position, mode, satellites and head speed; write a report.
 
@@ -71,23 +110,22 @@ def simulate_cmd(
     the printhead machine) with the same defaults, so both give the same answer for the
     same point.
     """
+    if given(ctx, "after_breakup") and not after_breakup < duration:
+        fail(
+            f"--after-breakup {after_breakup:g} µs is not shorter than --duration "
+            f"{duration:g} µs: the bodies cannot be followed that long after a breakup"
+        )
     check_outputs(folders={"--out": out}, files={"--json": json_out})
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.process.inkjet.fluids import naalg
 
-    _check_voltage("--voltage", voltage)
-    # at least 1 µs, a few solver steps (1e-300 ran 0 steps and wrote a report)
-    check_option("--duration", duration, "µs", low=1.0, high=MAX_DURATION_US, low_closed=True)
-    check_option("--after-breakup", after_breakup, "µs", high=MAX_DURATION_US)
-    if not after_breakup * 1e-6 > 0.0:  # a subnormal count of µs is 0 s
-        fail(f"--after-breakup must be more than 0 µs, got {after_breakup:g} µs")
     try:
         fluid = naalg(concentration)
     except ValueError as exc:
         fail(f"--concentration: {exc}")
     settings = DropletSettings(
-        duration_s=duration * 1e-6, after_breakup_s=after_breakup * 1e-6, model=_model(model)
+        duration_s=duration * 1e-6, after_breakup_s=after_breakup * 1e-6, model=model
     )
     with progress() as bar:
         task = bar.add_task(f"{fluid.name}, {voltage:g} V", total=round(duration))
@@ -117,25 +155,22 @@ _MODEL_HELP = (
 )
 
 
-def _model(name: str) -> str:
-    """Refuse an unknown jet model on one line."""
+def _jet_models() -> tuple[str, ...]:
+    """The jet models (`microfab.process.inkjet.droplet.JET_MODELS`), imported when needed."""
     from microfab.process.inkjet.droplet import JET_MODELS
 
-    if name not in JET_MODELS:
-        fail(f"--model must be one of {', '.join(JET_MODELS)}, got {name!r}")
-    return name
+    return JET_MODELS
 
 
-def _check_voltage(name: str, volts: float) -> None:
-    """Refuse a drive amplitude outside the calibrated 40-70 V (seed 003 Table 1)."""
-    from microfab.machines.printhead import limits
+#: --model of every droplet command, checked while parsed against `JET_MODELS`.
+ModelOpt = Annotated[str, choice(choices=_jet_models, help=_MODEL_HELP)]
 
-    low, high = limits().voltage_v
-    if not low <= volts <= high:
-        fail(
-            f"{name} {volts:g} V is outside what the model is calibrated for ({low:g} to "
-            f"{high:g} V, seed 003 Table 1)"
-        )
+
+def _check_each(name: str, values: list[float], key: Key) -> None:
+    """Refuse an element of a list option outside ``key``'s range, on one line."""
+    for value in values:
+        if key.outside(value):
+            fail(f"{name}: {value:g} {key.unit} is outside the allowed range {key.range_text()}")
 
 
 def _camera(silhouettes: list[Any], pixel_size_m: float = 2e-6) -> Any:
@@ -168,31 +203,34 @@ def _write_report(res: Any, out: Path) -> None:
 @droplet_app.command("render")
 def render_cmd(
     out: Annotated[Path, typer.Argument(help="Folder for the frames and frames.json.")],
-    concentration: Annotated[
-        float, typer.Option(help="NaAlg concentration, % w/v (0 to 2).")
-    ] = 1.0,
-    voltage: Annotated[float, typer.Option(help="Bipolar drive amplitude, V.")] = 50.0,
-    duration: Annotated[float, typer.Option(help="Simulated time, µs.")] = 400.0,
-    frame_interval: Annotated[float, typer.Option(help="Time between frames, µs.")] = 10.0,
-    pixel_size: Annotated[float, typer.Option(help="Camera pixel size, µm.")] = 2.0,
-    seed: Annotated[int, typer.Option(min=0, help="Seed of the camera noise.")] = 0,
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
+    concentration: Annotated[float, number(help="NaAlg concentration.", key=CONCENTRATION)] = 1.0,
+    voltage: Annotated[float, number(help="Bipolar drive amplitude.", key=VOLTAGE)] = 50.0,
+    duration: Annotated[float, number(help="Simulated time.", key=DURATION)] = 400.0,
+    frame_interval: Annotated[
+        float, number(help="Time between frames (at most --duration).", key=FRAME_INTERVAL)
+    ] = 10.0,
+    pixel_size: Annotated[float, number(help="Camera pixel size.", key=PIXEL_SIZE)] = 2.0,
+    seed: Annotated[int, integer(help="Seed of the camera noise (any one; 0 and up).", low=0)] = 0,
+    model: ModelOpt = DEFAULT_JET_MODEL,
 ) -> None:
     """Simulate a droplet and write shadowgraph frames that droplet analyze can read."""
+    if frame_interval > duration:
+        fail(
+            f"--frame-interval {frame_interval:g} µs is longer than --duration {duration:g} µs: "
+            "no two frames to measure a speed from"
+        )
+    if duration / frame_interval > MAX_RENDER_FRAMES:
+        fail(
+            f"--duration {duration:g} µs at --frame-interval {frame_interval:g} µs is "
+            f"{duration / frame_interval:.0f} frames; at most {MAX_RENDER_FRAMES} are rendered: "
+            "a longer interval or a shorter duration"
+        )
     check_output_path("OUT", out, kind="folder")
     hold_for_command(out, "OUT", on_refused=fail)
     from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
     from microfab.measure.shadowgraph import render_sequence, write_frames
     from microfab.process.inkjet.fluids import naalg
 
-    _check_voltage("--voltage", voltage)
-    for name, value, low, high, unit in (
-        ("--duration", duration, 10.0, 5000.0, "µs"),
-        ("--frame-interval", frame_interval, *_INTERVAL_RANGE_US, "µs"),
-        ("--pixel-size", pixel_size, *_PIXEL_RANGE_UM, "µm"),
-    ):
-        check_option(name, value, unit, low=low, high=high, low_closed=True)
-    model = _model(model)
     try:
         fluid = naalg(concentration)
     except ValueError as exc:
@@ -208,7 +246,14 @@ def render_cmd(
         sil = [s for s in res.silhouettes if s.bodies]
         if not sil:  # inside the bar's block: a refusal clears it
             fail("the simulation produced no liquid outside the nozzle to photograph")
-    cam = _camera(sil, pixel_size / 1e6)
+        cam = _camera(sil, pixel_size / 1e6)
+        size = len(sil) * cam.height_px * cam.width_px * 8  # float64 frames, bytes
+        if size > MAX_RENDER_BYTES:
+            fail(
+                f"{len(sil)} frames of {cam.width_px} x {cam.height_px} px at --pixel-size "
+                f"{pixel_size:g} µm would take {size / 1e9:.3g} GB (at most "
+                f"{MAX_RENDER_BYTES / 1e9:g} GB): a larger --pixel-size or --frame-interval"
+            )
     frames = render_sequence(sil, cam, seed=seed)
     try:
         paths = write_frames(
@@ -227,13 +272,24 @@ def render_cmd(
 def analyze_cmd(
     frames_dir: Annotated[Path, typer.Argument(help="Folder of PNG/TIFF frames.")],
     pixel_size: Annotated[
-        float | None, typer.Option(help="Pixel size, µm (else from frames.json).")
+        float | None,
+        number(help="Pixel size (else from frames.json; the same if both).", key=PIXEL_SIZE),
     ] = None,
     frame_interval: Annotated[
-        float | None, typer.Option(help="Time between frames, µs (else from frames.json).")
+        float | None,
+        number(
+            help="Time between frames (else from frames.json; the same if both).",
+            key=FRAME_INTERVAL,
+        ),
     ] = None,
     nozzle_row: Annotated[
-        int | None, typer.Option(help="Last image row of the nozzle (else detected).")
+        int | None,
+        integer(
+            help="Last image row of the nozzle (else from frames.json, else detected).",
+            unit="px",
+            low=0,
+            high=MAX_IMAGE_ROWS,
+        ),
     ] = None,
     out: Annotated[Path | None, typer.Option(help="Figure (PNG).")] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write JSON here.")] = None,
@@ -253,13 +309,7 @@ def analyze_cmd(
         "pixel_size_m": ("--pixel-size", "µm"),
         "frame_interval_s": ("--frame-interval", "µs"),
     }
-    ranges = (_PIXEL_RANGE_UM, _INTERVAL_RANGE_US)
-    for (name, unit), value, (low, high) in zip(
-        options.values(), (pixel_size, frame_interval), ranges, strict=True
-    ):
-        check_option(name, value, unit, low=low, high=high, low_closed=True)
-    if nozzle_row is not None and nozzle_row < 0:
-        fail(f"--nozzle-row must be 0 or more (an image row), got {nozzle_row}")
+    _agree_with_sidecar(frames_dir, pixel_size=pixel_size, frame_interval=frame_interval)
     try:
         res = analyze_folder(
             frames_dir,
@@ -281,6 +331,40 @@ def analyze_cmd(
     _json(res.to_dict(), json_out)
 
 
+def _agree_with_sidecar(
+    folder: Path, *, pixel_size: float | None, frame_interval: float | None
+) -> None:
+    """Refuse a camera option that contradicts the folder's frames.json (one line, exit 2).
+
+    The sidecar says how the frames were taken: an option saying otherwise would measure
+    them at the wrong scale. They agree to 1e-9 relative (the µm-to-m conversion of a
+    decimal changes the last bits only, about 1e-16). ``pixel_size`` (µm) and
+    ``frame_interval`` (µs) are the options, ``None`` where not given.
+    """
+    import math
+
+    from microfab.measure.frames import SIDECAR_NAME, read_sidecar
+
+    if pixel_size is None and frame_interval is None:
+        return
+    try:
+        meta = read_sidecar(folder) if folder.is_dir() else {}
+    except (OSError, ValueError) as exc:
+        fail(str(exc))
+    for name, value, key, scale, unit in (
+        ("--pixel-size", pixel_size, "pixel_size_m", 1e-6, "µm"),
+        ("--frame-interval", frame_interval, "frame_interval_s", 1e-6, "µs"),
+    ):
+        stated = meta.get(key)
+        if value is None or stated is None:
+            continue
+        if not math.isclose(value * scale, stated, rel_tol=1e-9):
+            fail(
+                f"{name} {value:g} {unit}, but {folder / SIDECAR_NAME} says {key} = {stated:g} "
+                f"({stated / scale:g} {unit}); leave {name} out, or correct the file"
+            )
+
+
 def _floats(text: str, name: str) -> list[float]:
     try:
         values = [float(x) for x in text.split(",") if x.strip()]
@@ -293,6 +377,7 @@ def _floats(text: str, name: str) -> list[float]:
 
 @droplet_app.command("sweep")
 def sweep_cmd(
+    ctx: typer.Context,
     concentrations: Annotated[
         str, typer.Option(help="NaAlg concentrations at 50 V, % w/v, comma-separated.")
     ] = "0.15,0.2,0.25,1,1.5,2",
@@ -300,27 +385,29 @@ def sweep_cmd(
         str, typer.Option(help="Voltages of the voltage series, V, comma-separated ('' = none).")
     ] = "40,45,50,55,60,65,70",
     voltage_concentration: Annotated[
-        float, typer.Option(help="Concentration of the voltage series, % w/v.")
+        float,
+        number(
+            help="Concentration of the voltage series (needs --voltages).",
+            key=VOLTAGE_CONCENTRATION,
+        ),
     ] = 1.0,
-    duration: Annotated[
-        float, typer.Option(help="Simulated time per point, µs (10 to 5000).")
-    ] = 400.0,
+    duration: Annotated[float, number(help="Simulated time per point.", key=DURATION)] = 400.0,
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet/sweep"),
     jobs: Annotated[
         int,
-        typer.Option(
+        integer(
             "--jobs",
             "--workers",
-            min=1,
-            max=256,
-            help="Points simulated side by side (local Dask worker processes).",
+            help="Points simulated side by side (local Dask worker processes; not with "
+            "--scheduler).",
+            key=WORKERS,
         ),
     ] = 1,
     scheduler: Annotated[
         str | None,
         typer.Option(help="Run on this Dask scheduler (tcp://host:8786) instead."),
     ] = None,
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
+    model: ModelOpt = DEFAULT_JET_MODEL,
 ) -> None:
     """Breakup time against concentration (the seed's Fig. 4) and the 40-70 V trend.
 
@@ -328,6 +415,14 @@ def sweep_cmd(
     again resumes. microfab run examples/droplet_sweep.toml runs the same sweep as a
     job and writes a report with the seed's numbers beside ours.
     """
+    cs = _floats(concentrations, "concentrations")
+    vs = _floats(voltages, "voltages") if voltages.strip() else []
+    _check_each("--concentrations", cs, CONCENTRATION)
+    _check_each("--voltages", vs, VOLTAGE)
+    if not vs:
+        refuse_unused(ctx, ["voltage_concentration"], "with --voltages '' (no voltage series)")
+    if scheduler is not None:
+        refuse_unused(ctx, ["jobs"], "with --scheduler (the scheduler's workers run the points)")
     check_output_path("--out", out, kind="folder")
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
@@ -336,11 +431,6 @@ def sweep_cmd(
     from microfab.report.canvas import save_figure
     from microfab.report.inkjet import fig_sweep
 
-    cs = _floats(concentrations, "concentrations")
-    vs = _floats(voltages, "voltages") if voltages.strip() else []
-    for v in vs:
-        _check_voltage("--voltages", v)
-    check_option("--duration", duration, "µs", low=10.0, high=MAX_DURATION_US, low_closed=True)
     try:
         for c in {*cs, voltage_concentration}:
             naalg(c)
@@ -349,7 +439,7 @@ def sweep_cmd(
             task = bar.add_task("droplet sweep", total=len(points))
             res = droplet_sweep(
                 points,
-                settings=DropletSettings(duration_s=duration / 1e6, model=_model(model)),
+                settings=DropletSettings(duration_s=duration / 1e6, model=model),
                 results_dir=out / "sweep",
                 progress=lambda n, total, p, ok: bar.update(
                     task,
@@ -395,7 +485,7 @@ def calibrate_cmd(
         Path | None,
         typer.Option(help="Store the fitted law in this property table (TOML) file."),
     ] = None,
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
+    model: ModelOpt = DEFAULT_JET_MODEL,
 ) -> None:
     """Fit the relaxation law λ(c) to the seed's 95 µs (0.15 %) and 230 µs (1 %) breakups.
 
@@ -411,7 +501,6 @@ def calibrate_cmd(
         write_relaxation,
     )
 
-    model = _model(model)
     if write is not None and not write.is_file():
         fail(f"--write {write}: no such property table (copy src/microfab/data/naalg.toml)")
     if write is not None:
@@ -449,10 +538,8 @@ def sensitivity_cmd(
         str, typer.Option(help="NaAlg concentrations at 50 V, % w/v, comma-separated.")
     ] = "0.15,1,2",
     out: Annotated[Path, typer.Option(help="Report folder.")] = Path("report/droplet/sensitivity"),
-    model: Annotated[str, typer.Option(help=_MODEL_HELP)] = DEFAULT_JET_MODEL,
-    jobs: Annotated[
-        int, typer.Option("--jobs", min=1, max=256, help="Local Dask worker processes.")
-    ] = 1,
+    model: ModelOpt = DEFAULT_JET_MODEL,
+    jobs: Annotated[int, integer("--jobs", help="Local Dask worker processes.", key=WORKERS)] = 1,
 ) -> None:
     """Breakup time when each assumed fluid value is changed, one at a time.
 
@@ -460,6 +547,8 @@ def sensitivity_cmd(
     measurement of this alginate was found); this shows which of them the breakup times
     hang on. Points are kept in OUT/points/ as they finish; a rerun resumes.
     """
+    cs = _floats(concentrations, "concentrations")
+    _check_each("--concentrations", cs, CONCENTRATION)
     check_output_path("--out", out, kind="folder")
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.machines.printhead import DropletSettings
@@ -471,8 +560,7 @@ def sensitivity_cmd(
     )
     from microfab.process.inkjet.fluids import naalg
 
-    cs = _floats(concentrations, "concentrations")
-    settings = DropletSettings(model=_model(model))
+    settings = DropletSettings(model=model)
     try:
         for c in cs:
             naalg(c)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from collections import Counter
 from pathlib import Path
 from typing import Annotated, Any
@@ -11,20 +12,41 @@ import numpy as np
 import typer
 
 from microfab.cli._kit import (
-    check_option,
     check_outputs,
     console,
     err_console,
     fail,
     progress,
 )
+from microfab.cli._options import choice, integer, number, refuse_unused
+from microfab.io.job import Key
 
-__all__ = ["LIMIT_RANGES", "LISTED", "MAX_GRID", "MAX_RATE_HZ", "path_app", "trajectory_cmd"]
+__all__ = [
+    "CHORD_M",
+    "LIMIT_RANGES",
+    "LISTED",
+    "MAX_GRID",
+    "MAX_RATE_HZ",
+    "MIN_RATE_HZ",
+    "MIN_SAMPLES",
+    "TEXT_HEIGHT_M",
+    "path_app",
+    "refuse_unused_sizing",
+    "trajectory_cmd",
+]
 
 #: Largest ``--n-grid`` (the linear programs grow with it; 20000 points take a minute).
 MAX_GRID = 20_000
 #: Largest ``--rate``, Hz.
 MAX_RATE_HZ = 1e8
+#: Lowest ``--rate``, Hz (assumed: the slowest loop among the machines microfab drives is
+#: the 400 Hz of seed 002's networks (seed 002 §III-B, Fig. 4); a quarter of it is a floor
+#: below which no machine here is commanded).
+MIN_RATE_HZ = 100.0
+#: Fewest samples a reference may hold over its motion (assumed: 100 samples around a
+#: circle are 3.6° apart, their chords within R (1 - cos(π/100)) = 5e-4 R of the arc; a
+#: coarser reference no longer describes the path it is meant to follow).
+MIN_SAMPLES = 100
 #: Accepted range of each limit option by unit (assumed physical bounds of the machines
 #: microfab drives: galvo scanners reach ~10 m/s, 1e6 m/s², 1e10 m/s³ at the image plane,
 #: stages a metre of travel; outside them a planner only meets overflows).
@@ -34,6 +56,12 @@ LIMIT_RANGES: dict[str, tuple[float, float]] = {
     "m/s³": (1e-6, 1e13),
     "m": (1e-6, 10.0),
 }
+#: Airfoil chord and text height: from 1 µm to the 10 m of the largest workspace one may
+#: declare (`LIMIT_RANGES`); assumed, like that range.
+CHORD_M = Key(name="chord", type="float", default=0.1, low=1e-6, high=10.0, unit="m",
+              help="Airfoil chord.")  # fmt: skip
+TEXT_HEIGHT_M = Key(name="text_height", type="float", default=0.01, low=1e-6, high=10.0,
+                    unit="m", help="Text font size.")  # fmt: skip
 #: Contours (and skipped items) ``path show`` lists one per line; ``--json`` gives all.
 LISTED = 20
 
@@ -46,21 +74,62 @@ DrawingArg = Annotated[
         "polygon:n_sides=6,radius=0.01, ...), text:LETTERS or airfoil:e344."
     ),
 ]
+
+
+def _units() -> dict[str, float]:
+    """The drawing units `microfab.geometry.dxf.UNITS_M` names, imported when needed."""
+    from microfab.geometry.dxf import UNITS_M
+
+    return UNITS_M
+
+
+#: --units, checked while parsed against `UNITS_M` in any case (as the DXF reader reads it).
 UnitsOpt = Annotated[
-    str | None, typer.Option(help="DXF drawing units when the header has none (mm, inch, m, um).")
+    str | None,
+    choice(
+        choices=_units, help="DXF drawing units when the header has none.", case_sensitive=False
+    ),
 ]
-ChordOpt = Annotated[float, typer.Option(help="Airfoil chord, m.")]
-HeightOpt = Annotated[float, typer.Option(help="Text font size, m.")]
+ChordOpt = Annotated[float, number("--chord", key=CHORD_M)]
+HeightOpt = Annotated[float, number("--text-height", key=TEXT_HEIGHT_M)]
+
+
+def _velocity(help: str) -> Any:
+    """A speed option (m/s) in the range of ``--vmax`` (`LIMIT_RANGES`)."""
+    low, high = LIMIT_RANGES["m/s"]
+    return number(help=help, unit="m/s", low=low, high=high)
+
+
+def refuse_unused_sizing(ctx: typer.Context, drawing: str) -> None:
+    """Refuse ``--chord``, ``--text-height`` or ``--units`` where the drawing has no use for it.
+
+    ``--chord`` sizes an airfoil (``airfoil:NAME`` or a ``.dat`` file), ``--text-height``
+    the letters of ``text:LETTERS``, ``--units`` a DXF file (`microfab.geometry.load`).
+    """
+    spec = drawing.strip()
+    kind, sep, _ = spec.partition(":")
+    kind = kind.lower() if sep else ""
+    suffix = "" if kind in ("text", "airfoil") else Path(spec).suffix.lower()
+    if not (kind == "airfoil" or suffix == ".dat"):
+        refuse_unused(ctx, ["chord"], "on this drawing: it sizes an airfoil (airfoil:NAME, .dat)")
+    if kind != "text":
+        refuse_unused(ctx, ["text_height"], "on this drawing: it sizes text:LETTERS")
+    if suffix != ".dxf":
+        refuse_unused(ctx, ["units"], "on this drawing: it is the unit of a .dxf file")
 
 
 def _load(drawing: str, units: str | None, chord: float, text_height: float):
-    from microfab.geometry.dxf import UNITS_M
     from microfab.geometry.load import load_drawing
 
-    check_option("--chord", chord, "m")
-    check_option("--text-height", text_height, "m")
-    if units is not None and units.strip().lower() not in UNITS_M:
-        fail(f"--units {units!r} is not one of {', '.join(UNITS_M)}")
+    # the options are checked while parsed; `stage score` passes the sizing it reads
+    # from a summary file, checked here against the same declarations
+    sizing = (("--chord", chord, CHORD_M), ("--text-height", text_height, TEXT_HEIGHT_M))
+    for flag, value, key in sizing:
+        if key.outside(value):
+            fail(f"{flag} {value:g} {key.unit} is outside the allowed range {key.range_text()}")
+    units_m = _units()  # --units is checked while parsed; a summary's units here
+    if units is not None and units.strip().lower() not in units_m:
+        fail(f"--units {units!r} is not one of {', '.join(units_m)}")
     try:
         return load_drawing(drawing, units=units, chord=chord, text_height=text_height)
     except (OSError, ValueError) as exc:
@@ -69,6 +138,7 @@ def _load(drawing: str, units: str | None, chord: float, text_height: float):
 
 @path_app.command("show")
 def path_show_cmd(
+    ctx: typer.Context,
     drawing: DrawingArg,
     out: Annotated[
         Path | None, typer.Option(help="PNG picture (default: DRAWING-stem.png).")
@@ -88,6 +158,7 @@ def path_show_cmd(
     """
     target = out or Path(_stem(drawing) + ".png")
     check_outputs(files={"--out": target}, inputs={"DRAWING": Path(drawing)})
+    refuse_unused_sizing(ctx, drawing)
     from microfab.report.canvas import save_figure
     from microfab.report.geometry import fig_layer
 
@@ -155,37 +226,73 @@ def _stem(drawing: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in stem) or "drawing"
 
 
+def _limit(help: str, unit: str) -> Any:
+    """A machine-limit option in its unit's range (`LIMIT_RANGES`)."""
+    low, high = LIMIT_RANGES[unit]
+    return number(help=help, unit=unit, low=low, high=high)
+
+
+def _enough_samples(n: int, dt: float, rate: float) -> None:
+    """Refuse a reference of fewer than `MIN_SAMPLES` samples over its motion.
+
+    Parameters
+    ----------
+    n : int
+        Samples of the reference.
+    dt : float
+        Its sample time, s.
+    rate : float
+        ``--rate``, Hz, as given.
+    """
+    if n >= MIN_SAMPLES:
+        return
+    motion = (n - 1) * dt  # from the first sample to the last, s
+    need = f"{math.ceil((MIN_SAMPLES - 1) / motion)} Hz or more" if motion > 0 else "a longer path"
+    fail(
+        f"--rate {rate:g} Hz gives {n} samples over the {motion:.6g} s motion; a reference "
+        f"needs at least {MIN_SAMPLES} to follow the path: give --rate {need}"
+    )
+
+
 def trajectory_cmd(
+    ctx: typer.Context,
     drawing: DrawingArg,
     speed: Annotated[
         float | None,
-        typer.Option(
-            help="Path speed, m/s (seed 002 eq. 15): held wherever the limits allow, with "
-            "ramps from and to rest, slower in tight curves, a stop at each corner."
+        _velocity(
+            "Path speed (seed 002 eq. 15): held wherever the limits allow, with ramps from "
+            "and to rest, slower in tight curves, a stop at each corner."
         ),
     ] = None,
     time_optimal: Annotated[
         bool, typer.Option("--time-optimal", help="Minimum time under the limits.")
     ] = False,
-    vmax: Annotated[float | None, typer.Option(help="Per-axis velocity limit, m/s.")] = None,
-    amax: Annotated[float | None, typer.Option(help="Per-axis acceleration limit, m/s².")] = None,
-    jmax: Annotated[float | None, typer.Option(help="Per-axis jerk limit, m/s³.")] = None,
-    workspace: Annotated[
-        float | None, typer.Option(help="Half width of the square workspace, m.")
-    ] = None,
-    feed: Annotated[float | None, typer.Option(help="Path speed cap, m/s (time-optimal).")] = None,
-    rate: Annotated[float, typer.Option(help="Sample rate, Hz (1 Hz to 100 MHz).")] = 10_000.0,
+    vmax: Annotated[float | None, _limit("Per-axis velocity limit.", "m/s")] = None,
+    amax: Annotated[float | None, _limit("Per-axis acceleration limit.", "m/s²")] = None,
+    jmax: Annotated[float | None, _limit("Per-axis jerk limit.", "m/s³")] = None,
+    workspace: Annotated[float | None, _limit("Half width of the square workspace.", "m")] = None,
+    feed: Annotated[float | None, _velocity("Path speed cap (time-optimal).")] = None,
+    rate: Annotated[
+        float,
+        number(
+            help=f"Sample rate; the reference holds at least {MIN_SAMPLES} samples.",
+            unit="Hz",
+            low=MIN_RATE_HZ,
+            high=MAX_RATE_HZ,
+        ),
+    ] = 10_000.0,
     n_grid: Annotated[
         int,
-        typer.Option(
-            min=10,
-            max=MAX_GRID,
-            help=f"Planning grid points (time-optimal), 10 to {MAX_GRID}; planning time "
-            "grows faster than the grid (1000: a few s, 20000: about a minute).",
+        integer(
+            help="Planning grid points (time-optimal); planning time grows faster than the "
+            "grid (1000: a few s, 20000: about a minute).",
+            low=10,  # assumed: fewer points do not resolve a corner's ramps
+            high=MAX_GRID,
         ),
     ] = 1000,
     contour: Annotated[
-        int | None, typer.Option(help="Only this contour (index); default: all, joined by jumps.")
+        int | None,
+        integer(help="Only this contour (index); default: all, joined by jumps.", low=0),
     ] = None,
     out: Annotated[Path, typer.Option(help="Reference file: .csv, .h5 or .mat.")] = Path(
         "reference.csv"
@@ -212,22 +319,10 @@ def trajectory_cmd(
 
     if (speed is None) == (not time_optimal):
         fail("give exactly one of --speed V or --time-optimal")
-    check_option("--rate", rate, "Hz", low=1.0, high=MAX_RATE_HZ, low_closed=True)
-    for name, value, unit in (
-        ("--speed", speed, "m/s"),
-        ("--feed", feed, "m/s"),
-        ("--vmax", vmax, "m/s"),
-        ("--amax", amax, "m/s²"),
-        ("--jmax", jmax, "m/s³"),
-        ("--workspace", workspace, "m"),
-    ):
-        if name in ("--speed", "--feed"):  # requests, capped by the limits; the sample
-            check_option(name, value, unit)  # budget refuses one too slow to sample
-        else:
-            low, high = LIMIT_RANGES[unit]
-            check_option(name, value, unit, low=low, high=high, low_closed=True)
-    if feed is not None and not time_optimal:
-        fail("--feed caps the speed of --time-optimal; with --speed, the speed is already set")
+    refuse_unused_sizing(ctx, drawing)
+    if not time_optimal:
+        refuse_unused(ctx, ["feed"], "with --speed (it caps the speed of --time-optimal)")
+        refuse_unused(ctx, ["n_grid"], "with --speed (it is the planning grid of --time-optimal)")
     base = MachineLimits.seed002_stage()
     try:
         half = workspace
@@ -274,6 +369,7 @@ def trajectory_cmd(
             assert speed is not None
             traj = cruise(path, limits, speed=speed, sample_rate_hz=rate)
         check_trajectory(traj, limits)
+        _enough_samples(traj.n_samples, traj.dt, rate)
     except LimitViolation as exc:
         if time_optimal:
             fail(f"{exc}. Declare other limits (--vmax, --amax, --jmax, --workspace).")

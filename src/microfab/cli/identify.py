@@ -23,7 +23,6 @@ import numpy as np
 import typer
 
 from microfab.cli._kit import (
-    check_option,
     check_outputs,
     console,
     fail,
@@ -33,6 +32,8 @@ from microfab.cli._kit import (
     read_trace_file,
     renamed,
 )
+from microfab.cli._options import choice, integer, number
+from microfab.experiments.seed002_stage.keys import DECIMATE, ORDER
 from microfab.report.tables import Table
 
 __all__ = ["identify_app"]
@@ -53,6 +54,45 @@ _CHIRP_NAMES = {
     "amplitude": "--amplitude",
 }
 _AMPLITUDE_TOL = 0.1  # --amplitude: the recorded input's half range within 10 % of it
+#: Most poles (and zeros) of a fitted model. Assumed: the seed's model has 3 (seed 003
+#: part 2 §1); a rational fit of more than 20 to one FRF is ill-conditioned.
+_MAX_POLES = 20
+#: Highest chirp frequency, Hz. Assumed: half the 100 MHz that ``trajectory --rate`` takes
+#: as its highest sample rate (`microfab.cli.geometry.MAX_RATE_HZ`); the file's own Nyquist
+#: frequency is checked with the file.
+_MAX_HZ = 5e7
+#: Longest sweep, s. Assumed: an hour (the seed's is 1 s, seed 003 part 2 §1); longer is a
+#: unit mistake.
+_MAX_PERIOD_S = 3600.0
+#: Most sweeps read or dropped. Assumed: averaging 10 000 sweeps already takes the noise
+#: down 100-fold; more is a typo.
+_MAX_SWEEPS = 10_000
+#: Largest period-to-period mismatch of the input (`_mismatch`) for it to repeat every
+#: --period. Assumed: a repeating input with white noise of rms a (relative to the
+#: signal's rms) measures a / sqrt(1 + a^2): 0.29 at a = 0.3 (measured 0.285 on the test
+#: chirp plus noise), so an input channel with noise up to 30 % of the chirp passes. A
+#: wrong period measures about 1 (0.998-1.004 at 0.8x, 1.2x, 0.5x, 0.25x, 1.5x the test
+#: chirp's 50 ms; 0.50 at 10 samples off in 5000, 0.052 at 1 sample off).
+_REPEAT_TOL = 0.3
+
+
+#: The FRF estimates of ``identify chirp --method`` (`microfab.identify.frf.frf_periodic`,
+#: `frf_h1`).
+FRF_METHODS = ("periodic", "h1")
+
+
+def _sweeps() -> tuple[str, ...]:
+    """The chirp laws (`microfab.identify.chirp.SWEEPS`), imported when needed."""
+    from microfab.identify.chirp import SWEEPS
+
+    return SWEEPS
+
+
+def _weightings() -> tuple[str, ...]:
+    """The subspace weightings (`microfab.identify.subspace.WEIGHTINGS`), imported when needed."""
+    from microfab.identify.subspace import WEIGHTINGS
+
+    return WEIGHTINGS
 
 
 @identify_app.command("chirp")
@@ -65,28 +105,76 @@ def chirp_cmd(
     ],
     json_path: Annotated[Path, typer.Option("--json", help="Write the fitted model (JSON) here.")],
     band: Annotated[str, typer.Option(help="Band to fit, LOW:HIGH [Hz].")] = "10:2000",
-    poles: Annotated[int, typer.Option(min=1, help="Poles of the model.")] = 3,
-    zeros: Annotated[int, typer.Option(min=0, help="Zeros of the model (<= poles).")] = 0,
+    poles: Annotated[
+        int, integer("--poles", help="Poles of the model.", low=1, high=_MAX_POLES)
+    ] = 3,
+    zeros: Annotated[
+        int, integer("--zeros", help="Zeros of the model (<= poles).", low=0, high=_MAX_POLES)
+    ] = 0,
     axis: Annotated[str, typer.Option(help="Axis <a> of the input_<a>, output_<a> columns.")] = "x",
-    f0: Annotated[float, typer.Option(help="Chirp start frequency [Hz].")] = 10.0,
-    f1: Annotated[float, typer.Option(help="Chirp stop frequency [Hz].")] = 2000.0,
-    period: Annotated[float, typer.Option(help="Length of one sweep [s].")] = 1.0,
+    f0: Annotated[
+        float,
+        number(
+            "--f0", help="Chirp start frequency.", unit="Hz", low=0.0, low_open=True, high=_MAX_HZ
+        ),
+    ] = 10.0,
+    f1: Annotated[
+        float,
+        number(
+            "--f1", help="Chirp stop frequency.", unit="Hz", low=0.0, low_open=True, high=_MAX_HZ
+        ),
+    ] = 2000.0,
+    period: Annotated[
+        float,
+        number(
+            "--period",
+            help="Length of one sweep.",
+            unit="s",
+            low=0.0,
+            low_open=True,
+            high=_MAX_PERIOD_S,
+        ),
+    ] = 1.0,
     periods: Annotated[
         int | None,
-        typer.Option(min=1, help="Sweeps to read (default: every whole one the file holds)."),
+        integer(
+            "--periods",
+            help="Sweeps to read, the dropped ones included (default: every whole one the "
+            "file holds).",
+            low=1,
+            high=_MAX_SWEEPS,
+        ),
     ] = None,
-    drop: Annotated[int, typer.Option(min=0, help="Leading sweeps left out (transient).")] = 1,
+    drop: Annotated[
+        int,
+        integer("--drop", help="Leading sweeps left out (transient).", low=0, high=_MAX_SWEEPS),
+    ] = 1,
     amplitude: Annotated[
         float | None,
-        typer.Option(help="Chirp amplitude; when given, the input column must match it (10 %)."),
+        number(
+            "--amplitude",
+            help="Chirp amplitude, in the trace's unit; when given, the input column must "
+            "match it (10 %).",
+            low=0.0,
+            low_open=True,
+        ),
     ] = None,
-    sweep: Annotated[str, typer.Option(help="Frequency law: linear or log.")] = "linear",
+    sweep: Annotated[str, choice(choices=_sweeps, help="Frequency law.")] = "linear",
     method: Annotated[
         str,
-        typer.Option(help="FRF estimate: periodic (FFT ratio per sweep) or h1 (P_yu / P_uu)."),
+        choice(
+            choices=FRF_METHODS,
+            help="FRF estimate: periodic (FFT ratio per sweep) or h1 (P_yu / P_uu).",
+        ),
     ] = "periodic",
     min_coherence: Annotated[
-        float, typer.Option(help="Coherence the band must reach (0 checks nothing).")
+        float,
+        number(
+            "--min-coherence",
+            help="Coherence the band must reach (0 checks nothing).",
+            low=0.0,
+            high=1.0,
+        ),
     ] = 0.8,
     plot: Annotated[
         Path | None, typer.Option(help="Write the Bode plot of data and fit (PNG) here.")
@@ -107,10 +195,17 @@ def chirp_cmd(
     from microfab.io.atomic import atomic_write_json
 
     lo, hi = parse_range("--band", band)
-    check_option("--min-coherence", min_coherence, "", low=0.0, high=1.0, low_closed=True)
-    if method not in ("periodic", "h1"):
-        fail(f"--method must be periodic or h1, got {method!r}")
-    check_option("--period", period, "s")
+    if zeros > poles:
+        fail(f"--zeros {zeros} is more than --poles {poles}: a model has at most as many zeros")
+    if f1 <= f0:
+        fail(f"--f1 {f1:g} Hz must be above --f0 {f0:g} Hz")
+    if f0 * period < 1.0 - 1e-12:
+        fail(
+            f"--f0 {f0:g} Hz is below one FFT bin of --period {period:g} s ({1 / period:g} Hz): "
+            "raise --f0 or lengthen --period"
+        )
+    if periods is not None and periods <= drop:
+        fail(f"--periods {periods} must be more than --drop {drop}: at least one sweep is kept")
     tr = read_trace_file(trace)
     u, y = input_output(tr, trace, axis)
     dt = float(tr.dt)
@@ -124,6 +219,11 @@ def chirp_cmd(
         fail(
             f"{trace}: the record holds {n_whole} whole sweeps of {period:g} s, --periods "
             f"says {periods}"
+        )
+    if n_whole <= drop:
+        fail(
+            f"{trace}: the record holds {n_whole} whole sweeps of --period {period:g} s and "
+            f"--drop {drop} leaves none: the chirp's period or a smaller --drop?"
         )
     try:
         design = ChirpDesign(
@@ -141,6 +241,7 @@ def chirp_cmd(
     n = design.samples_per_period
     if periods is not None:
         u, y = u[: periods * n], y[: periods * n]
+    _check_repeats(u, n, dt, drop, f"{trace}: input_{axis}")
     if amplitude is not None:
         kept = u[drop * n :]
         half = 0.5 * float(kept.max() - kept.min()) if kept.size else 0.0
@@ -177,6 +278,58 @@ def chirp_cmd(
 
         save_figure(figure, plot)
         console.print(f"wrote {plot}", highlight=False)
+
+
+def _mismatch(u: np.ndarray, n: int, first: int) -> float | None:
+    """Period-to-period mismatch of ``u`` at a period of ``n`` samples, from period ``first``.
+
+    Parameters
+    ----------
+    u : numpy.ndarray
+        Input samples, shape (N,).
+    n : int
+        Period, samples.
+    first : int
+        First period compared (earlier ones may hold a fade-in).
+
+    Returns
+    -------
+    float or None
+        ``rms(u_{k+1} - u_k) / (sqrt(2) rms(u - mean))`` over the whole periods from
+        ``first`` on (0: repeats exactly; about 1: unrelated periods); ``None`` when fewer
+        than two whole periods are left or the input is constant.
+    """
+    v = u[first * n : (u.size // n) * n]
+    if v.size < 2 * n:
+        return None
+    spread = float(np.sqrt(np.mean((v - v.mean()) ** 2)))
+    if spread == 0.0:
+        return None
+    d = v[n:] - v[:-n]
+    return float(np.sqrt(np.mean(d**2))) / (np.sqrt(2.0) * spread)
+
+
+def _check_repeats(u: np.ndarray, n: int, dt: float, drop: int, what: str) -> None:
+    """Refuse an input that does not repeat every ``n`` samples, or repeats sooner.
+
+    The sweeps from the last dropped one on are compared (`_mismatch`, ``_REPEAT_TOL``);
+    an input that also repeats every half, third or fifth of the period was recorded
+    with a shorter chirp than --period says.
+    """
+    first = max(drop - 1, 0)
+    eps = _mismatch(u, n, first)
+    if eps is not None and eps > _REPEAT_TOL:
+        fail(
+            f"{what} does not repeat every --period {n * dt:g} s (period-to-period mismatch "
+            f"{eps:.2g} of its rms, at most {_REPEAT_TOL:g}): not the file's chirp period?"
+        )
+    for k, part in ((2, "half"), (3, "third"), (5, "fifth")):
+        eps = _mismatch(u, n // k, first * k) if n % k == 0 else None
+        if eps is not None and eps <= _REPEAT_TOL:
+            fail(
+                f"{what} repeats every {n * dt / k:g} s, a {part} of --period {n * dt:g} s: "
+                "give the chirp's own period"
+            )
 
 
 def _fit_table(fit: Any, trace: Path, axis: str) -> Table:
@@ -268,6 +421,11 @@ def _error_table(
     return Table(title=title, columns=cols, rows=rows, note=note)
 
 
+#: Most block rows of the subspace fit: `microfab.identify.subspace.MAX_BLOCK_ROWS` (its R
+#: factor's memory bound), restated so that the CLI starts without SciPy; a test checks it.
+MAX_BLOCK_ROWS = 256
+
+
 #: Where a network model's errors are taken (`microfab.identify.stage_ann`).
 ANN_COMPARED = (
     "at every run sample ({rate:g} Hz: the 400 Hz networks at each start offset, interleaved)"
@@ -311,11 +469,19 @@ def linear_cmd(
             "DIR/linear_model.json.",
         ),
     ],
-    order: Annotated[int, typer.Option(min=1, help="States n (seed 002 §III-A: 4).")] = 4,
+    order: Annotated[int, integer("--order", key=ORDER, help="States n (seed 002 §III-A: 4).")] = 4,
     block_rows: Annotated[
-        int | None, typer.Option(min=2, help="Block rows of past and future (default 2n + 2).")
+        int | None,
+        integer(
+            "--block-rows",
+            help="Block rows of past and future (default 2n + 2).",
+            low=2,
+            high=MAX_BLOCK_ROWS,
+        ),
     ] = None,
-    weighting: Annotated[str, typer.Option(help="moesp, n4sid or cva.")] = "moesp",
+    weighting: Annotated[
+        str, choice(choices=_weightings, help="Subspace weighting of the fit.")
+    ] = "moesp",
     feedthrough: Annotated[
         bool,
         typer.Option(
@@ -325,8 +491,9 @@ def linear_cmd(
     ] = True,
     decimate: Annotated[
         int | None,
-        typer.Option(
-            min=1,
+        integer(
+            "--decimate",
+            key=DECIMATE,
             help="Decimate inputs and outputs alike first, FIR anti-alias filter (order 20q, "
             "Hamming, zero phase); default: to about 1 kHz, where the fit is well conditioned "
             "(10 for 10 kHz runs).",
@@ -350,8 +517,6 @@ def linear_cmd(
         write_stage_model,
     )
 
-    if weighting not in ("moesp", "n4sid", "cva"):
-        fail(f"--weighting must be moesp, n4sid or cva, got {weighting!r}")
     if block_rows is not None and order > block_rows:
         fail(f"--order {order} is above --block-rows {block_rows}: use --block-rows >= {order}")
     from microfab.identify.subspace import SubspaceConfig

@@ -20,7 +20,6 @@ from typing import Annotated, Any
 import typer
 
 from microfab.cli._kit import (
-    check_option,
     check_outputs,
     console,
     fail,
@@ -28,7 +27,16 @@ from microfab.cli._kit import (
     progress,
     renamed,
 )
+from microfab.cli._options import choice, integer, number, refuse_unused
 from microfab.cli.identify import _RUN_HELP, ANN_COMPARED, _error_table, _read_runs, identify_app
+from microfab.experiments.seed002_stage.keys import (
+    ANN_EPOCH_WINDOWS,
+    ANN_MAX_EPOCHS,
+    ANN_SEED,
+    ANN_THREADS,
+    ANN_VALIDATION,
+    ANN_WORKERS,
+)
 from microfab.io.lock import hold_for_command
 from microfab.report.tables import Table
 
@@ -36,10 +44,20 @@ __all__ = ["ann_cmd"]
 
 _AXES = {"x": ("x",), "y": ("y",), "both": ("x", "y")}
 _CHECKPOINTS = "checkpoints"  # DIR/checkpoints: train_ann's ann_<axis>.ckpt.npz
+#: Devices `microfab.identify.ann.AnnConfig` takes (``device``).
+_DEVICES = ("auto", "cpu", "cuda")
+
+
+def _features() -> tuple[str, ...]:
+    """The input feature sets (`microfab.identify.ann_data.FEATURES`), imported when needed."""
+    from microfab.identify.ann_data import FEATURES
+
+    return FEATURES
 
 
 @identify_app.command("ann")
 def ann_cmd(
+    ctx: typer.Context,
     runs: Annotated[list[Path], typer.Argument(help=_RUN_HELP + " At least two.")],
     out: Annotated[
         Path,
@@ -49,55 +67,67 @@ def ann_cmd(
             "`optimize --model DIR` reads DIR/ann/model.",
         ),
     ],
-    axis: Annotated[str, typer.Option(help="x, y or both (one network per axis).")] = "both",
+    axis: Annotated[str, choice(choices=_AXES, help="Axes trained, one network each.")] = "both",
     epochs: Annotated[
         int,
-        typer.Option(
-            min=1,
-            max=10_000,
+        integer(
+            "--epochs",
+            key=ANN_MAX_EPOCHS,
             help="Most epochs per axis (early stopping may end sooner; seed 002: 200).",
         ),
     ] = 200,
-    device: Annotated[str, typer.Option(help="auto (CUDA if present), cpu or cuda.")] = "auto",
+    device: Annotated[
+        str, choice(choices=_DEVICES, help="Training device; auto: CUDA if present, else CPU.")
+    ] = "auto",
     restart: Annotated[
         bool, typer.Option("--restart", help="Discard the checkpoints and train from scratch.")
     ] = False,
     threads: Annotated[
         int,
-        typer.Option(
-            min=1, max=256, help="CPU threads of PyTorch (1: best on a shared 2-core box)."
+        integer(
+            "--threads",
+            key=ANN_THREADS,
+            help="CPU threads of PyTorch (1: best on a shared 2-core box).",
         ),
     ] = 1,
     workers: Annotated[
         int,
-        typer.Option(
-            min=1,
-            max=2,
+        integer(
+            "--workers",
+            key=ANN_WORKERS,
             help="Axes trained at once, each in its own process (2: x and y "
             "side by side, half the time on 2 cores; same networks).",
         ),
     ] = 1,
     epoch_windows: Annotated[
         int,
-        typer.Option(
-            min=0,
+        integer(
+            "--epoch-windows",
+            key=ANN_EPOCH_WINDOWS,
             help="Training windows per epoch, a fresh random draw each "
             "epoch (0: all windows every epoch).",
         ),
     ] = 0,
     validation: Annotated[
-        float, typer.Option(help="Share of the runs kept for validation (seed 002: 0.2).")
+        float,
+        number(
+            "--validation",
+            key=ANN_VALIDATION,
+            help="Share of the runs kept for validation (seed 002: 0.2).",
+        ),
     ] = 0.2,
     seed: Annotated[
-        int, typer.Option(min=0, help="Seeds the split, the initial weights, the shuffles.")
+        int,
+        integer("--seed", key=ANN_SEED, help="Seeds the split, the initial weights, the shuffles."),
     ] = 0,
     features: Annotated[
         str,
-        typer.Option(
+        choice(
+            choices=_features,
             help="position: also sin/cos of the last 40 ms of absolute positions at 13 "
             "wavelengths (1-251 mm) as inputs, so position-periodic forces (cogging) are "
             "learnt (better on runs like the training runs, worse on new shapes on the "
-            "twin); none: the seed's 200 inputs only."
+            "twin); none: the seed's 200 inputs only.",
         ),
     ] = "none",
 ) -> None:
@@ -111,15 +141,8 @@ def ann_cmd(
     """
     check_outputs(folders={"--out": out}, inputs={"RUNS": runs})
     hold_for_command(out, "--out", on_refused=fail)
-    if axis not in _AXES:
-        fail(f"--axis must be x, y or both, got {axis!r}")
-    if device not in ("auto", "cpu", "cuda"):
-        fail(f"--device must be auto, cpu or cuda, got {device!r}")
-    if features not in ("none", "position"):
-        fail(f"--features must be none or position, got {features!r}")
-    check_option("--validation", validation, "", low=0.0, high=1.0)
-    if validation >= 1.0:
-        fail(f"--validation must be less than 1 (a share of the runs), got {validation:g}")
+    if axis != "both":
+        refuse_unused(ctx, ["workers"], f"with --axis {axis} (one network, one process)")
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file: the model is a directory (model.json, weights.npz)")
     try:

@@ -9,9 +9,19 @@ from typing import Annotated, Any
 import typer
 
 from microfab.cli._kit import check_outputs, console, fail, print_table
+from microfab.cli._options import integer, number
+from microfab.experiments.seed004_laser.keys import CONTOUR
 from microfab.io.lock import hold_for_command
 
-__all__ = ["laser_app"]
+__all__ = ["MAX_REFERENCE_TOL_UM", "MIN_REFERENCE_TOL_UM", "laser_app"]
+
+#: Largest distance of the reference to the drawing accepted, µm (assumed: the reference
+#: is computed from the drawing and keeps to it within the spline's rounding, nm to a
+#: few µm on seed 004's 30 µm circle; a millimetre is another drawing, or another unit).
+MAX_REFERENCE_TOL_UM = 1000.0
+#: Smallest, µm: the stage's position resolution, 10 nm (seed 004 Table I, as
+#: ``data/lmw_stage.toml`` [encoder]); a finer tolerance says nothing about the machine.
+MIN_REFERENCE_TOL_UM = 0.01
 
 laser_app = typer.Typer(no_args_is_help=True, help="The seed 004 laser micromachining stage.")
 
@@ -28,9 +38,17 @@ def analyze_cmd(
     drawing: Annotated[
         str, typer.Option(help="The drawing the reference came from (file or shape source).")
     ],
-    contour: Annotated[int, typer.Option(help="Which closed contour of the drawing.")] = 0,
+    contour: Annotated[
+        int, integer(help="Which closed contour of the drawing, from 0.", key=CONTOUR)
+    ] = 0,
     reference_tol_um: Annotated[
-        float, typer.Option(help="Largest distance of the reference to the drawing [µm].")
+        float,
+        number(
+            help="Largest distance of the reference to the drawing.",
+            unit="µm",
+            low=MIN_REFERENCE_TOL_UM,
+            high=MAX_REFERENCE_TOL_UM,
+        ),
     ] = 1.0,
     out: Annotated[
         Path | None, typer.Option(help="Write report.html and its figures here.")
@@ -62,12 +80,14 @@ def analyze_cmd(
     from microfab.report.contour import analysis_table, write_analysis
     from microfab.trajectory.contour_laps import contour_path
 
-    if not reference_tol_um > 0:
-        fail(f"--reference-tol-um must be positive, got {reference_tol_um:g} µm")
     cfg = _laser_job(job) if job is not None else None  # before any work or output
+    try:  # the drawing and its contour before the trace: a bad --contour reads nothing
+        path = contour_path(drawing, contour)
+    except (OSError, ValueError) as exc:
+        msg = str(exc)
+        fail(msg if drawing in msg else f"--drawing {drawing}: {msg}")
     measured = _measured_trace(trace, cfg)
     try:
-        path = contour_path(drawing, contour)
         a = analyze_trace(measured, path, reference_tol_m=reference_tol_um * 1e-6)
     except (OSError, ValueError) as exc:
         fail(f"{trace}: {exc}")

@@ -19,7 +19,10 @@ contour with the input and the predicted output, the deviation along ``s``). Sta
 a checkpoint (``stage2_checkpoint.npz``) every few iterations and a rerun resumes it;
 ``--stage 1`` stops after stage 1 (no networks needed). A refusal is one ``error:``
 line, exit code 2, and nothing is written (a stage-2 checkpoint already saved is kept
-for the resume).
+for the resume). The folder is written whole: the results go into a temporary folder
+inside it and are moved in at the end, and the files an earlier run left that this one
+does not write (``predicted.csv`` and the checkpoint after ``--stage 1``, a command file of
+another ``--format``) are removed; other files in the folder are left alone.
 """
 
 from __future__ import annotations
@@ -29,12 +32,15 @@ from typing import Annotated, Any
 
 import typer
 
-from microfab.cli._kit import check_option, check_outputs, console, fail
+from microfab.cli._kit import check_outputs, console, fail
+from microfab.cli._options import choice, integer, number
+from microfab.cli.geometry import ChordOpt, HeightOpt, UnitsOpt, refuse_unused_sizing
 from microfab.io.lock import hold_for_command
 
 __all__ = ["optimize_cmd"]
 
 _FORMATS = ("csv", "h5", "mat")
+_CHECKPOINT = "stage2_checkpoint.npz"
 _STAGES = ("1", "both")
 _A_MAX = 40.0  # seed 002 Table I: the machine's acceleration limit, m/s²
 #: Assumed floors: below 1 mm/s² a contour of millimetres takes minutes and stage 2's M
@@ -42,11 +48,17 @@ _A_MAX = 40.0  # seed 002 Table I: the machine's acceleration limit, m/s²
 #: noise (seed 002 eq. 3) and only makes the solvers meet infinities.
 _A_MIN = 1e-3
 _TOL_MIN = 1e-9
+#: Assumed ceiling: 1 mm is 50x the seed's 20 µm (seed 002 §V) and wider than the smallest
+#: features of the drawings it traces; the contour is then no longer what is tracked.
+_TOL_MAX = 1e-3
 #: Most stage-1 points: 2.5x the largest default (seed 002 §IV-A: spacing μ, 200-2000).
 _N_MAX = 5000
+#: Fewest stage-1 points (assumed: fewer do not resolve a contour's corners at all).
+_N_MIN = 10
 
 
 def optimize_cmd(
+    ctx: typer.Context,
     drawing: Annotated[
         str,
         typer.Argument(
@@ -66,28 +78,38 @@ def optimize_cmd(
         ),
     ] = None,
     amax: Annotated[
-        float, typer.Option(help="Output acceleration bound a_max, m/s² (0.001-40; seed 002: 1-3).")
+        float,
+        number(
+            help="Output acceleration bound a_max (seed 002: 1-3).",
+            unit="m/s²",
+            low=_A_MIN,
+            high=_A_MAX,
+        ),
     ] = 1.0,
     tolerance: Annotated[
         float,
-        typer.Option(help="Tolerance μ around the contour, m (1e-9 to 1e-3; seed 002: 20e-6)."),
+        number(
+            help="Tolerance μ around the contour (seed 002: 20e-6).",
+            unit="m",
+            low=_TOL_MIN,
+            high=_TOL_MAX,
+        ),
     ] = 20e-6,
     stage: Annotated[
-        str, typer.Option(help="'both' (default) or '1' (stage 1 only, no networks).")
+        str, choice(choices=_STAGES, help="Stages run: both, or 1 (stage 1 only, no networks).")
     ] = "both",
     n: Annotated[
         int | None,
-        typer.Option(help="Stage-1 points N (default: spacing μ, 200-2000; 10 to 5000)."),
+        integer(help="Stage-1 points N (default: spacing μ, 200-2000).", low=_N_MIN, high=_N_MAX),
     ] = None,
     contour: Annotated[
-        int | None, typer.Option(help="The contour to trace when the drawing has several.")
+        int | None,
+        integer(help="The contour to trace when the drawing has several.", low=0),
     ] = None,
-    fmt: Annotated[str, typer.Option("--format", help="Command file: csv, h5 or mat.")] = "csv",
-    chord: Annotated[float, typer.Option(help="Airfoil chord, m.")] = 0.1,
-    text_height: Annotated[float, typer.Option(help="Text font size, m.")] = 0.01,
-    units: Annotated[
-        str | None, typer.Option(help="DXF units when the header has none (mm, inch, m, um).")
-    ] = None,
+    fmt: Annotated[str, choice("--format", choices=_FORMATS, help="Command file format.")] = "csv",
+    chord: ChordOpt = 0.1,
+    text_height: HeightOpt = 0.01,
+    units: UnitsOpt = None,
 ) -> None:
     """Optimise the reference of a contour on a black-box stage (seed 002 §IV)."""
     from microfab.optimize.models import resolve_models_dir
@@ -101,14 +123,7 @@ def optimize_cmd(
     from microfab.optimize.problem import ContourProblem
     from microfab.optimize.stage1 import Stage1Error, Stage1Settings
 
-    if stage not in _STAGES:
-        fail(f"--stage must be 1 or both, got {stage!r}")
-    if fmt not in _FORMATS:
-        fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
-    check_option("--amax", amax, "m/s²", low=_A_MIN, high=_A_MAX, low_closed=True)
-    check_option("--tolerance", tolerance, "m", low=_TOL_MIN, high=1e-3, low_closed=True)
-    if n is not None and not 10 <= n <= _N_MAX:
-        fail(f"--n must be 10 to {_N_MAX} points, got {n}")
+    refuse_unused_sizing(ctx, drawing)
     if out.exists() and not out.is_dir():
         fail(f"--out {out} exists and is not a directory")
     from microfab.cli.geometry import _load
@@ -130,7 +145,7 @@ def optimize_cmd(
     from microfab.optimize.pipeline import optimize_reference
     from microfab.trajectory.optimal import PlanningError
 
-    checkpoint = str(out / "stage2_checkpoint.npz") if stage == "both" else None
+    checkpoint = str(out / _CHECKPOINT) if stage == "both" else None
     try:
         with console.status("stage 1: minimum time on the linear model (IPOPT)"):
             from microfab.optimize.stage1 import solve_stage1
@@ -150,7 +165,8 @@ def optimize_cmd(
     except ValueError as exc:
         fail(str(exc))
     sizing = {"chord": chord, "text_height": text_height, "units": units}
-    _write(out, res, fmt, drawing, k, sizing, models.networks)
+    keep = (_CHECKPOINT,) if stage == "both" else ()  # its checkpoint, saved as it went
+    _write(out, res, fmt, drawing, k, sizing, models.networks, keep)
 
 
 #: The model files of a models folder and the command that writes each (README).
@@ -242,8 +258,60 @@ def _baseline(res: Any) -> tuple[Any, str | None]:
     return pos, None
 
 
+#: Every file ``optimize`` writes into ``--out`` (the files it owns there).
+_OWNED = (
+    *(f"{stem}.{fmt}" for stem in ("command", "baseline") for fmt in _FORMATS),
+    "input_400hz.csv",
+    "predicted.csv",
+    "stage1.npz",
+    "summary.json",
+    "contour.png",
+    "deviation.png",
+    _CHECKPOINT,
+)
+
+
 def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, sizing: dict[str, Any],
-           networks: Any) -> None:  # fmt: skip
+           networks: Any, keep: tuple[str, ...]) -> None:  # fmt: skip
+    """Write the results into ``out`` whole: only this run's files are left of the `_OWNED`.
+
+    The files are written into a temporary folder inside ``out``, then moved in one by one
+    (``summary.json`` last); then the owned files this run did not write (an earlier run's
+    ``predicted.csv``, a command file of another ``--format``, a stage-2 checkpoint after
+    ``--stage 1``) are removed. Files of others in ``out`` are never touched; a failure
+    before the move leaves ``out`` as it was. ``keep`` names the owned files this run
+    wrote straight into ``out`` (its stage-2 checkpoint).
+    """
+    import os
+    import shutil
+    import tempfile
+
+    tmp = Path(tempfile.mkdtemp(prefix=".optimize-", dir=out))
+    try:
+        summary = _write_files(tmp, res, fmt, drawing, contour, sizing, networks)
+        written = sorted(p.name for p in tmp.iterdir())
+        for name in sorted(written, key=lambda n: n == "summary.json"):
+            os.replace(tmp / name, out / name)
+        for name in set(_OWNED) - set(written) - set(keep):
+            (out / name).unlink(missing_ok=True)
+    except OSError as exc:
+        fail(f"cannot write the results into {out}: {exc}")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    if summary["warning"]:
+        console.print(f"[yellow]warning:[/] {summary['warning']}", highlight=False)
+    pred = summary.get("predicted")
+    extra = ""
+    if pred:
+        extra = f", predicted L2 {pred['l2'] * 1e6:.2f} µm, L∞ {pred['linf'] * 1e6:.2f} µm"
+    console.print(
+        f"T = {res.duration:.4f} s, M = {res.m} at 400 Hz{extra}; wrote {out}", highlight=False
+    )
+
+
+def _write_files(out: Path, res: Any, fmt: str, drawing: str, contour: int,
+                 sizing: dict[str, Any], networks: Any) -> dict[str, Any]:  # fmt: skip
+    """Write every result file of ``res`` into the (empty) folder ``out``; the summary."""
     from microfab.io.atomic import atomic_write_json
     from microfab.io.trace import write_columns
     from microfab.optimize.command import LEAD
@@ -312,12 +380,4 @@ def _write(out: Path, res: Any, fmt: str, drawing: str, contour: int, sizing: di
         atomic_write_json(out / "summary.json", summary)
     except (OSError, ValueError) as exc:
         fail(f"cannot write the results: {exc}")
-    if summary["warning"]:
-        console.print(f"[yellow]warning:[/] {summary['warning']}", highlight=False)
-    pred = summary.get("predicted")
-    extra = ""
-    if pred:
-        extra = f", predicted L2 {pred['l2'] * 1e6:.2f} µm, L∞ {pred['linf'] * 1e6:.2f} µm"
-    console.print(
-        f"T = {res.duration:.4f} s, M = {res.m} at 400 Hz{extra}; wrote {out}", highlight=False
-    )
+    return summary

@@ -7,12 +7,15 @@ EI) for a given mode or auto-fitted to a measured FRF, trace or PSD
 ``slm scan-time --shaper`` (`cli/slm.py`) reads. ``shaper compare`` puts the inverse and
 the classic shapers side by side on the SLM galvo twin (`microfab.machines.slm_galvo_shapers`).
 
-Every refusal is one ``error:`` line, exit code 2, and nothing is written.
+Every number is declared with its unit and range (`microfab.cli._options`), sharing the
+``slm-shaping`` job's key where one sets the same quantity
+(`microfab.experiments.seed003_slm.keys`); an option the chosen mode does not use is
+refused, not ignored. Every refusal is one ``error:`` line, exit code 2, and nothing is
+written.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from pathlib import Path
@@ -22,7 +25,6 @@ import numpy as np
 import typer
 
 from microfab.cli._kit import (
-    check_option,
     check_outputs,
     console,
     fail,
@@ -32,6 +34,8 @@ from microfab.cli._kit import (
     read_trace_file,
     renamed,
 )
+from microfab.cli._options import choice, integer, number, refuse_unused
+from microfab.experiments.seed003_slm import keys
 from microfab.report.tables import Table
 
 if TYPE_CHECKING:
@@ -50,21 +54,35 @@ _INVERSE_NAMES = {"pole_hz": "--poles-hz", "order": "--order", "dt =": "--dt ="}
 #: Shortest --dt, s (assumed 0.1 µs: a hundred times the RTC's 100 kHz rate; below it a
 #: shaper's coefficients lose their precision and its taps run into the millions).
 _MIN_DT_S = 1e-7
+#: Longest --dt, s (assumed 10 ms: a 100 Hz command rate, slower than any motion
+#: controller's; its Nyquist frequency, 50 Hz, lies below the modes a shaper is for).
+_MAX_DT_S = 1e-2
+#: A classic shaper's mode, Hz (assumed 1 Hz to 1 MHz: a positioning machine's structural
+#: modes lie between tens of Hz (a gantry) and tens of kHz (a piezo stage); outside, the
+#: unit slipped). A mode at or above the Nyquist frequency of --dt is refused with --dt.
+_FREQ_RANGE_HZ = (1.0, 1e6)
+#: A mode's damping ratio: at 1 or more nothing rings (0.99: the largest damping of the
+#: exact forms ZV, ZVD, MZV, ``max_damping`` in control/shaper_forms.py).
+_MAX_DAMPING = 0.99
+#: Settling band of the comparison, % of the jump: more than 0, at most 50 % (assumed, as
+#: the ``slm-shaping`` job's ``settle_band`` <= 0.5: within half the jump is no settling).
+_MAX_BAND_PCT = 50.0
+#: Vibration tolerance of the EI-family shapers, fraction: (0, 0.25], the range
+#: `microfab.control.shapers.design_shaper` accepts.
+_MAX_V_TOL = 0.25
 
 
 def _read_model(path: Path) -> TFModel:
-    from microfab.identify.model import TFModel
+    from microfab.identify.model import read_tf_model
 
     try:
-        return TFModel.from_dict(json.loads(path.read_text(encoding="utf-8")))
+        return read_tf_model(path)
     except FileNotFoundError:
         fail(f"model file not found: {path}")
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        fail(f"{path}: not a model JSON file ({exc})")
-    except RecursionError:
-        fail(f"{path}: not a model JSON file (nested too deeply)")
-    except ValueError as exc:
-        fail(f"{path}: {exc}")
+    except OSError as exc:
+        fail(f"{path}: cannot read it ({exc.strerror or exc})")
+    except ValueError as exc:  # the schema's line names the file
+        fail(str(exc))
 
 
 #: Fewest frequencies a shaper is designed from. Assumed: a mode's frequency and damping
@@ -198,8 +216,37 @@ def _impulse_table(s: Any, dt: float, fit: Any = None) -> Table:
     return Table(title=f"{s.name} shaper", columns=("quantity", "value"), rows=rows)
 
 
+def _kinds() -> tuple[str, ...]:
+    """``inverse`` and the classic shapers (`microfab.control.shapers.SHAPER_NAMES`)."""
+    from microfab.control.shapers import SHAPER_NAMES
+
+    return ("inverse", *SHAPER_NAMES)
+
+
+def _discretizations() -> object:
+    """The inverse's discretisations (`microfab.control.shaping.Discretization`)."""
+    from microfab.control.shaping import Discretization
+
+    return Discretization
+
+
+def _twin_discretizations() -> tuple[str, ...]:
+    """The twin's inverse discretisations (`microfab.machines.slm_galvo_shaping`)."""
+    from microfab.machines.slm_galvo_shaping import DISCRETIZATIONS
+
+    return DISCRETIZATIONS
+
+
+def _twins() -> object:
+    """The SLM galvo twins (`microfab.machines.slm_galvo_shapers.TwinName`)."""
+    from microfab.machines.slm_galvo_shapers import TwinName
+
+    return TwinName
+
+
 @shaper_app.command("design")
 def design_cmd(
+    ctx: typer.Context,
     out: Annotated[Path, typer.Option(help="Write the shaper (JSON) here.")],
     model: Annotated[
         Path | None,
@@ -209,20 +256,41 @@ def design_cmd(
         ),
     ] = None,
     kind: Annotated[
-        str, typer.Option(help="inverse, zv, zvd, mzv, ei, 2hump_ei or 3hump_ei.")
+        str, choice(choices=_kinds, help="Shaper: the seed's model inverse or a classic one.")
     ] = "inverse",
-    poles_hz: Annotated[float, typer.Option(help="Inverse: added real poles [Hz].")] = 4000.0,
-    order: Annotated[int, typer.Option(help="Inverse: number of added poles.")] = 4,
-    dt: Annotated[float, typer.Option(help="Sample time of the command [s].")] = 1e-5,
+    poles_hz: Annotated[
+        float, number(help="Inverse: added real poles.", key=keys.POLE_HZ)
+    ] = 4000.0,
+    order: Annotated[
+        int, integer(help="Inverse: number of added poles.", key=keys.SHAPER_ORDER)
+    ] = 4,
+    dt: Annotated[
+        float,
+        number(help="Sample time of the command.", unit="s", low=_MIN_DT_S, high=_MAX_DT_S),
+    ] = 1e-5,
     discretization: Annotated[
-        str, typer.Option(help="Inverse: zoh (the seed's) or zpetc (sampled-axis inverse).")
+        str,
+        choice(
+            choices=_discretizations,
+            help="Inverse: zoh (the seed's) or zpetc (sampled-axis inverse).",
+        ),
     ] = "zoh",
     freq_hz: Annotated[
-        float | None, typer.Option(help="Classic: the mode's natural frequency [Hz].")
+        float | None,
+        number(
+            help="Classic: the mode's natural frequency.",
+            unit="Hz",
+            low=_FREQ_RANGE_HZ[0],
+            high=_FREQ_RANGE_HZ[1],
+        ),
     ] = None,
     damping: Annotated[
         float | None,
-        typer.Option(help="Classic: the mode's damping ratio (default 0.1, Klipper's)."),
+        number(
+            help="Classic: the mode's damping ratio (default 0.1, Klipper's).",
+            low=0.0,
+            high=_MAX_DAMPING,
+        ),
     ] = None,
     frf: Annotated[
         Path | None,
@@ -249,26 +317,10 @@ def design_cmd(
     """
     check_outputs(files={"--out": out}, inputs={"MODEL": model, "--frf": frf, "--psd": psd})
     from microfab.control.shaper_io import shaper_to_dict
-    from microfab.control.shapers import SHAPER_NAMES
     from microfab.io.atomic import atomic_write_json
 
-    kinds = ("inverse", *SHAPER_NAMES)
-    if kind not in kinds:
-        fail(f"--kind must be one of {', '.join(kinds)}, got {kind!r}")
-    check_option("--dt", dt, "s")
-    if dt < _MIN_DT_S:
-        fail(f"--dt must be at least {_MIN_DT_S:g} s, got {dt:g} s (a sample rate above 10 MHz)")
-    classic = (
-        ("--freq-hz", freq_hz),
-        ("--damping", damping),
-        ("--frf", frf),
-        ("--psd", psd),
-        ("--freq-range", freq_range),
-    )
-    classic_given = [n for n, v in classic if v is not None]
+    _refuse_unused_design_options(ctx, kind, freq_hz is not None, psd is not None)
     if kind == "inverse":
-        if classic_given:
-            fail(f"{classic_given[0]} applies to the classic kinds, not to --kind inverse")
         shaper = _design_inverse(model, poles_hz, order, dt, discretization)
         table = _inverse_table(shaper, _read_model(model))  # type: ignore[arg-type]
     else:
@@ -277,6 +329,28 @@ def design_cmd(
     print_table(table)
     atomic_write_json(out, shaper_to_dict(shaper))
     console.print(f"wrote {out}", highlight=False)
+
+
+def _refuse_unused_design_options(
+    ctx: typer.Context, kind: str, from_mode: bool, from_psd: bool
+) -> None:
+    """Refuse the ``shaper design`` options the chosen kind and source do not use.
+
+    --kind inverse uses MODEL, --poles-hz, --order, --dt and --discretization; a classic
+    kind uses --dt, --damping and one of --freq-hz (a given mode) or --frf / --psd (an
+    auto-fit, over --freq-range; --axis picks the column of an --frf file).
+    """
+    if kind == "inverse":
+        refuse_unused(ctx, ["freq_hz", "damping", "frf", "psd", "freq_range", "axis"],
+                      "with --kind inverse (it serves the classic kinds)")  # fmt: skip
+        return
+    refuse_unused(ctx, ["poles_hz", "order", "discretization"],
+                  f"with --kind {kind} (it serves --kind inverse)")  # fmt: skip
+    if from_mode:
+        refuse_unused(ctx, ["freq_range", "axis"],
+                      "with --freq-hz (it serves an auto-fit to --frf or --psd)")  # fmt: skip
+    elif from_psd:
+        refuse_unused(ctx, ["axis"], "with --psd (it names a column of an --frf file)")
 
 
 def _design_classic(
@@ -291,7 +365,7 @@ def _design_classic(
     freq_range: str | None,
 ) -> tuple[Shaper, Table]:
     from microfab.control.shaper_fit import ShaperFitConfig, fit_shaper
-    from microfab.control.shapers import MAX_TAPS, design_shaper
+    from microfab.control.shapers import design_shaper
 
     sources = [n for n, v in (("--freq-hz", freq_hz), ("--frf", frf), ("--psd", psd)) if v]
     if len(sources) != 1:
@@ -299,19 +373,9 @@ def _design_classic(
         fail(f"--kind {kind} needs one of --freq-hz, --frf or --psd, got {what}")
     if model is not None and frf is None:
         fail("MODEL serves a classic kind only as the baseline of --frf: leave it out")
-    if damping is not None:
-        check_option("--damping", damping, "", low=0.0, high=0.99, low_closed=True)
     nyquist = 0.5 / dt
     fit = None
     if freq_hz is not None:
-        if freq_range is not None:
-            fail("--freq-range applies to an auto-fit (--frf or --psd), not to --freq-hz")
-        check_option("--freq-hz", freq_hz, "Hz")
-        if freq_hz * dt * MAX_TAPS < 1.0:
-            fail(
-                f"--freq-hz {freq_hz:g} Hz is too slow for --dt {dt:g} s: one period of the mode "
-                f"is more than {MAX_TAPS} samples, the most a shaper may last"
-            )
         if freq_hz >= nyquist:
             fail(
                 f"--freq-hz {freq_hz:g} Hz lies at or above the Nyquist frequency {nyquist:g} "
@@ -361,18 +425,53 @@ def _design_classic(
 
 @shaper_app.command("compare")
 def compare_cmd(
+    ctx: typer.Context,
     twin: Annotated[
-        str, typer.Option(help="seed (the seed's 3rd-order twin) or mirror (3 kHz mode added).")
+        str,
+        choice(
+            choices=_twins, help="seed (the seed's 3rd-order twin) or mirror (3 kHz mode added)."
+        ),
     ] = "seed",
-    jump_bit: Annotated[float, typer.Option(help="Step of the settling test [bit].")] = 1000.0,
-    start_bit: Annotated[float, typer.Option(help="Position before the step [bit].")] = 0.0,
-    band_pct: Annotated[float, typer.Option(help="Settling band [% of the jump].")] = 2.0,
+    jump_bit: Annotated[
+        float,
+        number(
+            help="Step of the settling test (at most the field's width).",
+            unit="bit",
+            low=0.0,
+            low_open=True,
+            high=2.0 * keys.FIELD_BIT,
+        ),
+    ] = 1000.0,
+    start_bit: Annotated[
+        float,
+        number(
+            help="Position before the step (inside the field).",
+            unit="bit",
+            low=-keys.FIELD_BIT,
+            high=keys.FIELD_BIT,
+        ),
+    ] = 0.0,
+    band_pct: Annotated[
+        float,
+        number(
+            help="Settling band, of the jump.", unit="%", low=0.0, low_open=True, high=_MAX_BAND_PCT
+        ),
+    ] = 2.0,
     v_tol: Annotated[
         float | None,
-        typer.Option(help="Vibration tolerance of the EI-family shapers (default 0.05)."),
+        number(
+            help="Vibration tolerance of the EI-family shapers (default 0.05).",
+            low=0.0,
+            low_open=True,
+            high=_MAX_V_TOL,
+        ),
     ] = None,
     inverse: Annotated[
-        str, typer.Option(help="Inverse shaper's discretisation: zoh (the seed's) or zpetc.")
+        str,
+        choice(
+            choices=_twin_discretizations,
+            help="Inverse shaper's discretisation: zoh (the seed's) or zpetc.",
+        ),
     ] = "zpetc",
     shapers: Annotated[
         str | None,
@@ -382,7 +481,9 @@ def compare_cmd(
         bool,
         typer.Option(help="Design the classic shapers at the twin's true mode, not its chirp FRF."),
     ] = False,
-    seed: Annotated[int, typer.Option(help="Noise seed of the chirp identification.")] = 0,
+    seed: Annotated[
+        int, integer(help="Noise seed of the chirp identification.", key=keys.TWIN_SEED)
+    ] = 0,
     json_path: Annotated[
         Path | None, typer.Option("--json", help="Write the comparison (JSON) here.")
     ] = None,
@@ -393,13 +494,23 @@ def compare_cmd(
     mode identified from the twin's noisy chirp FRF (or its true mode), and inverse+ZV.
     A shaped step that leaves the scanner's field is reported as refused.
     """
+    from microfab.control.shaper_forms import SHAPERS
     from microfab.control.shapers import DEFAULT_V_TOL, SHAPER_NAMES
+
+    names = SHAPER_NAMES if shapers is None else tuple(n.strip() for n in shapers.split(","))
+    if true_mode:
+        refuse_unused(ctx, ["seed"], "with --true-mode (no noisy chirp is identified)")
+    if all(n in SHAPERS and SHAPERS[n].exact for n in names):
+        refuse_unused(ctx, ["v_tol"], f"with --shapers {shapers} (ZV, ZVD and MZV have no "
+                      "vibration tolerance; the EI family has)")  # fmt: skip
+    end = start_bit + jump_bit
+    if abs(end) > keys.FIELD_BIT:
+        fail(f"--start-bit {start_bit:g} bit + --jump-bit {jump_bit:g} bit ends at {end:g} "
+             f"bit, outside the twin's field ±{keys.FIELD_BIT} bit")  # fmt: skip
+    check_outputs(files={"--json": json_path})
     from microfab.machines.slm_galvo_shapers import CompareSettings, compare_shapers
     from microfab.report.slm_tables import comparison_table
 
-    check_option("--band-pct", band_pct, "%", high=100.0)
-    check_outputs(files={"--json": json_path})
-    names = SHAPER_NAMES if shapers is None else tuple(n.strip() for n in shapers.split(","))
     try:
         settings = CompareSettings(
             jump_bit=jump_bit,

@@ -7,7 +7,11 @@ fixed-delay and dynamics-aware scan times on the twin, with and without a shaper
 times a whole lattice part layer by layer (`microfab.process.slm.build`), in this process
 or on Dask, saving each layer as it finishes so that a rerun resumes.
 
-Every refusal is one ``error:`` line, exit code 2, and nothing is written.
+Every number is declared with its unit and range (`microfab.cli._options`), sharing the
+``slm-shaping`` job's key where one sets the same quantity
+(`microfab.experiments.seed003_slm.keys`); an option the chosen mode does not use is
+refused, not ignored. Every refusal is one ``error:`` line, exit code 2, and nothing is
+written.
 """
 
 from __future__ import annotations
@@ -20,13 +24,13 @@ import numpy as np
 import typer
 
 from microfab.cli._kit import (
-    check_option,
     check_outputs,
     console,
     fail,
     print_table,
-    renamed,
 )
+from microfab.cli._options import choice, given, integer, number, refuse_unused
+from microfab.experiments.seed003_slm import keys
 from microfab.io.lock import hold_for_command
 from microfab.process.slm.timing import RTCDelays
 
@@ -39,19 +43,19 @@ slm_app = typer.Typer(
     no_args_is_help=True, help="SLM scanning on the galvo twin (seed 003 part 2)."
 )
 
-_MAX_DELAY_US = 1e6  # a delay of more than 1 s is a typo (and overflows the tick counts)
-#: Longest sky-writing run-in or run-out, ticks (assumed 1000 = 10 ms: ten times the
-#: twin's settling after a jump, ~0.9 ms; longer serves nothing and is simulated tick by tick).
-_MAX_SKY_TICKS = 1000
 #: Most strut nodes of a lattice layer within its outline (assumed 5000: ten times the
 #: default part's ~470, more than the seed's strut and fraction fit in the field; more is a
 #: mistaken strut or fraction, and 20 000 took minutes).
 _MAX_LATTICE_NODES = 5000.0
+#: Settling band of the dynamics-aware estimate, % of the jump: more than 0, at most 50 %
+#: (as the job's ``settle_band`` <= 0.5, assumed: within half the jump is no settling).
+_MAX_BAND_PCT = 50.0
 _D = RTCDelays()  # the library's defaults are the options' defaults
 
 
 @slm_app.command("scan-time")
 def scan_time_cmd(
+    ctx: typer.Context,
     source: Annotated[
         str,
         typer.Argument(
@@ -62,33 +66,69 @@ def scan_time_cmd(
     shaper: Annotated[
         Path | None, typer.Option(help="Shaper JSON (shaper design): also estimate with it.")
     ] = None,
-    mark_speed: Annotated[float, typer.Option(help="Mark speed [m/s].")] = 0.6,
-    jump_speed: Annotated[float, typer.Option(help="Jump speed [m/s].")] = 5.0,
+    mark_speed: Annotated[float, number(help="Mark speed.", key=keys.MARK_SPEED)] = 0.6,
+    jump_speed: Annotated[float, number(help="Jump speed.", key=keys.JUMP_SPEED)] = 5.0,
     jump_delay_us: Annotated[
-        float, typer.Option(help="Fixed jump delay without the shaper [µs] (seed: 750).")
+        float,
+        number(help="Fixed jump delay without the shaper (seed: 750 µs).", key=keys.JUMP_DELAY),
     ] = _D.jump_s * 1e6,
     shaped_jump_delay_us: Annotated[
-        float, typer.Option(help="Fixed jump delay with the shaper [µs] (seed: 250).")
+        float,
+        number(
+            help="Fixed jump delay with the shaper (seed: 250 µs).",
+            unit="µs",
+            low=0.0,
+            high=keys.MAX_DELAY_US,
+        ),
     ] = 250.0,
-    mark_delay_us: Annotated[float, typer.Option(help="Mark delay [µs].")] = _D.mark_s * 1e6,
-    polygon_delay_us: Annotated[float, typer.Option(help="Polygon delay [µs].")] = _D.polygon_s
-    * 1e6,
-    laser_on_delay_us: Annotated[float, typer.Option(help="Laser on delay [µs].")] = _D.laser_on_s
-    * 1e6,
+    mark_delay_us: Annotated[
+        float, number(help="Mark delay (sky-writing off).", key=keys.MARK_DELAY)
+    ] = _D.mark_s * 1e6,
+    polygon_delay_us: Annotated[
+        float, number(help="Polygon delay (sky-writing 0 or 3).", key=keys.POLYGON_DELAY)
+    ] = _D.polygon_s * 1e6,
+    laser_on_delay_us: Annotated[
+        float, number(help="Laser on delay.", key=keys.LASER_ON_DELAY)
+    ] = _D.laser_on_s * 1e6,
     laser_off_delay_us: Annotated[
-        float, typer.Option(help="Laser off delay [µs].")
+        float, number(help="Laser off delay.", key=keys.LASER_OFF_DELAY)
     ] = _D.laser_off_s * 1e6,
     variable_polygon: Annotated[
-        bool, typer.Option(help="Scale the polygon delay by the corner's angle.")
+        bool,
+        typer.Option(help="Scale the polygon delay by the corner's angle (sky-writing 0 or 3)."),
     ] = False,
-    sky_writing: Annotated[int, typer.Option(help="Sky-writing mode 0-3.")] = 0,
-    sky_prev: Annotated[int, typer.Option(help="Sky-writing run-in [ticks].")] = 0,
-    sky_post: Annotated[int, typer.Option(help="Sky-writing run-out [ticks].")] = 0,
+    sky_writing: Annotated[
+        int, integer(help="Sky-writing mode (RTC5): 0 off, 1, 2 or 3.", low=0, high=3)
+    ] = 0,
+    sky_prev: Annotated[
+        int,
+        integer(
+            help="Sky-writing run-in (modes 1-3).", unit="ticks", low=0, high=keys.MAX_SKY_TICKS
+        ),
+    ] = 0,
+    sky_post: Annotated[
+        int,
+        integer(
+            help="Sky-writing run-out (modes 1-3).", unit="ticks", low=0, high=keys.MAX_SKY_TICKS
+        ),
+    ] = 0,
     tolerance_pct: Annotated[
-        float, typer.Option(help="Settled: within this % of the jump length (at least 1 bit).")
+        float,
+        number(
+            help="Settled: within this % of the jump length (at least 1 bit).",
+            unit="%",
+            low=0.0,
+            low_open=True,
+            high=_MAX_BAND_PCT,
+        ),
     ] = 2.0,
-    hatch_um: Annotated[float, typer.Option(help="Hatch spacing [µm].")] = 100.0,
-    hatch_angle_deg: Annotated[float, typer.Option(help="Hatch direction [deg].")] = 0.0,
+    hatch_um: Annotated[
+        float,
+        number(help="Hatch spacing (a lattice's hatch= sets its own).", key=keys.HATCH_SPACING),
+    ] = 100.0,
+    hatch_angle_deg: Annotated[
+        float, number(help="Hatch direction (modulo 180°).", key=keys.HATCH_ANGLE)
+    ] = 0.0,
     contours: Annotated[
         bool, typer.Option(help="Mark a drawing's contours before hatching it.")
     ] = True,
@@ -109,6 +149,7 @@ def scan_time_cmd(
     twin is driven through the shaper (a ZPETC shaper's look-ahead counts as delay) and
     the fixed estimate uses --shaped-jump-delay-us.
     """
+    _refuse_unused_scan_options(ctx, sky_writing, shaper is not None, _is_lattice(source))
     check_outputs(files={"--json": json_path}, inputs={"SOURCE": Path(source), "--shaper": shaper})
     from microfab.control.shaper_io import read_shaper, shaper_lti, shaper_to_dict
     from microfab.machines import slm_galvo
@@ -123,10 +164,6 @@ def scan_time_cmd(
     )
     from microfab.report.slm_tables import scan_table
 
-    check_option("--mark-speed", mark_speed, "m/s")
-    check_option("--jump-speed", jump_speed, "m/s")
-    check_option("--tolerance-pct", tolerance_pct, "%", high=100.0)
-    check_option("--hatch-um", hatch_um, "µm")
     delays = {
         "jump_s": ("--jump-delay-us", jump_delay_us),
         "mark_s": ("--mark-delay-us", mark_delay_us),
@@ -136,31 +173,17 @@ def scan_time_cmd(
         "shaped": ("--shaped-jump-delay-us", shaped_jump_delay_us),
     }
     for option, value in delays.values():
-        check_option(option, value, "µs", high=_MAX_DELAY_US, low_closed=True)
-        try:
+        try:  # in range (parsed); a whole number of ticks is checked here
             ticks(option, value * 1e-6)
         except ValueError as exc:
             fail(str(exc))
-    for option, n_ticks in (("--sky-prev", sky_prev), ("--sky-post", sky_post)):
-        if n_ticks > _MAX_SKY_TICKS:
-            fail(f"{option} must be at most {_MAX_SKY_TICKS} ticks ({_MAX_SKY_TICKS * 10} µs), "
-                 f"got {n_ticks}")  # fmt: skip
-    try:
-        sky = SkyWriting(mode=sky_writing, n_prev=sky_prev, n_post=sky_post)
-    except ValueError as exc:
-        fail(f"--sky-writing: {exc}")
-    try:
-        speeds = ScanSpeeds(mark_m_s=mark_speed, jump_m_s=jump_speed)
-    except ValueError as exc:
-        fail(renamed(str(exc), {"mark speed mark_m_s": "--mark-speed",
-                                "jump speed jump_m_s": "--jump-speed"}))  # fmt: skip
     settings = RTCSettings(
-        speeds=speeds,
+        speeds=ScanSpeeds(mark_m_s=mark_speed, jump_m_s=jump_speed),
         delays=RTCDelays(
             **{k: v * 1e-6 for k, (_, v) in delays.items() if k != "shaped"},
             variable_polygon=variable_polygon,
         ),
-        sky_writing=sky,
+        sky_writing=SkyWriting(mode=sky_writing, n_prev=sky_prev, n_post=sky_post),
     )
     shaped_settings = settings.with_delays(jump_s=shaped_jump_delay_us * 1e-6)
     tol = SettleTolerance(relative=tolerance_pct / 100.0)
@@ -174,14 +197,14 @@ def scan_time_cmd(
     twin = slm_galvo.twin(mirror_mode=mirror_mode)
     bit_m = twin.config.bit_size_m
     field_m = twin.config.field_bit * bit_m
-    if hatch_um * 1e-6 < bit_m:
-        fail(f"--hatch-um must be at least one bit of the scanner, {bit_m * 1e6:g} µm, got "
-             f"{hatch_um:g} µm")  # fmt: skip
-    if source.strip().lower().startswith("lattice:"):  # refused before it is built
+    if _is_lattice(source):  # refused before it is built
         try:
             spec = parse_lattice_source(source)[1]
         except ValueError as exc:
             fail(str(exc))
+        if "hatch" in _lattice_keys(source) and given(ctx, "hatch_um"):
+            fail(f"--hatch-um {hatch_um:g} µm and the source's hatch={spec.hatch_spacing_m:g} m "
+                 "both set the hatch spacing (the source's would win): give one")  # fmt: skip
         if spec.outline_radius_m > field_m:
             fail(f"{source}: the outline radius {spec.outline_radius_m * 1e3:.4g} mm reaches "
                  f"outside the scanner's field of ±{field_m * 1e3:.4g} mm")  # fmt: skip
@@ -239,6 +262,42 @@ def scan_time_cmd(
         console.print(f"wrote {json_path}", highlight=False)
 
 
+def _is_lattice(source: str) -> bool:
+    """Whether ``source`` is a lattice (``lattice:...``), not a drawing."""
+    return source.strip().lower().startswith("lattice:")
+
+
+def _lattice_keys(source: str) -> set[str]:
+    """The keys a lattice source names (``lattice:z=1e-3,hatch=5e-5`` -> ``{z, hatch}``)."""
+    body = source.strip().split(":", 1)[1]
+    return {item.split("=", 1)[0].strip().lower() for item in body.split(",") if item.strip()}
+
+
+def _refuse_unused_scan_options(
+    ctx: typer.Context, sky_writing: int, with_shaper: bool, lattice: bool
+) -> None:
+    """Refuse the ``slm scan-time`` options the chosen mode does not use (one line, exit 2).
+
+    The RTC timing (`microfab.process.slm.timing.rtc_timeline`): sky-writing off uses no
+    run-in or run-out; sky-writing on drops the mark delay, and modes 1 and 2 sky-write
+    every corner (no polygon delay; mode 3 keeps it at corners under its limit angle).
+    """
+    mode = f"with --sky-writing {sky_writing}"
+    if sky_writing == 0:
+        refuse_unused(ctx, ["sky_prev", "sky_post"], f"{mode} (sky-writing off)")
+    else:
+        refuse_unused(ctx, ["mark_delay_us"], f"{mode} (sky-writing replaces the mark delay)")
+    if sky_writing in (1, 2):
+        refuse_unused(ctx, ["polygon_delay_us", "variable_polygon"],
+                      f"{mode} (every corner is sky-written: no polygon delay)")  # fmt: skip
+    if not with_shaper:
+        refuse_unused(ctx, ["shaped_jump_delay_us"], "without --shaper")
+    if lattice:
+        refuse_unused(
+            ctx, ["contours"], "on a lattice source (a lattice always marks its contours)"
+        )
+
+
 def _print_scan_summary(path: Any, runs: dict[str, ScanTimeComparison]) -> None:
     s = path.summary()
     console.print(
@@ -268,21 +327,33 @@ def _cut(before: float, after: float) -> str:
     return f"{before:.5g} → {after:.5g} s ({100 * (after / before - 1):+.1f} %)"
 
 
+def _build_shapers() -> object:
+    """The shapers of a build's estimates (`microfab.process.slm.build.Shaper`)."""
+    from microfab.process.slm.build import Shaper
+
+    return Shaper
+
+
 @slm_app.command("build")
 def build_cmd(
-    layers: Annotated[int, typer.Option(help="Layers of the part.")] = 500,
-    layer_um: Annotated[float, typer.Option(help="Layer thickness [µm].")] = 30.0,
+    ctx: typer.Context,
+    layers: Annotated[int, integer(help="Layers of the part.", low=1, high=keys.MAX_LAYERS)] = 500,
+    layer_um: Annotated[float, number(help="Layer thickness.", key=keys.LAYER_THICKNESS)] = 30.0,
     outline_radius_mm: Annotated[
-        float, typer.Option(help="Radius of the disc the lattice fills [mm].")
+        float, number(help="Radius of the disc the lattice fills.", key=keys.OUTLINE_RADIUS)
     ] = 8.0,
-    hatch_um: Annotated[float, typer.Option(help="Hatch spacing [µm].")] = 100.0,
+    hatch_um: Annotated[float, number(help="Hatch spacing.", key=keys.HATCH_SPACING)] = 100.0,
     hatch_rotation_deg: Annotated[
-        float, typer.Option(help="Hatch turn from one layer to the next [deg].")
+        float,
+        number(
+            help="Hatch turn from one layer to the next (modulo 360°).", key=keys.HATCH_ROTATION
+        ),
     ] = 67.0,
-    mark_speed: Annotated[float, typer.Option(help="Mark speed [m/s].")] = 0.6,
-    jump_speed: Annotated[float, typer.Option(help="Jump speed [m/s].")] = 5.0,
+    mark_speed: Annotated[float, number(help="Mark speed.", key=keys.MARK_SPEED)] = 0.6,
+    jump_speed: Annotated[float, number(help="Jump speed.", key=keys.JUMP_SPEED)] = 5.0,
     shaper: Annotated[
-        str, typer.Option(help="Shaper of the shaped estimates: none, zoh (the seed's), zpetc.")
+        str,
+        choice(choices=_build_shapers, help="Shaper of the shaped estimates (zoh: the seed's)."),
     ] = "zpetc",
     mirror_mode: Annotated[
         bool, typer.Option(help="Twin with the extra mirror mode (3 kHz, ζ 0.02, assumed).")
@@ -293,7 +364,10 @@ def build_cmd(
     ] = None,
     workers: Annotated[
         int,
-        typer.Option(min=1, max=256, help="1: in this process; more: a local Dask cluster."),
+        integer(
+            help="1: in this process; more: a local Dask cluster (not with --scheduler).",
+            key=keys.WORKERS,
+        ),
     ] = 1,
     scheduler: Annotated[
         str | None, typer.Option(help="Address of a running Dask scheduler.")
@@ -312,22 +386,18 @@ def build_cmd(
     from microfab.cli._kit import progress as progress_bar
     from microfab.machines import slm_galvo
     from microfab.process.slm.build import BuildSettings, run_build
+    from microfab.process.slm.source import MAX_HEIGHT_M
     from microfab.report.slm_tables import build_table
 
-    if layers < 1:
-        fail(f"--layers must be at least 1, got {layers}")
-    if workers < 1:
-        fail(f"--workers must be at least 1, got {workers}")
-    for option, value, unit in (
-        ("--layer-um", layer_um, "µm"),
-        ("--outline-radius-mm", outline_radius_mm, "mm"),
-        ("--hatch-um", hatch_um, "µm"),
-        ("--mark-speed", mark_speed, "m/s"),
-        ("--jump-speed", jump_speed, "m/s"),
-    ):
-        check_option(option, value, unit)
-    check_outputs(folders={"--results-dir": results_dir}, files={"--json": json_path})
-    hold_for_command(results_dir, "--results-dir", on_refused=fail)
+    if scheduler is not None:
+        refuse_unused(ctx, ["workers"], "with --scheduler (the scheduler's workers run the layers)")
+    height_m = layers * layer_um * 1e-6
+    if height_m > MAX_HEIGHT_M:
+        fail(f"--layers {layers} of --layer-um {layer_um:g} µm make a part {height_m:g} m tall, "
+             f"taller than {MAX_HEIGHT_M:g} m (an SLM build volume)")  # fmt: skip
+    if outline_radius_mm * 1e3 < hatch_um:
+        fail(f"--outline-radius-mm {outline_radius_mm:g} mm is smaller than --hatch-um "
+             f"{hatch_um:g} µm: a layer would have nothing to mark")  # fmt: skip
     try:
         settings = BuildSettings(
             n_layers=layers,
@@ -340,6 +410,11 @@ def build_cmd(
             shaper=shaper,  # type: ignore[arg-type]  # checked by BuildSettings
             mirror_mode=mirror_mode,
         )
+    except ValueError as exc:
+        fail(str(exc))
+    check_outputs(folders={"--results-dir": results_dir}, files={"--json": json_path})
+    hold_for_command(results_dir, "--results-dir", on_refused=fail)
+    try:
         with progress_bar() as bar:
             task = bar.add_task("whole build", total=layers)
             result = run_build(

@@ -31,13 +31,21 @@ from typing import Annotated, Any
 import typer
 
 from microfab.cli._kit import (
-    check_option,
     check_outputs,
     console,
     fail,
     print_table,
     progress,
     read_trace_file,
+)
+from microfab.cli._options import choice, integer, number, refuse_unused
+from microfab.experiments.seed002_stage.keys import (
+    A_MAX,
+    HOLD_S,
+    MIN_RUN_S,
+    RUNS_SEED,
+    RUNS_TOTAL_S,
+    TWIN_SEED,
 )
 from microfab.io.lock import hold_for_command
 from microfab.report.tables import Table
@@ -59,34 +67,43 @@ _DEFAULT_S = {"random": 600.0, "shapes": 210.0, "prbs": 120.0, "chirp": 120.0}
 _FADE_S = 1.0  # chirp fade in / out, s (chirp_runs' default), at most a quarter of a sweep
 _SUFFIX = {"csv": ".csv", "h5": ".h5", "mat": ".mat"}
 PLAYED_INDEX = "played.json"
-#: Longest --hold, s (assumed: the twin settles within 0.5 s, TwinSettings; a minute of
-#: hold is never needed and bounds the samples a typo could ask for).
-_HOLD_MAX_S = 60.0
+#: Kinds whose --duration is split over two runs (prbs: two amplitudes; chirp: x, then y).
+_SPLIT_IN_TWO = ("prbs", "chirp")
 
 
 @stage_app.command("excite")
 def excite_cmd(
+    ctx: typer.Context,
     out: Annotated[Path, typer.Option("--out", help="Directory for the run files and runs.json.")],
     kind: Annotated[
         str,
-        typer.Option(
-            help="random (the linear model's data), shapes (circles, polygons, spirals at "
-            "random constant speeds), prbs, chirp (shown inadequate by the seed)."
+        choice(
+            choices=_KINDS,
+            help="Excitation: random (the linear model's data), shapes (circles, polygons, "
+            "spirals at random constant speeds), prbs, chirp (shown inadequate by the seed).",
         ),
     ] = "random",
     duration: Annotated[
         float | None,
-        typer.Option(
-            help="Total length of all runs [s] (default: random 600, shapes 210, prbs and "
-            "chirp 120; prbs splits it over its two amplitudes, chirp over x then y, each "
-            "faded in and out over min(1 s, a quarter of it))."
+        number(
+            "--duration",
+            key=RUNS_TOTAL_S,
+            help="Total length of all runs (default: random 600 s, shapes 210 s, prbs and "
+            "chirp 120 s; prbs splits it over its two amplitudes, chirp over x then y, each "
+            "faded in and out over min(1 s, a quarter of it)).",
         ),
     ] = None,
     amax: Annotated[
-        float, typer.Option(help="Largest acceleration [m/s²] (seed §III-D: 5; Table I: 40).")
+        float,
+        number("--amax", key=A_MAX, help="Largest acceleration (seed §III-D: 5; Table I: 40)."),
     ] = 5.0,
-    seed: Annotated[int, typer.Option(min=0, help="Seed; the same seed gives the same runs.")] = 0,
-    fmt: Annotated[str, typer.Option("--format", help="File format: csv, h5 or mat.")] = "csv",
+    seed: Annotated[
+        int,
+        integer(
+            "--seed", key=RUNS_SEED, help="Seed; the same seed gives the same runs (not chirp)."
+        ),
+    ] = 0,
+    fmt: Annotated[str, choice("--format", choices=_FORMATS, help="File format.")] = "csv",
 ) -> None:
     """Write excitation runs for the XY stage as command files (seed 002 §III-C).
 
@@ -99,13 +116,15 @@ def excite_cmd(
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.identify import excitation as ex
 
-    if kind not in _KINDS:
-        fail(f"--kind must be one of {', '.join(_KINDS)}, got {kind!r}")
-    if fmt not in _FORMATS:
-        fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
+    if kind == "chirp":
+        refuse_unused(ctx, ["seed"], "with --kind chirp (the chirp runs are not random)")
     total = _DEFAULT_S[kind] if duration is None else duration
-    check_option("--duration", total, "s", high=ex.MAX_TOTAL_S)
-    check_option("--amax", amax, "m/s²", high=ex.LIMITS.acceleration[0])
+    if kind in _SPLIT_IN_TWO and total / 2 < MIN_RUN_S:
+        fail(
+            f"--duration {total:g} s with --kind {kind} makes two runs of {total / 2:g} s; "
+            f"each must be at least {MIN_RUN_S:g} s (the identification reads 500 ms of "
+            f"history): give --duration {2 * MIN_RUN_S:g} or more"
+        )
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a directory")
     if (out / ex.INDEX_FILE).exists():
@@ -153,14 +172,17 @@ _RUNS_HELP = (
 
 @stage_app.command("play")
 def play_cmd(
+    ctx: typer.Context,
     runs: Annotated[list[Path], typer.Argument(help=_RUNS_HELP)],
     out: Annotated[
         Path, typer.Option("--out", help="Folder for the measured runs and played.json.")
     ],
     seed: Annotated[
         int,
-        typer.Option(
-            min=0, help="Noise seed (run k gets seed + k); the same seed, the same files."
+        integer(
+            "--seed",
+            key=TWIN_SEED,
+            help="Noise seed (run k gets seed + k); the same seed, the same files.",
         ),
     ] = 0,
     noise: Annotated[
@@ -168,10 +190,13 @@ def play_cmd(
         typer.Option("--noise/--no-noise", help="The twin's 2 µm encoder noise (seed 002 eq. 3)."),
     ] = True,
     hold: Annotated[
-        float, typer.Option(help="Hold of the last set-point after each run [s], recorded too.")
+        float,
+        number(
+            "--hold", key=HOLD_S, help="Hold of the last set-point after each run, recorded too."
+        ),
     ] = 0.5,
     fmt: Annotated[
-        str, typer.Option("--format", help="File format of the measured runs: csv, h5 or mat.")
+        str, choice("--format", choices=_FORMATS, help="File format of the measured runs.")
     ] = "csv",
 ) -> None:
     """Play excitation runs on the stage's twin and write the measured runs (seed 002 §III-C).
@@ -184,9 +209,8 @@ def play_cmd(
     """
     check_outputs(folders={"--out": out}, inputs={"RUNS": runs})
     hold_for_command(out, "--out", on_refused=fail)
-    if fmt not in _FORMATS:
-        fail(f"--format must be one of {', '.join(_FORMATS)}, got {fmt!r}")
-    check_option("--hold", hold, "s", high=_HOLD_MAX_S, low_closed=True)
+    if not noise:
+        refuse_unused(ctx, ["seed"], "with --no-noise (the seed draws the noise)")
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a folder")
     if (out / PLAYED_INDEX).exists():
@@ -382,39 +406,30 @@ def score_cmd(
 
 def _optimized(folder: Path) -> tuple[dict[str, Any], Any]:
     """The optimize folder's summary (the keys `stage score` reads) and its contour."""
-    import json
-
     from microfab.cli.geometry import _load
 
     f = folder / _SUMMARY
     if not folder.is_dir() or not f.is_file():
         fail(f"--drawing {folder}: no {f}; give the folder `microfab optimize --out` wrote")
+    from microfab.optimize.summary_file import read_optimize_summary
+
     try:
-        raw = json.loads(f.read_text())
-    except (OSError, ValueError) as exc:
-        fail(f"{f}: cannot read it: {exc}")
-    need = ("drawing", "contour", "sizing", "m", "commands", "path_length_m")
-    lacks = [k for k in need if not isinstance(raw, dict) or k not in raw]
-    if lacks:
-        fail(
-            f"{f} lacks {', '.join(lacks)}: written by an older microfab optimize? run "
-            "`microfab optimize` again"
-        )
-    try:
-        sizing = raw["sizing"]
-        summary = {
-            "drawing": str(raw["drawing"]),
-            "contour": int(raw["contour"]),
-            "m": int(raw["m"]),
-            "length": float(raw["path_length_m"]),
-            "digest": raw.get("drawing_sha256"),
-            "units": sizing.get("units"),
-            "chord": float(sizing["chord"]),
-            "text_height": float(sizing["text_height"]),
-            "commands": [(str(c["file"]), int(c["lead"])) for c in raw["commands"].values()],
-        }
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        fail(f"{f}: not a summary of microfab optimize ({type(exc).__name__}: {exc})")
+        doc = read_optimize_summary(f)
+    except OSError as exc:
+        fail(f"{f}: cannot read it: {exc.strerror or exc}")
+    except ValueError as exc:  # one line naming the file and the key
+        fail(f"{exc} (written by an older microfab optimize? run `microfab optimize` again)")
+    summary = {
+        "drawing": doc.drawing,
+        "contour": doc.contour,
+        "m": doc.m,
+        "length": doc.path_length_m,
+        "digest": doc.drawing_sha256,
+        "units": doc.sizing.units,
+        "chord": doc.sizing.chord,
+        "text_height": doc.sizing.text_height,
+        "commands": [(c.file, c.lead) for c in doc.commands.values()],
+    }
     spec, k = summary["drawing"], summary["contour"]
     if summary["digest"] is not None:
         from microfab.io.runstore import content_digest

@@ -42,6 +42,8 @@ root datasets and ``format``, ``version``, ``meta`` as root attributes.
 from __future__ import annotations
 
 import json
+import zipfile
+import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,6 +56,7 @@ from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import RCConfig
 from microfab.control.velocity import N_ESTIMATOR_PARAMS
 from microfab.io.atomic import atomic_path, atomic_save_npz
+from microfab.io.schema import MAX_VALUES, SchemaError, check_count, check_npz
 
 __all__ = [
     "EXPORT_FORMAT",
@@ -357,6 +360,7 @@ def export_controller(
 
 def _read(p: Path, fmt: str) -> tuple[Any, Any, str, dict[str, np.ndarray]]:
     if fmt == "npz":
+        check_npz(p)  # the members' sizes from their headers, before any is read
         with np.load(p, allow_pickle=False) as z:
             arrays = {k: np.array(z[k]) for k in z.files}
         fmt_v = arrays.pop("format", None)
@@ -373,7 +377,14 @@ def _read(p: Path, fmt: str) -> tuple[Any, Any, str, dict[str, np.ndarray]]:
         raise ValueError("not an HDF5 file")
     with h5py.File(p, "r") as f:
         attrs = dict(f.attrs)
-        arrays = {k: np.array(v[()]) for k, v in f.items() if isinstance(v, h5py.Dataset)}
+        sets = {k: v for k, v in f.items() if isinstance(v, h5py.Dataset)}
+        total = 0
+        for k, v in sets.items():  # declared sizes, before any dataset is read
+            total += check_count(str(p), f"values in dataset {k!r}", int(np.prod(v.shape)))
+            if v.dtype.hasobject or v.dtype.kind not in "biuf":
+                raise SchemaError(f"{p}: dataset {k!r} holds {v.dtype}, not numbers")
+        check_count(str(p), "values in all datasets", total, MAX_VALUES)
+        arrays = {k: np.array(v[()]) for k, v in sets.items()}
 
     def text(v: Any) -> str | None:
         return None if v is None else v.decode() if isinstance(v, bytes) else str(v)
@@ -381,6 +392,10 @@ def _read(p: Path, fmt: str) -> tuple[Any, Any, str, dict[str, np.ndarray]]:
     ver = attrs.get("version")
     version = None if ver is None else np.asarray(ver).item()
     return text(attrs.get("format")), version, text(attrs.get("meta")) or "", arrays
+
+
+def _no_constant(name: str) -> None:
+    raise ValueError(f"{name} is not a JSON number")
 
 
 def load_exported(path: str | Path) -> ExportedController:
@@ -402,7 +417,7 @@ def load_exported(path: str | Path) -> ExportedController:
         raise FileNotFoundError(f"no controller export at {p}")
     try:
         kind, version, text, arrays = _read(p, fmt)
-    except (OSError, ValueError, KeyError, EOFError) as exc:
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         raise ValueError(f"cannot read controller export {p}: {exc}") from exc
     if kind != EXPORT_FORMAT:
         raise ValueError(f"{p} is not a microfab controller export (format {EXPORT_FORMAT!r})")
@@ -416,7 +431,9 @@ def load_exported(path: str | Path) -> ExportedController:
             f"({EXPORT_VERSION}): upgrade microfab"
         )
     try:
-        head = json.loads(text)
+        head = json.loads(text, parse_constant=_no_constant)
+        if not isinstance(head, dict):
+            raise TypeError(f"its meta is a JSON {type(head).__name__}, not an object")
         rbf = None
         if head["rbf"] is not None:
             r = head["rbf"]

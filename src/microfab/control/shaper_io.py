@@ -21,25 +21,29 @@ command at ``dt`` goes through (`microfab.plants.lti.DiscreteLTI`), for
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import scipy.signal
+from pydantic import BaseModel, ConfigDict, Field
 
 from microfab.control.shapers import ImpulseShaper
 from microfab.control.shaping import InverseShaper, InverseShaperConfig, design_inverse_shaper
-from microfab.identify.model import TFModel
+from microfab.identify.model import TFModel, TFModelDoc
 from microfab.io.atomic import atomic_write_json
+from microfab.io.schema import SchemaError, read_json, validated
 from microfab.plants.lti import DiscreteLTI
 
 __all__ = [
     "FORMAT",
     "KINDS",
+    "SHAPER_KIND",
+    "ImpulseShaperDoc",
+    "InverseShaperDoc",
     "Shaper",
     "read_shaper",
     "shaper_from_dict",
@@ -137,6 +141,58 @@ def shaper_to_dict(shaper: Shaper) -> dict[str, Any]:
     raise TypeError(
         f"shaper_to_dict takes an InverseShaper or an ImpulseShaper, got {type(shaper).__name__}"
     )
+
+
+# --------------------------------------------------------------------------- the schema
+#: What `microfab.io.schema.read_json` calls a shaper file.
+SHAPER_KIND = "a shaper (JSON of shaper design)"
+#: Most impulses of an impulse shaper read from a file. Assumed: the classic shapers have
+#: 2 to 5 and a numerically solved one a few more; 64 refuses a list of samples.
+MAX_IMPULSES = 64
+_STRICT = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
+
+
+class InverseConfigDoc(BaseModel):
+    """``config`` of an inverse shaper: `InverseShaperConfig` (pole in Hz, dt in s)."""
+
+    model_config = _STRICT
+
+    # assumed ranges: a pole above 1 GHz or a sample time above 1 s is a unit mistake
+    pole_hz: float = Field(gt=0, le=1e9)
+    order: int = Field(ge=0, le=16)  # assumed: the seed's is 4 (seed 003 §2)
+    dt: float = Field(gt=0, le=1.0)
+    discretization: Literal["zoh", "zpetc"]
+
+
+class InverseShaperDoc(BaseModel):
+    """An inverse shaper file (`shaper_to_dict` of an `InverseShaper`)."""
+
+    model_config = _STRICT
+
+    format: Literal[1]
+    kind: Literal["inverse"]
+    model: TFModelDoc
+    config: InverseConfigDoc
+    derived: dict[str, Any] | None = None
+
+
+class ImpulseShaperDoc(BaseModel):
+    """An impulse shaper file (`shaper_to_dict` of an `ImpulseShaper`); times in s."""
+
+    model_config = _STRICT
+
+    format: Literal[1]
+    kind: Literal["impulse"]
+    name: str = Field(min_length=1, max_length=200)
+    freq_hz: float = Field(gt=0, le=1e9)  # assumed bound, as `InverseConfigDoc.pole_hz`
+    damping: float = Field(ge=0, lt=1)  # an underdamped mode
+    v_tol: float = Field(0.05, ge=0, le=1)  # a fraction of the vibration
+    amplitudes: list[float] = Field(min_length=1, max_length=MAX_IMPULSES)
+    times_s: list[Annotated[float, Field(ge=0, le=1e3)]] = Field(
+        min_length=1, max_length=MAX_IMPULSES
+    )
+    numeric: bool = False
+    constraint_miss: float = Field(0.0, ge=0)
 
 
 def _number(d: dict[str, Any], key: str, where: str) -> float:
@@ -250,25 +306,28 @@ def write_shaper(path: str | os.PathLike[str], shaper: Shaper) -> None:
 
 
 def read_shaper(path: str | os.PathLike[str]) -> Shaper:
-    """Read a shaper file (`shaper_from_dict`); errors name the file.
+    """Read a shaper file through its schema (`InverseShaperDoc`, `ImpulseShaperDoc`).
 
     Raises
     ------
     FileNotFoundError
         No such file.
     ValueError
-        Not JSON (or JSON nested too deeply to read), or not a valid shaper (see
-        `shaper_from_dict`).
+        (`microfab.io.schema.SchemaError` for the first three) Not JSON (or nested too
+        deeply), a file of another kind (named), a field of the wrong type, length or
+        range; or not a valid shaper (see `shaper_from_dict`). The line names the file.
     """
     p = Path(path)
     try:
-        data = json.loads(p.read_text(encoding="utf-8"))
+        data = read_json(p, SHAPER_KIND)
     except FileNotFoundError:
         raise FileNotFoundError(f"shaper file not found: {p}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{p}: not a JSON file ({exc})") from None
-    except RecursionError:
-        raise ValueError(f"{p}: not a shaper file: its JSON is nested too deeply") from None
+    kind = data.get("kind") if isinstance(data, dict) else None
+    if isinstance(data, dict) and data.get("format") != FORMAT and "num" not in data:
+        raise SchemaError(f"{p}: not a shaper file of format {FORMAT}: its format is "
+                          f"{data.get('format')!r}")  # fmt: skip
+    if kind in ("inverse", "impulse"):
+        validated(InverseShaperDoc if kind == "inverse" else ImpulseShaperDoc, data, str(p))
     try:
         return shaper_from_dict(data)
     except ValueError as exc:

@@ -23,20 +23,30 @@ PyTorch is imported here and in `microfab.identify.ann_train` only (extra ``ann`
 from __future__ import annotations
 
 import itertools
-import json
 import os
+import zipfile
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import torch
+from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
 from microfab.core.validate import check_int, check_positive
 from microfab.identify.ann_data import AXES, Run, Scaling, WindowSpec, check_run, windows
 from microfab.io.atomic import atomic_save_npz, atomic_write_json
+from microfab.io.schema import (
+    SchemaError,
+    check_array,
+    check_npz,
+    describe_file,
+    read_json,
+    validated,
+)
 
 __all__ = [
     "FORMAT_VERSION",
@@ -47,6 +57,8 @@ __all__ = [
     "ErrorStats",
     "build_network",
     "n_weights",
+    "read_model_meta",
+    "read_weights",
 ]
 
 FORMAT_VERSION = 1  # of model.json / weights.npz and of the checkpoints
@@ -408,14 +420,8 @@ class AnnModel:
             Another format version, rate or history, or files that do not match.
         """
         d = Path(directory)
-        meta = json.loads((d / "model.json").read_text())
-        ver = meta.get("format_version")
-        if ver != FORMAT_VERSION:
-            raise ValueError(
-                f"{d / 'model.json'}: model format version {ver}, this microfab reads "
-                f"version {FORMAT_VERSION}; retrain the model"
-            )
-        spec = WindowSpec(**meta["window"])
+        meta = read_model_meta(d)
+        spec = WindowSpec(**meta.window.model_dump())
         for name, want, got in (
             ("run rate", run_rate_hz, spec.run_rate_hz),
             ("model rate", rate_hz, spec.rate_hz),
@@ -425,20 +431,180 @@ class AnnModel:
                 raise ValueError(
                     f"{d / 'model.json'}: the model's {name} is {got:g}, expected {want:g}"
                 )
-        if meta["layers"] != [spec.n_inputs, *HIDDEN, 1]:
-            raise ValueError(f"{d / 'model.json'}: layers {meta['layers']} are not Fig. 5's")
-        cfg_d = dict(meta["config"])
+        if meta.layers != [spec.n_inputs, *HIDDEN, 1]:
+            raise ValueError(f"{d / 'model.json'}: layers {meta.layers} are not Fig. 5's")
+        cfg_d = meta.config.model_dump()
         cfg_d["window"] = spec
         cfg_d["axes"] = tuple(cfg_d["axes"])
         if cfg_d["offsets"] is not None:
             cfg_d["offsets"] = tuple(cfg_d["offsets"])
         config = AnnConfig(**cfg_d)
-        nets: dict[str, nn.Module] = {}
-        with np.load(d / "weights.npz", allow_pickle=False) as z:
-            for a in config.axes:
-                net = build_network(spec.n_inputs, seed=0)
-                state = {k: torch.from_numpy(z[f"{a}.{k}"].copy()) for k in net.state_dict()}
-                net.load_state_dict(state)
-                nets[a] = net
-        scal = {a: Scaling.from_dict(meta["scaling"][a]) for a in config.axes}
-        return cls(config, nets, scal, meta.get("info", {}))
+        missing = [a for a in config.axes if a not in meta.scaling]
+        if missing:
+            raise SchemaError(f"{d / 'model.json'}: scaling.{missing[0]} is missing")
+        scal = {}
+        for a in config.axes:
+            sd = meta.scaling[a]
+            if len(sd.in_offset) != spec.n_inputs or len(sd.in_scale) != spec.n_inputs:
+                raise SchemaError(
+                    f"{d / 'model.json'}: scaling.{a} must hold {spec.n_inputs} input offsets "
+                    f"and scales, got {len(sd.in_offset)} and {len(sd.in_scale)}"
+                )
+            scal[a] = Scaling.from_dict(sd.model_dump())
+        nets = {a: build_network(spec.n_inputs, seed=0) for a in config.axes}
+        arrays = read_weights(d / "weights.npz", nets)
+        for a, net in nets.items():
+            net.load_state_dict({k: torch.from_numpy(arrays[f"{a}.{k}"]) for k in net.state_dict()})
+        return cls(config, nets, scal, meta.info)
+
+
+# --- the files' schema ---------------------------------------------------------------------
+#: What `microfab.io.schema.read_json` calls ``model.json``.
+META_KIND = "an ANN model (model.json of identify ann)"
+_STRICT = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
+#: Largest offset or scale of the networks' inputs and target read, m (assumed: see
+#: `ScalingDoc`).
+MAX_SCALING_M = 1e3
+#: Largest weight or bias read (assumed: Adam-trained weights of scaled inputs are of
+#: order 1; a value of 1e6 is a damaged file, and 1e308 overflows every prediction).
+MAX_WEIGHT = 1e6
+
+
+class WindowDoc(BaseModel):
+    """``window`` of ``model.json`` (`WindowSpec.as_dict`); rates in Hz, ``h`` in samples."""
+
+    model_config = _STRICT
+
+    run_rate_hz: float = Field(gt=0, le=1e8)
+    rate_hz: float = Field(gt=0, le=1e8)
+    h: int = Field(ge=2, le=100_000)
+    inputs: Literal["own", "both"]
+    encoding: Literal["relative", "extrapolated", "absolute"]
+    pad: bool
+    features: Literal["none", "position"]
+
+
+class ScalingDoc(BaseModel):
+    """``scaling.<axis>`` of ``model.json`` (`Scaling.as_dict`), m."""
+
+    model_config = _STRICT
+
+    # assumed bounds: the stage's travel and windows are well below a metre; an offset or
+    # scale of a kilometre is a damaged file (and 1e308 overflows every prediction)
+    in_offset: list[Annotated[float, Field(ge=-MAX_SCALING_M, le=MAX_SCALING_M)]] = Field(
+        min_length=1, max_length=100_000
+    )
+    in_scale: list[Annotated[float, Field(gt=0, le=MAX_SCALING_M)]] = Field(
+        min_length=1, max_length=100_000
+    )
+    out_offset: float = Field(ge=-MAX_SCALING_M, le=MAX_SCALING_M)
+    out_scale: float = Field(gt=0, le=MAX_SCALING_M)
+
+
+class ConfigDoc(BaseModel):
+    """``config`` of ``model.json`` (`AnnConfig.fingerprint`)."""
+
+    model_config = _STRICT
+
+    window: WindowDoc
+    axes: list[Literal["x", "y"]] = Field(min_length=1, max_length=2)
+    offsets: list[Annotated[int, Field(ge=0, le=100_000)]] | None
+    batch_size: int = Field(ge=1, le=10**9)
+    learning_rate: float = Field(gt=0, le=1e3)
+    lr_decay: float = Field(gt=0, le=1)
+    patience: int = Field(ge=1, le=10**6)
+    epoch_windows: int | None = Field(ge=1, le=10**12)
+    val_windows: int | None = Field(ge=1, le=10**12)
+    seed: int = Field(ge=0)
+
+
+class MetaDoc(BaseModel):
+    """``model.json`` of a network model folder (`AnnModel.meta`)."""
+
+    model_config = ConfigDict(strict=True, extra="allow", allow_inf_nan=False)
+
+    format_version: int
+    window: WindowDoc
+    axes: list[Literal["x", "y"]] = Field(min_length=1, max_length=2)
+    layers: list[int] = Field(min_length=2, max_length=64)
+    config: ConfigDoc
+    scaling: dict[str, ScalingDoc]
+    info: dict[str, Any] = Field(default_factory=dict)
+
+
+def read_model_meta(directory: str | os.PathLike[str]) -> MetaDoc:
+    """``model.json`` of a model folder, through its schema (`MetaDoc`).
+
+    Raises
+    ------
+    FileNotFoundError
+        No ``model.json``.
+    ValueError
+        Another format version; `microfab.io.schema.SchemaError` for a file that is not
+        JSON, of another kind, or breaks the schema (the line names the field).
+    """
+    p = Path(directory) / "model.json"
+    doc = read_json(p, META_KIND)
+    ver = doc.get("format_version") if isinstance(doc, dict) else None
+    if ver != FORMAT_VERSION or isinstance(ver, bool):
+        raise ValueError(
+            f"{p}: model format version {ver}, this microfab reads "
+            f"version {FORMAT_VERSION}; retrain the model"
+        )
+    return validated(MetaDoc, doc, str(p))
+
+
+def read_weights(path: str | os.PathLike[str], nets: dict[str, nn.Module]) -> dict[str, np.ndarray]:
+    """``weights.npz``: one float32 member ``<axis>.<name>`` per tensor of ``nets``.
+
+    Shapes and dtypes are checked from the members' headers before anything is read
+    (`microfab.io.schema.check_npz`), the values after (finite).
+
+    Parameters
+    ----------
+    path : path
+        The archive.
+    nets : dict of str to torch.nn.Module
+        The networks the archive must fill, by axis (their tensors give names and shapes).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Every member named by ``nets``, float32, shape of its tensor.
+
+    Raises
+    ------
+    SchemaError
+        Unreadable, a member missing, of another shape or dtype, or not finite.
+    """
+    p = Path(path)
+    want = {f"{a}.{k}": tuple(v.shape) for a, n in nets.items() for k, v in n.state_dict().items()}
+    try:
+        members = check_npz(p)
+    except SchemaError:
+        raise
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        other = describe_file(p)
+        if other is not None and other != "a zip archive":
+            raise SchemaError(f"{p}: this is {other}, not ANN weights (weights.npz)") from None
+        raise SchemaError(f"{p}: not readable ANN weights ({exc})") from None
+    for name, shape in want.items():
+        if name not in members:
+            raise SchemaError(f"{p}: member {name!r} is missing")
+        got, dtype = members[name]
+        if got != shape or dtype.kind != "f":
+            raise SchemaError(
+                f"{p}: member {name!r} must be float of shape {shape}, got {dtype} {got}"
+            )
+    out = {}
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            for name, shape in want.items():
+                arr = check_array(str(p), f"member {name!r}", np.array(z[name]), shape=shape,
+                                  low=-MAX_WEIGHT, high=MAX_WEIGHT)  # fmt: skip
+                out[name] = arr.astype(np.float32)
+    except SchemaError:
+        raise
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        raise SchemaError(f"{p}: not readable ANN weights ({exc})") from None
+    return out

@@ -24,13 +24,15 @@ given in that form (the fit's inner loop).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
-from typing import Any, Literal, NamedTuple
+from typing import Annotated, Any, Literal, NamedTuple
 
 import numpy as np
 import scipy.linalg
 import scipy.optimize
 import scipy.signal
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 import control
 from microfab.core.arrays import readonly
@@ -42,6 +44,8 @@ __all__ = [
     "PoleMode",
     "Sampling",
     "TFModel",
+    "TFModelDoc",
+    "read_tf_model",
     "response_scaled",
 ]
 
@@ -427,3 +431,55 @@ class TFModel:
         if not isinstance(unit, str):
             raise ValueError(f"unit must be a string, got {unit!r}")
         return cls(num=np.array(d["num"], float), den=np.array(d["den"], float), unit=unit)
+
+
+# --------------------------------------------------------------------------- the file
+#: What `microfab.io.schema.read_json` calls a model file.
+MODEL_KIND = "a transfer-function model (JSON)"
+#: Most coefficients of a numerator or denominator read from a file. Assumed: the fits
+#: of microfab are of order 12 or less; 64 leaves room and refuses a list of samples
+#: given where coefficients belong.
+MAX_COEFFS = 64
+
+
+def _known_unit(unit: str) -> str:
+    from microfab.io.schema import parse_unit
+
+    parse_unit(unit)  # an unknown unit is refused (a SchemaError, a ValueError)
+    return unit
+
+
+class TFModelDoc(BaseModel):
+    """The JSON form of a `TFModel` (`TFModel.to_dict`; also `FitResult.to_dict`)."""
+
+    model_config = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
+
+    format: Literal["microfab.identify.TFModel"] = FORMAT
+    version: Literal[1] = VERSION
+    num: list[float] = Field(min_length=1, max_length=MAX_COEFFS)
+    den: list[float] = Field(min_length=1, max_length=MAX_COEFFS)
+    unit: Annotated[str, AfterValidator(_known_unit)] = ""
+    derived: dict[str, Any] | None = None
+    fit: dict[str, Any] | None = None
+
+
+def read_tf_model(path: str | os.PathLike[str]) -> TFModel:
+    """A transfer-function model file (`TFModel.to_dict` as JSON), through `TFModelDoc`.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        (`microfab.io.schema.SchemaError`) Not JSON, a file of another kind (named), a
+        field of the wrong type, length or value, an unknown unit; or a model `TFModel`
+        refuses (improper, a zero leading coefficient). The line names the file.
+    """
+    from microfab.io.schema import read_json, validated
+
+    where = str(path)
+    doc = validated(TFModelDoc, read_json(path, MODEL_KIND), where)
+    try:
+        return TFModel(num=np.array(doc.num), den=np.array(doc.den), unit=doc.unit)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None

@@ -44,14 +44,14 @@ rest, possibly away from the origin. Sample ``k`` of the result is at input samp
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 import scipy.signal
+from pydantic import BaseModel, ConfigDict, Field
 
 from microfab.core.validate import check_int, check_positive
 from microfab.identify.stage_runs import (
@@ -68,6 +68,7 @@ from microfab.identify.subspace import SubspaceConfig, identify_subspace
 from microfab.identify.subspace_data import IORun
 from microfab.identify.subspace_model import ContinuousModel, SubspaceModel
 from microfab.io.atomic import atomic_write_json
+from microfab.io.schema import read_json, validated
 
 __all__ = [
     "AXES",
@@ -77,8 +78,10 @@ __all__ = [
     "FORMAT",
     "MIN_RUN_S",
     "MODEL_KINDS",
+    "STAGE_MODEL_KIND",
     "VERSION",
     "RunErrors",
+    "StageLinearDoc",
     "StageLinearModel",
     "StageRecord",
     "check_decimate",
@@ -424,10 +427,65 @@ def read_stage_model(path: str | Path) -> Any:
     if p.is_dir():  # a network model of `identify ann` (MODEL_KINDS)
         return MODEL_KINDS["ann"]({"kind": "ann", "path": str(p)})
     try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise ValueError(f"{p}: cannot read a stage model: {exc}") from None
+        data = read_json(p, STAGE_MODEL_KIND)
+    except FileNotFoundError:
+        raise ValueError(f"{p}: cannot read a stage model: no such file") from None
+    if isinstance(data, dict) and (data.get("kind"), data.get("format"), data.get("version")) == (
+        "linear",
+        FORMAT,
+        VERSION,
+    ):  # another format, version or kind: stage_model_from_dict names it
+        validated(StageLinearDoc, data, str(p))
     try:
         return stage_model_from_dict(data)
     except (ValueError, TypeError, KeyError) as exc:
         raise ValueError(f"{p}: {exc}") from None
+
+
+# --------------------------------------------------------------------------- the schema
+#: What `microfab.io.schema.read_json` calls a stage model file.
+STAGE_MODEL_KIND = "a stage model (JSON of identify linear)"
+#: Largest model order read (assumed: the seed 002 fits are of order 4 to 20; 200 states
+#: are 40 000 numbers in A, and refuse a file that lists samples where a model belongs).
+MAX_ORDER = 200
+_STRICT = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
+_Row = Annotated[list[float], Field(max_length=MAX_ORDER)]
+
+
+class SubspaceDoc(BaseModel):
+    """``model`` of a linear stage model: `SubspaceModel.to_dict` (dt in s, rate in Hz)."""
+
+    model_config = _STRICT
+
+    format: str
+    version: int
+    dt: float = Field(gt=0, le=1.0)
+    rate_hz: float = Field(gt=0, le=1e7)
+    order: int = Field(ge=1, le=MAX_ORDER)
+    block_rows: int = Field(ge=1, le=10_000)
+    weighting: str
+    a: list[_Row] = Field(max_length=MAX_ORDER)
+    b: list[_Row] = Field(max_length=MAX_ORDER)
+    c: list[_Row] = Field(max_length=MAX_ORDER)
+    d: list[_Row] = Field(max_length=MAX_ORDER)
+    x0: list[_Row] = Field(max_length=10_000)
+    singular_values: list[float] = Field(max_length=100_000)
+    fit_mean: list[float] = Field(max_length=MAX_ORDER)
+    fit_std: list[float] = Field(max_length=MAX_ORDER)
+
+
+class StageLinearDoc(BaseModel):
+    """A linear stage model file (`StageLinearModel.to_dict`), m and Hz."""
+
+    model_config = _STRICT
+
+    format: Literal["microfab.identify.StageModel"]
+    version: Literal[1]
+    kind: Literal["linear"]
+    axes: list[Literal["x", "y"]] = Field(min_length=2, max_length=2)
+    unit: Literal["m"]
+    input_rate_hz: float = Field(gt=0, le=1e7)  # assumed: above 10 MHz is a unit mistake
+    decimate: int = Field(ge=1, le=10_000)
+    model_rate_hz: float = Field(gt=0, le=1e7)
+    anti_alias: str
+    model: SubspaceDoc

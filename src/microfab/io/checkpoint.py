@@ -225,6 +225,14 @@ def read_state(
             f"{p}: not a readable {kind} file ({reason}; cut short or damaged?); {fix}"
         ) from None
     members = doc.pop("members", None)
+    for key, ok in (
+        ("members", members is None or (isinstance(members, list)
+                                        and all(isinstance(m, str) for m in members))),
+        ("kind", isinstance(doc.get("kind", kind), str)),
+        ("settings", isinstance(doc.get("settings") or {}, dict)),
+    ):  # fmt: skip
+        if not ok:
+            raise StateFileError(f"{p}: not a readable {kind} file (its {key!r} is damaged); {fix}")
     if members is not None and sorted(arrays) != members:
         lost = sorted(set(members) - set(arrays))
         odd = sorted(set(arrays) - set(members))

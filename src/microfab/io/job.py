@@ -68,6 +68,9 @@ class Key:
         (`microfab.io.runstore`), so a run resumed on changed data is refused.
     choices : tuple of str, optional
         The values a ``str`` key takes (any non-empty string when not given).
+    low_open, high_open : bool
+        ``low`` (``high``) itself is outside the range: a speed or a period is more than 0,
+        not 0.
     """
 
     name: str
@@ -81,12 +84,27 @@ class Key:
     allow_empty: bool = False
     path: bool = False
     choices: tuple[str, ...] | None = None
+    low_open: bool = False
+    high_open: bool = False
 
-    def _range(self) -> str:
+    def range_text(self) -> str:
+        """The range as ``[low, high] unit`` (``(`` or ``)`` where a bound is excluded)."""
         lo = "-inf" if self.low is None else f"{self.low:g}"
         hi = "inf" if self.high is None else f"{self.high:g}"
         unit = f" {self.unit}" if self.unit else ""
-        return f"[{lo}, {hi}]{unit}"
+        left = "(" if self.low is None or self.low_open else "["
+        right = ")" if self.high is None or self.high_open else "]"
+        return f"{left}{lo}, {hi}{right}{unit}"
+
+    def outside(self, value: float) -> bool:
+        """Whether the number ``value`` is outside the range (or not finite)."""
+        if not math.isfinite(value):
+            return True
+        if self.low is not None and (value <= self.low if self.low_open else value < self.low):
+            return True
+        return self.high is not None and (
+            value >= self.high if self.high_open else value > self.high
+        )
 
     def check(self, value: Any, where: str, as_written: str | None = None) -> Any:
         """Return ``value`` checked against this key (lists become tuples).
@@ -130,11 +148,9 @@ class Key:
         if kind == "int" and not isinstance(value, int):
             raise JobFileError(f"{what}: expected an integer, not {value!r}")
         if not math.isfinite(value):
-            raise JobFileError(f"{what}: expected a finite number in {self._range()}")
-        if (self.low is not None and value < self.low) or (
-            self.high is not None and value > self.high
-        ):
-            raise JobFileError(f"{what}: outside the allowed range {self._range()}")
+            raise JobFileError(f"{what}: expected a finite number in {self.range_text()}")
+        if self.outside(value):
+            raise JobFileError(f"{what}: outside the allowed range {self.range_text()}")
         return int(value) if kind == "int" else float(value)
 
 

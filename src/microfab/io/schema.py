@@ -367,6 +367,20 @@ _JSON_KINDS: tuple[tuple[frozenset[str], str], ...] = (
     (frozenset({"runs", "total_samples"}), "a stage run list (runs.json of stage excite)"),
     (frozenset({"pixel_size_m", "frame_interval_s"}), "a frame index (frames.json)"),
     (frozenset({"num", "den"}), "a transfer-function model (JSON)"),
+    (frozenset({"kind", "amplitudes", "times_s"}), "a shaper (JSON of shaper design)"),
+    (frozenset({"kind", "model", "config"}), "a shaper (JSON of shaper design)"),
+    (
+        frozenset({"kind", "axes", "input_rate_hz", "model"}),
+        "a stage model (JSON of identify linear)",
+    ),
+    (
+        frozenset({"format_version", "layers", "scaling"}),
+        "an ANN model (model.json of identify ann)",
+    ),
+    (
+        frozenset({"drawing", "sizing", "commands", "path_length_m"}),
+        "an optimize summary (summary.json of microfab optimize)",
+    ),
 )
 
 

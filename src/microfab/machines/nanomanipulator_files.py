@@ -15,6 +15,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,10 +27,11 @@ from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import RCConfig, period_samples
 from microfab.io.atomic import atomic_save_npz
 from microfab.io.lock import folder_lock
+from microfab.io.schema import SchemaError, check_array, check_npz, describe_file
 from microfab.io.trace import write_columns
 from microfab.io.xy_trace import REF_TOL_MM, largest_deviation, read_measured
 
-__all__ = ["CONTOUR_FILE", "STATE_FILE", "RCStepReport", "rc_file_step"]
+__all__ = ["CONTOUR_FILE", "STATE_FILE", "RCStepReport", "rc_file_step", "read_contour"]
 
 #: RC state file in the state directory (`RCMemory.save`, as `PluginRC.save_state`).
 STATE_FILE = "rc_state.npz"
@@ -240,13 +244,7 @@ def _rc_file_step(
             )
     contour = sd / CONTOUR_FILE
     if not created and contour.is_file():
-        try:
-            with np.load(contour, allow_pickle=False) as z:
-                ref0 = np.array(z["reference"])
-        except (OSError, ValueError, KeyError) as exc:
-            raise ValueError(f"cannot read the contour {contour}: {exc}") from exc
-        if ref0.shape != tr.reference.shape:
-            raise ValueError(f"the contour in {contour} is shaped {ref0.shape}, not {(n, 2)}")
+        ref0 = read_contour(contour, n)
         dev, k, j = largest_deviation(tr.reference, ref0)
         if dev > REF_TOL_MM:
             raise ValueError(
@@ -291,3 +289,52 @@ def _rc_file_step(
         out_path=Path(out),
         created=created,
     )
+
+
+def read_contour(path: str | os.PathLike[str], n: int) -> np.ndarray:
+    """The first trial's contour of an RC state folder (`CONTOUR_FILE`), mm.
+
+    Its member ``reference`` is checked from the archive's header before it is read
+    (`microfab.io.schema.check_npz`: size, dtype, shape ``(n, 2)``) and then for finite
+    values.
+
+    Parameters
+    ----------
+    path : path
+        The ``.npz`` file.
+    n : int
+        Samples of one period (the state's).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (n, 2), float64, mm.
+
+    Raises
+    ------
+    ValueError
+        (`microfab.io.schema.SchemaError`) Unreadable, another kind of file (named), no
+        ``reference``, another shape or dtype, or a NaN or infinite value.
+    """
+    p = Path(path)
+    try:
+        members = check_npz(p)
+        if "reference" not in members:
+            raise SchemaError(f"{p}: member 'reference' is missing (the contour, mm)")
+        shape, dtype = members["reference"]
+        if shape != (n, 2) or dtype.kind != "f":
+            raise SchemaError(
+                f"{p}: the contour 'reference' must be float of shape {(n, 2)}, got {dtype} {shape}"
+            )
+        with np.load(p, allow_pickle=False) as z:
+            raw = np.array(z["reference"])
+            if "dt" in members:  # written beside the contour: its sample time, s
+                check_array(str(p), "dt", np.array(z["dt"]), shape=(), low=1e-9, high=1.0, unit="s")
+    except SchemaError:
+        raise
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        other = describe_file(p)
+        if other is not None and other != "a zip archive":
+            raise SchemaError(f"{p}: this is {other}, not the contour of an RC state") from None
+        raise SchemaError(f"{p}: cannot read the contour ({exc})") from None
+    return check_array(str(p), "the contour 'reference'", raw, shape=(n, 2), unit="mm")

@@ -51,7 +51,7 @@ def test_empty_sections_give_the_defaults(tmp_path):
         ("[rbf]\neps = 0.0\n", r"eps \(ε\)"),
         ("[rbf]\nlam = 0.0\n", r"lam \(λ"),
         ("[rbf]\nwidth_factor = 0.0\n", r"width_factor"),
-        ("[rc]\ntau_ms = 0.0\n", r"tau_s"),
+        ("[rc]\ntau_ms = 0.0\n", r"tau_ms = 0.0: outside the allowed range \(0, "),
         ("[gate]\nthreshold_um = 0.0\n", r"threshold"),
         ("[gate]\nthreshold_um = nan\n", r"nan"),
         ("[pattern]\nperiod_s = 1.00005\n", r"whole number"),

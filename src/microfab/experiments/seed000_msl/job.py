@@ -36,6 +36,7 @@ from microfab.experiments.kinds import (
     ReproductionResult,
 )
 from microfab.experiments.seed000_msl import paper
+from microfab.experiments.seed000_msl.keys import FS_HZ, ILC_CUTOFF_HZ, ILC_GAIN
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
 from microfab.machines import galvo as galvo_machine
@@ -57,7 +58,6 @@ __all__ = [
     "tables_from_runs",
 ]
 
-FS_HZ = 1_000_000  # seed 000 §3.1: the loop runs at 1 MHz; a rate must divide it
 MAX_ITERATIONS = 1000  # assumed bound: 30 trials take ~4 s per rate; 1000 about 2 minutes
 
 SCHEMA = {
@@ -83,8 +83,8 @@ SCHEMA = {
         ),
     ),
     "ilc": (
-        Key(name="cutoff_hz", type="float", default=8000.0, low=1.0, high=FS_HZ / 2, unit="Hz"),
-        Key(name="gain", type="float", default=0.4, low=1e-6, high=2.0),
+        ILC_CUTOFF_HZ,  # shared with `ilc step --cutoff-hz`
+        ILC_GAIN,  # shared with `ilc step --gain`
         Key(name="snr_min", type="float", default=3.0, low=0.0, high=1e6),
     ),
     "twin": (Key(name="seed", type="int", default=0, low=0, high=2**32 - 1),),

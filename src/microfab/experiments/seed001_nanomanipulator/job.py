@@ -32,7 +32,12 @@ from typing import Any
 from microfab.control.rbf import RBFConfig
 from microfab.core.provenance import Shows, quantity
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
-from microfab.experiments.seed001_nanomanipulator import paper
+from microfab.experiments.seed001_nanomanipulator.keys import (
+    PATTERN_KEYS,
+    RC_GAIN,
+    RC_LEAD_SAMPLES,
+    RC_TAU_MS,
+)
 from microfab.experiments.seed001_nanomanipulator.results import NanomanipulatorResult
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
@@ -62,24 +67,8 @@ __all__ = [
 
 _F = "float"
 SCHEMA: dict[str, tuple[Key, ...]] = {
-    "pattern": (
-        Key(name="n_circles", type="int", default=paper.N_CIRCLES, low=1, high=100,
-            help="circles (seed 001 §4.2: four)"),
-        Key(name="diameter_mm", type=_F, default=paper.CIRCLE_DIAMETER_MM, low=0.0,
-            high=2 * paper.TRAVEL_MM, unit="mm", help="circle diameter (seed: 0.15 mm)"),
-        Key(name="field_mm", type=_F, default=paper.FIELD_MM, low=0.0,
-            high=2 * paper.TRAVEL_MM, unit="mm", help="side of the field the circles fill"),
-        Key(name="period_s", type=_F, default=1.0, low=0.0, high=60.0, unit="s",
-            help="time per loop (assumed 1 s; a whole number of samples)"),
-        Key(name="periods", type="int", default=6, low=1, high=1000,
-            help="loops per circle (the gate exposes one after convergence)"),
-        Key(name="pause_s", type=_F, default=0.2, low=0.0, high=60.0, unit="s",
-            help="pause at the start point before each circle"),
-        Key(name="move_s", type=_F, default=0.3, low=0.0, high=60.0, unit="s",
-            help="move to each circle's start point"),
-        Key(name="ramp_s", type=_F, default=0.25, low=0.0, high=60.0, unit="s",
-            help="spin-up and spin-down of each circle"),
-    ),
+    # shared with `nanomanipulator analyze` (its period also with `rc step --period-s`)
+    "pattern": PATTERN_KEYS,
     "rbf": (
         Key(name="n_nodes", type="int", default=25, low=1, high=1000, help="nodes per axis l"),
         Key(name="lam", type=_F, default=100.0, unit="1/s", help="λ of s = λe + ė (> 0)"),
@@ -94,10 +83,9 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
     ),
     "rc": (
         Key(name="enabled", type="bool", default=True, help="plug-in RC on"),
-        Key(name="tau_ms", type=_F, default=1e3 / (2 * math.pi * 100.0), unit="ms",
-            help="Q(s) = 1/(τs + 1) time constant (> 0; default a 100 Hz cutoff)"),
-        Key(name="gain", type=_F, default=1.0, low=0.0, high=2.0, help="learning gain (0, 2]"),
-        Key(name="lead_samples", type="int", default=20, low=0, help="phase lead, samples"),
+        RC_TAU_MS,  # shared with `rc step --tau-ms`, `--gain`, `--lead-samples`
+        RC_GAIN,
+        RC_LEAD_SAMPLES,
         Key(name="carry", type="bool", default=False,
             help="the RC memory of one circle seeds the next"),
     ),

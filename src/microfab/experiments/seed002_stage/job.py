@@ -27,6 +27,23 @@ from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
+from microfab.experiments.seed002_stage.keys import (
+    A_MAX,
+    ANN_EPOCH_WINDOWS,
+    ANN_MAX_EPOCHS,
+    ANN_SEED,
+    ANN_THREADS,
+    ANN_VALIDATION,
+    ANN_WORKERS,
+    DECIMATE,
+    EPOCH_WINDOWS,
+    HOLD_S,
+    MAX_EPOCHS,
+    ORDER,
+    RUNS_SEED,
+    RUNS_TOTAL_S,
+    TWIN_SEED,
+)
 from microfab.experiments.seed002_stage.study import (
     MODEL_FOLDERS,
     SWEEP_A_MAX,
@@ -55,17 +72,15 @@ __all__ = [
 ]
 
 _F = "float"
-#: Training windows per epoch and validation windows of the stopping loss: assumed, so
-#: that both networks train within the 15 min of issue 17 on one CPU thread (16 batches
-#: of 16 384 per epoch, about 5 s; `microfab.identify.ann.AnnConfig`).
-EPOCH_WINDOWS = 262_144
+#: Validation windows of the stopping loss: assumed, so that both networks train within
+#: the 15 min of issue 17 on one CPU thread (`microfab.identify.ann.AnnConfig`); the
+#: training windows per epoch (``EPOCH_WINDOWS``) and the most epochs (``MAX_EPOCHS``,
+#: issue 34's schedule) are in `microfab.experiments.seed002_stage.keys`, which the CLI
+#: shares.
 VAL_WINDOWS = 131_072
-#: The training schedule (issue 34: training <= 5 min on 2 cores): at most 60 epochs, the
-#: learning rate falling 5 % an epoch to 1/20 of Adam's 1e-3 by the last (0.95^60 =
-#: 0.046). Assumed, from the measurement in ``benchmarks/bench_ann.py``: the validation
-#: σ levels off within the first minutes, and issue 17's 200 epochs at 0.97 (16 min)
-#: reached the same σ (the figures are in that script's output and issue 34's note).
-MAX_EPOCHS = 60
+#: The learning rate falls 5 % an epoch to 1/20 of Adam's 1e-3 by the last of
+#: ``MAX_EPOCHS`` (0.95^60 = 0.046). Assumed, from the measurement in
+#: ``benchmarks/bench_ann.py`` (issue 34's note).
 LR_DECAY = 0.95
 #: The networks' inputs: the seed's 200 (`microfab.identify.ann_data`). The position
 #: features learn the twin's cogging on the validation runs (σ x / y 19.4 / 37.7 ->
@@ -77,26 +92,22 @@ MAGNITUDES = ("calibrated", "assumed")
 
 SCHEMA: dict[str, tuple[Key, ...]] = {
     "twin": (
-        Key(name="seed", type="int", default=0, low=0, help="noise seed (run k uses seed + k)"),
+        TWIN_SEED,
         Key(name="noise", type="bool", default=True, help="2 µm output noise (seed eq. 3)"),
-        Key(name="hold_s", type=_F, default=0.5, low=0.0, high=10.0, unit="s",
-            help="hold after each command so the stage settles (assumed 0.5 s)"),
+        HOLD_S,
         Key(name="magnitudes", type="str", default="calibrated", choices=MAGNITUDES,
             help="friction and cogging: 'calibrated' (the twin file's, fitted to Table II "
             "column 1) or 'assumed' (the magnitudes before calibration)"),
     ),
     "linear": (
-        Key(name="total_s", type=_F, default=600.0, low=1.0, high=6000.0, unit="s",
-            help="random-run data (seed §III-C.1: 6e6 samples, 600 s)"),
-        Key(name="a_max", type=_F, default=5.0, low=0.0, high=40.0, unit="m/s²",
-            help="largest acceleration of the runs (seed §III-D: 5)"),
-        Key(name="order", type="int", default=4, low=1, high=30, help="states (seed: 4)"),
-        Key(name="decimate", type="int", default=10, low=1, high=100,
-            help="decimation before the fit (10: to 1 kHz)"),
+        RUNS_TOTAL_S,
+        A_MAX,
+        ORDER,
+        DECIMATE,
         Key(name="feedthrough", type="bool", default=True, help="estimate D (eq. 6b)"),
         Key(name="orders", type="int_list", default=(2, 3, 4, 5, 6, 7, 8), low=1, high=30,
             allow_empty=True, help="order check (seed §III-A); [] for none"),
-        Key(name="seed", type="int", default=0, low=0, help="seed of the random runs"),
+        RUNS_SEED,
     ),
     "ann": (
         Key(name="enabled", type="bool", default=True, help="train the per-axis networks"),
@@ -104,25 +115,19 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
             help="data (about 34 training windows per weight, seed §III-C)"),
         Key(name="random_share", type=_F, default=0.6, low=0.0, high=1.0,
             help="share of random runs (seed: about 60 %)"),
-        Key(name="validation", type=_F, default=0.2, low=0.0, high=0.9,
-            help="share of whole runs kept for validation (seed: 20 %)"),
-        Key(name="max_epochs", type="int", default=MAX_EPOCHS, low=1, high=100_000,
-            help="most epochs per axis (early stopping decides first)"),
+        ANN_VALIDATION,
+        ANN_MAX_EPOCHS,
         Key(name="lr_decay", type=_F, default=LR_DECAY, low=0.5, high=1.0,
             help="learning-rate factor per epoch (Adam from 1e-3)"),
         Key(name="features", type="str", default=FEATURES, choices=("none", "position"),
             help="'position': sin/cos of recent absolute positions as inputs too (learns "
                  "cogging); 'none': the seed's 200 inputs"),
-        Key(name="epoch_windows", type="int", default=EPOCH_WINDOWS, low=0,
-            help="training windows per epoch (0: all)"),
+        ANN_EPOCH_WINDOWS,
         Key(name="val_windows", type="int", default=VAL_WINDOWS, low=0,
             help="validation windows of the stopping loss (0: all)"),
-        Key(name="threads", type="int", default=1, low=1, high=256,
-            help="CPU threads per worker (1: best on 2 cores)"),
-        Key(name="workers", type="int", default=2, low=1, high=2,
-            help="axes trained at once, one process each (2: half the time on 2 cores)"),
-        Key(name="seed", type="int", default=0, low=0,
-            help="seed of the runs, the split and the training"),
+        ANN_THREADS,
+        ANN_WORKERS,
+        ANN_SEED,
     ),
     "cases": (
         Key(name="table_a_max", type="float_list", default=TABLE_A_MAX, low=0.0, high=40.0,

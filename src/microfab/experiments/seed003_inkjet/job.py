@@ -36,6 +36,14 @@ from pathlib import Path
 from typing import Any
 
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
+from microfab.experiments.seed003_inkjet.keys import (
+    AFTER_BREAKUP,
+    CONCENTRATION,
+    DURATION,
+    VOLTAGE,
+    VOLTAGE_CONCENTRATION,
+    WORKERS,
+)
 from microfab.experiments.seed003_inkjet.paper import (
     FIG4_VOLTAGE_V,
     SEED_BREAKUP,
@@ -58,39 +66,27 @@ __all__ = [
     "DropletSweepResult",
 ]
 
-#: Highest concentration of the property table, % w/v (seed 003 "Materials": 2 %).
-MAX_CONCENTRATION_PCT = max(SEED_CONCENTRATIONS_PCT)
-#: Voltage range the printhead model is calibrated for, V (seed 003 Table 1).
-VOLTAGE_RANGE_V = printhead.limits().voltage_v
-#: Assumed bounds of the simulated time per point, µs: the seed's slowest breakup is
-#: 230 µs (1 % at 50 V); 5 ms is far past any drop-on-demand event at 50 Hz drive.
-DURATION_RANGE_US = (10.0, 5000.0)
-MAX_WORKERS = 256  # assumed: more processes than any one machine here has cores
-
 # fmt: off
-_CONCENTRATIONS = Key(name="concentrations_pct", type="float_list", default=SEED_CONCENTRATIONS_PCT,
-                     low=0.0, high=MAX_CONCENTRATION_PCT, unit="% w/v",
-                     help="concentrations of the 50 V series (seed Fig. 4)")
-_DURATION = Key(name="duration_us", type="float", default=400.0, low=DURATION_RANGE_US[0],
-                high=DURATION_RANGE_US[1], unit="µs", help="simulated time per point")
-_AFTER = Key(name="after_breakup_us", type="float", default=20.0, low=1.0,
-             high=DURATION_RANGE_US[1], unit="µs",
-             help="how long the bodies are followed after the first breakup")
+# The ranges and the keys the `microfab droplet` options share live in `keys` (light).
+_CONCENTRATIONS = dataclasses.replace(CONCENTRATION, name="concentrations_pct",
+                                      type="float_list", default=SEED_CONCENTRATIONS_PCT,
+                                      help="concentrations of the 50 V series (seed Fig. 4)")
+_DURATION = DURATION  # shared with `droplet sweep|render --duration`
+_AFTER = AFTER_BREAKUP  # shared with `droplet simulate --after-breakup`
 _MODELS = Key(name="models", type="str", default=DEFAULT_JET_MODEL,
               help="jet models, comma-separated: lagrangian, eulerian (each runs every point)")
 #: The reproduction shows both models beside the seed by default.
 _REPRO_MODELS = dataclasses.replace(_MODELS, default="lagrangian,eulerian")
-_WORKERS = Key(name="workers", type="int", default=1, low=1, high=MAX_WORKERS,
-               help="worker processes of a local Dask cluster (1: in this process)")
+_WORKERS = WORKERS  # shared with `droplet sweep|sensitivity --jobs`
 
 SCHEMA = {
     "sweep": (
         _CONCENTRATIONS,
-        Key(name="voltages_v", type="float_list", default=SEED_VOLTAGES_V,
-            low=VOLTAGE_RANGE_V[0], high=VOLTAGE_RANGE_V[1], unit="V", allow_empty=True,
-            help="voltages of the voltage series (seed Table 1); [] for none"),
-        Key(name="voltage_concentration_pct", type="float", default=1.0, low=0.0,
-            high=MAX_CONCENTRATION_PCT, unit="% w/v", help="concentration of the voltage series"),
+        # each voltage as `droplet simulate|render --voltage` and `droplet sweep --voltages`
+        dataclasses.replace(VOLTAGE, name="voltages_v", type="float_list",
+                            default=SEED_VOLTAGES_V, allow_empty=True,
+                            help="voltages of the voltage series (seed Table 1); [] for none"),
+        VOLTAGE_CONCENTRATION,  # shared with `droplet sweep --voltage-concentration`
         _DURATION,
         _AFTER,
         _MODELS,

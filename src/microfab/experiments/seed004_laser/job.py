@@ -30,6 +30,7 @@ from typing import Any
 from microfab.core.provenance import Shows, quantity
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed004_laser import paper
+from microfab.experiments.seed004_laser.keys import CONTOUR
 from microfab.experiments.seed004_laser.results import (
     DOF_QUANTITY,
     FIG3_JOB,
@@ -66,7 +67,7 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
     "drawing": (
         Key(name="source", type="str", default="circle:radius=30e-6", path=True,
             help="drawing: a DXF/SVG file or a shape (seed 004 Fig. 3: 30 µm circle)"),
-        Key(name="contour", type="int", default=0, low=0, help="which closed contour, from 0"),
+        CONTOUR,  # shared with `laser analyze --contour`
     ),
     "trajectory": (
         Key(name="speed_mm_s", type=_F, default=1.0, low=0.0, high=100.0, unit="mm/s",
