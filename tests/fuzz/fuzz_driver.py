@@ -498,7 +498,12 @@ def run_pool(
                 if s.case is None and todo:
                     s.case, s.started = todo.pop(), time.monotonic()
                     s.conn.send(s.case)
-                    watch[i] = (_Progress(s.proc.pid, timeout_s + grace, timeout_s + grace),
+                    # a `together` case runs its command `together` times at once, once
+                    # more alone after, and once alone to learn what it leaves: each run
+                    # gets the budget of one case
+                    runs = 1 if s.case.together <= 1 else s.case.together + 2
+                    budget = timeout_s * runs + grace
+                    watch[i] = (_Progress(s.proc.pid, budget, budget),
                                 s.started + WATCH_EVERY_S)  # fmt: skip
                 if s.case is None:
                     continue

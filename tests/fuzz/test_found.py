@@ -105,6 +105,23 @@ FOUND: dict[str, tuple[tuple[str, ...], str]] = {
         ("path", "show", "butterfly:scale=1e+308", "--out", "p.png"),
         "finite",
     ),
+    # make fuzz, issue 44: a velocity limit far below --speed sized the reference from
+    # --speed and planned 8e7 samples for minutes (a hang)
+    "a cruise held to 1e-6 m/s": (
+        (
+            "trajectory",
+            "square:side=0.01,corner_radius=0.002",
+            "--speed",
+            "0.05",
+            "--vmax",
+            "1e-06",
+            "--rate",
+            "2000",
+            "--out",
+            "ref.csv",
+        ),
+        "at 1.41421e-06 m/s and 2000 Hz takes more than",
+    ),
     "droplet render of no liquid": (
         (
             "droplet",
@@ -135,6 +152,16 @@ def test_found_case_is_refused_cleanly(name: str) -> None:
     out = run_case(Case(kind="found", argv=argv, setup=("workspace",), note=name))
     assert out.outcome == "refused", f"{out.outcome}: {out.detail}"
     assert says in out.detail, out.detail
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_a_drawing_flat_along_one_axis_is_drawn() -> None:
+    """make fuzz, issue 44: a Lissajous curve 6e-236 m high gave matplotlib a singular
+    transform (LinAlgError): the picture's spans are now at least 1 % of each other."""
+    spec = "lissajous:ax=0.01,ay=5.931277608488788e-236,fx=3,fy=2,phase=1.5"
+    argv = ("path", "show", spec, "--out", "part.png")
+    out = run_case(Case(kind="found", argv=argv, note="flat lissajous"))
+    assert out.outcome == "accepted", f"{out.outcome}: {out.detail}"
 
 
 def test_a_calibration_refuses_a_property_table_it_could_not_update_before_running() -> None:

@@ -121,3 +121,13 @@ def test_corner_stops_closer_than_the_grid_spacing_are_planned() -> None:
     check_trajectory(traj, limits)
     assert np.isfinite(traj.duration) and traj.meta["corner_stops"] >= 150
     assert traj.s is not None and traj.s[-1] == pytest.approx(path.length, rel=1e-9)
+
+
+def test_a_velocity_limit_far_below_the_speed_is_sized_before_planning() -> None:
+    """The sample budget uses the top speed the limits allow, not the asked speed (make
+    fuzz: --speed 0.05 with --vmax 1e-6 planned 8e7 samples for minutes)."""
+    import dataclasses
+
+    slow = dataclasses.replace(LIMITS, velocity=(1e-6, 1e-6))
+    with pytest.raises(ValueError, match=r"at 1\.41421e-06 m/s .* samples a reference may"):
+        cruise(circle(0.005), slow, speed=0.05, sample_rate_hz=2000.0)

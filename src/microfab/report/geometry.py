@@ -46,6 +46,7 @@ def fig_layer(layer: Layer, *, title: str | None = None, arrows_per_contour: int
     n = len(layer)
     if n:
         _draw_contours(ax, layer, arrows_per_contour)
+        _frame(ax, [c.flatten() * 1e3 for c in layer.contours])
     ax.set_aspect("equal")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
@@ -57,6 +58,20 @@ def fig_layer(layer: Layer, *, title: str | None = None, arrows_per_contour: int
     )
     ax.grid(True, lw=0.3)
     return fig
+
+
+def _frame(ax: Axes, flats: list[np.ndarray]) -> None:
+    """Axis limits around the contours (mm), neither span under 1 % of the other.
+
+    A drawing flat along one axis (a Lissajous curve of height 1e-30 m) would give
+    matplotlib a singular transform; 5 % margins as matplotlib's own.
+    """
+    pts = np.concatenate(flats)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    half = np.maximum(half, max(float(half.max()) * 0.01, 1e-9)) * 1.05
+    ax.set_xlim(centre[0] - half[0], centre[0] + half[0])
+    ax.set_ylim(centre[1] - half[1], centre[1] + half[1])
 
 
 def _draw_contours(ax: Axes, layer: Layer, arrows_per_contour: int) -> None:

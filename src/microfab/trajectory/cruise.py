@@ -169,13 +169,19 @@ def cruise(
     length = path.length
     if not length > 0:
         raise ValueError("the path has zero length")
+    # the path speed never exceeds the axes' velocity limits together (|v| <= |v_max|): the
+    # samples at that top speed are a lower bound, known before any profile is computed
+    # (with --speed alone a 1e-6 m/s velocity limit planned 8e7 samples for minutes)
+    vmax = np.asarray(limits.velocity, dtype=float)
+    vmax = vmax[np.isfinite(vmax) & (vmax > 0)]
+    top = min(speed, float(np.linalg.norm(vmax))) if vmax.size else speed
     with np.errstate(over="ignore"):
-        count = length / speed * sample_rate_hz  # samples at full speed, a lower bound
+        count = length / top * sample_rate_hz  # samples at full speed, a lower bound
     if not count <= MAX_SAMPLES:
         raise ValueError(
-            f"tracing {length:.6g} m at {speed:g} m/s and {sample_rate_hz:g} Hz takes more "
-            f"than the {MAX_SAMPLES:,} samples a reference may hold: raise the speed or lower "
-            "the sample rate"
+            f"tracing {length:.6g} m at {top:g} m/s and {sample_rate_hz:g} Hz takes more "
+            f"than the {MAX_SAMPLES:,} samples a reference may hold: raise the speed or the "
+            "velocity limits, or lower the sample rate"
         )
     if grid_points is None:
         grid_points = int(np.clip(math.ceil(length * sample_rate_hz / speed), 2000, 20_000))
