@@ -76,6 +76,8 @@ def _range_cases() -> list[tuple[str, list[str], str]]:
         ("excite-duration", [*excite, "--duration", "0.01"], "'--duration': 0.01 s"),
         ("excite-duration-high", [*excite, "--duration", "4000"], "'--duration': 4000 s"),
         ("excite-amax", [*excite, "--amax", "0"], "'--amax': 0 m/s²"),
+        # make fuzz: 1e-308 m/s² was accepted by an open bound at 0 (a run of noise)
+        ("excite-amax-tiny", [*excite, "--amax", "1e-12"], "outside the allowed range [0.001,"),
         ("excite-amax-inf", [*excite, "--amax", "inf"], "'--amax': inf is not a finite"),
         ("play-hold", [*play, "--hold", "11"], "'--hold': 11 s"),
         ("play-seed", [*play, "--seed", "-1"], "'--seed': -1"),

@@ -79,6 +79,8 @@ def _refused(
         (("shaper", "design", "--poles-hz", "0"), "--poles-hz"),
         (("shaper", "design", "--order", "17"), "--order"),
         ((*COMPARE, "--jump-bit", "0"), "--jump-bit"),
+        # make fuzz: a step of 1e-12 bit was accepted by an open bound at 0
+        ((*COMPARE, "--jump-bit", "0.5"), "0.5 bit is outside the allowed range [1, 65536] bit"),
         ((*COMPARE, "--start-bit", "40000"), "--start-bit"),
         ((*COMPARE, "--band-pct", "60"), "--band-pct"),
         (("shaper", "compare", "--shapers", "ei", "--v-tol", "0.3"), "--v-tol"),

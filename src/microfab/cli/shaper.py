@@ -437,8 +437,7 @@ def compare_cmd(
         number(
             help="Step of the settling test (at most the field's width).",
             unit="bit",
-            low=0.0,
-            low_open=True,
+            low=1.0,  # the scanner's resolution: a step under one bit is none
             high=2.0 * keys.FIELD_BIT,
         ),
     ] = 1000.0,

@@ -170,6 +170,12 @@ def test_fig4_reproduction_options() -> None:
     }
     with pytest.raises(JobFileError, match="workers"):
         rep.parse_options({"workers": 0})
+    # the models are names, checked before a run (make fuzz: "/" was called valid)
+    assert rep.preflight is not None
+    rep.preflight(rep.parse_options({"models": "eulerian"}))
+    for bad in ("/", "../../../x", "eulerian,smoothed", " , "):
+        with pytest.raises(ValueError, match="models must name one or more of"):
+            rep.preflight(rep.parse_options({"models": bad}))
 
 
 def test_the_report_names_the_fitted_parameters() -> None:

@@ -383,11 +383,29 @@ DROPLET_SWEEP = JobKind(
     data_files=printhead.DATA_FILES,
 )
 
+
+def _fig4_preflight(options: dict[str, Any]) -> None:
+    """Refuse unknown jet models before a run (``--check`` too).
+
+    make fuzz found ``--set models=/`` called valid by ``reproduce droplet-fig4 --check``.
+    """
+    from microfab.process.inkjet.droplet import JET_MODELS
+
+    models = parse_models(options["models"])
+    bad = [m for m in models if m not in JET_MODELS]
+    if bad or not models:
+        raise ValueError(
+            f"reproduce droplet-fig4: --set models must name one or more of "
+            f"{', '.join(JET_MODELS)}, comma-separated; got {options['models']!r}"
+        )
+
+
 DROPLET_FIG4_REPRODUCTION = Reproduction(
     name="droplet-fig4",
     run=_reproduce,
     options=(_DURATION, _REPRO_MODELS, _WORKERS),
     data_files=printhead.DATA_FILES,
+    preflight=_fig4_preflight,
 )
 
 
