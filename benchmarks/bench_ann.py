@@ -116,7 +116,7 @@ def real_run(
     """
     from microfab.experiments.seed002_stage.job import EPOCH_WINDOWS, VAL_WINDOWS
     from microfab.identify.stage_ann import ann_config, train_stage_ann
-    from microfab.machines.xy_stage_ann import AnnSettings, ann_records
+    from microfab.machines.xy_stage.ann import AnnSettings, ann_records
 
     settings = AnnSettings(total_s=total_s, epoch_windows=EPOCH_WINDOWS,
                            val_windows=VAL_WINDOWS, threads=threads, workers=workers)  # fmt: skip

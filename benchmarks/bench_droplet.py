@@ -19,7 +19,7 @@ import sys
 import numpy as np
 from _timing import timed
 
-from microfab.machines.printhead import droplet_sweep, sweep_points
+from microfab.machines.printhead.machine import droplet_sweep, sweep_points
 from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL, simulate_droplet
 from microfab.process.inkjet.fluids import naalg
 from microfab.process.inkjet.jet import JetModel, Numerics, run_jet, thread_body

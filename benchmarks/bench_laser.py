@@ -27,7 +27,7 @@ import numpy as np
 from _timing import best, timed
 
 from microfab.geometry.project import project_points, project_points_scalar
-from microfab.machines.laser_stage import ControlSettings, TwinSettings, controller, twin
+from microfab.machines.laser_stage.machine import ControlSettings, TwinSettings, controller, twin
 from microfab.sim.loop import LoopState, simulate, simulate_python
 from microfab.trajectory.contour_laps import ContourMotion, contour_path, contour_reference
 

@@ -212,8 +212,8 @@ def job_real_time_factor() -> tuple[float, float, float]:
     """
     import tempfile
 
-    from microfab.machines.nanomanipulator_cure import cure_circles
-    from microfab.machines.nanomanipulator_job import JobConfig, run_job
+    from microfab.machines.nanomanipulator.cure import cure_circles
+    from microfab.machines.nanomanipulator.job import JobConfig, run_job
     from microfab.trajectory.circle_pattern import PatternConfig
 
     cfg = JobConfig(pattern=PatternConfig(n_circles=4, periods=5))

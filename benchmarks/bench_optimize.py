@@ -41,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from _opti_plain import solve_plain
 
-from microfab.machines.xy_stage_cases import CaseSizes, case_paths
+from microfab.machines.xy_stage.cases import CaseSizes, case_paths
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Settings, solve_stage1
 
@@ -54,8 +54,8 @@ def _models(args: argparse.Namespace) -> tuple[Any, Any, str]:
 
         m = load_models(args.model, networks=not args.no_stage2)
         return m.linear, m.networks, f"models of {args.model}"
-    from microfab.machines.xy_stage_ann import AnnSettings, ann_records, train_networks
-    from microfab.machines.xy_stage_identify import linear_study
+    from microfab.machines.xy_stage.ann import AnnSettings, ann_records, train_networks
+    from microfab.machines.xy_stage.identify import linear_study
 
     t0 = time.perf_counter()
     _, lin = linear_study()

@@ -36,8 +36,8 @@ from _timing import best
 from microfab.control.base import LTIController
 from microfab.control.ilc import FrequencyILC, Trial
 from microfab.io.atomic import atomic_write_bytes
-from microfab.machines.galvo import discrete_controller, galvo_twin
-from microfab.machines.galvo_ilc import run_msl_ilc
+from microfab.machines.galvo.ilc import run_msl_ilc
+from microfab.machines.galvo.machine import discrete_controller, galvo_twin
 from microfab.machines.learning import learn
 from microfab.machines.simulated import SimPath
 from microfab.plants.base import LTIPlant

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from microfab.machines.galvo_ilc import run_msl_ilc
+from microfab.machines.galvo.ilc import run_msl_ilc
 from microfab.report.canvas import save_figure
 from microfab.report.galvo_ilc import fig_xy
 

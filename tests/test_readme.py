@@ -120,7 +120,7 @@ DEFAULT_JOB_CHANGES = {"scan": {"iterations": 2, "learning_rates": [400]}}
 def _trial(work: Path) -> None:
     """One period of the galvo twin at 400 features/s, u_1 = y_d (README: ilc step)."""
     from microfab.io.trace import write_columns
-    from microfab.machines.galvo import galvo_twin
+    from microfab.machines.galvo.machine import galvo_twin
     from microfab.trajectory.periodic import square_scan
 
     ref = square_scan(400, (1.0, 1.44), 1e6)
@@ -466,7 +466,7 @@ EXCLUDED: dict[str, str] = {
     "tests/experiments/seed001_nanomanipulator run its parts",
     "reproduce nanomanipulator --out s001": "as `reproduce nanomanipulator --json s001.json`",
     "calibrate nanomanipulator": "10 s of twin runs; tests/machines/"
-    "test_nanomanipulator_calibration.py runs the fit",
+    "nanomanipulator/test_calibration.py runs the fit",
     "reproduce laser-micromachining": "24 s even without its speed study; "
     "tests/experiments/seed004_laser run its parts",
     "reproduce slm-shaper": "10 s, no setting shortens it; tests/experiments/seed003_slm/"

@@ -150,7 +150,7 @@ def test_four_ilc_steps_at_once_learn_from_exactly_the_trials_that_exited_0(
 # ------------------------------------------------------------------------------ rc step
 def test_two_rc_steps_at_once_keep_every_update_of_those_that_exited_0(tmp_path: Path) -> None:
     from microfab.control.rc_memory import RCMemory
-    from microfab.machines.nanomanipulator_files import STATE_FILE
+    from microfab.machines.nanomanipulator.files import STATE_FILE
 
     n, dt = 100, 1e-4  # one 100 Hz circle at 10 kHz (as tests/cli/test_rc.py)
     t = np.arange(n) * dt

@@ -181,7 +181,7 @@ def test_simulate_prints_its_summary_with_json_too(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     assert '"breakup_time_s"' in res.output and (tmp_path / "d.json").is_file()
     # issue 19: one point, one answer, whichever command runs it
-    from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead.machine import DropletSettings, SweepPoint, run_point
 
     row = run_point(SweepPoint(0.15, 50.0), DropletSettings(duration_s=120e-6)).to_dict()
     data = json.loads((tmp_path / "d.json").read_text())

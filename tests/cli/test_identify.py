@@ -168,7 +168,7 @@ def stage_runs(tmp_path_factory) -> list[Path]:
     from microfab.control.base import as_loop
     from microfab.control.setpoint import SetPoint
     from microfab.identify.excitation import read_runs
-    from microfab.machines.xy_stage_calibration import scaled_changes
+    from microfab.machines.xy_stage.calibration import scaled_changes
     from microfab.plants.xy_stage import xy_stage_twin
     from microfab.sim.loop import simulate
 

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from microfab.cli import app
 from microfab.io.frf import write_frf
 from microfab.io.trace import write_columns
-from microfab.machines.galvo import complementary_sensitivity, galvo_twin
+from microfab.machines.galvo.machine import complementary_sensitivity, galvo_twin
 from microfab.plants.galvo import default_galvo_axes
 from microfab.trajectory.periodic import square_scan
 

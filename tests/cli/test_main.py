@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 from microfab.cli import app
 from microfab.io.trace import read_columns, write_columns
-from microfab.machines.galvo import galvo_twin
+from microfab.machines.galvo.machine import galvo_twin
 from microfab.trajectory.periodic import square_scan
 
 RATES = ("100", "200", "400")

@@ -295,7 +295,7 @@ def test_options_share_the_job_keys() -> None:
 
 def test_restated_bounds_agree_with_their_sources() -> None:
     from microfab.cli import droplet
-    from microfab.machines.printhead import limits
+    from microfab.machines.printhead.machine import limits
     from microfab.measure import frames
     from microfab.trajectory import circle_pattern
     from microfab.trajectory.circle_pattern import PatternConfig

@@ -207,7 +207,7 @@ def _ilc_trial(path: Path, command: Path | None = None) -> None:
 
     The input is the reference, or the input file ``command`` of an earlier step.
     """
-    from microfab.machines.galvo import galvo_twin
+    from microfab.machines.galvo.machine import galvo_twin
     from microfab.trajectory.periodic import square_scan
 
     ref = square_scan(400, (1.0, 1.44), 1e6)
@@ -332,7 +332,7 @@ def test_ilc_numbers_outside_their_range(
 def test_ilc_limit_bounds_follow_the_galvo_limits() -> None:
     """The bounds of the declared limits are 1e5 times the galvo twin's (see `cli.ilc`)."""
     from microfab.cli import ilc
-    from microfab.machines.galvo import limits
+    from microfab.machines.galvo.machine import limits
 
     lim = limits()["x"]
     assert (ilc.MAX_POSITION, ilc.MAX_VELOCITY, ilc.MAX_ACCELERATION) == pytest.approx(

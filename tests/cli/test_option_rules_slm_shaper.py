@@ -214,7 +214,7 @@ def test_every_number_of_these_commands_is_declared() -> None:
 def test_the_repeated_bounds_equal_their_sources() -> None:
     """The values `keys` repeats (to stay light) equal the data file's and the modules'."""
     from microfab.control.shaping import MAX_ADDED_POLES
-    from microfab.machines import slm_galvo
+    from microfab.machines.slm_galvo import machine as slm_galvo
     from microfab.process.slm.build import LAYER_RANGE_M
     from microfab.process.slm.source import MAX_HEIGHT_M
 

@@ -19,7 +19,7 @@ from microfab.control.pid import PID
 from microfab.control.rc_memory import RCMemory
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.io.trace import read_columns, write_columns
-from microfab.machines.nanomanipulator_files import CONTOUR_FILE, STATE_FILE
+from microfab.machines.nanomanipulator.files import CONTOUR_FILE, STATE_FILE
 from microfab.plants.base import LTIPlant
 from microfab.plants.lti import block_diag, discretize
 from microfab.sim.loop import simulate

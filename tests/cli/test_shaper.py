@@ -187,7 +187,7 @@ def test_shaper_design_classic_refusals(
 
 
 def test_compare_command_gives_the_library_rows(tmp_path: Path):
-    from microfab.machines.slm_galvo_shapers import CompareSettings, compare_shapers
+    from microfab.machines.slm_galvo.shapers import CompareSettings, compare_shapers
 
     out = tmp_path / "cmp.json"
     res = runner.invoke(

@@ -80,7 +80,7 @@ def test_score_prints_the_three_norms_of_both_runs_and_the_improvement(loop):
 def test_score_equals_the_reference_jobs_scorer_on_the_same_files(loop):
     """`stage score` reads M, t_0 and the contour as `run_point` scores its twin runs."""
     from microfab.geometry.load import load_drawing
-    from microfab.machines.xy_stage_reference import TAIL
+    from microfab.machines.xy_stage.reference import TAIL
     from microfab.optimize.command import LEAD
     from microfab.optimize.metrics import DeviationNorms
     from microfab.optimize.pipeline import at_model_rate
@@ -105,8 +105,8 @@ def test_score_equals_the_reference_jobs_scorer_on_the_same_files(loop):
 def test_score_equals_run_point_on_the_same_twin_run(loop):
     """The optimised command played by `run_point` (seed 0, hold 0.5 s) scores alike."""
     from microfab.geometry.load import load_drawing
-    from microfab.machines.xy_stage import TwinSettings
-    from microfab.machines.xy_stage_reference import run_point
+    from microfab.machines.xy_stage.machine import TwinSettings
+    from microfab.machines.xy_stage.reference import run_point
     from microfab.optimize.models import load_models
     from microfab.optimize.problem import ContourProblem
     from microfab.optimize.stage1 import Stage1Settings

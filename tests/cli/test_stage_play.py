@@ -175,7 +175,7 @@ def test_play_refuses_to_overwrite_its_input(played, tmp_path, one_error_line):
 
 def test_ctrl_c_while_playing_writes_nothing(played, tmp_path, monkeypatch):
     runs, _ = played
-    import microfab.machines.xy_stage as xy_stage
+    import microfab.machines.xy_stage.machine as xy_stage
 
     def interrupted(commands, settings, progress=None):
         progress(1, len(commands))

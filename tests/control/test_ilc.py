@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from microfab.control.ilc import STATE_FILE, ConvergenceError, FrequencyILC, ILCConfig, Trial
-from microfab.machines.galvo import complementary_sensitivity, galvo_twin
-from microfab.machines.galvo_calibration import truncation_error
+from microfab.machines.galvo.calibration import truncation_error
+from microfab.machines.galvo.machine import complementary_sensitivity, galvo_twin
 from microfab.plants.galvo import default_galvo_axes
 from microfab.trajectory.periodic import square_scan
 

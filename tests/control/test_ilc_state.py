@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 
 from microfab.cli import app
 from microfab.io.trace import write_columns
-from microfab.machines.galvo import galvo_twin
+from microfab.machines.galvo.machine import galvo_twin
 from microfab.trajectory.periodic import square_scan
 
 runner = CliRunner()

@@ -7,7 +7,7 @@ import pytest
 
 import control
 from microfab.control.margins import loop_margins
-from microfab.machines.galvo import open_loop
+from microfab.machines.galvo.machine import open_loop
 from microfab.plants.galvo import default_galvo_axes
 from microfab.plants.lti import DiscreteLTI, discretize, with_input_delay
 

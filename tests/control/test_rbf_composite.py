@@ -11,7 +11,7 @@ from microfab.control.base import ReferenceWindow
 from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.rbf_composite import NonlinearityOracle, RBFPlusLinear
-from microfab.machines import nanomanipulator
+from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.plants.nanomanipulator import drift_and_gain
 
 

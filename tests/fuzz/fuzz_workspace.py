@@ -348,8 +348,8 @@ def _laser(work: Path) -> None:
     """A one-lap run of the seed 004 circle on the twin, with currents and derivatives."""
     from microfab.core.signals import Trace
     from microfab.io.trace import write_trace
-    from microfab.machines.laser_stage import ContourJob
-    from microfab.machines.laser_stage_contour import run_contour
+    from microfab.machines.laser_stage.contour import run_contour
+    from microfab.machines.laser_stage.machine import ContourJob
     from microfab.trajectory.contour_laps import ContourMotion
 
     run = run_contour(ContourJob(motion=ContourMotion(laps=1)))

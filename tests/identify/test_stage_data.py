@@ -34,7 +34,7 @@ from microfab.identify.stage_data import (
     stage_record,
     write_stage_model,
 )
-from microfab.machines.xy_stage_calibration import scaled_changes
+from microfab.machines.xy_stage.calibration import scaled_changes
 from microfab.plants.xy_stage import xy_stage_twin
 from microfab.sim.loop import simulate
 

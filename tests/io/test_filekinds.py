@@ -42,7 +42,7 @@ ALLOWED = {
     "edited, not a file",
     "microfab.plants.sourced_toml:update_sourced": "re-parses the text it is writing",
     "microfab.plants.sourced_toml:_check_update": "re-parses the text it is writing",
-    "microfab.machines.printhead_calibration:write_relaxation": "re-parses the table it is "
+    "microfab.machines.printhead.calibration:write_relaxation": "re-parses the table it is "
     "about to write",
     # package data, read from the installed package (digests in the run fingerprints)
     "microfab.experiments.catalog:default_job": "package data (the default job)",
@@ -55,11 +55,11 @@ ALLOWED = {
     "microfab.io.sweep:_open_dir": "a sweep's own resume file (internal, run store)",
     "microfab.io.sweep:_load_row": "a sweep's own resume file (internal, run store)",
     "microfab.io.sweep:load_results": "a sweep's own resume file (internal, run store)",
-    "microfab.machines.xy_stage_generations:_check_folder": "internal resume (run store)",
-    "microfab.machines.xy_stage_generations:_read_runs": "internal resume (run store)",
-    "microfab.machines.xy_stage_generations:_saved": "internal resume (run store)",
-    "microfab.machines.xy_stage_generations:_retrain": "internal resume (run store)",
-    "microfab.machines.xy_stage_reference:read_point_summary": "internal resume (run store)",
+    "microfab.machines.xy_stage.generations:_check_folder": "internal resume (run store)",
+    "microfab.machines.xy_stage.generations:_read_runs": "internal resume (run store)",
+    "microfab.machines.xy_stage.generations:_saved": "internal resume (run store)",
+    "microfab.machines.xy_stage.generations:_retrain": "internal resume (run store)",
+    "microfab.machines.xy_stage.reference:read_point_summary": "internal resume (run store)",
     "microfab.experiments.seed002_reference.study:_sizes": "internal resume (run store)",
     "microfab.experiments.seed002_reference.report:_outputs": "the job's own result arrays "
     "(its run folder), read by its report",
@@ -75,7 +75,7 @@ ALLOWED = {
 PENDING = {
     "microfab.process.inkjet.fluids:load_table": "TOML property table, checked key by key "
     "by _parse_table; no schema-derived generator yet",
-    "microfab.machines.printhead_calibration:check_property_table": "as fluids.load_table",
+    "microfab.machines.printhead.calibration:check_property_table": "as fluids.load_table",
     "microfab.plants.sourced_toml:read_sourced": "twin TOML tables, checked key by key by "
     "_table; no schema-derived generator yet",
     "microfab.plants.sourced_toml:sources_of": "as read_sourced",
@@ -252,7 +252,7 @@ def test_stage_model_mutations_are_refused(tmp_path: Path) -> None:
 def test_rc_contour_mutations_are_refused(tmp_path: Path) -> None:
     from fuzz_files import npz_mutations
 
-    from microfab.machines.nanomanipulator_files import read_contour
+    from microfab.machines.nanomanipulator.files import read_contour
 
     buf = tmp_path / "contour.npz"
     np.savez(buf, reference=np.zeros((20, 2)), dt=np.array(1e-4))

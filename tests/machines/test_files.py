@@ -14,7 +14,7 @@ from microfab.control.ilc import FrequencyILC, ILCConfig, Trial
 from microfab.core.limits import AxisLimits, LimitViolation
 from microfab.io.trace import read_columns, write_columns
 from microfab.machines.files import TrialFileError, ilc_step
-from microfab.machines.galvo import galvo_twin
+from microfab.machines.galvo.machine import galvo_twin
 from microfab.trajectory.periodic import square_scan
 
 AXES = ("x", "y")

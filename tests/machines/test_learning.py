@@ -15,7 +15,7 @@ from microfab.control.learning import Learner
 from microfab.core.limits import AxisLimits, LimitViolation
 from microfab.io.trace import read_columns, write_columns
 from microfab.machines.files import FileMachine
-from microfab.machines.galvo import galvo_twin
+from microfab.machines.galvo.machine import galvo_twin
 from microfab.machines.learning import RECORD_KEY, LearnRecord, TrialError, learn, trial_digest
 from microfab.trajectory.periodic import square_scan
 

@@ -6,7 +6,7 @@ import pytest
 
 from microfab.core.provenance import Calibration, RowLabel, Shows, quantity
 from microfab.machines import provenance
-from microfab.machines.galvo_calibration import table1_quantity
+from microfab.machines.galvo.calibration import table1_quantity
 from microfab.report.provenance import labelled
 from microfab.report.tables import Table
 

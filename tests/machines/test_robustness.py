@@ -19,7 +19,7 @@ from microfab.control.ilc import ConvergenceError, FrequencyILC
 from microfab.geometry.text import text_layer
 from microfab.io.trace import read_columns, write_columns
 from microfab.machines.files import ilc_step
-from microfab.machines.galvo import GALVO_LIMITS
+from microfab.machines.galvo.machine import GALVO_LIMITS
 from microfab.machines.learning import learn
 from microfab.machines.simulated import EncoderNoise, SimulatedMachine
 from microfab.plants.base import LTIPlant

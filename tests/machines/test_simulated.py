@@ -8,7 +8,7 @@ import pytest
 from microfab.control.base import Delay, Loop, LTIController, LTIObserver
 from microfab.core.limits import AxisLimits, LimitViolation
 from microfab.machines.base import Machine, Measurement
-from microfab.machines.galvo import GALVO_LIMITS, discrete_controller, galvo_twin
+from microfab.machines.galvo.machine import GALVO_LIMITS, discrete_controller, galvo_twin
 from microfab.machines.simulated import EncoderNoise, Settling, SimPath, SimulatedMachine
 from microfab.plants.base import LTIPlant
 from microfab.plants.galvo import default_galvo_axes

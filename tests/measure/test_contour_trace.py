@@ -9,8 +9,8 @@ from typer.testing import CliRunner
 from microfab.cli import app
 from microfab.core.signals import Trace
 from microfab.io.trace import write_trace
-from microfab.machines.laser_stage import ContourJob, ControlSettings
-from microfab.machines.laser_stage_contour import run_contour
+from microfab.machines.laser_stage.contour import run_contour
+from microfab.machines.laser_stage.machine import ContourJob, ControlSettings
 from microfab.measure.contour_trace import analyze_file, analyze_trace
 from microfab.trajectory.contour_laps import ContourMotion, contour_path
 

@@ -135,8 +135,8 @@ def test_ctrl_c_in_stage_one_of_a_job_point_saves_no_error(tiny_models, ctrl_c_i
     """The reference job saves a point whose stage 1 failed (`Stage1Error`) and reads it
     back on a rerun: a Ctrl-C taken for a failure was a permanent error there."""
     from microfab.geometry.shapes import circle
-    from microfab.machines.xy_stage import TwinSettings
-    from microfab.machines.xy_stage_reference import saved_point
+    from microfab.machines.xy_stage.machine import TwinSettings
+    from microfab.machines.xy_stage.reference import saved_point
     from microfab.optimize.models import load_models
     from microfab.optimize.problem import ContourProblem
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from microfab.control.margins import loop_margins
-from microfab.machines.galvo import (
+from microfab.machines.galvo.machine import (
     complementary_sensitivity,
     controller_tf,
     discrete_controller,

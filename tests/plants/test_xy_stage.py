@@ -11,7 +11,7 @@ import pytest
 
 from microfab.control.setpoint import SetPoint
 from microfab.core.compiled import Compiled
-from microfab.machines.xy_stage_calibration import FREE_FIELDS
+from microfab.machines.xy_stage.calibration import FREE_FIELDS
 from microfab.plants.base import CompiledPlant, NoiseLevel, Plant
 from microfab.plants.sourced_toml import sources_of
 from microfab.plants.xy_stage import (

@@ -9,7 +9,7 @@ import pytest
 from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 
-from microfab.machines.galvo_ilc import run_msl_ilc
+from microfab.machines.galvo.ilc import run_msl_ilc
 from microfab.report import canvas
 from microfab.report.canvas import render_png, save_figure
 from microfab.report.galvo_ilc import fig_eq5, fig_learning, fig_psd, fig_time, fig_xy

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from microfab.machines.printhead import (
+from microfab.machines.printhead.machine import (
     DropletSettings,
     SweepPoint,
     droplet_sweep,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from microfab.control.margins import loop_margins
-from microfab.machines.galvo import open_loop
+from microfab.machines.galvo.machine import open_loop
 from microfab.plants.galvo import default_galvo_axes
 from microfab.report.loops import fig_bode
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from microfab.machines import slm_galvo
-from microfab.machines.slm_galvo import SEED_MODEL_DEN, SEED_MODEL_NUM
-from microfab.machines.slm_galvo_shaping import (
+from microfab.machines.slm_galvo import machine as slm_galvo
+from microfab.machines.slm_galvo.machine import SEED_MODEL_DEN, SEED_MODEL_NUM
+from microfab.machines.slm_galvo.shaping import (
     LayerSettings,
     ShaperSettings,
     design_shapers,

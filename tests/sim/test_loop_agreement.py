@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from microfab.control.base import Controller, LTIController
-from microfab.machines.galvo import discrete_controller
+from microfab.machines.galvo.machine import discrete_controller
 from microfab.plants.base import LTIPlant, Plant
 from microfab.plants.galvo import GalvoAxis, default_galvo_axes
 from microfab.plants.lti import DiscreteLTI, block_diag

@@ -22,7 +22,7 @@ def calibrate_galvo_cmd(
 ) -> None:
     """Refit the galvo twin (rigid-body pole, gain ratio, noise) to seed 000 Table 1."""
     check_output_path("--write", write)
-    from microfab.machines.galvo_calibration import calibrate_galvo
+    from microfab.machines.galvo.calibration import calibrate_galvo
 
     cal = calibrate_galvo(write)
     for name, c in cal.items():
@@ -47,8 +47,8 @@ def calibrate_nanomanipulator_cmd(
 ) -> None:
     """Fit the nanomanipulator twin's sensor noise to seed 001 §4.2's axial RMS."""
     check_outputs(files={"--write": write}, inputs={"--job": job})
-    from microfab.machines.nanomanipulator_calibration import fit_noise, write_noise
-    from microfab.machines.nanomanipulator_job import JobConfig
+    from microfab.machines.nanomanipulator.calibration import fit_noise, write_noise
+    from microfab.machines.nanomanipulator.job import JobConfig
 
     config = None
     if job is not None:
@@ -94,7 +94,7 @@ def calibrate_laser_cmd(
 ) -> None:
     """Fit the seed 004 stage twin's disturbance scale to Fig. 3's 0.8 µm peak error."""
     check_output_path("--write", write)
-    from microfab.machines.laser_stage_calibration import fit_disturbance_scale, write_scale
+    from microfab.machines.laser_stage.calibration import fit_disturbance_scale, write_scale
 
     try:
         with status("fitting the disturbance scale") as show:
@@ -155,7 +155,7 @@ def calibrate_xy_stage_cmd(
             f"--search {search:g} s{default} is longer than --duration {duration:g} s: the "
             "search runs on a shorter data set"
         )
-    from microfab.machines.xy_stage_calibration import (
+    from microfab.machines.xy_stage.calibration import (
         CalibrationSettings,
         fit_scales,
         force_budget,
@@ -163,7 +163,7 @@ def calibrate_xy_stage_cmd(
         write_calibration_json,
         write_twin_file,
     )
-    from microfab.machines.xy_stage_identify import linear_checks
+    from microfab.machines.xy_stage.identify import linear_checks
     from microfab.plants.xy_stage_params import load_params
 
     try:

@@ -117,7 +117,7 @@ def simulate_cmd(
         )
     check_outputs(folders={"--out": out}, files={"--json": json_out})
     hold_for_command(out, "--out", on_refused=fail)
-    from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead.machine import DropletSettings, SweepPoint, run_point
     from microfab.process.inkjet.fluids import naalg
 
     try:
@@ -227,7 +227,7 @@ def render_cmd(
         )
     check_output_path("OUT", out, kind="folder")
     hold_for_command(out, "OUT", on_refused=fail)
-    from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead.machine import DropletSettings, SweepPoint, run_point
     from microfab.measure.shadowgraph import render_sequence, write_frames
     from microfab.process.inkjet.fluids import naalg
 
@@ -426,7 +426,7 @@ def sweep_cmd(
     check_output_path("--out", out, kind="folder")
     hold_for_command(out, "--out", on_refused=fail)
     from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP
-    from microfab.machines.printhead import DropletSettings, droplet_sweep, sweep_points
+    from microfab.machines.printhead.machine import DropletSettings, droplet_sweep, sweep_points
     from microfab.process.inkjet.fluids import naalg
     from microfab.report.canvas import save_figure
     from microfab.report.inkjet import fig_sweep
@@ -494,7 +494,7 @@ def calibrate_cmd(
     --write stores it as that model's law ([relaxation] or [relaxation_<model>]).
     """
     check_output_path("--write", write)
-    from microfab.machines.printhead_calibration import (
+    from microfab.machines.printhead.calibration import (
         calibrate_relaxation,
         check_property_table,
         model_breakup,
@@ -551,8 +551,8 @@ def sensitivity_cmd(
     _check_each("--concentrations", cs, CONCENTRATION)
     check_output_path("--out", out, kind="folder")
     hold_for_command(out, "--out", on_refused=fail)
-    from microfab.machines.printhead import DropletSettings
-    from microfab.machines.printhead_sensitivity import (
+    from microfab.machines.printhead.machine import DropletSettings
+    from microfab.machines.printhead.sensitivity import (
         markdown,
         sensitivity_points,
         sensitivity_study,

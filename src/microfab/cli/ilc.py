@@ -129,8 +129,8 @@ def ilc_step_cmd(
     hold_for_command(state, "--state", on_refused=fail, hint=ONE_STEP_HINT)
     from microfab.control.ilc import FrequencyILC, ILCConfig
     from microfab.core.limits import AxisLimits
-    from microfab.machines import galvo
     from microfab.machines.files import ilc_step, read_trial_file
+    from microfab.machines.galvo import machine as galvo
 
     try:
         first = not FrequencyILC.exists(state)

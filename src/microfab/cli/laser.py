@@ -94,7 +94,7 @@ def analyze_cmd(
     summary = a.summary()
     replayed = None
     if replay:
-        from microfab.machines.laser_stage_files import replay_trace
+        from microfab.machines.laser_stage.files import replay_trace
 
         control = None if cfg is None else cfg.run.control
         twin = None if cfg is None else cfg.run.twin
@@ -131,7 +131,7 @@ def _measured_trace(path: Path, cfg: Any) -> Any:
     bandwidth: shorter, the errors are the loop's transient, not its tracking.
     """
     from microfab.io.trace import read_trace
-    from microfab.machines import laser_stage
+    from microfab.machines.laser_stage import machine as laser_stage
 
     cs = laser_stage.ControlSettings() if cfg is None else cfg.run.control
     dt = laser_stage.stage().dt
@@ -173,7 +173,7 @@ def export_cmd(
     """Write a job's reference and discrete controller for a real-time target (seed 004)."""
     check_outputs(folders={"--out": out}, inputs={"JOB": job})
     hold_for_command(out, "--out", on_refused=fail)
-    from microfab.machines.laser_stage_files import export_job
+    from microfab.machines.laser_stage.files import export_job
 
     cfg = _laser_job(job)
     ref, spec = export_job(cfg, out)

@@ -72,7 +72,7 @@ def rc_step_cmd(
     # one period at a time, locked before the state is read (never wait: see ilc step)
     hold_for_command(state, "--state", on_refused=fail, hint=ONE_PERIOD_HINT)
     from microfab.io.xy_trace import read_measured
-    from microfab.machines.nanomanipulator_files import STATE_FILE, rc_file_step
+    from microfab.machines.nanomanipulator.files import STATE_FILE, rc_file_step
 
     if (state / STATE_FILE).exists():
         kept = f"on a later step: the state in {state} keeps the settings it was started with"

@@ -5,7 +5,7 @@ Seed 003 part 2 (Buls et al.) §2: the seed's model-inverse shaper from a model 
 EI) for a given mode or auto-fitted to a measured FRF, trace or PSD
 (`microfab.control.shaper_fit`); writes a shaper JSON (`microfab.control.shaper_io`) that
 ``slm scan-time --shaper`` (`cli/slm.py`) reads. ``shaper compare`` puts the inverse and
-the classic shapers side by side on the SLM galvo twin (`microfab.machines.slm_galvo_shapers`).
+the classic shapers side by side on the SLM galvo twin (`microfab.machines.slm_galvo.shapers`).
 
 Every number is declared with its unit and range (`microfab.cli._options`), sharing the
 ``slm-shaping`` job's key where one sets the same quantity
@@ -231,15 +231,15 @@ def _discretizations() -> object:
 
 
 def _twin_discretizations() -> tuple[str, ...]:
-    """The twin's inverse discretisations (`microfab.machines.slm_galvo_shaping`)."""
-    from microfab.machines.slm_galvo_shaping import DISCRETIZATIONS
+    """The twin's inverse discretisations (`microfab.machines.slm_galvo.shaping`)."""
+    from microfab.machines.slm_galvo.shaping import DISCRETIZATIONS
 
     return DISCRETIZATIONS
 
 
 def _twins() -> object:
-    """The SLM galvo twins (`microfab.machines.slm_galvo_shapers.TwinName`)."""
-    from microfab.machines.slm_galvo_shapers import TwinName
+    """The SLM galvo twins (`microfab.machines.slm_galvo.shapers.TwinName`)."""
+    from microfab.machines.slm_galvo.shapers import TwinName
 
     return TwinName
 
@@ -507,7 +507,7 @@ def compare_cmd(
         fail(f"--start-bit {start_bit:g} bit + --jump-bit {jump_bit:g} bit ends at {end:g} "
              f"bit, outside the twin's field ±{keys.FIELD_BIT} bit")  # fmt: skip
     check_outputs(files={"--json": json_path})
-    from microfab.machines.slm_galvo_shapers import CompareSettings, compare_shapers
+    from microfab.machines.slm_galvo.shapers import CompareSettings, compare_shapers
     from microfab.report.slm_tables import comparison_table
 
     try:

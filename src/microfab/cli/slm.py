@@ -152,7 +152,7 @@ def scan_time_cmd(
     _refuse_unused_scan_options(ctx, sky_writing, shaper is not None, _is_lattice(source))
     check_outputs(files={"--json": json_path}, inputs={"SOURCE": Path(source), "--shaper": shaper})
     from microfab.control.shaper_io import read_shaper, shaper_lti, shaper_to_dict
-    from microfab.machines import slm_galvo
+    from microfab.machines.slm_galvo import machine as slm_galvo
     from microfab.process.slm.estimate import SettleTolerance, estimate_with_shaper
     from microfab.process.slm.source import parse_lattice_source, scan_program
     from microfab.process.slm.timing import (
@@ -384,7 +384,7 @@ def build_cmd(
     jump delay for the fixed estimate).
     """
     from microfab.cli._kit import progress as progress_bar
-    from microfab.machines import slm_galvo
+    from microfab.machines.slm_galvo import machine as slm_galvo
     from microfab.process.slm.build import BuildSettings, run_build
     from microfab.process.slm.source import MAX_HEIGHT_M
     from microfab.report.slm_tables import build_table

@@ -15,7 +15,7 @@ and writes what a real controller must record instead: per run, ``time``, ``inpu
 ``stage score RUN --drawing OPT [--baseline RUN0]`` scores measured runs of the command
 files ``microfab optimize`` wrote into ``OPT`` (``command.csv``, ``baseline.csv``) against
 the drawing: seed 002 eqs. (16)-(18) at the 400 Hz instants, with the reference job's
-scorer (`microfab.machines.xy_stage_score`), and the improvement over the baseline run.
+scorer (`microfab.machines.xy_stage.score`), and the improvement over the baseline run.
 ``OPT/summary.json`` gives the drawing, its sizing and contour, ``M`` and each command
 file's ``t_0``; each run is matched to the command file it played by its set-points.
 
@@ -222,7 +222,7 @@ def play_cmd(
     from microfab.identify.stage_runs import record_trace, stage_record
     from microfab.io.atomic import atomic_write_json
     from microfab.io.trace import write_trace
-    from microfab.machines.xy_stage import TwinSettings, play_runs
+    from microfab.machines.xy_stage.machine import TwinSettings, play_runs
 
     settings = TwinSettings(seed=seed, noise=noise, hold_s=hold)
     n_total = sum(c.command.shape[0] for c in commands)
@@ -276,7 +276,7 @@ def _read_commands(paths: list[Path]) -> tuple[list[Any], list[Path]]:
     from microfab.core.limits import LimitViolation, check_trajectory
     from microfab.identify import excitation as ex
     from microfab.identify.stage_runs import check_rate
-    from microfab.machines.xy_stage import Command, limits
+    from microfab.machines.xy_stage.machine import Command, limits
     from microfab.trajectory.base import Trajectory
 
     commands: list[Any] = []
@@ -362,7 +362,7 @@ def score_cmd(
 ) -> None:
     """Score measured runs against the drawing: seed 002 eqs. (16)-(18) (L1, L2, L∞).
 
-    As the reference job scores its runs on the twin (`machines.xy_stage_score`): the
+    As the reference job scores its runs on the twin (`machines.xy_stage.score`): the
     output at the 400 Hz instants t_1 … t_M of eq. (13) projected on the exact contour,
     and the 500 ms after T (the last set-point held) scored apart as the tail's L∞. Each
     run is matched to the command file it played (its input columns), which gives its
@@ -372,7 +372,7 @@ def score_cmd(
     runs = [run] if baseline is None else [run, baseline]
     check_outputs(files={"--json": json_path}, inputs={"RUN": runs, "--drawing": drawing})
     summary, path = _optimized(drawing)
-    from microfab.machines.xy_stage_score import score_run
+    from microfab.machines.xy_stage.score import score_run
 
     commands = _command_files(drawing, summary)
     scored: list[tuple[str, Path, str, Any]] = []
@@ -470,7 +470,7 @@ def _command_files(folder: Path, summary: dict[str, Any]) -> list[tuple[str, Any
 def _measured(f: Path) -> tuple[Any, float]:
     """A measured run (`stage_record`) and its sample time, s."""
     from microfab.identify.stage_runs import stage_record
-    from microfab.machines.xy_stage_score import RUN_RATE_HZ
+    from microfab.machines.xy_stage.score import RUN_RATE_HZ
 
     tr = read_trace_file(f)
     try:

@@ -45,7 +45,7 @@ before eq. 4 turns it into current, is
   cancels the ``−Ω² e`` that the frame's rotation adds to the error's acceleration.
 
 The two rows and the ``J̇`` term matter when the path turns at a rate near the axis
-loop's bandwidth (``Ω`` against ``ω_c``, `microfab.machines.laser_stage_fig7`): the
+loop's bandwidth (``Ω`` against ``ω_c``, `microfab.experiments.seed004_laser.fig7`): the
 axis loops' position gain then nearly cancels against ``Ω²`` in the path frame and the
 normal and tangential errors are held together by ``K_v Ω``; a normal-only correction
 moves the error into the tangential direction, whence it returns (the 30 µm circle at

@@ -52,7 +52,7 @@ reference must still fall slower than the output. There the law runs on the log 
 (`dark_field_area`, option ``dark_field``), whose rate of change is of one order over the
 whole range, with constants from a design rule (`SlidingModeFocusConfig.for_dark_field`:
 ``ρ`` half the slowest fall over the capture range, ``h = ρ τ``). Measured on that twin
-(2 mm/s stage, 5 ms lag, 500 µm start; `microfab.machines.laser_stage_focus.play_focus`):
+(2 mm/s stage, 5 ms lag, 500 µm start; `microfab.machines.laser_stage.focus.play_focus`):
 both laws reach ±27 µm (0.25 s and 0.89 s); steady peak to peak 5.9 µm (continuous) against
 9.0 µm (discontinuous). The detector's noise (63 µV) lies far below ``h``, so the relay
 seldom chatters and both laws keep one stall-reversal cycle; the gap is 1.5x, not the 5x

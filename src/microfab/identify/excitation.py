@@ -33,7 +33,7 @@ re-exports them and every public name a user needs.
 parameter"; we count training windows (one per 10 kHz sample after the first 500 ms of a
 run): 34 × 117 322 weights ≈ 4.0×10⁶ training windows need about 525 s of runs
 (`ANN_TOTAL_S`). Its ANN generations 2-3 (the optimised inputs played and added) are
-`microfab.machines.xy_stage_generations`.
+`microfab.machines.xy_stage.generations`.
 
 `write_runs` writes the command files a user plays on a real machine (``time``,
 ``input_x``, ``input_y``; CSV or HDF5, each atomic) and an index JSON; nothing is written

@@ -10,7 +10,7 @@
   (A ≤ 0.2 µm), so the PRBS switches by quintic moves, and a chirp's amplitude is set by
   its top frequency (``A (2π f₁)² ≤ a_max``: 3.2 µm at 200 Hz and 5 m/s²);
   `classic_runs` mixes both into one data set (the ``stage-identify`` job's networks
-  trained on them, `microfab.machines.xy_stage_ann.classic_records`).
+  trained on them, `microfab.machines.xy_stage.ann.classic_records`).
 
 Every run starts at rest at the origin and ends at rest there (`ExcitationRun`).
 """

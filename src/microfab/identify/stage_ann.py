@@ -11,7 +11,7 @@ What ``microfab identify ann`` and ``identify validate`` (`cli/identify_ann.py`,
 * `train_stage_ann`: the networks trained on training runs (resumable checkpoints,
   `microfab.identify.ann_train.train_ann`) and scored on the validation runs, as a
   `StageAnnFit`; what ``microfab identify ann`` runs on measured files and the
-  ``stage-identify`` job on the twin's runs (`microfab.machines.xy_stage_ann`).
+  ``stage-identify`` job on the twin's runs (`microfab.machines.xy_stage.ann`).
 * `StageAnnModel`: an `AnnModel` as a stage model for ``identify validate`` (``kind``,
   ``input_rate_hz``, ``errors(records) -> RunErrors``); the errors are ``y - y_model``
   (the sign of the linear model's `run_errors`) at every run sample (10 kHz for the

@@ -168,7 +168,7 @@ FILE_KINDS: dict[str, FileKind] = {
         FileKind(
             "rc-contour",
             "the contour of an RC state (contour.npz)",
-            "microfab.machines.nanomanipulator_files:read_contour",
+            "microfab.machines.nanomanipulator.files:read_contour",
             ArraySchema("npz", (Member("reference", shape=("n", 2), unit="mm"),)),
             "rc step",
             (".npz",),

@@ -14,7 +14,7 @@ columns are ignored):
     Laser command, 0 (off) or 1 (on): traces of a whole job only.
 
 `read_measured` reads and checks such a file: the plug-in RC step on hardware
-(`microfab.machines.nanomanipulator_files.rc_file_step`, ``microfab rc step``) reads one
+(`microfab.machines.nanomanipulator.files.rc_file_step`, ``microfab rc step``) reads one
 period, ``microfab nanomanipulator analyze`` (`microfab.measure.circle_trace`) a whole job.
 """
 

@@ -38,12 +38,12 @@ __all__ = [
 #: Modules that define a ``CALIBRATION`` (or a tuple ``CALIBRATIONS``): every fit of a twin
 #: to a seed's published numbers.
 CALIBRATION_MODULES: tuple[str, ...] = (
-    "microfab.machines.galvo_calibration",
-    "microfab.machines.nanomanipulator_calibration",
-    "microfab.machines.xy_stage_calibration",
-    "microfab.machines.xy_stage_cases",
-    "microfab.machines.printhead_calibration",
-    "microfab.machines.laser_stage_calibration",
+    "microfab.machines.galvo.calibration",
+    "microfab.machines.nanomanipulator.calibration",
+    "microfab.machines.xy_stage.calibration",
+    "microfab.machines.xy_stage.cases",
+    "microfab.machines.printhead.calibration",
+    "microfab.machines.laser_stage.calibration",
 )
 
 

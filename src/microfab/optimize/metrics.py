@@ -10,7 +10,7 @@ For output samples ``φ_1 … φ_M`` (m) and the exact contour ``Ξ``:
 vectorised). Table III's improvement is ``100 (baseline - ours) / baseline`` per norm.
 `DeviationNorms` holds the three (and the tail's L∞ where the run's end is scored apart);
 ``microfab optimize`` and the ``stage-reference-opt`` job
-(`microfab.machines.xy_stage_reference`) score with it.
+(`microfab.machines.xy_stage.reference`) score with it.
 """
 
 from __future__ import annotations

@@ -486,7 +486,7 @@ def at_model_rate(y: np.ndarray, m: int, lead: int = 0, tail: int = 0) -> np.nda
 
     The one row selection of eqs. (13)-(18) (``q`` = 25 run samples per 400 Hz instant):
     the pipeline's checks on the linear model, the reference job's scores on the twin
-    (``tail`` = `microfab.machines.xy_stage_reference.TAIL`) and ``stage score``. Rows
+    (``tail`` = `microfab.machines.xy_stage.reference.TAIL`) and ``stage score``. Rows
     past the run's end repeat its last sample.
     """
     q = round(RUN_RATE_HZ / MODEL_RATE_HZ)

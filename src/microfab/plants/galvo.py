@@ -11,7 +11,7 @@ is designed with eq. (1) on the *nominal* model (``g = 1``); ``g`` is the ratio 
 nominal gain.
 ``K`` itself cancels in the loop (eq. (1) normalises by ``|G(j w_c)|``), so the parameters
 that shape the closed loop are ``a``, ``g``, the damping and the delay. ``a`` and ``g`` are
-calibrated against seed Table 1 by `microfab.machines.galvo_calibration`.
+calibrated against seed Table 1 by `microfab.machines.galvo.calibration`.
 """
 
 from __future__ import annotations
@@ -169,7 +169,7 @@ def default_galvo_axes() -> dict[str, GalvoAxis]:
     """The calibrated x and y galvo twins (values from ``data/galvo_twin.toml``).
 
     The file is written by ``microfab calibrate galvo`` (see
-    `microfab.machines.galvo_calibration`); it records the fitted values and their
+    `microfab.machines.galvo.calibration`); it records the fitted values and their
     residuals.
     """
     axes = _seed_axes()

@@ -288,7 +288,7 @@ class NanomanipulatorPlant(CompiledPlant, NoisyOutputs):
     def noise_rms_mm(self) -> np.ndarray:
         """``noise_level.array()``: encoder noise rms per axis (x, y), mm, shape (2,).
 
-        Kept for `microfab.machines.nanomanipulator_calibration`'s fit; new code
+        Kept for `microfab.machines.nanomanipulator.calibration`'s fit; new code
         reads `noise_level`.
         """
         return self.noise_level.array()

@@ -326,7 +326,7 @@ def tracking_table(metrics: TrackingMetrics, *, seed: bool = True) -> Table:
             ratio(metrics.contour_rms_nm, SEED_CONTOUR_RMS_NM),
         )
     )
-    from microfab.machines.nanomanipulator_calibration import axial_quantity
+    from microfab.machines.nanomanipulator.calibration import axial_quantity
 
     shows = [Shows((axial_quantity(a),)) for a in "xy"]
     shows.append(Shows((quantity("001", "§4.2", "contour RMS"),)))

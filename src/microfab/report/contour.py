@@ -3,8 +3,8 @@
 What ``microfab laser analyze`` writes for a measured trace (`write_analysis`, from
 `microfab.measure.contour_trace`), and the figures of a ``laser-micromachining`` job on
 the seed 004 twin (Figs. 3, 4, 6 and 7 redrawn; `fig_axis_errors` ... `fig_focus` of a
-`microfab.machines.laser_stage_contour.ContourRun` or a
-`microfab.machines.laser_stage_focus.FocusStudy`), with the speed sweep, the motor force,
+`microfab.machines.laser_stage.contour.ContourRun` or a
+`microfab.machines.laser_stage.focus.FocusStudy`), with the speed sweep, the motor force,
 the DOB's load-force estimate, and the tables of the runs' contour errors, of the speed
 sweep and of the axis loops' margins. Only draws
 (matplotlib, through `microfab.report.canvas.new_figure`) and formats: the figures of
@@ -30,8 +30,8 @@ from microfab.trajectory.contour_laps import CONTINUOUS_FORCE_N, PEAK_FORCE_N
 
 if TYPE_CHECKING:
     from microfab.control.margins import AxisMargins
-    from microfab.machines.laser_stage_contour import ContourRun
-    from microfab.machines.laser_stage_focus import FocusStudy
+    from microfab.machines.laser_stage.contour import ContourRun
+    from microfab.machines.laser_stage.focus import FocusStudy
 
 __all__ = [
     "AXIS_COLOURS",
@@ -215,7 +215,7 @@ def fig_speed(rows: Sequence[Mapping[str, float | str]]) -> MplFigure:
     """Largest contour error after lap 1 against speed, one line per law.
 
     ``rows``: dicts with ``law``, ``speed_mm_s`` and ``contour_max_nm``
-    (`microfab.machines.laser_stage_contour.speed_point`).
+    (`microfab.machines.laser_stage.contour.speed_point`).
     """
     fig = new_figure(5.6, 3.6)
     ax = fig.subplots()
@@ -372,7 +372,7 @@ def slowdown_table(slowdowns: Sequence[tuple[float, float]], speed_m_s: float) -
 
 
 def speed_table(rows: Sequence[Mapping[str, Any]]) -> Table:
-    """The speed sweep's rows (`microfab.machines.laser_stage_contour.speed_point`)."""
+    """The speed sweep's rows (`microfab.machines.laser_stage.contour.speed_point`)."""
     return Table(
         title="Contour error against speed (max after lap 1)",
         columns=("law", "speed [mm/s]", "max [nm]", "RMS [nm]", "force peak [N]"),

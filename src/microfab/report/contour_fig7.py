@@ -1,4 +1,4 @@
-"""Tables of the seed 004 Fig. 7 study (`microfab.machines.laser_stage_fig7`).
+"""Tables of the seed 004 Fig. 7 study (`microfab.experiments.seed004_laser.fig7`).
 
 They format the rows `fig7_study` and `fig7_cause` return; nothing is computed here.
 """
@@ -44,7 +44,7 @@ def _cell(row: Mapping[str, Any]) -> str:
 def fig7_study_table(rows: Sequence[Mapping[str, Any]]) -> Table:
     """Contour error without / with the compensator, per drawing and mode (rows) and speed.
 
-    ``rows``: `microfab.machines.laser_stage_fig7.fig7_study`'s.
+    ``rows``: `microfab.experiments.seed004_laser.fig7.fig7_study`'s.
     """
     speeds = sorted({float(r["speed_mm_s"]) for r in rows})
     groups: dict[tuple[str, str], dict[float, Mapping[str, Any]]] = {}
@@ -97,7 +97,7 @@ def fig7_cause_table(cause: Mapping[str, Any]) -> Table:
         "stiffens the normal direction only: the error moves into the tangential one and "
         "comes back through K_v Ω ('model': that matrix with k_pc added, solved for the "
         "residual read off the run without it). The seed's tangential row (eq. 13) and "
-        "J̇ v (eq. 15, cancelling −Ω²) hold both (laser_stage_fig7).",
+        "J̇ v (eq. 15, cancelling −Ω²) hold both (seed004_laser/fig7.py).",
     )  # fmt: skip
     return labelled(table, OURS)
 
@@ -108,7 +108,7 @@ def fig7_speed_figure(rows: Sequence[Mapping[str, Any]]) -> MplFigure:
     Without (dashed) and with (solid) the compensator, one colour per twin variant;
     refused speeds are left out.
 
-    ``rows``: `microfab.machines.laser_stage_fig7.fig7_study`'s (nm, mm/s).
+    ``rows``: `microfab.experiments.seed004_laser.fig7.fig7_study`'s (nm, mm/s).
     """
     drawings = list(dict.fromkeys(r["drawing"] for r in rows))
     modes = list(dict.fromkeys(mode_name(r) for r in rows))

@@ -1,4 +1,4 @@
-"""Figures of a galvo ILC learning run (`microfab.machines.galvo_ilc.MSLRunResult`).
+"""Figures of a galvo ILC learning run (`microfab.machines.galvo.ilc.MSLRunResult`).
 
 Tracking on the xy plane and against time (desired, feedback only, ILC output and input),
 the error spectrum at the scan's harmonics, the learning curves of one or several rates
@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
-from microfab.machines.galvo_ilc import MSLRunResult
+from microfab.machines.galvo.ilc import MSLRunResult
 from microfab.measure.metrics import error_psd
 from microfab.report.canvas import new_figure
 

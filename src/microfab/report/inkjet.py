@@ -28,7 +28,7 @@ from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from microfab.machines.printhead import FIG4_VOLTAGE_V
+from microfab.machines.printhead.machine import FIG4_VOLTAGE_V
 from microfab.measure.imaging import DropletAnalysis, as_frames
 from microfab.measure.shadowgraph import Camera
 from microfab.plants.printhead import NozzleFlow

@@ -10,7 +10,7 @@ the machine's.
 References
 ----------
 Seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``): "Typical droplet formation
-process" and Fig. 2 (the two quoted breakups, `microfab.machines.printhead_calibration`),
+process" and Fig. 2 (the two quoted breakups, `microfab.machines.printhead.calibration`),
 Fig. 4 (breakup time against concentration at 50 V), Table 1 (the voltages).
 """
 
@@ -22,8 +22,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from microfab.core.provenance import Shows, quantity
-from microfab.machines.printhead import FIG4_VOLTAGE_V
-from microfab.machines.printhead_calibration import CALIBRATIONS, SEED_BREAKUP, breakup_quantity
+from microfab.machines.printhead.calibration import CALIBRATIONS, SEED_BREAKUP, breakup_quantity
+from microfab.machines.printhead.machine import FIG4_VOLTAGE_V
 from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, versus

@@ -1,12 +1,12 @@
 """Figures of a nanomanipulator job on the twin: what only a run of the controllers has.
 
 The ``nanomanipulator-msl`` job's report (`microfab run`) draws a
-`microfab.machines.nanomanipulator_job.JobRun` with the trace figures of
+`microfab.machines.nanomanipulator.job.JobRun` with the trace figures of
 `microfab.report.circle_tracking` (seed 001 Figs. 12-13, as for a measured trace) and
 these: ‖Ŵ‖ and ``s`` of the RBF controllers against time (`fig_learning`), the control
 effort (`fig_effort`) and the cured-line maps of one circle with and without warm-up
 compensation (`fig_cure`, seed 001 Figs. 14-15, of a
-`microfab.machines.nanomanipulator_cure.CircleCure`). Each returns a
+`microfab.machines.nanomanipulator.cure.CircleCure`). Each returns a
 :class:`matplotlib.figure.Figure` on an Agg canvas (`microfab.report.canvas.new_figure`)
 and writes nothing.
 """
@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from matplotlib.figure import Figure as MplFigure
 
-from microfab.machines.nanomanipulator_cure import PRINTS, CircleCure
-from microfab.machines.nanomanipulator_job import JobRun
+from microfab.machines.nanomanipulator.cure import PRINTS, CircleCure
+from microfab.machines.nanomanipulator.job import JobRun
 from microfab.report.canvas import new_figure
 
 __all__ = ["fig_cure", "fig_effort", "fig_learning"]

@@ -3,7 +3,7 @@
 What the ``slm-shaping`` job's report shows (seed 003 part 2 Figs. 5-7 are the first
 three of the seed's runs; Fig. 4, the FRF and its fit, is
 `microfab.identify.fit.FitResult.plot`). The results are computed by
-`microfab.machines.slm_galvo_shaping` (jumps), `microfab.machines.slm_galvo_shapers`
+`microfab.machines.slm_galvo.shaping` (jumps), `microfab.machines.slm_galvo.shapers`
 (shapers side by side), `microfab.process.slm.estimate` (scan times) and
 `microfab.process.slm.build` (a whole build); this module only draws them (matplotlib,
 `microfab.report.canvas.new_figure`).
@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
 from microfab.control.shaping import InverseShaper
-from microfab.machines.slm_galvo_shaping import JumpResponse
+from microfab.machines.slm_galvo.shaping import JumpResponse
 from microfab.process.slm.estimate import ScanTimeComparison
 from microfab.process.slm.timing import CATEGORIES
 from microfab.report.canvas import new_figure

@@ -6,7 +6,7 @@ the scan-time estimates of one layer without and with a shaper
 (`microfab.process.slm.estimate.estimate_with_shaper`: ``microfab slm scan-time``, the
 ``slm-shaping`` job); `build_table` a `microfab.process.slm.build.BuildResult`
 (``microfab slm build``, the job); `comparison_table` a
-`microfab.machines.slm_galvo_shapers.ShaperComparison` (``microfab shaper compare``, the
+`microfab.machines.slm_galvo.shapers.ShaperComparison` (``microfab shaper compare``, the
 job).
 """
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from microfab.machines.slm_galvo_shapers import ShaperComparison
+from microfab.machines.slm_galvo.shapers import ShaperComparison
 from microfab.process.slm.build import ESTIMATES, LABELS, BuildResult
 from microfab.process.slm.estimate import (
     SEED_JUMP_DELAY_SHAPED_S,
@@ -127,7 +127,7 @@ def comparison_table(comparison: ShaperComparison) -> Table:
     Parameters
     ----------
     comparison : ShaperComparison
-        `microfab.machines.slm_galvo_shapers.compare_shapers`'s rows on one twin.
+        `microfab.machines.slm_galvo.shapers.compare_shapers`'s rows on one twin.
 
     Returns
     -------

@@ -7,7 +7,7 @@ import pytest
 from matplotlib.collections import LineCollection
 
 from microfab.experiments.seed000_msl.figures import fig_line_width, fig_velocity
-from microfab.machines.galvo_ilc import beam_exposure, run_msl_ilc
+from microfab.machines.galvo.ilc import beam_exposure, run_msl_ilc
 
 
 @pytest.fixture(scope="module")

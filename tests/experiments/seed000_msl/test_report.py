@@ -7,8 +7,8 @@ import pytest
 from microfab.experiments.seed000_msl import figures
 from microfab.experiments.seed000_msl import paper as seed000
 from microfab.experiments.seed000_msl.report import FIGURE_FILES, fmt_mm_s, fmt_mv, write_report
-from microfab.machines.galvo import calibrated_axes, open_loop
-from microfab.machines.galvo_ilc import beam_exposure, run_msl_ilc
+from microfab.machines.galvo.ilc import beam_exposure, run_msl_ilc
+from microfab.machines.galvo.machine import calibrated_axes, open_loop
 from microfab.report import galvo_ilc
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

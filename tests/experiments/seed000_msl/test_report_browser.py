@@ -11,8 +11,8 @@ import pytest
 
 from microfab.experiments.seed000_msl.job import tables_from_runs
 from microfab.experiments.seed000_msl.report import FIGURE_FILES, write_report
-from microfab.machines.galvo import calibrated_axes, open_loop
-from microfab.machines.galvo_ilc import beam_exposure, run_msl_ilc
+from microfab.machines.galvo.ilc import beam_exposure, run_msl_ilc
+from microfab.machines.galvo.machine import calibrated_axes, open_loop
 
 
 def test_report_renders_in_headless_chromium(tmp_path: Path, page_check) -> None:

@@ -8,7 +8,7 @@ import pytest
 
 from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
 from microfab.io.job import JobFileError
-from microfab.machines.nanomanipulator_job import JobConfig
+from microfab.machines.nanomanipulator.job import JobConfig
 
 EXAMPLE = Path(__file__).parents[3] / "examples" / "nanomanipulator_msl.toml"
 

@@ -6,7 +6,7 @@ import json
 
 from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS
 from microfab.experiments.kinds import no_progress
-from microfab.machines.nanomanipulator_job import JobConfig
+from microfab.machines.nanomanipulator.job import JobConfig
 from microfab.trajectory.circle_pattern import PatternConfig
 
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from microfab.experiments.catalog import load_job
 from microfab.experiments.seed001_nanomanipulator.results import is_seed_setup
-from microfab.machines.nanomanipulator_job import JobConfig, TwinSettings
+from microfab.machines.nanomanipulator.job import JobConfig, TwinSettings
 from microfab.measure.circle_tracking import tracking_metrics
 from microfab.report.circle_tracking import tracking_table
 from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference

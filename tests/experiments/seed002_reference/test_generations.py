@@ -23,9 +23,9 @@ from microfab.experiments.seed002_reference.study import (
 )
 from microfab.experiments.seed002_reference.tables import NOTES
 from microfab.identify import stage_ann
-from microfab.machines import xy_stage_reference
-from microfab.machines.xy_stage import TwinSettings
-from microfab.machines.xy_stage_cases import CaseSizes
+from microfab.machines.xy_stage import reference as xy_stage_reference
+from microfab.machines.xy_stage.cases import CaseSizes
+from microfab.machines.xy_stage.machine import TwinSettings
 
 
 def small(models_dir, **kw) -> ReferenceSettings:

@@ -15,9 +15,9 @@ from microfab.experiments.seed002_reference.study import (
     ReferenceSettings,
     run_reference,
 )
-from microfab.machines import xy_stage_reference
-from microfab.machines.xy_stage import TwinSettings
-from microfab.machines.xy_stage_cases import CaseSizes
+from microfab.machines.xy_stage import reference as xy_stage_reference
+from microfab.machines.xy_stage.cases import CaseSizes
+from microfab.machines.xy_stage.machine import TwinSettings
 
 
 def job_file(tmp_path, body: str):

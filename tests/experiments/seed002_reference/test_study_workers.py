@@ -12,9 +12,9 @@ pytest.importorskip("torch")
 pytest.importorskip("distributed")
 
 from microfab.experiments.seed002_reference.study import ReferenceSettings, run_reference
-from microfab.machines import xy_stage_reference
-from microfab.machines.xy_stage import TwinSettings
-from microfab.machines.xy_stage_cases import CaseSizes
+from microfab.machines.xy_stage import reference as xy_stage_reference
+from microfab.machines.xy_stage.cases import CaseSizes
+from microfab.machines.xy_stage.machine import TwinSettings
 
 #: Relative tolerance between a point run in this process and on a worker. Both run their
 #: BLAS/OpenMP pools on one thread on the same machine; measured: identical to the last

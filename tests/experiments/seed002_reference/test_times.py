@@ -16,7 +16,7 @@ import pytest
 pytest.importorskip("casadi")
 
 from microfab.experiments.seed002_reference import paper
-from microfab.machines.xy_stage_cases import CaseSizes, case_paths
+from microfab.machines.xy_stage.cases import CaseSizes, case_paths
 from microfab.optimize.problem import ContourProblem
 from microfab.optimize.stage1 import Stage1Settings, solve_stage1
 
@@ -26,7 +26,7 @@ N = 1000  # coarser than the rule for the larger shapes (T within 0.5 % of N = 1
 
 @pytest.fixture(scope="module")
 def linear():
-    from microfab.machines.xy_stage_identify import linear_study
+    from microfab.machines.xy_stage.identify import linear_study
 
     _, fit = linear_study()
     return fit.model.to_continuous()

@@ -183,7 +183,7 @@ def test_table_ii_labels_the_calibrated_sigma_fitted_and_the_networks_predicted(
     import dataclasses
 
     from microfab.experiments.seed002_stage.tables import cases_table, table_ii
-    from microfab.machines.xy_stage_calibration import scaled_changes, table_ii_quantity
+    from microfab.machines.xy_stage.calibration import scaled_changes, table_ii_quantity
 
     study = ran[1].study
     labels = table_ii(study).labels  # linear x, linear y, ANN x, ANN y

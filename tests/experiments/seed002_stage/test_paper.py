@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from microfab.experiments.seed002_stage import paper
-from microfab.machines import xy_stage_calibration, xy_stage_identify
+from microfab.machines.xy_stage import calibration as xy_stage_calibration
+from microfab.machines.xy_stage import identify as xy_stage_identify
 
 
 def test_machine_copies_match_paper():

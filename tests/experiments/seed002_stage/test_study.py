@@ -13,7 +13,7 @@ import pytest
 
 from microfab.experiments.seed002_stage import paper
 from microfab.experiments.seed002_stage.study import CaseSettings, StudySettings, run_study
-from microfab.machines.xy_stage_identify import LinearSettings
+from microfab.machines.xy_stage.identify import LinearSettings
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,8 @@ from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
 from microfab.experiments.seed003_inkjet.job import DropletSweepConfig
 from microfab.io.job import JobFileError
 from microfab.io.sweep import SweepResult
-from microfab.machines import printhead
-from microfab.machines.printhead import DropletSettings, SweepPoint
+from microfab.machines.printhead import machine as printhead
+from microfab.machines.printhead.machine import DropletSettings, SweepPoint
 from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 
 EXAMPLES = Path(__file__).parents[3] / "examples"

@@ -16,7 +16,7 @@ import itertools
 import pytest
 
 from microfab.experiments.seed003_inkjet.paper import SEED_BREAKUP, SEED_CONCENTRATIONS_PCT
-from microfab.machines.printhead_calibration import simulated_breakup
+from microfab.machines.printhead.calibration import simulated_breakup
 from microfab.process.inkjet.fluids import load_table
 
 Runs = dict[float, tuple[float | None, str | None]]
@@ -152,8 +152,8 @@ def test_eulerian_two_percent_needs_a_lower_viscosity_to_break_after_one_and_a_h
     eulerian: Runs,
 ) -> None:
     # what would have to change for the six to rise (the closing note of issue 19)
-    from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
-    from microfab.machines.printhead_sensitivity import SensitivityPoint, perturbed_fluid
+    from microfab.machines.printhead.machine import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead.sensitivity import SensitivityPoint, perturbed_fluid
 
     def at(factor: float) -> float | None:
         fluid = perturbed_fluid(SensitivityPoint(2.0, "zero_shear_viscosity", factor), "eulerian")
@@ -167,7 +167,7 @@ def test_eulerian_two_percent_needs_a_lower_viscosity_to_break_after_one_and_a_h
 
 
 def _within_1_ms(c: float) -> float | None:
-    from microfab.machines.printhead import DropletSettings, SweepPoint, run_point
+    from microfab.machines.printhead.machine import DropletSettings, SweepPoint, run_point
 
     res = run_point(SweepPoint(c, 50.0), DropletSettings(model="eulerian", duration_s=1e-3))
     return res.breakup_time_s

@@ -13,7 +13,7 @@ from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS, load_job
 from microfab.experiments.kinds import no_progress
 from microfab.experiments.seed004_laser.job import LaserJob
 from microfab.io.job import JobFileError
-from microfab.machines.laser_stage import ContourJob
+from microfab.machines.laser_stage.machine import ContourJob
 from microfab.trajectory.contour_laps import ContourMotion
 
 EXAMPLE = Path(__file__).parents[3] / "examples" / "laser_micromachining.toml"
@@ -97,7 +97,7 @@ def test_a_job_runs_resumes_its_sweep_and_writes_its_report(tmp_path):
 
 def test_reproduction_prints_the_seed_beside_ours():
     rep = REPRODUCTIONS["laser-micromachining"]
-    # the Fig. 7 speed study (20 s) is tested in tests/machines/test_laser_stage_fig7.py
+    # the Fig. 7 speed study (20 s) is tested in tests/experiments/seed004_laser/test_fig7.py
     res = rep.run(rep.parse_options({"speed_study": False}), no_progress)
     d = res.data
     assert d is not None
@@ -106,7 +106,7 @@ def test_reproduction_prints_the_seed_beside_ours():
     main = res.tables[0]
     origin = {row[0]: lab.origin for row, lab in zip(main.rows, main.labels, strict=True)}
     assert origin["Fig. 3 peak, x / y [µm]"] == "fitted"
-    from microfab.machines.laser_stage_calibration import CALIBRATION
+    from microfab.machines.laser_stage.calibration import CALIBRATION
 
     fitted = {q for lab in main.labels for q in lab.fitted}
     assert fitted == set(CALIBRATION.targets)  # every target shown, and labelled fitted
@@ -177,8 +177,8 @@ def test_the_example_sets_its_preview_dob_run_beside_fig3_as_the_reproduction_do
         LaserResult,
         seed_fig3_setup,
     )
-    from microfab.machines.laser_stage import ControlSettings
-    from microfab.machines.laser_stage_contour import run_contour
+    from microfab.machines.laser_stage.contour import run_contour
+    from microfab.machines.laser_stage.machine import ControlSettings
 
     cfg = load_job(EXAMPLE).config
     assert not seed_fig3_setup(cfg.run)  # the contour law
@@ -225,8 +225,8 @@ def test_friction_feedforward_is_a_job_setting(tmp_path):
 
 
 def test_the_fig7_study_table_and_note_read_the_studys_rows():
+    from microfab.experiments.seed004_laser.fig7 import fig7_study
     from microfab.experiments.seed004_laser.job import _study_note
-    from microfab.machines.laser_stage_fig7 import fig7_study
     from microfab.report.contour_fig7 import fig7_study_table
 
     rows = fig7_study(["circle:radius=1e-4"], [1.0, 10.0, 20.0])

@@ -1,6 +1,6 @@
 """Seed 000 Figs. 7 and 8 redrawn from a run: beam speed along the path, cured line width.
 
-Both take a `microfab.machines.galvo_ilc.MSLRunResult` and return a
+Both take a `microfab.machines.galvo.ilc.MSLRunResult` and return a
 `matplotlib.figure.Figure` on an Agg canvas (no pyplot state). The other figures of the
 report (Figs. 4a, 4b, 5, 6, the loops and eq. 5) are `microfab.report.galvo_ilc` and
 `microfab.report.loops`; the line styles are theirs (seed 000 §4.1).
@@ -17,7 +17,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from microfab.machines.galvo_ilc import BeamExposure, MSLRunResult
+from microfab.machines.galvo.ilc import BeamExposure, MSLRunResult
 from microfab.report.canvas import new_figure
 from microfab.report.galvo_ilc import DESIRED_STYLE, FB_STYLE, ILC_STYLE, closed, rate_label
 
@@ -43,7 +43,7 @@ def fig_velocity(
     result : MSLRunResult
         Run to draw (the first two axes are x and y).
     exposure : BeamExposure
-        Its beam speeds (`microfab.machines.galvo_ilc.beam_exposure`).
+        Its beam speeds (`microfab.machines.galvo.ilc.beam_exposure`).
     cmap : str, optional
         Matplotlib colour map name.
     n_arrows : int, optional
@@ -103,7 +103,7 @@ def fig_velocity(
 def fig_line_width(result: MSLRunResult, exposure: BeamExposure) -> Figure:
     """Predicted cured line width along one period, FB against ILC (seed Fig. 8 analogue).
 
-    Draws `microfab.machines.galvo_ilc.beam_exposure`'s widths (the beam speed through the
+    Draws `microfab.machines.galvo.ilc.beam_exposure`'s widths (the beam speed through the
     quasi-steady Jacobs working curve) and the width at the constant target speed
     (perimeter of the desired path over one period) for reference.
 

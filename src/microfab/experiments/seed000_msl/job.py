@@ -39,12 +39,12 @@ from microfab.experiments.seed000_msl import paper
 from microfab.experiments.seed000_msl.keys import FS_HZ, ILC_CUTOFF_HZ, ILC_GAIN
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
-from microfab.machines import galvo as galvo_machine
+from microfab.machines.galvo import machine as galvo_machine
 from microfab.report.provenance import labelled
 from microfab.report.tables import Table, versus
 
 if TYPE_CHECKING:  # the learning run is imported when a job runs
-    from microfab.machines.galvo_ilc import BeamExposure, MSLRunResult
+    from microfab.machines.galvo.ilc import BeamExposure, MSLRunResult
     from microfab.plants.galvo import GalvoAxis
     from microfab.plants.lti import DiscreteLTI
 
@@ -180,7 +180,7 @@ class MSLJobResult:
 
 
 def _run(config: MSLConfig, out: Path, progress: Progress) -> MSLJobResult:
-    from microfab.machines.galvo_ilc import beam_exposure, run_msl_ilc
+    from microfab.machines.galvo.ilc import beam_exposure, run_msl_ilc
 
     axes = galvo_machine.calibrated_axes()
     runs = {}
@@ -244,7 +244,7 @@ def comparison_tables(tables: dict[str, Any]) -> tuple[Table, ...]:
     tables : dict
         From `tables_from_runs` (rates as strings).
     """
-    from microfab.machines.galvo_calibration import table1_quantity
+    from microfab.machines.galvo.calibration import table1_quantity
 
     rates = sorted(int(r) for r in tables["table2"])
     t1_rows = []
@@ -351,7 +351,7 @@ def tables_from_runs(
         JSON-ready: ``table1`` (mV), ``table2`` (mm/s), ``margins`` (dB, deg, Hz) and
         ``rms_history`` (mV), rates as string keys.
     """
-    from microfab.machines.galvo_ilc import axis_margins
+    from microfab.machines.galvo.ilc import axis_margins
 
     rates = sorted(runs)
     names = runs[rates[0]].axes
@@ -384,7 +384,7 @@ def reproduce_tables(
     runs : dict of int to MSLRunResult
         The runs by rate.
     """
-    from microfab.machines.galvo_ilc import run_msl_ilc
+    from microfab.machines.galvo.ilc import run_msl_ilc
 
     axes = galvo_machine.calibrated_axes()
     runs: dict[int, MSLRunResult] = {}

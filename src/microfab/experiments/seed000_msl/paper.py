@@ -2,14 +2,14 @@
 
 Every value cites its table or section in ``../shared/seeds/000_f8fa17eaefc5dca4.txt``.
 Table 1 and the rates, the galvo twin's calibration target, live with the calibration
-(`microfab.machines.galvo_calibration`) and are re-exported here.
+(`microfab.machines.galvo.calibration`) and are re-exported here.
 """
 
 from __future__ import annotations
 
 # RATES (seed 000 §4) and TABLE1_MV (seed 000 Table 1) are the galvo twin's calibration
 # target and live with it.
-from microfab.machines.galvo_calibration import RATES, TABLE1_MV
+from microfab.machines.galvo.calibration import RATES, TABLE1_MV
 
 __all__ = [
     "MARGINS",

@@ -23,7 +23,7 @@ from typing import Any
 
 from microfab.experiments.seed000_msl import figures
 from microfab.experiments.seed000_msl import paper as seed000
-from microfab.machines.galvo_ilc import BeamExposure, MSLRunResult
+from microfab.machines.galvo.ilc import BeamExposure, MSLRunResult
 from microfab.plants.lti import DiscreteLTI
 from microfab.report import galvo_ilc, loops
 from microfab.report.canvas import render_png, render_svg
@@ -360,7 +360,7 @@ def write_report(
         ours/seed; Table 2 (ours) is read from it.
     exposure : BeamExposure
         The main run's beam speed and cured lines
-        (`microfab.machines.galvo_ilc.beam_exposure`).
+        (`microfab.machines.galvo.ilc.beam_exposure`).
     open_loops : mapping of str to DiscreteLTI
         Each axis' open loop, for the Bode plot (`microfab.machines.galvo.open_loop`).
     title : str, optional

@@ -20,7 +20,7 @@ from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.core.validate import check_finite, check_int, check_positive
-from microfab.machines import nanomanipulator
+from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.trajectory.circle_pattern import PatternConfig, pattern_reference
 
 __all__ = [

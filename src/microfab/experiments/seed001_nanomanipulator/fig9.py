@@ -41,7 +41,7 @@ from microfab.control.rbf import RBFAdaptive
 from microfab.control.repetitive import period_samples
 from microfab.core.validate import check_positive
 from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
-from microfab.machines import nanomanipulator
+from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant
 from microfab.trajectory.circle_pattern import pattern_reference
 

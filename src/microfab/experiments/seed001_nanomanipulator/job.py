@@ -41,9 +41,9 @@ from microfab.experiments.seed001_nanomanipulator.keys import (
 from microfab.experiments.seed001_nanomanipulator.results import NanomanipulatorResult
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
-from microfab.machines import nanomanipulator
-from microfab.machines.nanomanipulator_cure import cure_circles
-from microfab.machines.nanomanipulator_job import (
+from microfab.machines.nanomanipulator import machine as nanomanipulator
+from microfab.machines.nanomanipulator.cure import cure_circles
+from microfab.machines.nanomanipulator.job import (
     JobConfig,
     RCSettings,
     TwinSettings,

@@ -36,7 +36,7 @@ from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.rbf_composite import NonlinearityOracle, RBFPlusLinear
 from microfab.experiments.seed001_nanomanipulator.compare import CircleSetting
-from microfab.machines import nanomanipulator
+from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, drift_and_gain
 
 __all__ = [

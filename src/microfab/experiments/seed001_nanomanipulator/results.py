@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from microfab.experiments.seed001_nanomanipulator import paper
-from microfab.machines.nanomanipulator_cure import CircleCure
-from microfab.machines.nanomanipulator_job import JobConfig, JobRun
+from microfab.machines.nanomanipulator.cure import CircleCure
+from microfab.machines.nanomanipulator.job import JobConfig, JobRun
 from microfab.measure.circle_tracking import TrackingMetrics
 from microfab.report.tables import DASH, Table, versus
 

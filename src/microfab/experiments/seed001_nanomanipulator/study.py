@@ -47,7 +47,7 @@ from microfab.experiments.seed001_nanomanipulator.proposed import (
     proposed_controller,
     proposed_oracle,
 )
-from microfab.machines import nanomanipulator
+from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, drift_and_gain
 from microfab.report.tables import Table
 from microfab.sim.loop import LoopState

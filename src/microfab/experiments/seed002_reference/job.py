@@ -18,7 +18,7 @@ Every key, its unit and its range is in `SCHEMA`; unknown keys are refused. The 
 point atomically under ``out/points/`` (a rerun skips it; stage 2 checkpoints there every
 few iterations and resumes), ``sizes.json`` and ``summary.json``. With ``[generations]
 count`` ≥ 2 the networks' generations run first under ``out/generations/``
-(`microfab.machines.xy_stage_generations`), then Table III per generation
+(`microfab.machines.xy_stage.generations`), then Table III per generation
 (``out/generation<g>/``) and the study with the last generation's models; the report adds
 Table III per generation and the networks-against-twin table per generation.
 """
@@ -38,11 +38,12 @@ from microfab.experiments.seed002_reference.study import (
 from microfab.experiments.seed002_reference.tables import comparison_tables, study_warnings
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
-from microfab.machines import xy_stage, xy_stage_cases
-from microfab.machines.xy_stage import TwinSettings
-from microfab.machines.xy_stage_cases import CASES, CaseSizes
-from microfab.machines.xy_stage_generations import DEFAULT_SHAPES, SHAPES
-from microfab.machines.xy_stage_reference import HOLD_S
+from microfab.machines.xy_stage import cases as xy_stage_cases
+from microfab.machines.xy_stage import machine as xy_stage
+from microfab.machines.xy_stage.cases import CASES, CaseSizes
+from microfab.machines.xy_stage.generations import DEFAULT_SHAPES, SHAPES
+from microfab.machines.xy_stage.machine import TwinSettings
+from microfab.machines.xy_stage.reference import HOLD_S
 from microfab.report.tables import Table
 
 __all__ = [

@@ -26,7 +26,7 @@ from microfab.experiments.seed002_reference.tables import (
     comparison_tables,
     study_warnings,
 )
-from microfab.machines.xy_stage_cases import case_paths
+from microfab.machines.xy_stage.cases import case_paths
 
 __all__ = ["write_report"]
 

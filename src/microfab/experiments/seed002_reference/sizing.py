@@ -1,7 +1,7 @@
 """The sizes of seed 002's test cases for the reference optimisation (a documented step).
 
 The seed gives no sizes. As part 1 does with the time-optimal command
-(`microfab.machines.xy_stage_cases.case_sizes`), one number per family is fitted
+(`microfab.machines.xy_stage.cases.case_sizes`), one number per family is fitted
 and everything else is a check, but here the time is the *optimised* one, stage 1's
 ``T`` (eqs. 8-12) on the identified linear model at ``a_max = 1 m/s²`` and μ = 20 µm:
 
@@ -25,7 +25,7 @@ from microfab.geometry.airfoil import airfoil_path
 from microfab.geometry.path import Path
 from microfab.geometry.text import letters_seed002
 from microfab.identify.subspace_model import ContinuousModel
-from microfab.machines.xy_stage_cases import (
+from microfab.machines.xy_stage.cases import (
     AIRFOIL_TIME_S,
     R_TIME_S,
     SIZE_A_MAX,

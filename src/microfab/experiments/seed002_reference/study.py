@@ -10,13 +10,13 @@ fingerprint is in the point's JSON):
    at 1 m/s²), or the sizes given;
 3. every case at every ``a_max`` of `ReferenceSettings.a_max` (Table III: 1 and 3) and the
    airfoil at `ReferenceSettings.airfoil_extra` (§V-A: 2 m/s²), each through
-   `microfab.machines.xy_stage_reference.run_point` (both stages, the twin, the networks,
-   the baselines; saved and resumed by `microfab.machines.xy_stage_reference.saved_point`);
+   `microfab.machines.xy_stage.reference.run_point` (both stages, the twin, the networks,
+   the baselines; saved and resumed by `microfab.machines.xy_stage.reference.saved_point`);
 4. the trade-off (§V-B, Figs. 16-17): the letters at each of ``tradeoff_letters``
    (the four letters one after another, each from rest: times summed, deviations pooled)
    and the airfoil at each of ``tradeoff_airfoil``; the eq. (15) baseline also at longer
    times (``baseline_factors`` times the slowest optimised time) to find the baseline's
-   time at a given L2 (`microfab.machines.xy_stage_reference.baseline_l2`).
+   time at a given L2 (`microfab.machines.xy_stage.reference.baseline_l2`).
 
 Points are independent; a failed stage (infeasible, not converged) is recorded in the
 point's JSON with its message and the study goes on. The points not yet saved run side by
@@ -27,7 +27,7 @@ threads, so a point's numbers do not depend on where it ran.
 
 Generations (seed 002 §III-C.2, Fig. 7; ``generations`` ≥ 2): first the networks'
 generations are run or resumed under ``out/generations/``
-(`microfab.machines.xy_stage_generations.run_generations`: the regular shapes optimised
+(`microfab.machines.xy_stage.generations.run_generations`: the regular shapes optimised
 with each generation's models, played on the twin, added to the data, the networks
 retrained warm), then Table III's points (``cases`` × ``a_max``, no trade-off) with each
 earlier generation's models under ``out/generation<g>/``, and the whole study above with
@@ -49,16 +49,16 @@ from typing import Any
 
 from microfab.core.threads import usable_cores
 from microfab.geometry.text import SEED002_LETTERS
-from microfab.machines.xy_stage import TwinSettings
-from microfab.machines.xy_stage_ann import AnnSettings
-from microfab.machines.xy_stage_cases import CASES, CaseSizes, case_paths
-from microfab.machines.xy_stage_generations import (
+from microfab.machines.xy_stage.ann import AnnSettings
+from microfab.machines.xy_stage.cases import CASES, CaseSizes, case_paths
+from microfab.machines.xy_stage.generations import (
     DEFAULT_SHAPES,
     GenerationSettings,
     GenerationsResult,
     run_generations,
 )
-from microfab.machines.xy_stage_reference import baseline_l2, saved_point
+from microfab.machines.xy_stage.machine import TwinSettings
+from microfab.machines.xy_stage.reference import baseline_l2, saved_point
 from microfab.optimize.metrics import DeviationNorms
 from microfab.optimize.models import Models, load_models, models_digest
 from microfab.optimize.problem import ContourProblem
@@ -100,7 +100,7 @@ class ReferenceSettings:
         The networks' generations (seed 002 §III-C.2, Fig. 7); 1: the given models alone.
     generation_shapes : tuple of str
         The regular shapes the generations optimise
-        (`microfab.machines.xy_stage_generations.SHAPES`).
+        (`microfab.machines.xy_stage.generations.SHAPES`).
     generation_size_m : float
         Their size, m (radius, circumradius, the spiral's outer radius).
     generation_a_max : tuple of float
@@ -108,7 +108,7 @@ class ReferenceSettings:
     retrain_epochs : int
         Most epochs of a retraining.
     generation_data_s : float or None
-        Generation 1's data length, s (`microfab.machines.xy_stage_ann.AnnSettings`
+        Generation 1's data length, s (`microfab.machines.xy_stage.ann.AnnSettings`
         ``total_s``; None: the seed's, about 525 s).
     retrain_workers : int
         Axes retrained at once, one process each (assumed 2, the ``stage-identify``
@@ -132,9 +132,9 @@ class ReferenceSettings:
     stage2_max_iter: int = 30
     generations: int = 1
     generation_shapes: tuple[str, ...] = DEFAULT_SHAPES
-    generation_size_m: float = 20e-3  # assumed (xy_stage_generations.GenerationSettings)
+    generation_size_m: float = 20e-3  # assumed (machines.xy_stage.generations.GenerationSettings)
     generation_a_max: tuple[float, ...] = (1.0, 3.0)  # assumed: Table III's columns
-    retrain_epochs: int = 20  # assumed (xy_stage_generations.GenerationSettings)
+    retrain_epochs: int = 20  # assumed (machines.xy_stage.generations.GenerationSettings)
     generation_data_s: float | None = None
     retrain_workers: int = 2  # assumed, see above
     workers: int = 0
@@ -177,7 +177,7 @@ class ReferenceStudy:
     sizing_steps : dict
         The sizing's stage-1 solves (empty when sizes were given).
     points : dict of (str, float) to dict
-        Every point's summary (`microfab.machines.xy_stage_reference.PointResult.summary`,
+        Every point's summary (`microfab.machines.xy_stage.reference.PointResult.summary`,
         or ``{"error": ...}``).
     tradeoff : dict of str to list of dict
         "letters" and "airfoil": one row per a_max (time, pooled norms per output).
@@ -344,7 +344,7 @@ def _run_points(
     The points left run side by side on worker processes (module docstring).
     """
     from microfab.io.sweep import run_sweep
-    from microfab.machines.xy_stage_reference import read_point_summary
+    from microfab.machines.xy_stage.reference import read_point_summary
 
     fingerprint = st.fingerprint()
     done: dict[tuple[str, float], dict[str, Any]] = {}

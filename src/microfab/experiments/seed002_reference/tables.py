@@ -18,7 +18,7 @@ import numpy as np
 from microfab.core.provenance import Shows, quantity
 from microfab.experiments.seed002_reference import paper
 from microfab.experiments.seed002_reference.study import ReferenceStudy
-from microfab.machines.xy_stage_cases import table_iii_quantity
+from microfab.machines.xy_stage.cases import table_iii_quantity
 from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, versus
 

@@ -56,10 +56,11 @@ from microfab.experiments.seed002_stage.study import (
 from microfab.experiments.seed002_stage.tables import comparison_tables
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
-from microfab.machines import xy_stage, xy_stage_cases
-from microfab.machines.xy_stage import TwinSettings
-from microfab.machines.xy_stage_ann import AnnSettings
-from microfab.machines.xy_stage_identify import LinearSettings
+from microfab.machines.xy_stage import cases as xy_stage_cases
+from microfab.machines.xy_stage import machine as xy_stage
+from microfab.machines.xy_stage.ann import AnnSettings
+from microfab.machines.xy_stage.identify import LinearSettings
+from microfab.machines.xy_stage.machine import TwinSettings
 from microfab.report.tables import Table
 
 __all__ = [
@@ -150,7 +151,7 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
 
 def _magnitudes(tw: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
     """Twin changes of the ``magnitudes`` choice (``"assumed"``: scale 1 of the reference)."""
-    from microfab.machines.xy_stage_calibration import scaled_changes
+    from microfab.machines.xy_stage.calibration import scaled_changes
 
     if tw["magnitudes"] not in MAGNITUDES:
         raise ValueError(

@@ -153,7 +153,7 @@ def train_shipped(
     from microfab.identify.ann_data import data_summary
     from microfab.identify.stage_ann import runs_of, save_ann_model
     from microfab.identify.stage_data import write_stage_model
-    from microfab.machines.xy_stage_ann import ann_records
+    from microfab.machines.xy_stage.ann import ann_records
 
     out = Path(out)
     settings = shipped_settings()
@@ -202,7 +202,7 @@ def recheck(folder: str | Path) -> dict[str, Any]:
     """
     from microfab.identify.ann_data import data_digest, data_summary
     from microfab.identify.stage_ann import read_ann_stage_model, runs_of
-    from microfab.machines.xy_stage_ann import ann_records
+    from microfab.machines.xy_stage.ann import ann_records
 
     folder = Path(folder)
     record = json.loads((folder / RECORD).read_text(encoding="utf-8"))

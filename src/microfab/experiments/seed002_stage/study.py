@@ -4,15 +4,15 @@
 run. In order:
 
 1. **Linear model** (§III-A, §III-C.1): random runs (600 s), played on the twin, eq. (6)
-   fitted (`microfab.machines.xy_stage_identify.fit_linear`); its error on its own
+   fitted (`microfab.machines.xy_stage.identify.fit_linear`); its error on its own
    training data is Table II column 1. The order check (n = 2…8, one R factor,
-   `microfab.machines.xy_stage_identify.order_check`) scores each order the same way,
+   `microfab.machines.xy_stage.identify.order_check`) scores each order the same way,
    from rest.
 2. **Networks** (§III-B, §III-C.2): about 60 % random runs and the rest regular shapes,
    80/20 split by whole runs, one network per axis
-   (`microfab.machines.xy_stage_ann.train_networks`); the error on the validation runs
+   (`microfab.machines.xy_stage.ann.train_networks`); the error on the validation runs
    is Table II column 1 of the non-linear model.
-3. **Test cases** (`microfab.machines.xy_stage_cases.play_cases`): the letters and the
+3. **Test cases** (`microfab.machines.xy_stage.cases.play_cases`): the letters and the
    airfoil at each ``a_max`` as time-optimal commands (the stand-in for the optimised
    inputs of part 2), played on the twin; both models' errors there. Table II columns
    2-3 pool the four letters at 1 and 3 m/s²; Fig. 9 is the network's σ against
@@ -40,14 +40,13 @@ import numpy as np
 from microfab.experiments.kinds import Progress, no_progress
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.identify.stage_data import RunErrors, StageRecord, decimate, rest_state
-from microfab.machines.xy_stage import TwinSettings
-from microfab.machines.xy_stage_ann import (
+from microfab.machines.xy_stage.ann import (
     AnnSettings,
     ann_records,
     classic_records,
     train_networks,
 )
-from microfab.machines.xy_stage_cases import (
+from microfab.machines.xy_stage.cases import (
     AIRFOIL_TIME_S,
     R_TIME_S,
     CaseRun,
@@ -56,13 +55,14 @@ from microfab.machines.xy_stage_cases import (
     case_sizes,
     play_cases,
 )
-from microfab.machines.xy_stage_identify import (
+from microfab.machines.xy_stage.identify import (
     LinearFit,
     LinearSettings,
     OrderRow,
     linear_study,
     order_check,
 )
+from microfab.machines.xy_stage.machine import TwinSettings
 from microfab.plants.lti import DiscreteLTI
 
 if TYPE_CHECKING:

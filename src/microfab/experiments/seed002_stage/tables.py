@@ -11,9 +11,9 @@ from microfab.experiments.seed002_stage import paper
 from microfab.experiments.seed002_stage.study import IdentifyStudy
 from microfab.geometry.text import SEED002_LETTERS
 from microfab.identify.stage_data import AXES, RunErrors
-from microfab.machines.xy_stage_calibration import CALIBRATION as XY_CALIBRATION
-from microfab.machines.xy_stage_calibration import FREE_FIELDS, table_ii_quantity
-from microfab.machines.xy_stage_cases import CASES, table_iii_quantity
+from microfab.machines.xy_stage.calibration import CALIBRATION as XY_CALIBRATION
+from microfab.machines.xy_stage.calibration import FREE_FIELDS, table_ii_quantity
+from microfab.machines.xy_stage.cases import CASES, table_iii_quantity
 from microfab.report.provenance import OURS, labelled
 from microfab.report.tables import DASH, Table, versus
 

@@ -52,8 +52,13 @@ from microfab.experiments.seed003_inkjet.paper import (
 )
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
-from microfab.machines import printhead
-from microfab.machines.printhead import DropletSettings, SweepPoint, model_sweep, sweep_points
+from microfab.machines.printhead import machine as printhead
+from microfab.machines.printhead.machine import (
+    DropletSettings,
+    SweepPoint,
+    model_sweep,
+    sweep_points,
+)
 from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 from microfab.process.inkjet.fluids import load_table
 from microfab.report.inkjet_tables import breakup_tables, breakup_trend, row_model

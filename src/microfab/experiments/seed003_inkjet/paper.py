@@ -6,14 +6,14 @@ fall 3 µs, dwell 30 µs, echo 30 µs, 50 Hz) are defaults of
 :class:`microfab.trajectory.waveform.Waveform` and live there; the concentrations are also
 the table points of :mod:`microfab.process.inkjet.fluids`; the Fig. 4 voltage is the
 sweep's (:mod:`microfab.machines.printhead`) and the two quoted breakups are the targets of
-the relaxation-law calibration (:mod:`microfab.machines.printhead_calibration`). All are
+the relaxation-law calibration (:mod:`microfab.machines.printhead.calibration`). All are
 taken from those modules here, so that each number is written once.
 """
 
 from __future__ import annotations
 
-from microfab.machines.printhead import FIG4_VOLTAGE_V
-from microfab.machines.printhead_calibration import SEED_BREAKUP, SEED_VOLTAGE_V
+from microfab.machines.printhead.calibration import SEED_BREAKUP, SEED_VOLTAGE_V
+from microfab.machines.printhead.machine import FIG4_VOLTAGE_V
 from microfab.process.inkjet.fluids import SEED_CONCENTRATIONS_PCT as _FLUID_CONCENTRATIONS
 from microfab.trajectory.waveform import SEED003_VOLTAGES_V
 

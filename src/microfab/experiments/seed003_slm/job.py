@@ -31,13 +31,13 @@ from microfab.experiments.seed003_slm.tables import NOTES, scan_table, seed_tabl
 from microfab.identify.chirp import SWEEPS, ChirpDesign
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
-from microfab.machines import slm_galvo
-from microfab.machines.slm_galvo_shapers import (
+from microfab.machines.slm_galvo import machine as slm_galvo
+from microfab.machines.slm_galvo.shapers import (
     CompareSettings,
     ShaperComparison,
     compare_shapers,
 )
-from microfab.machines.slm_galvo_shaping import (
+from microfab.machines.slm_galvo.shaping import (
     DISCRETIZATIONS,
     IdentifySettings,
     LayerSettings,

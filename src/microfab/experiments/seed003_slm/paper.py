@@ -19,8 +19,8 @@ Seed errors noted here once:
 
 from __future__ import annotations
 
-from microfab.machines.slm_galvo import SEED_MODEL_DEN as MODEL_DEN
-from microfab.machines.slm_galvo import SEED_MODEL_NUM as MODEL_NUM
+from microfab.machines.slm_galvo.machine import SEED_MODEL_DEN as MODEL_DEN
+from microfab.machines.slm_galvo.machine import SEED_MODEL_NUM as MODEL_NUM
 from microfab.process.slm.estimate import (
     SEED_JUMP_DELAY_SHAPED_S,
     SEED_JUMP_DELAY_UNSHAPED_S,

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from microfab.experiments.seed003_slm.tables import scan_table, seed_table
-from microfab.machines.slm_galvo_shapers import ShaperComparison
-from microfab.machines.slm_galvo_shaping import ShapingRun, ShapingSettings
+from microfab.machines.slm_galvo.shapers import ShaperComparison
+from microfab.machines.slm_galvo.shaping import ShapingRun, ShapingSettings
 from microfab.process.slm.build import BuildResult, BuildSettings
 from microfab.report.slm_tables import build_table, comparison_table
 from microfab.report.tables import Table

@@ -1,6 +1,6 @@
 """Tables of an ``slm-shaping`` run: the seed's numbers beside ours, the layer's scan times.
 
-The run's JSON is `microfab.machines.slm_galvo_shaping.ShapingRun.summary`.
+The run's JSON is `microfab.machines.slm_galvo.shaping.ShapingRun.summary`.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 
 from microfab.core.provenance import Shows, quantity
 from microfab.experiments.seed003_slm import paper
-from microfab.machines.slm_galvo_shaping import ShapingRun
+from microfab.machines.slm_galvo.shaping import ShapingRun
 from microfab.process.slm.estimate import implied_jumps
 from microfab.report import slm_tables
 from microfab.report.provenance import OURS, labelled

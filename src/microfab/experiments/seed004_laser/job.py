@@ -16,8 +16,8 @@ Job file (``examples/laser_micromachining.toml``)::
 Every key, its unit and its range is in `SCHEMA`; unknown keys are refused. The speed
 sweep saves each point atomically under ``OUT/sweep/`` and skips finished points when the
 job runs again (`microfab.io.sweep.run_sweep`); the single runs are seconds long
-and are simply repeated. What runs is the machine's (`microfab.machines.laser_stage_contour`,
-`microfab.machines.laser_stage_focus`); here the job file becomes its settings, and its
+and are simply repeated. What runs is the machine's (`microfab.machines.laser_stage.contour`,
+`microfab.machines.laser_stage.focus`); here the job file becomes its settings, and its
 results are set beside seed 004.
 """
 
@@ -30,6 +30,7 @@ from typing import Any
 from microfab.core.provenance import Shows, quantity
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed004_laser import paper
+from microfab.experiments.seed004_laser.fig7 import fig7_cause, fig7_study
 from microfab.experiments.seed004_laser.keys import CONTOUR
 from microfab.experiments.seed004_laser.results import (
     DOF_QUANTITY,
@@ -41,12 +42,11 @@ from microfab.experiments.seed004_laser.results import (
 )
 from microfab.io.atomic import atomic_write_json
 from microfab.io.job import Key
-from microfab.machines import laser_stage
-from microfab.machines.laser_stage import LAWS, ContourJob, ControlSettings, TwinSettings
-from microfab.machines.laser_stage_calibration import FIG3_PEAK_QUANTITY
-from microfab.machines.laser_stage_contour import run_contour, speed_sweep
-from microfab.machines.laser_stage_fig7 import fig7_cause, fig7_study
-from microfab.machines.laser_stage_focus import focus_study
+from microfab.machines.laser_stage import machine as laser_stage
+from microfab.machines.laser_stage.calibration import FIG3_PEAK_QUANTITY
+from microfab.machines.laser_stage.contour import run_contour, speed_sweep
+from microfab.machines.laser_stage.focus import focus_study
+from microfab.machines.laser_stage.machine import LAWS, ContourJob, ControlSettings, TwinSettings
 from microfab.report.contour_fig7 import fig7_cause_table, fig7_study_table
 from microfab.report.page import Figure
 from microfab.report.provenance import labelled

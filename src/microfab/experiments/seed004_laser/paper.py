@@ -16,7 +16,7 @@ Seed errors noted here once (the code that uses the numbers repeats the relevant
 
 from __future__ import annotations
 
-from microfab.machines.laser_stage_calibration import FIG3_PEAK_ERROR_M
+from microfab.machines.laser_stage.calibration import FIG3_PEAK_ERROR_M
 from microfab.measure.contour import AXIS_BAND_M as FIG3_TYPICAL_ERROR_M
 from microfab.trajectory.contour_laps import (
     CONTINUOUS_FORCE_N,
@@ -64,7 +64,7 @@ FIG3_RADIUS_M = 30e-6  # seed 004 §IV.A: circle reference of radius 30 µm
 # FIG3_TYPICAL_ERROR_M (0.5 µm, seed 004 §IV.A: "errors are generally lower than 0.5 µm"):
 # the band of microfab.measure.contour.AXIS_BAND_M; FIG3_PEAK_ERROR_M (0.8 µm, §IV.A:
 # "reaching 0.8 µm at the peak points"): the fit target of
-# microfab.machines.laser_stage_calibration.
+# microfab.machines.laser_stage.calibration.
 
 # ---------------------------------------------------------------- §IV.D, Fig. 7
 FIG7_SIZE_M = 100e-6  # seed 004 §IV.D: "circle with 100 µm" (radius or diameter unsaid)

@@ -15,10 +15,10 @@ import numpy as np
 from microfab.control.margins import AxisMargins
 from microfab.core.provenance import Shows, quantity
 from microfab.experiments.seed004_laser import paper
-from microfab.machines.laser_stage import ContourJob
-from microfab.machines.laser_stage_calibration import FIG3_JOB
-from microfab.machines.laser_stage_contour import ContourRun
-from microfab.machines.laser_stage_focus import FocusStudy
+from microfab.machines.laser_stage.calibration import FIG3_JOB
+from microfab.machines.laser_stage.contour import ContourRun
+from microfab.machines.laser_stage.focus import FocusStudy
+from microfab.machines.laser_stage.machine import ContourJob
 from microfab.report.contour import (
     contour_table,
     margins_table,
@@ -77,7 +77,7 @@ class LaserJob:
 
 @dataclass(frozen=True, kw_only=True)
 class FocusSettings:
-    """The autofocus study of a job (`microfab.machines.laser_stage_focus.focus_study`)."""
+    """The autofocus study of a job (`microfab.machines.laser_stage.focus.focus_study`)."""
 
     duration_s: float = 3.0
     tilt_mrad: float = 1.0

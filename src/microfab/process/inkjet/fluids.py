@@ -9,7 +9,7 @@ Sodium alginate (NaAlg) in deionised water is the ink of seed 003 part 1
 in ``microfab/data/naalg.toml`` with a ``*_source`` string for every value. No measured values
 of these solutions could be retrieved (see the file header): all entries are documented
 assumptions, and the relaxation law is calibrated from the seed's two breakup times
-(:mod:`microfab.machines.printhead_calibration`, ``microfab droplet calibrate``).
+(:mod:`microfab.machines.printhead.calibration`, ``microfab droplet calibrate``).
 
 Interpolation between the table points (`naalg`)
 ------------------------------------------------

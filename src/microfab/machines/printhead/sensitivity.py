@@ -1,0 +1,212 @@
+"""How much the seed's breakup times hang on the fluid values that stay assumed.
+
+Seed 003 part 1 (``../shared/seeds/003_4915b267b12a78d4.txt``) gives no fluid properties,
+and no published measurement of this alginate at its six concentrations could be found
+(``data/naalg.toml``, header). Every property of :func:`microfab.process.inkjet.fluids.naalg`
+is therefore assumed or calibrated. This study changes one at a time by a factor around
+its table value and reruns the 50 V drop (`microfab.machines.printhead.run_point`, the
+one path every droplet command takes), so that the breakup time and mode can be read against each
+assumption:
+
+* zero-shear viscosity η0 (×0.5, ×2: the grade is unknown; the polymer part takes the
+  change, the water stays);
+* relaxation time λ (×0.5, ×2: calibrated on two times, and the exponent is only bounded
+  below, ``naalg.toml``);
+* surface tension σ (×0.85, ×1.05: from 61 mN/m, a surface-active grade, to water);
+* density ρ (×0.99, ×1.01: a partial specific volume between 0.5 and 0.7 mL/g);
+* FENE-P extensibility L² (×0.5, ×1.5: 50 to 150, the estimate's range).
+
+Each run is one point of the project's sweep runner (:func:`microfab.io.sweep.run_sweep`),
+saved atomically as it finishes, so an interrupted study resumes. The study serves
+``microfab droplet sensitivity``.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from microfab.io.sweep import SweepResult, run_sweep
+from microfab.machines.printhead.machine import (
+    FIG4_VOLTAGE_V,
+    DropletSettings,
+    SweepPoint,
+    run_point,
+)
+from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
+
+__all__ = [
+    "FACTORS",
+    "SensitivityPoint",
+    "markdown",
+    "perturbed_fluid",
+    "sensitivity_points",
+    "sensitivity_study",
+    "sensitivity_table",
+]
+
+#: Property -> factors tried (module docstring for why these).
+FACTORS: dict[str, tuple[float, ...]] = {
+    "zero_shear_viscosity": (0.5, 2.0),
+    "relaxation_time": (0.5, 2.0),
+    "surface_tension": (0.85, 1.05),
+    "density": (0.99, 1.01),
+    "extensibility_l2": (0.5, 1.5),
+}
+
+
+@dataclass(frozen=True)
+class SensitivityPoint:
+    """One run: concentration (% w/v), the property changed and its factor (1: none)."""
+
+    concentration_pct: float
+    prop: str
+    factor: float
+
+    def __post_init__(self) -> None:
+        if self.prop not in (*FACTORS, "none"):
+            raise ValueError(f"unknown property {self.prop!r}; choose one of {[*FACTORS]}")
+        if not self.factor > 0.0:
+            raise ValueError(f"factor must be > 0, got {self.factor}")
+
+
+def perturbed_fluid(point: SensitivityPoint, model: str = DEFAULT_JET_MODEL) -> Any:
+    """The NaAlg fluid of ``point`` with its one property scaled.
+
+    ``model`` picks the relaxation law calibrated for that jet model.
+
+    Returns
+    -------
+    microfab.process.inkjet.fluids.Fluid
+    """
+    from microfab.process.inkjet.fluids import naalg
+
+    base = naalg(point.concentration_pct, model=model)
+    f = point.factor
+    if point.prop == "none":
+        return base
+    if point.prop == "zero_shear_viscosity":
+        eta_p = f * base.zero_shear_viscosity_pa_s - base.solvent_viscosity_pa_s
+        if eta_p < 0.0:
+            raise ValueError(
+                f"η0 × {f} of {base.name} is below the water's viscosity; use a larger factor"
+            )
+        return base.with_(polymer_viscosity_pa_s=eta_p)
+    field = {
+        "relaxation_time": "relaxation_time_s",
+        "surface_tension": "surface_tension_n_m",
+        "density": "density_kg_m3",
+        "extensibility_l2": "extensibility_l2",
+    }[point.prop]
+    return base.with_(**{field: f * getattr(base, field)})
+
+
+def sensitivity_points(
+    concentrations_pct: Sequence[float] = (0.15, 1.0, 2.0),
+    props: Sequence[str] = tuple(FACTORS),
+) -> list[SensitivityPoint]:
+    """The unperturbed run and each one-at-a-time change, per concentration."""
+    out: list[SensitivityPoint] = []
+    for c in concentrations_pct:
+        if not c > 0.0:
+            raise ValueError(
+                f"concentration {c} % w/v has no polymer to perturb; give concentrations > 0"
+            )
+        out.append(SensitivityPoint(float(c), "none", 1.0))
+        for p in props:
+            if p not in FACTORS:
+                raise ValueError(f"unknown property {p!r}; choose from {[*FACTORS]}")
+            out.extend(SensitivityPoint(float(c), p, float(f)) for f in FACTORS[p])
+    return out
+
+
+def _simulate(point: SensitivityPoint, settings: DropletSettings) -> dict[str, Any]:
+    res = run_point(SweepPoint(point.concentration_pct, FIG4_VOLTAGE_V), settings,
+                    fluid=perturbed_fluid(point, settings.model))  # fmt: skip
+    return res.to_dict()
+
+
+def sensitivity_study(
+    points: Sequence[SensitivityPoint],
+    *,
+    settings: DropletSettings | None = None,
+    results_dir: str | Path | None = None,
+    progress: Callable[[int, int, SensitivityPoint, bool], None] | None = None,
+    workers: int = 1,
+    raise_on_failure: bool = True,
+) -> SweepResult[SensitivityPoint]:
+    """Run every point (saved and resumed in ``results_dir``).
+
+    Parameters
+    ----------
+    points : sequence of SensitivityPoint
+        :func:`sensitivity_points`.
+    settings : DropletSettings, optional
+        Simulated time, step budget and jet model shared by every point.
+    results_dir : str or Path, optional
+        Folder of the saved points.
+    progress : callable, optional
+        ``progress(done, total, point, ok)``.
+    workers : int, optional
+        Local Dask worker processes (1: in this process).
+    raise_on_failure : bool, optional
+        Raise `microfab.io.sweep.SweepError` if a point failed (default), or
+        return the failures in the result.
+
+    Returns
+    -------
+    SweepResult
+    """
+    settings = settings or DropletSettings()
+    return run_sweep(
+        functools.partial(_simulate, settings=settings),
+        points,
+        results_dir=results_dir,
+        settings={**settings.to_dict(), "study": "sensitivity"},
+        workers=workers,
+        progress=progress,
+        raise_on_failure=raise_on_failure,
+    )
+
+
+def sensitivity_table(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Breakup time and mode of each change beside its concentration's unperturbed run.
+
+    Returns
+    -------
+    list of dict
+        ``concentration_pct, prop, factor, breakup_time_us, mode, outcome,
+        change_us`` (time minus the unperturbed one, None where either did not break).
+    """
+    base = {r["concentration_pct"]: r for r in rows if r["prop"] == "none"}
+    out = []
+    for r in rows:
+        t = r["breakup_time_s"]
+        b = base.get(r["concentration_pct"], {}).get("breakup_time_s")
+        out.append({
+            "concentration_pct": r["concentration_pct"],
+            "prop": r["prop"],
+            "factor": r["factor"],
+            "breakup_time_us": None if t is None else 1e6 * t,
+            "mode": r["breakup_mode"],
+            "outcome": r["outcome"],
+            "change_us": None if t is None or b is None else 1e6 * (t - b),
+        })  # fmt: skip
+    return out
+
+
+def markdown(table: Sequence[dict[str, Any]]) -> str:
+    """The table as Markdown (one row per run)."""
+    lines = [
+        "| c (%) | property | factor | breakup (µs) | mode | change (µs) | outcome |",
+        "|---:|---|---:|---:|---|---:|---|",
+    ]
+    for r in table:
+        t = "–" if r["breakup_time_us"] is None else f"{r['breakup_time_us']:.1f}"
+        d = "–" if r["change_us"] is None else f"{r['change_us']:+.1f}"
+        lines.append(f"| {r['concentration_pct']:g} | {r['prop']} | {r['factor']:g} | {t} | "
+                     f"{r['mode'] or '–'} | {d} | {r['outcome']} |")  # fmt: skip
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,91 @@
+"""One-at-a-time sensitivity of the breakup time to the assumed NaAlg values."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from microfab.cli import app
+from microfab.machines.printhead.sensitivity import (
+    FACTORS,
+    SensitivityPoint,
+    markdown,
+    perturbed_fluid,
+    sensitivity_points,
+    sensitivity_table,
+)
+from microfab.process.inkjet.fluids import naalg
+
+
+def test_each_change_touches_one_property() -> None:
+    base = naalg(1.0)
+    eta = perturbed_fluid(SensitivityPoint(1.0, "zero_shear_viscosity", 2.0))
+    assert eta.zero_shear_viscosity_pa_s == pytest.approx(2.0 * base.zero_shear_viscosity_pa_s)
+    assert eta.solvent_viscosity_pa_s == base.solvent_viscosity_pa_s
+    assert eta.relaxation_time_s == base.relaxation_time_s
+    lam = perturbed_fluid(SensitivityPoint(1.0, "relaxation_time", 0.5))
+    assert lam.relaxation_time_s == pytest.approx(0.5 * base.relaxation_time_s)
+    assert lam.zero_shear_viscosity_pa_s == base.zero_shear_viscosity_pa_s
+    sig = perturbed_fluid(SensitivityPoint(1.0, "surface_tension", 0.85))
+    assert sig.surface_tension_n_m == pytest.approx(0.85 * base.surface_tension_n_m)
+    assert perturbed_fluid(SensitivityPoint(1.0, "none", 1.0)) == base
+
+
+def test_points_and_bad_values() -> None:
+    pts = sensitivity_points([0.15, 2.0])
+    per_c = 1 + sum(len(f) for f in FACTORS.values())
+    assert len(pts) == 2 * per_c and pts[0] == SensitivityPoint(0.15, "none", 1.0)
+    with pytest.raises(ValueError, match="unknown property"):
+        SensitivityPoint(1.0, "colour", 2.0)
+    with pytest.raises(ValueError, match="factor"):
+        SensitivityPoint(1.0, "density", 0.0)
+    with pytest.raises(ValueError, match="below the water"):
+        perturbed_fluid(SensitivityPoint(0.15, "zero_shear_viscosity", 0.1))
+
+
+def test_table_gives_the_change_against_the_unperturbed_run() -> None:
+    rows = [
+        {"concentration_pct": 1.0, "prop": "none", "factor": 1.0, "breakup_time_s": 100e-6,
+         "breakup_mode": "exit", "outcome": "breakup"},
+        {"concentration_pct": 1.0, "prop": "density", "factor": 1.01, "breakup_time_s": 103e-6,
+         "breakup_mode": "exit", "outcome": "breakup"},
+        {"concentration_pct": 1.0, "prop": "relaxation_time", "factor": 2.0,
+         "breakup_time_s": None, "breakup_mode": None, "outcome": "drawn back without breakup"},
+    ]  # fmt: skip
+    table = sensitivity_table(rows)
+    assert table[1]["change_us"] == pytest.approx(3.0)
+    assert table[2]["change_us"] is None and table[0]["change_us"] == 0.0
+    md = markdown(table)
+    assert "| 1 | density | 1.01 | 103.0 | exit | +3.0 |" in md
+
+
+def test_cli_refuses_an_unknown_model_on_one_line(tmp_path) -> None:
+    res = CliRunner().invoke(
+        app, ["droplet", "sensitivity", "--model", "smoothed", "--out", str(tmp_path / "s")]
+    )
+    assert res.exit_code == 2
+    assert res.output.strip().startswith("error: Invalid value for '--model': 'smoothed' is not")
+    assert not (tmp_path / "s").exists()
+
+
+def test_cli_reports_a_failed_point_and_keeps_the_rest(tmp_path, monkeypatch) -> None:
+    import microfab.machines.printhead.sensitivity as sens
+
+    def fake(point: SensitivityPoint, settings: object) -> dict:
+        if point.prop == "density" and point.factor > 1:
+            raise RuntimeError("solver diverged")
+        return {"breakup_time_s": 1e-4 * point.factor, "breakup_mode": "exit",
+                "outcome": "breakup"}  # fmt: skip
+
+    monkeypatch.setattr(sens, "_simulate", fake)
+    out = tmp_path / "s"
+    res = CliRunner().invoke(app, ["droplet", "sensitivity", "--concentrations", "1",
+                                   "--out", str(out)])  # fmt: skip
+    assert res.exit_code == 1
+    last = [ln for ln in res.output.splitlines() if ln.strip()][-1]
+    assert "1 point(s) failed" in res.output and "solver diverged" in res.output, last
+    md = (out / "sensitivity.md").read_text()
+    assert md.count("\n") == 2 + 10  # header, rule, the ten points that ran
+    # the study's points with 0 % are refused before anything runs
+    with pytest.raises(ValueError, match="no polymer"):
+        sensitivity_points([0.0])
