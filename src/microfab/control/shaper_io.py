@@ -35,6 +35,7 @@ from microfab.control.shapers import ImpulseShaper
 from microfab.control.shaping import InverseShaper, InverseShaperConfig, design_inverse_shaper
 from microfab.identify.model import TFModel, TFModelDoc
 from microfab.io.atomic import atomic_write_json
+from microfab.io.filekinds import FILE_KINDS
 from microfab.io.schema import SchemaError, read_json, validated
 from microfab.plants.lti import DiscreteLTI
 
@@ -145,7 +146,7 @@ def shaper_to_dict(shaper: Shaper) -> dict[str, Any]:
 
 # --------------------------------------------------------------------------- the schema
 #: What `microfab.io.schema.read_json` calls a shaper file.
-SHAPER_KIND = "a shaper (JSON of shaper design)"
+SHAPER_KIND = FILE_KINDS["shaper"].what
 #: Most impulses of an impulse shaper read from a file. Assumed: the classic shapers have
 #: 2 to 5 and a numerically solved one a few more; 64 refuses a list of samples.
 MAX_IMPULSES = 64

@@ -39,6 +39,7 @@ from torch import nn
 from microfab.core.validate import check_int, check_positive
 from microfab.identify.ann_data import AXES, Run, Scaling, WindowSpec, check_run, windows
 from microfab.io.atomic import atomic_save_npz, atomic_write_json
+from microfab.io.filekinds import FILE_KINDS
 from microfab.io.schema import (
     SchemaError,
     check_array,
@@ -460,7 +461,7 @@ class AnnModel:
 
 # --- the files' schema ---------------------------------------------------------------------
 #: What `microfab.io.schema.read_json` calls ``model.json``.
-META_KIND = "an ANN model (model.json of identify ann)"
+META_KIND = FILE_KINDS["ann-model"].what
 _STRICT = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
 #: Largest offset or scale of the networks' inputs and target read, m (assumed: see
 #: `ScalingDoc`).

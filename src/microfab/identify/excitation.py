@@ -72,6 +72,7 @@ from microfab.identify.excitation_signals import (
     shape_runs,
 )
 from microfab.io.atomic import atomic_write_json
+from microfab.io.filekinds import FILE_KINDS
 from microfab.io.schema import MAX_SAMPLES, inside, read_json, validated
 from microfab.io.trace import read_columns, write_trace
 
@@ -114,7 +115,7 @@ _SLACK_S = 1.0  # ann_dataset: stop adding shapes within this of the total, s
 
 
 #: What `microfab.io.schema.read_json` calls the index.
-INDEX_KIND = "a stage run list (runs.json of stage excite)"
+INDEX_KIND = FILE_KINDS["run-list"].what
 
 
 class _RunEntry(BaseModel):

@@ -37,6 +37,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 import control
 from microfab.core.arrays import readonly
 from microfab.core.validate import check_positive
+from microfab.io.filekinds import FILE_KINDS
 from microfab.plants.lti import freqresp_ss
 
 __all__ = [
@@ -435,7 +436,7 @@ class TFModel:
 
 # --------------------------------------------------------------------------- the file
 #: What `microfab.io.schema.read_json` calls a model file.
-MODEL_KIND = "a transfer-function model (JSON)"
+MODEL_KIND = FILE_KINDS["tf-model"].what
 #: Most coefficients of a numerator or denominator read from a file. Assumed: the fits
 #: of microfab are of order 12 or less; 64 leaves room and refuses a list of samples
 #: given where coefficients belong.

@@ -68,6 +68,7 @@ from microfab.identify.subspace import SubspaceConfig, identify_subspace
 from microfab.identify.subspace_data import IORun
 from microfab.identify.subspace_model import ContinuousModel, SubspaceModel
 from microfab.io.atomic import atomic_write_json
+from microfab.io.filekinds import FILE_KINDS
 from microfab.io.schema import read_json, validated
 
 __all__ = [
@@ -444,7 +445,7 @@ def read_stage_model(path: str | Path) -> Any:
 
 # --------------------------------------------------------------------------- the schema
 #: What `microfab.io.schema.read_json` calls a stage model file.
-STAGE_MODEL_KIND = "a stage model (JSON of identify linear)"
+STAGE_MODEL_KIND = FILE_KINDS["stage-model"].what
 #: Largest model order read (assumed: the seed 002 fits are of order 4 to 20; 200 states
 #: are 40 000 numbers in A, and refuse a file that lists samples where a model belongs).
 MAX_ORDER = 200

@@ -97,6 +97,9 @@ class FileKind:
     schema: JsonSchema | ArraySchema | TextSchema
     command: str
     suffixes: tuple[str, ...] = ()
+    #: Key sets by which a JSON document of this kind is recognised (any one suffices;
+    #: `microfab.io.schema.describe_file` names a file of another kind by them).
+    json_keys: tuple[frozenset[str], ...] = ()
 
 
 def resolve(dotted: str) -> Any:
@@ -180,6 +183,7 @@ FILE_KINDS: dict[str, FileKind] = {
             JsonSchema("microfab.measure.frames:FrameIndex"),
             "droplet analyze",
             (".json",),
+            (frozenset({"pixel_size_m", "frame_interval_s"}),),
         ),
         FileKind(
             "run-list",
@@ -188,6 +192,7 @@ FILE_KINDS: dict[str, FileKind] = {
             JsonSchema("microfab.identify.excitation:_RunIndex"),
             "stage play",
             (".json",),
+            (frozenset({"runs", "total_samples"}),),
         ),
         FileKind(
             "ann-model",
@@ -199,6 +204,8 @@ FILE_KINDS: dict[str, FileKind] = {
                 header="microfab.identify.ann:MetaDoc",
             ),
             "identify validate",
+            (),
+            (frozenset({"format_version", "layers", "scaling"}),),
         ),
         FileKind(
             "tf-model",
@@ -207,6 +214,7 @@ FILE_KINDS: dict[str, FileKind] = {
             JsonSchema("microfab.identify.model:TFModelDoc"),
             "shaper design",
             (".json",),
+            (frozenset({"num", "den"}),),
         ),
         FileKind(
             "shaper",
@@ -215,6 +223,7 @@ FILE_KINDS: dict[str, FileKind] = {
             JsonSchema("microfab.control.shaper_io:ImpulseShaperDoc"),
             "slm scan-time",
             (".json",),
+            (frozenset({"kind", "amplitudes", "times_s"}), frozenset({"kind", "model", "config"})),
         ),
         FileKind(
             "stage-model",
@@ -223,6 +232,7 @@ FILE_KINDS: dict[str, FileKind] = {
             JsonSchema("microfab.identify.stage_data:StageLinearDoc"),
             "identify validate",
             (".json",),
+            (frozenset({"kind", "axes", "input_rate_hz", "model"}),),
         ),
         FileKind(
             "optimize-summary",
@@ -231,6 +241,7 @@ FILE_KINDS: dict[str, FileKind] = {
             JsonSchema("microfab.optimize.summary_file:OptimizeSummaryDoc"),
             "stage score",
             (".json",),
+            (frozenset({"drawing", "sizing", "commands", "path_length_m"}),),
         ),
         FileKind(
             "dxf",

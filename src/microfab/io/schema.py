@@ -362,33 +362,14 @@ def unit_factor(from_unit: str, to_unit: str, where: str = "") -> float:
 
 
 # ---------------------------------------------------------------------------------- JSON
-#: Keys by which a JSON document of a known kind is recognised, and its name.
-_JSON_KINDS: tuple[tuple[frozenset[str], str], ...] = (
-    (frozenset({"runs", "total_samples"}), "a stage run list (runs.json of stage excite)"),
-    (frozenset({"pixel_size_m", "frame_interval_s"}), "a frame index (frames.json)"),
-    (frozenset({"num", "den"}), "a transfer-function model (JSON)"),
-    (frozenset({"kind", "amplitudes", "times_s"}), "a shaper (JSON of shaper design)"),
-    (frozenset({"kind", "model", "config"}), "a shaper (JSON of shaper design)"),
-    (
-        frozenset({"kind", "axes", "input_rate_hz", "model"}),
-        "a stage model (JSON of identify linear)",
-    ),
-    (
-        frozenset({"format_version", "layers", "scaling"}),
-        "an ANN model (model.json of identify ann)",
-    ),
-    (
-        frozenset({"drawing", "sizing", "commands", "path_length_m"}),
-        "an optimize summary (summary.json of microfab optimize)",
-    ),
-)
-
-
 def _json_kind(doc: object) -> str | None:
+    """The kind of a JSON document, by the keys `microfab.io.filekinds.FILE_KINDS` lists."""
+    from microfab.io.filekinds import FILE_KINDS
+
     if isinstance(doc, dict):
-        for keys, name in _JSON_KINDS:
-            if keys <= set(doc):
-                return name
+        for kind in FILE_KINDS.values():
+            if any(keys <= set(doc) for keys in kind.json_keys):
+                return kind.what
     return None
 
 

@@ -22,6 +22,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from microfab.io.filekinds import FILE_KINDS
 from microfab.io.schema import inside, read_json, validated
 
 __all__ = [
@@ -40,7 +41,7 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
 #: Sidecar with acquisition metadata (written by ``shadowgraph.write_frames``).
 SIDECAR_NAME = "frames.json"
 #: What `microfab.io.schema.read_json` calls a sidecar.
-SIDECAR_KIND = "a frame index (frames.json)"
+SIDECAR_KIND = FILE_KINDS["frame-index"].what
 #: Pixel sizes a sidecar may give, m: the range ``droplet analyze --pixel-size`` takes
 #: (0.1-100 µm; assumed: from a microscope objective to a plain lens on the nozzle).
 PIXEL_SIZE_RANGE_M = (1e-7, 1e-4)

@@ -15,12 +15,13 @@ from pathlib import PurePosixPath
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from microfab.io.filekinds import FILE_KINDS
 from microfab.io.schema import read_json, validated
 
 __all__ = ["CommandDoc", "OptimizeSummaryDoc", "SizingDoc", "read_optimize_summary"]
 
 #: What the file is, for messages and `microfab.io.schema.describe_file`.
-SUMMARY_KIND = "an optimize summary (summary.json of microfab optimize)"
+SUMMARY_KIND = FILE_KINDS["optimize-summary"].what
 #: Most lead samples, and most points M of the optimised reference (assumed: 1e7, far
 #: above the 5000 points `optimize --n` allows; only a guard against a damaged file).
 MAX_COUNT = 10_000_000
