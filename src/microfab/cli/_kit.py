@@ -30,7 +30,7 @@ from rich.table import Table as RichTable
 from typer.core import TyperGroup
 
 from microfab.cli import _sigint
-from microfab.cli._options import repeated_option, resolve_choice_help
+from microfab.cli._options import USAGE_ERROR, repeated_option, resolve_choice_help
 from microfab.core.memory import apply_allocator_policy
 from microfab.core.threads import apply_thread_policy
 
@@ -189,12 +189,6 @@ _CLICK_ERROR: type[Exception] = next(
 )
 
 
-#: click's usage error (an unknown option, an option given twice).
-_USAGE_ERROR: type[Exception] = next(
-    c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError"
-)
-
-
 def _ignore_signal(signum: int, frame: Any) -> None:
     """A signal handler that does nothing (see `print_interrupted`)."""
 
@@ -241,7 +235,7 @@ class OneLineErrors(TyperGroup):
         words = [str(a) for a in given if str(a)[:1] != "-"]
         twice = repeated_option(self, [str(a) for a in given])
         if twice is not None:
-            raise _USAGE_ERROR(twice)
+            raise USAGE_ERROR(twice)
         resolve_choice_help(self, [str(a) for a in given])  # the command's own, for --help
         try:
             _sigint.arm()

@@ -33,6 +33,7 @@ import typer
 from microfab.io.job import Key, KeyType
 
 __all__ = [
+    "USAGE_ERROR",
     "choice",
     "declared",
     "given",
@@ -266,14 +267,10 @@ def declared(param: Any) -> Key | None:
     return decl.key if isinstance(decl, _Choice) else decl
 
 
-def _source_is_user(ctx: typer.Context, name: str) -> bool:
-    source = ctx.get_parameter_source(name)
-    return source is not None and source.name in ("COMMANDLINE", "ENVIRONMENT", "PROMPT")
-
-
 def given(ctx: typer.Context, name: str) -> bool:
     """Whether the user gave the parameter ``name`` (its Python name), not its default."""
-    return _source_is_user(ctx, name)
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name in ("COMMANDLINE", "ENVIRONMENT", "PROMPT")
 
 
 def _flag(ctx: typer.Context, name: str) -> str:
@@ -287,8 +284,9 @@ def _flag(ctx: typer.Context, name: str) -> str:
     return "--" + name.replace("_", "-")
 
 
-#: click's usage error (typer may vendor click): one ``error:`` line from the group.
-_USAGE_ERROR: type[Exception] = next(
+#: click's usage error (typer may vendor click): one ``error:`` line from the group (an
+#: option without effect here, an option given twice in `microfab.cli._kit`).
+USAGE_ERROR: type[Exception] = next(
     c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError"
 )
 
@@ -313,7 +311,7 @@ def refuse_unused(ctx: typer.Context, names: Iterable[str], why: str) -> None:
     """
     for name in names:
         if given(ctx, name):
-            raise _USAGE_ERROR(f"{_flag(ctx, name)} has no effect {why}; leave it out", ctx)
+            raise USAGE_ERROR(f"{_flag(ctx, name)} has no effect {why}; leave it out", ctx)
 
 
 def _leaf(root: Any, args: Sequence[str]) -> tuple[Any, list[str], list[str]]:
