@@ -10,30 +10,7 @@ then ``galvo.twin(...)`` works; code inside the project imports
 ``microfab.machines.galvo.machine`` itself.
 """
 
-from microfab.machines.galvo.machine import (
-    DATA_FILES,
-    GALVO_LIMITS,
-    calibrated_axes,
-    complementary_sensitivity,
-    controller_tf,
-    discrete_controller,
-    galvo_twin,
-    limits,
-    open_loop,
-    play,
-    twin,
-)
+from microfab.machines.galvo import machine as _machine
+from microfab.machines.galvo.machine import *  # noqa: F403 (its __all__, below)
 
-__all__ = [
-    "DATA_FILES",
-    "GALVO_LIMITS",
-    "calibrated_axes",
-    "complementary_sensitivity",
-    "controller_tf",
-    "discrete_controller",
-    "galvo_twin",
-    "limits",
-    "open_loop",
-    "play",
-    "twin",
-]
+__all__ = list(_machine.__all__)

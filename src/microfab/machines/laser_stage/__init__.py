@@ -12,44 +12,7 @@ then ``laser_stage.twin(...)`` works; code inside the project imports
 ``microfab.machines.laser_stage.machine`` itself.
 """
 
-from microfab.machines.laser_stage.machine import (
-    DATA_FILES,
-    LAWS,
-    ContourJob,
-    ContourPlay,
-    ControlSettings,
-    StageTrace,
-    TwinSettings,
-    axis_loop,
-    axis_margins,
-    check_job,
-    controller,
-    focus,
-    law_margins,
-    limits,
-    play,
-    play_contour,
-    stage,
-    twin,
-)
+from microfab.machines.laser_stage import machine as _machine
+from microfab.machines.laser_stage.machine import *  # noqa: F403 (its __all__, below)
 
-__all__ = [
-    "DATA_FILES",
-    "LAWS",
-    "ContourJob",
-    "ContourPlay",
-    "ControlSettings",
-    "StageTrace",
-    "TwinSettings",
-    "axis_loop",
-    "axis_margins",
-    "check_job",
-    "controller",
-    "focus",
-    "law_margins",
-    "limits",
-    "play",
-    "play_contour",
-    "stage",
-    "twin",
-]
+__all__ = list(_machine.__all__)

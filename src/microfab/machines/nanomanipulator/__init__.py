@@ -13,16 +13,7 @@ then ``nanomanipulator.twin(...)`` works; code inside the project imports
 ``microfab.machines.nanomanipulator.machine`` itself.
 """
 
-from microfab.machines.nanomanipulator.machine import (
-    DATA_FILES,
-    limits,
-    play,
-    twin,
-)
+from microfab.machines.nanomanipulator import machine as _machine
+from microfab.machines.nanomanipulator.machine import *  # noqa: F403 (its __all__, below)
 
-__all__ = [
-    "DATA_FILES",
-    "limits",
-    "play",
-    "twin",
-]
+__all__ = list(_machine.__all__)

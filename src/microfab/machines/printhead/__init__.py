@@ -10,38 +10,7 @@ then ``printhead.twin(...)`` works; code inside the project imports
 ``microfab.machines.printhead.machine`` itself.
 """
 
-from microfab.machines.printhead.machine import (
-    DATA_FILES,
-    EULER_SWEEP_MAX_STEPS,
-    FIG4_VOLTAGE_V,
-    SWEEP_MAX_STEPS,
-    DropletSettings,
-    PrintheadLimits,
-    SweepPoint,
-    droplet_sweep,
-    limits,
-    model_sweep,
-    play,
-    run_point,
-    simulate_point,
-    sweep_points,
-    twin,
-)
+from microfab.machines.printhead import machine as _machine
+from microfab.machines.printhead.machine import *  # noqa: F403 (its __all__, below)
 
-__all__ = [
-    "DATA_FILES",
-    "EULER_SWEEP_MAX_STEPS",
-    "FIG4_VOLTAGE_V",
-    "SWEEP_MAX_STEPS",
-    "DropletSettings",
-    "PrintheadLimits",
-    "SweepPoint",
-    "droplet_sweep",
-    "limits",
-    "model_sweep",
-    "play",
-    "run_point",
-    "simulate_point",
-    "sweep_points",
-    "twin",
-]
+__all__ = list(_machine.__all__)

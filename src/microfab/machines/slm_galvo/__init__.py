@@ -10,22 +10,7 @@ then ``slm_galvo.twin(...)`` works; code inside the project imports
 ``microfab.machines.slm_galvo.machine`` itself.
 """
 
-from microfab.machines.slm_galvo.machine import (
-    DATA_FILES,
-    SEED_MODEL_DEN,
-    SEED_MODEL_NUM,
-    chirp_frf,
-    limits,
-    play,
-    twin,
-)
+from microfab.machines.slm_galvo import machine as _machine
+from microfab.machines.slm_galvo.machine import *  # noqa: F403 (its __all__, below)
 
-__all__ = [
-    "DATA_FILES",
-    "SEED_MODEL_DEN",
-    "SEED_MODEL_NUM",
-    "chirp_frf",
-    "limits",
-    "play",
-    "twin",
-]
+__all__ = list(_machine.__all__)

@@ -16,24 +16,7 @@ then ``xy_stage.twin(...)`` works; code inside the project imports
 ``microfab.machines.xy_stage.machine`` itself.
 """
 
-from microfab.machines.xy_stage.machine import (
-    DATA_FILES,
-    Command,
-    CommandRun,
-    Played,
-    TwinSettings,
-    limits,
-    play_runs,
-    twin,
-)
+from microfab.machines.xy_stage import machine as _machine
+from microfab.machines.xy_stage.machine import *  # noqa: F403 (its __all__, below)
 
-__all__ = [
-    "DATA_FILES",
-    "Command",
-    "CommandRun",
-    "Played",
-    "TwinSettings",
-    "limits",
-    "play_runs",
-    "twin",
-]
+__all__ = list(_machine.__all__)
