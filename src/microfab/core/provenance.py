@@ -75,16 +75,29 @@ class Calibration:
         Ids (`quantity`) of the published numbers it fits.
     what : str
         One line: the parameters it fits.
+    checks : frozenset of str
+        Ids of the published numbers it holds back: predicted by the calibrated twin and
+        reported beside the targets, never used to choose the parameters. A row that shows
+        one is labelled predicted.
     """
 
     command: str
     data_file: str
     targets: frozenset[str]
     what: str = ""
+    checks: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         if not self.targets:
             raise ValueError(f"{self.command}: a calibration needs at least one target")
+        object.__setattr__(self, "targets", frozenset(self.targets))
+        object.__setattr__(self, "checks", frozenset(self.checks))
+        both = sorted(self.targets & self.checks)
+        if both:
+            raise ValueError(
+                f"{self.command}: {', '.join(both)} is both a target and a check; a number "
+                "held back to check a fit cannot also be fitted"
+            )
 
 
 @dataclass(frozen=True)
