@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from microfab.calibrate import CalibrationProblem, FreeParameter, Target, calibrate
@@ -81,3 +82,21 @@ def test_a_diverging_model_is_steered_away_from():
     res = calibrate(problem, budget=40, seed=0)
     assert res.converged and res.values["x"] == pytest.approx(1.4, abs=0.1)
     assert '"model": null' not in res.to_json()
+
+
+def test_a_one_sided_target_is_met_on_its_good_side():
+    floor = Target("share", 0.95, 0.01, "1", "seed: 'generally below'", side="at least")
+    assert floor.residual(0.99) == 0.0 and floor.residual(0.95) == 0.0
+    assert floor.residual(0.93) == pytest.approx(-2.0)
+    ceiling = Target("pp", 5.0, 0.5, "um", "project target", side="at most")
+    assert ceiling.residual(1.0) == 0.0 and ceiling.residual(6.0) == pytest.approx(2.0)
+    assert floor.shown == ">= 0.95" and ceiling.shown == "<= 5"
+    prob = CalibrationProblem(
+        [floor, ceiling],
+        [FreeParameter("x", 0.0, 1.0, "1", "assumed: toy")],
+        lambda p: {"share": p["x"], "pp": 10 * p["x"]},
+    )
+    r = prob.residuals(np.array([0.9, 4.0]))
+    assert r[0] == pytest.approx(-5.0) and r[1] == 0.0
+    with pytest.raises(ValueError, match="side"):
+        Target("t", 1.0, 0.1, "1", "toy", side="above")  # type: ignore[arg-type]

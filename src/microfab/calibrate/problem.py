@@ -27,10 +27,15 @@ __all__ = [
     "FreeParameter",
     "Model",
     "Role",
+    "Side",
     "Target",
 ]
 
 Role = Literal["fit", "check"]
+#: Which side of a target's value is met: ``"both"`` (the value within the tolerance),
+#: ``"at least"`` (a floor: above the value is met, below it counts from the value) or
+#: ``"at most"`` (a ceiling).
+Side = Literal["both", "at least", "at most"]
 
 #: The model: one parameter set (name -> value, in each parameter's unit) to the model
 #: value of every target (name -> value, in each target's unit).
@@ -71,6 +76,11 @@ class Target:
         Where the number comes from (figure, table or section; a project target says so).
     role : {"fit", "check"}
         ``"fit"``: used to choose the parameters; ``"check"``: held back, only predicted.
+    side : {"both", "at least", "at most"}
+        ``"both"``: met within ``value ± tolerance``; ``"at least"`` / ``"at most"``: a
+        bound (a paper's "generally below 0.5 µm"): the residual is 0 on the bound's good
+        side and ``(model - value) / tolerance`` past it, so ``tolerance`` is the slack
+        past the bound that still counts as met.
     """
 
     name: str
@@ -79,6 +89,7 @@ class Target:
     unit: str
     source: str
     role: Role = "fit"
+    side: Side = "both"
 
     def __post_init__(self) -> None:
         _text(self.name, "a target's name")
@@ -91,10 +102,26 @@ class Target:
         _text(self.source, f"{what}: source")
         if self.role not in ("fit", "check"):
             raise ValueError(f"{what}: role must be 'fit' or 'check', got {self.role!r}")
+        if self.side not in ("both", "at least", "at most"):
+            raise ValueError(
+                f"{what}: side must be 'both', 'at least' or 'at most', got {self.side!r}"
+            )
+
+    @property
+    def shown(self) -> str:
+        """The paper's value as a table shows it: ``0.8``, ``>= 0.95``, ``<= 5``."""
+        prefix = {"both": "", "at least": ">= ", "at most": "<= "}[self.side]
+        return f"{prefix}{self.value:g}"
 
     def residual(self, model: float) -> float:
-        """``(model - value) / tolerance``: ``|r| <= 1`` is met (NaN if ``model`` is)."""
-        return (float(model) - self.value) / self.tolerance
+        """``(model - value) / tolerance`` on the wrong side: ``|r| <= 1`` is met.
+
+        NaN if ``model`` is; 0 on the good side of a one-sided target.
+        """
+        r = (float(model) - self.value) / self.tolerance
+        if (self.side == "at least" and r > 0.0) or (self.side == "at most" and r < 0.0):
+            return 0.0
+        return r
 
 
 @dataclass(frozen=True)
@@ -248,7 +275,12 @@ class CalibrationProblem:
         """Every target's residual ``(model - value) / tolerance``, shape (m,)."""
         value = np.array([t.value for t in self.targets])
         tol = np.array([t.tolerance for t in self.targets])
-        return (np.asarray(model, dtype=float) - value) / tol
+        r = (np.asarray(model, dtype=float) - value) / tol
+        floor = np.array([t.side == "at least" for t in self.targets])
+        ceiling = np.array([t.side == "at most" for t in self.targets])
+        r[floor & (r > 0.0)] = 0.0
+        r[ceiling & (r < 0.0)] = 0.0
+        return r
 
     def fingerprint(self) -> str:
         """SHA-256 of the parameter names, bounds and scales, the target names and `identity`.

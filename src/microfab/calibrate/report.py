@@ -49,6 +49,13 @@ class TargetRow:
     met: bool
     pinned_by: tuple[str, ...]
     source: str
+    side: str = "both"
+
+    @property
+    def shown(self) -> str:
+        """The paper's value as the table shows it (``>= 0.95`` for a floor)."""
+        prefix = {"both": "", "at least": ">= ", "at most": "<= "}.get(self.side, "")
+        return f"{prefix}{self.value:g}"
 
 
 @dataclass(frozen=True)
@@ -202,7 +209,7 @@ class CalibrationResult:
             (
                 t.name,
                 t.role,
-                t.value,
+                t.shown,
                 t.model,
                 t.unit,
                 round(t.residual, 3),
@@ -293,6 +300,7 @@ def build_result(
             met=bool(np.isfinite(r[i]) and abs(r[i]) <= 1.0),
             pinned_by=_pins(sensitivity[i], names),
             source=t.source,
+            side=t.side,
         )
         for i, t in enumerate(problem.targets)
     )
