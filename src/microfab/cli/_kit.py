@@ -161,6 +161,8 @@ RESUMING_COMMANDS = frozenset(
         "droplet sensitivity",
         "slm build",
         "identify ann",
+        "calibrate laser",
+        "calibrate nanomanipulator",
     }
 )
 
