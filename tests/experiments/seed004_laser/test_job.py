@@ -151,6 +151,10 @@ def test_a_sharp_star_runs_at_20_mm_s_through_microfab_run(tmp_path: Path) -> No
     assert "Slowed below 90 % of 20 mm/s" in res.output
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["profile"] == "limited" and len(summary["slowdowns"]) == 10
+    # each of the star's ten corners named, once (issue 45), and the force check stated
+    assert [r["corners"] for r in summary["slowdowns"]] == [[k] for k in range(1, 11)]
+    assert summary["corners"] == 10 and "acceleration_lowered" in summary
+    assert "corner 1, start from rest" in res.output
     assert 0 < max(summary["contour_lap_max_nm"]) < 3000  # measured 1437 nm
     job.write_text(body.format(profile='profile = "constant"\n'))
     res = CliRunner().invoke(app, ["run", str(job), "--out", str(tmp_path / "c")])

@@ -20,6 +20,7 @@ from microfab.machines.laser_stage.contour import ContourRun
 from microfab.machines.laser_stage.focus import FocusStudy
 from microfab.machines.laser_stage.machine import ContourJob
 from microfab.report.contour import (
+    acceleration_table,
     contour_table,
     margins_table,
     slowdown_table,
@@ -202,7 +203,11 @@ class LaserResult:
             runs["without correction"] = self.baseline
         tables = [t1, contour_table(runs)]
         if m.reference.motion.profile == "limited":
-            tables.append(slowdown_table(m.reference.slowdowns(), m.job.motion.speed_m_s))
+            tables.append(slowdown_table(self._slowdowns(), m.job.motion.speed_m_s,
+                                         len(m.reference.corner_positions())))  # fmt: skip
+        lowered = self._acceleration_lowered()
+        if lowered is not None:
+            tables.append(acceleration_table(lowered))
         if self.margins:
             tables.append(margins_table(self.margins))
         if self.focus is not None:
@@ -224,6 +229,22 @@ class LaserResult:
             "seed_peak_error_um": paper.FIG3_PEAK_ERROR_M * 1e6,
         }
 
+    def _slowdowns(self) -> list[dict[str, Any]]:
+        """Lap 1's slow-downs of the main run (`ContourReference.slowdowns`), JSON-ready."""
+        ref = self.main.reference
+        where = ref.corner_positions()
+        return [
+            {"at_mm": d.at_m * 1e3, "speed_mm_s": d.speed_m_s * 1e3,
+             "corners": list(d.corners), "corner_at_mm": [where[c - 1] * 1e3 for c in d.corners],
+             "from_rest": d.from_rest}
+            for d in ref.slowdowns()
+        ]  # fmt: skip
+
+    def _acceleration_lowered(self) -> dict[str, Any] | None:
+        """What the main run's plan lowered for the continuous force, or ``None``."""
+        low = self.main.reference.acceleration_lowered
+        return None if low is None else dataclasses.asdict(low)
+
     def failures(self) -> tuple[str, ...]:
         """Sweep points that failed (the rest ran)."""
         return self.sweep_failures
@@ -244,9 +265,9 @@ class LaserResult:
             "sweep": list(self.sweep),
             "failures": list(self.failures()),
             "profile": m.reference.motion.profile,
-            "slowdowns": [
-                {"at_mm": w * 1e3, "speed_mm_s": v * 1e3} for w, v in m.reference.slowdowns()
-            ],
+            "slowdowns": self._slowdowns(),
+            "corners": len(m.reference.corner_positions()),
+            "acceleration_lowered": self._acceleration_lowered(),
         }
         out["margins"] = [
             {
