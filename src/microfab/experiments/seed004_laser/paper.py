@@ -90,6 +90,9 @@ PROJECT_CHOICES = {
     "fig3_fraction_below_typical": 0.95,  # "generally lower than 0.5 µm": >= 95 % of samples
     "fig3_peak_tolerance": 0.25,  # peak 0.8 µm ± 25 %
     "autofocus_start_m": 500e-6,  # autofocus starts 500 µm off focus (assumed)
+    # Fig. 6 has no numbers: the project's autofocus targets (issues 15, 33, 45)
+    "autofocus_ptp_max_m": 5e-6,  # continuous law's steady peak-to-peak of z <= 5 µm
+    "autofocus_ratio_min": 5.0,  # ... and <= 1/5 of the discontinuous law's
 }
 
 
