@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -92,7 +93,15 @@ def test_a_job_runs_resumes_its_sweep_and_writes_its_report(tmp_path):
     assert report.exists() and (out / "ballbar.png").exists()
     assert (out / "focus.png").exists() and (out / "disturbance.png").exists()
     assert "Autofocus" in report.read_text(encoding="utf-8")
-    assert (out / "summary.json").exists()
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    # the autofocus against the project's targets, stated (measured 5.90 µm, 1.53x: not met)
+    assert summary["focus_targets"]["ptp_met"] == (summary["focus_targets"]["ptp_um"] <= 5.0)
+    g = summary["focus_targets"]
+    assert ("NOT met" in report.read_text(encoding="utf-8")) == (
+        not (g["ptp_met"] and g["ratio_met"])
+    )
+    # a circle at its speed: no slow-down, no acceleration lowered
+    assert summary["slowdowns"] == [] and summary["acceleration_lowered"] is None
 
 
 def test_reproduction_prints_the_seed_beside_ours():
@@ -115,6 +124,12 @@ def test_reproduction_prints_the_seed_beside_ours():
     assert abs(d["depth_of_focus_um"] - 54.0) <= 0.05 * 54.0
     for v in d["fig7_nm"].values():
         assert v["preview-dob"] >= 2.0 * v["contour"]
+    # Fig. 7 on the paper's model (its direction: tests/experiments/seed004_laser/test_fig7.py)
+    assert [r["speed_mm_s"] for r in d["fig7_paper_model"]] == [0.5, 1.0, 2.0, 5.0, 10.0, 20.0]
+    assert origin[next(k for k in origin if k.startswith("Fig. 7 on the paper's model"))] == (
+        "predicted"
+    )
+    assert d["focus_targets"]["ptp_max_um"] == 5.0 and "ratio_met" in d["focus_targets"]
 
 
 def test_a_one_lap_job_without_sweep_writes_its_report(tmp_path):
@@ -151,6 +166,10 @@ def test_a_sharp_star_runs_at_20_mm_s_through_microfab_run(tmp_path: Path) -> No
     assert "Slowed below 90 % of 20 mm/s" in res.output
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["profile"] == "limited" and len(summary["slowdowns"]) == 10
+    # each of the star's ten corners named, once (issue 45), and the force check stated
+    assert [r["corners"] for r in summary["slowdowns"]] == [[k] for k in range(1, 11)]
+    assert summary["corners"] == 10 and "acceleration_lowered" in summary
+    assert "corner 1, start from rest" in res.output
     assert 0 < max(summary["contour_lap_max_nm"]) < 3000  # measured 1437 nm
     job.write_text(body.format(profile='profile = "constant"\n'))
     res = CliRunner().invoke(app, ["run", str(job), "--out", str(tmp_path / "c")])
