@@ -203,11 +203,11 @@ PARAMETERS: tuple[FreeParameter, ...] = (
     FreeParameter(
         "noise_rms_m",
         1.0e-9,
-        1.0e-7,
+        1.0e-8,
         "m",
         "assumed: encoder interpolation noise from below the data file's 2.5 nm (a "
-        "quarter of seed 004 Table I's 10 nm count) to 100 nm (10 counts: a poorly tuned "
-        "interpolator)",
+        "quarter of seed 004 Table I's 10 nm count) up to that count: an interpolator "
+        "whose noise exceeded its count would not give the 10 nm resolution Table I states",
         log=True,
     ),
 )
