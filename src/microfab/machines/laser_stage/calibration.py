@@ -117,9 +117,10 @@ CALIBRATION = Calibration(
 
 _FIG3 = "seed 004 §IV.A, Fig. 3a/3b (30 µm circle, preview + DOB)"
 # Tolerances (assumed, beside the measured spread they must cover): at the calibrated
-# answer the encoder-noise seed alone (seeds 0-5) moves the peak over 0.760-0.819 µm and
-# the y share over 94.96-95.26 % (x: 96.85-97.35 %), so 0.05 µm and one percentage point
-# are about that spread; the force is far inside its bound (0.82-0.84 N for 3 N).
+# answer the encoder-noise seed alone (seeds 0-5) moves the peak over 0.800-0.820 µm, the
+# y share over 95.40-95.49 % and the x share over 96.32-96.41 %, so 0.05 µm (half the
+# 0.1 µm step of the text) is over twice that spread and one percentage point ten times
+# it; the force is far inside its bound (0.443-0.445 N for 3 N).
 _PEAK_TOL_UM = 0.05
 _SHARE_TOL = 0.01
 _FORCE_TOL_N = 0.3
@@ -214,8 +215,8 @@ PARAMETERS: tuple[FreeParameter, ...] = (
 
 #: Evaluations of a real run (`calibrate`'s ``budget``). Measured: a `FIG3_JOB` run takes
 #: 0.15-0.3 s on one core (more sub-steps with stiffer bristles), and `calibrate(problem(),
-#: budget=400, seed=0)` asked for 337 points in 56 s (DE: 6 generations of 50, then the
-#: polish; every fit target met at the 13th); a conflict sweep, when one runs, doubles it.
+#: budget=400, seed=0)` asked for 343 points in 59 s (DE: 6 generations of 50, then the
+#: polish; every fit target met at the 6th); a conflict sweep, when one runs, doubles it.
 DEFAULT_BUDGET = 400
 
 
