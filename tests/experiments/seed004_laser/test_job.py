@@ -110,8 +110,8 @@ def test_reproduction_prints_the_seed_beside_ours():
     res = rep.run(rep.parse_options({"speed_study": False}), no_progress)
     d = res.data
     assert d is not None
-    # every row labelled; the Fig. 3 peak is the calibrated scale's (fitted), the share
-    # within 0.5 µm and Fig. 7 are predicted
+    # every row labelled; the Fig. 3 peak and the share within 0.5 µm are fitted (jointly,
+    # calibrate laser), Fig. 7 predicted
     main = res.tables[0]
     origin = {row[0]: lab.origin for row, lab in zip(main.rows, main.labels, strict=True)}
     assert origin["Fig. 3 peak, x / y [µm]"] == "fitted"
@@ -119,7 +119,7 @@ def test_reproduction_prints_the_seed_beside_ours():
 
     fitted = {q for lab in main.labels for q in lab.fitted}
     assert fitted == set(CALIBRATION.targets)  # every target shown, and labelled fitted
-    assert origin["Fig. 3 within ±0.5 µm, x / y [%]"] == "predicted"
+    assert origin["Fig. 3 within ±0.5 µm, x / y [%]"] == "fitted"
     assert all(len(t.labels) == len(t.rows) for t in res.tables)
     assert abs(d["depth_of_focus_um"] - 54.0) <= 0.05 * 54.0
     for v in d["fig7_nm"].values():
