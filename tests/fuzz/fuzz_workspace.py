@@ -87,7 +87,8 @@ NANO_DT = 1 / 2000
 RECIPES: dict[str, Recipe] = {
     "calibrate galvo": Recipe(("calibrate", "galvo", "--write", "galvo_cal.toml"),
                               outputs=("galvo_cal.toml",)),
-    "calibrate laser": Recipe(("calibrate", "laser", "--write", "laser_twin.toml"),
+    "calibrate laser": Recipe(("calibrate", "laser", "--budget", "17", "--conflict-budget", "0",
+                               "--write", "laser_twin.toml"),
                               outputs=("laser_twin.toml",)),
     "calibrate nanomanipulator": Recipe(
         ("calibrate", "nanomanipulator", "--job", "nano_job.toml", "--write", "nano_twin.toml"),
@@ -191,7 +192,11 @@ RECIPES: dict[str, Recipe] = {
 #: Lagrangian one takes minutes); calibrate nanomanipulator simulates the seed's whole
 #: four-circle job twice (a shorter job is refused: its error without noise already
 #: exceeds the seed's RMS).
-SLOW: dict[str, float] = {"droplet calibrate": 5.5, "calibrate nanomanipulator": 3.0}
+SLOW: dict[str, float] = {
+    "droplet calibrate": 5.5,
+    "calibrate nanomanipulator": 3.0,
+    "calibrate laser": 20.0,  # one population and the sensitivity: 27 runs of Fig. 3
+}
 
 
 # --------------------------------------------------------------------------- the inputs

@@ -9,6 +9,7 @@ import typer
 
 from microfab.cli._calibrate_kit import (
     BudgetOption,
+    ConflictBudgetOption,
     FreshOption,
     JsonOption,
     OutOption,
@@ -102,6 +103,7 @@ def calibrate_laser_cmd(
     out: OutOption = None,
     fresh: FreshOption = False,
     budget: BudgetOption = None,
+    conflict_budget: ConflictBudgetOption = None,
     seed: SeedOption = 0,
     workers: WorkersOption = 1,
 ) -> None:
@@ -124,6 +126,7 @@ def calibrate_laser_cmd(
         json_out=json_out,
         write=write,
         write_twin=lambda r, p: write_twin(r, p),
+        conflict_budget=conflict_budget,
     )
 
 
