@@ -4,6 +4,7 @@ the twin file it writes, the neutral noise colour, and the shipped twin's number
 from __future__ import annotations
 
 import hashlib
+import pickle
 import tomllib
 from importlib import resources
 
@@ -56,6 +57,7 @@ def test_problem_declares_the_seed_targets_checks_and_bounds():
     assert {k.parameter for k in TWIN_KEYS} == set(pb.parameter_names)
     digest = hashlib.sha256(_packaged().encode()).hexdigest()
     assert digest in pb.identity
+    assert pickle.loads(pickle.dumps(pb.evaluate)).keywords == pb.evaluate.keywords  # workers > 1
 
 
 def test_problem_identity_follows_the_twin_file(tmp_path):
