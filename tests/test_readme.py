@@ -470,7 +470,7 @@ EXCLUDED: dict[str, str] = {
     "reproduce nanomanipulator --json s001.json": "40 s, no setting shortens it; "
     "tests/experiments/seed001_nanomanipulator run its parts",
     "reproduce nanomanipulator --out s001": "as `reproduce nanomanipulator --json s001.json`",
-    "calibrate nanomanipulator": "10 s of twin runs; tests/machines/"
+    "calibrate nanomanipulator": "240 runs of the seed's job (minutes); tests/machines/"
     "nanomanipulator/test_calibration.py runs the fit",
     "reproduce laser-micromachining": "24 s even without its speed study; "
     "tests/experiments/seed004_laser run its parts",

@@ -152,6 +152,11 @@ CASES: list[tuple[str, Argv, str]] = [
         "is a folder",
     ),
     (
+        "calibrate nanomanipulator --contour-fit --write",
+        lambda p: ["calibrate", "nanomanipulator", "--contour-fit", "--write", f"{p}/n.toml"],
+        "--contour-fit is a diagnostic",
+    ),
+    (
         "calibrate laser --out FILE",
         lambda p: ["calibrate", "laser", "--out", f"{p}/t.csv"],
         "is a file",
