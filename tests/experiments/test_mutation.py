@@ -29,11 +29,6 @@ NOT_MUTATED = {
         "project's floor (issue 14), and our gain stays above it at half (the mutation "
         "x0.5 passed): a floor met with a margin, kept as the target it is"
     ),
-    "seed001_nanomanipulator/test_fig9.py::test_fig9_rbf_error_within_twice_the_circle_case": (
-        "the seed gives no number for Fig. 9; 'at most 2x the circle's error' is the "
-        "project's ceiling (issue 14), met at 1.29x, so x1.5 (1.94) still passes: a "
-        "ceiling met with a margin, kept as the target it is"
-    ),
     "seed004_laser/test_fig7.py::"
     "test_without_friction_the_correction_is_small_at_low_speed_and_large_at_high_speed": (
         "the seed gives no Fig. 7 number ('matters little at low speed, much at high'); "

@@ -24,6 +24,17 @@ is one integrator on ``s``. Two changes, each from the seed's own law:
 
 `proposed_controller` builds it; `proposed_oracle` replaces its network by the true
 nonlinearity (`NonlinearityOracle`).
+
+**The state model** (issue 45, `state_controller`): the network above is a memory of one
+repeating path, and on Fig. 9's sines (no repeating path) it lost to the PID (200 Hz:
+333-794 nm against 182-192). `state_controller` keeps the same linear part and gives the
+network the states as inputs with centres on a grid over the state box the reference
+reaches (`microfab.control.rbf_grid.networks_for_box`), so that it is a model of the
+§4.1 ``α(x, x̄)``, ``β(x, x̄)`` and holds on any path in the box. Its settings are
+`STATE_RBF` (assumed, chosen on Fig. 9's sines at 200 and 400 Hz, 8 periods; last period
+nm, 200 / 400 Hz: λ = 100, Γ = 0.2 282 / 121; λ = 300, Γ = 0.15 172 / 83; λ = 1000,
+Γ = 0.05 137 / 73; λ = 1000, Γ = 0.2 498 / 78; Γ = 0.4 diverged at 200 Hz: eq. 5 adds
+``ΓΣh²`` to the loop's proportional gain (``Σh² ≈ 7``), so Γ keeps it below the PD's).
 """
 
 from __future__ import annotations
@@ -35,17 +46,27 @@ import numpy as np
 from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.rbf_composite import NonlinearityOracle, RBFPlusLinear
+from microfab.control.rbf_grid import DEFAULT_COUNTS, networks_for_box
 from microfab.experiments.seed001_nanomanipulator.compare import CircleSetting
 from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, drift_and_gain
 
 __all__ = [
+    "STATE_RBF",
     "linear_part",
     "local_network",
     "orbit_z",
     "proposed_controller",
     "proposed_oracle",
+    "state_controller",
+    "state_network",
 ]
+
+#: Settings of the state-model network (assumed: module notes): λ = 1000/s, Γ = 0.05 V/mm,
+#: widths one grid spacing, σ as `RBFConfig`, on the `DEFAULT_COUNTS` grid.
+STATE_RBF = RBFConfig(
+    n_nodes=int(np.prod(DEFAULT_COUNTS)), lam=1000.0, gamma=0.05, width_factor=1.0, s_spread=0.0
+)
 
 _NO_INTEGRAL = 1e9  # integral_ratio of the design: the integral zero far below 1 Hz, then ki = 0
 
@@ -118,3 +139,38 @@ def proposed_oracle(
         config.estimator,
         plant.dt,
     )
+
+
+def state_network(
+    position: np.ndarray,
+    velocity: np.ndarray,
+    acceleration: np.ndarray,
+    dt: float,
+    config: RBFConfig = STATE_RBF,
+) -> RBFAdaptive:
+    """The state-model network: a grid over the state box of the reference (module notes).
+
+    Parameters
+    ----------
+    position, velocity, acceleration : numpy.ndarray
+        The reference the states follow, mm, mm/s, mm/s², shape (n, 2).
+    dt : float
+        Sample time, s.
+    config : RBFConfig
+        Settings (default `STATE_RBF`); ``n_nodes`` must be the grid's 189 nodes.
+    """
+    nets = networks_for_box(position, velocity, acceleration, config, counts=DEFAULT_COUNTS)
+    return RBFAdaptive(config=config, networks=nets, dt=dt)
+
+
+def state_controller(
+    plant: NanomanipulatorPlant,
+    bandwidth_hz: float,
+    position: np.ndarray,
+    velocity: np.ndarray,
+    acceleration: np.ndarray,
+    config: RBFConfig = STATE_RBF,
+) -> RBFPlusLinear:
+    """`linear_part` at ``bandwidth_hz`` plus `state_network` on the given reference."""
+    net = state_network(position, velocity, acceleration, plant.dt, config)
+    return RBFPlusLinear(linear_part(plant, bandwidth_hz), net)
