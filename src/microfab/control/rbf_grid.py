@@ -28,19 +28,34 @@ Rule (ours; the seed gives no centres, widths or scaling), for axis ``a`` (other
   eq. 9 (`microfab.control.rbf_composite`) is a function of ``x``, ``x̄`` alone (the
   terms of eq. 6 in ``s`` and ``v`` are the linear part's).
 * Weights: ``Ŵ(0) = w0``.
+
+`state_network` builds the controller's network with the settings `STATE_CONFIG`;
+`eq6_linear_part` the linear part beside it (`microfab.control.rbf_composite.RBFPlusLinear`):
+a PD at the given crossover (45°) on eq. 9 with eq. 9's inverse feedforward.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
+from microfab.control.pid import PID
+from microfab.control.rbf import RBFAdaptive
 from microfab.control.rbf_network import N_AXES, N_Z, RBFConfig, RBFNetwork, _stack_reference
 from microfab.core.validate import check_int, check_nonnegative, check_positive
 
-__all__ = ["DEFAULT_COUNTS", "WIDE", "networks_for_box"]
+__all__ = [
+    "DEFAULT_COUNTS",
+    "STATE_CONFIG",
+    "WIDE",
+    "eq6_linear_part",
+    "networks_for_box",
+    "state_network",
+]
 
 #: Grid points per state ``(x1, x2, x̄1, x̄2)`` (assumed: 7 along the own position, on
 #: which the §4.1 ``α`` depends most; 3 on the others. Measured on Fig. 9's sines at
@@ -49,6 +64,16 @@ __all__ = ["DEFAULT_COUNTS", "WIDE", "networks_for_box"]
 DEFAULT_COUNTS = (7, 3, 3, 3)
 #: Scale of an input the network is flat in (units of ``z``): ``h`` does not see it.
 WIDE = 1e12
+#: Settings of the state-model network (assumed; chosen on seed 001 Fig. 9's sines at 200
+#: and 400 Hz, 8 periods, last period nm, 200 / 400 Hz: λ = 100, Γ = 0.2 282 / 121;
+#: λ = 300, Γ = 0.15 172 / 83; λ = 1000, Γ = 0.05 137 / 73; λ = 1000, Γ = 0.2 498 / 78;
+#: Γ = 0.4 diverged at 200 Hz: eq. 5 adds ``ΓΣh²`` (Σh² ≈ 7 on the grid) to the loop's
+#: proportional gain, so Γ keeps it below the PD's). Widths one grid spacing; σ as
+#: `RBFConfig`.
+STATE_CONFIG = RBFConfig(
+    n_nodes=int(np.prod(DEFAULT_COUNTS)), lam=1000.0, gamma=0.05, width_factor=1.0, s_spread=0.0
+)
+_NO_INTEGRAL = 1e9  # integral_ratio of the design: the integral zero far below 1 Hz, then ki = 0
 
 
 def networks_for_box(
@@ -131,3 +156,49 @@ def networks_for_box(
             )
         )
     return nets[0], nets[1]
+
+
+def state_network(
+    position: np.ndarray,
+    velocity: np.ndarray,
+    acceleration: np.ndarray,
+    dt: float,
+    config: RBFConfig = STATE_CONFIG,
+    *,
+    counts: Sequence[int] = DEFAULT_COUNTS,
+) -> RBFAdaptive:
+    """The state-model controller network on the reference's state box (module notes).
+
+    Parameters
+    ----------
+    position, velocity, acceleration : numpy.ndarray
+        The reference the states follow, mm, mm/s, mm/s², shape (n, 2).
+    dt : float
+        Sample time, s.
+    config : RBFConfig
+        Settings (default `STATE_CONFIG`); ``n_nodes`` must be ``prod(counts)``.
+    counts : sequence of int
+        Grid points per state (`networks_for_box`).
+    """
+    nets = networks_for_box(position, velocity, acceleration, config, counts=counts)
+    return RBFAdaptive(config=config, networks=nets, dt=dt)
+
+
+def eq6_linear_part(models: Sequence[Any], bandwidth_hz: float, dt: float) -> PID:
+    """Eq. 6's linear part: a PD at crossover ``bandwidth_hz`` (45°) plus eq. 9's inverse.
+
+    Seed 001 §4.1: "``β_l`` is the linear part which can be obtained from (9)": eq. 6's
+    ``−(α_l + v)/β_l`` is eq. 9's inverse on the reference and its ``s`` feedback a PD.
+    `PID.tuned` on ``models`` (eq. 9 per axis, mm/V) with the integral removed (the
+    adaptation of eq. 5 is the integral action).
+
+    Raises
+    ------
+    ValueError
+        When 45° cannot be reached at that crossover (`PIDGains.design`).
+    """
+    pid = PID.tuned(
+        models, bandwidth_hz=bandwidth_hz, dt=dt, feedforward=True, integral_ratio=_NO_INTEGRAL
+    )
+    gains = [dataclasses.replace(g, ki=0.0) for g in pid.gains]
+    return PID(gains=gains, dt=dt, feedforward=True)

@@ -199,7 +199,7 @@ def _write_report(result: NanomanipulatorResult, out: Path, title: str) -> Path:
 
 def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
     from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
-    from microfab.experiments.seed001_nanomanipulator.fig8 import fair_fig8
+    from microfab.experiments.seed001_nanomanipulator.fig8 import fine_fig8
     from microfab.experiments.seed001_nanomanipulator.study import learning_study
     from microfab.report.circle_tracking import tracking_table  # draws: loaded on use
 
@@ -209,7 +209,7 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
     progress("RBF learning study and Fig. 8 sweep", 0, None)
     circle = ComparisonConfig(seed=options["seed"])
     study = learning_study(circle)
-    fig8 = fair_fig8(circle)
+    fig8 = fine_fig8(circle)  # octaves, then 10 Hz steps within ±50 Hz of each best
     data = m.summary()
 
     def finite(v: Any) -> list[float | None]:  # JSON has no NaN: an oracle has no weights
@@ -233,6 +233,7 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
             for r in fig8.rows
         ],
         "skipped": list(fig8.skipped),
+        "divergences": [{**vars(d), "cause": d.cause()} for d in fig8.divergences],
     }
     return ReproductionResult(
         tables=(

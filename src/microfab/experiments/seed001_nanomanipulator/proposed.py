@@ -31,10 +31,8 @@ repeating path, and on Fig. 9's sines (no repeating path) it lost to the PID (20
 network the states as inputs with centres on a grid over the state box the reference
 reaches (`microfab.control.rbf_grid.networks_for_box`), so that it is a model of the
 §4.1 ``α(x, x̄)``, ``β(x, x̄)`` and holds on any path in the box. Its settings are
-`STATE_RBF` (assumed, chosen on Fig. 9's sines at 200 and 400 Hz, 8 periods; last period
-nm, 200 / 400 Hz: λ = 100, Γ = 0.2 282 / 121; λ = 300, Γ = 0.15 172 / 83; λ = 1000,
-Γ = 0.05 137 / 73; λ = 1000, Γ = 0.2 498 / 78; Γ = 0.4 diverged at 200 Hz: eq. 5 adds
-``ΓΣh²`` to the loop's proportional gain (``Σh² ≈ 7``), so Γ keeps it below the PD's).
+`STATE_RBF` (`microfab.control.rbf_grid.STATE_CONFIG`, assumed: the trials that chose
+them are listed there).
 """
 
 from __future__ import annotations
@@ -46,7 +44,8 @@ import numpy as np
 from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.rbf_composite import NonlinearityOracle, RBFPlusLinear
-from microfab.control.rbf_grid import DEFAULT_COUNTS, networks_for_box
+from microfab.control.rbf_grid import STATE_CONFIG, eq6_linear_part
+from microfab.control.rbf_grid import state_network as _state_network
 from microfab.experiments.seed001_nanomanipulator.compare import CircleSetting
 from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, drift_and_gain
@@ -62,13 +61,7 @@ __all__ = [
     "state_network",
 ]
 
-#: Settings of the state-model network (assumed: module notes): λ = 1000/s, Γ = 0.05 V/mm,
-#: widths one grid spacing, σ as `RBFConfig`, on the `DEFAULT_COUNTS` grid.
-STATE_RBF = RBFConfig(
-    n_nodes=int(np.prod(DEFAULT_COUNTS)), lam=1000.0, gamma=0.05, width_factor=1.0, s_spread=0.0
-)
-
-_NO_INTEGRAL = 1e9  # integral_ratio of the design: the integral zero far below 1 Hz, then ki = 0
+STATE_RBF = STATE_CONFIG  # the state-model network's settings (`rbf_grid.STATE_CONFIG`)
 
 
 def orbit_z(st: CircleSetting, axis: int) -> np.ndarray:
@@ -86,20 +79,14 @@ def orbit_z(st: CircleSetting, axis: int) -> np.ndarray:
 def linear_part(plant: NanomanipulatorPlant, bandwidth_hz: float) -> PID:
     """Eq. 6's linear part: a PD at crossover ``bandwidth_hz`` (45°) plus eq. 9's inverse.
 
+    `microfab.control.rbf_grid.eq6_linear_part` on the plant's eq. 9.
+
     Raises
     ------
     ValueError
         When 45° cannot be reached at that crossover (`PIDGains.design`).
     """
-    pid = PID.tuned(
-        plant.continuous_models(),
-        bandwidth_hz=bandwidth_hz,
-        dt=plant.dt,
-        feedforward=True,
-        integral_ratio=_NO_INTEGRAL,
-    )
-    gains = [dataclasses.replace(g, ki=0.0) for g in pid.gains]
-    return PID(gains=gains, dt=plant.dt, feedforward=True)
+    return eq6_linear_part(plant.continuous_models(), bandwidth_hz, plant.dt)
 
 
 def _sum_h2(rbf: RBFAdaptive, z: np.ndarray) -> float:
@@ -159,8 +146,7 @@ def state_network(
     config : RBFConfig
         Settings (default `STATE_RBF`); ``n_nodes`` must be the grid's 189 nodes.
     """
-    nets = networks_for_box(position, velocity, acceleration, config, counts=DEFAULT_COUNTS)
-    return RBFAdaptive(config=config, networks=nets, dt=dt)
+    return _state_network(position, velocity, acceleration, dt, config)
 
 
 def state_controller(
