@@ -58,9 +58,13 @@ __all__ = [
 ]
 
 #: Grid points per state ``(x1, x2, x̄1, x̄2)`` (assumed: 7 along the own position, on
-#: which the §4.1 ``α`` depends most; 3 on the others. Measured on Fig. 9's sines at
-#: 200 Hz, last of 8 periods: (5,3,3,3) 161 nm, (7,3,3,3) 137, (11,3,3,3) 133,
-#: (7,5,3,3) 127; (7,1,5,1) 364: the velocities must be inputs).
+#: which the §4.1 ``α`` depends most; 3 on the others). Measured on Fig. 9's sines at
+#: 200 Hz with `STATE_CONFIG`'s λ and Γ, last of 8 periods, nm: (5,3,3,3) 161, (7,3,3,3)
+#: 137, (11,3,3,3) 133, (7,5,3,3) 127, (7,1,3,1) 171, (7,1,1,1) 139. With λ = 1000 the
+#: velocity half-range ``λA + V`` is ~150 times the velocities' own, so the network is
+#: nearly flat in them (they are inputs, as eq. 4 has them, but weigh little); a velocity
+#: grid on their own range (2x or 5x ``V``) gave 80 nm at 400 Hz, no better, and one run
+#: at 200 Hz rose to 3.8 µm by period 8.
 DEFAULT_COUNTS = (7, 3, 3, 3)
 #: Scale of an input the network is flat in (units of ``z``): ``h`` does not see it.
 WIDE = 1e12
