@@ -12,7 +12,8 @@ Job file (``examples/nanomanipulator_msl.toml``)::
     period_s = 1.0
     periods = 6
 
-    [rbf]                # seed 001 eqs. 2-5 (values assumed, see RBFConfig)
+    [rbf]                # controller = "proposed" (default) or "seed"; eqs. 2-5
+                         # settings of the seed's network (values assumed, RBFConfig)
     [rc]                 # plug-in RC, seed 001 §3.3
     [gate]               # threshold_um = 1.0: "reaches submicrons"
     [laser]              # warm-up 5 ms (assumed), compensated in one of the prints
