@@ -140,10 +140,27 @@ class Divergence:
     phase_margin_deg: float
     nyquist_distance: float
 
+    @property
+    def beta_term(self) -> bool:
+        """Whether the measurements point to the §4.1 β term (linear loop sound, β >= 1.5 β_l)."""
+        return self.linear_ok and self.beta_ratio >= 1.5
+
+    @property
+    def linear_ok(self) -> bool:
+        """Whether the sampled linear loop keeps a margin (PM > 0, min |1 + L| > 0.1)."""
+        return self.phase_margin_deg > 0 and self.nyquist_distance > 0.1
+
+    def short(self) -> str:
+        """One line: controller, crossover, sample, speed and β there."""
+        return (
+            f"{self.controller} {self.bandwidth_hz:g} Hz (sample {self.sample}, "
+            f"{self.speed_mm_s:.0f} mm/s, β {self.beta_ratio:.1f}x β_l)"
+        )
+
     def cause(self) -> str:
         """The cause the measurements point to, in words."""
-        linear_ok = self.phase_margin_deg > 0 and self.nyquist_distance > 0.1
-        if linear_ok and self.beta_ratio >= 1.5:
+        linear_ok = self.linear_ok
+        if self.beta_term:
             why = (
                 f"the stage reached {self.speed_mm_s:.0f} mm/s, where the §4.1 β (its x2² "
                 f"term) is {self.beta_ratio:.1f}x β_l and grows with the square of the speed "
@@ -164,6 +181,21 @@ class Divergence:
         return (
             f"{self.controller} at {self.bandwidth_hz:g} Hz diverged at sample {self.sample}: {why}"
         )
+
+
+def _divergence_note(divs: tuple[Divergence, ...]) -> str:
+    """The divergences for a table note: one shared cause, or each with its own."""
+    if not divs:
+        return ""
+    if all(d.beta_term for d in divs):
+        return (
+            " Diverged (the stage thrown by the first samples to a speed where the §4.1 β "
+            "term in x2² is several times β_l and grows with the square of the speed; the "
+            "sampled linear loop keeps its margin there): "
+            + "; ".join(d.short() for d in divs)
+            + "."
+        )
+    return "".join(f" Diverged: {d.cause()}." for d in divs)
 
 
 def _divergence(
@@ -295,7 +327,7 @@ class Fig8Sweep:
             "'the proposed RBF controller significantly outperforms the PID' (curves only; "
             "the project's target RBF <= PID/3)."
             + "".join(f" Skipped {s}." for s in self.skipped)
-            + "".join(f" Diverged: {d.cause()}." for d in self.divergences),
+            + _divergence_note(self.divergences),
         )
 
 
