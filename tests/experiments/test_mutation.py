@@ -29,11 +29,6 @@ NOT_MUTATED = {
         "project's floor (issue 14), and our gain stays above it at half (the mutation "
         "x0.5 passed): a floor met with a margin, kept as the target it is"
     ),
-    "seed001_nanomanipulator/test_fig9.py::test_fig9_rbf_error_within_twice_the_circle_case": (
-        "the seed gives no number for Fig. 9; 'at most 2x the circle's error' is the "
-        "project's ceiling (issue 14), met at 1.29x, so x1.5 (1.94) still passes: a "
-        "ceiling met with a margin, kept as the target it is"
-    ),
     "seed004_laser/test_fig7.py::"
     "test_near_the_axis_bandwidth_the_normal_row_alone_trades_normal_for_tangential_error": (
         "a cause study (the path-frame errors of a 30 µm circle near the axis bandwidth): "

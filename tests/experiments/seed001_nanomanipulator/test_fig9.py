@@ -1,4 +1,4 @@
-"""Seed 001 Fig. 9 on the twin: the target of paper.FIG_TARGETS and the reference it runs."""
+"""Seed 001 Fig. 9 on the paper's model: the target of paper.FIG_TARGETS and the reference."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from microfab.experiments.seed001_nanomanipulator import paper
 from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
 from microfab.experiments.seed001_nanomanipulator.fig9 import (
     Fig9Config,
-    Fig9Result,
-    fig9_rbf,
+    Fig9Matched,
+    fig9_matched,
     fig9_reference,
 )
 from microfab.trajectory.circle_pattern import pattern_reference
@@ -21,18 +21,39 @@ DT = 1e-4  # s: the twin's 10 kHz (data/nanomanipulator_twin.toml)
 
 
 @pytest.fixture(scope="module")
-def result() -> Fig9Result:
-    return fig9_rbf()  # x 1 Hz, y √2 Hz, 8 periods, noise off; and compare.py's circle
+def matched() -> Fig9Matched:
+    return fig9_matched()  # x 1 Hz, y √2 Hz, 8 periods, noise off; 200 and 400 Hz
 
 
-def test_fig9_rbf_error_within_twice_the_circle_case(result: Fig9Result) -> None:
-    assert result.rms_nm.shape == (8,) and result.circle_rms_nm.shape == (8,)
-    assert np.all(np.isfinite(result.rms_nm)) and np.all(result.rms_nm > 0)
-    # the circle case is compare.py's RBF row (463 nm measured there and here)
-    assert 300.0 < result.circle_rms_nm[-1] < 700.0, result.table()
-    # issue 14 target: worst period on the sines <= 2x the circle's (595 / 463 = 1.29 measured)
-    assert result.ratio() <= paper.FIG_TARGETS["fig9_over_fig8_max"], result.table()
-    assert "circle" in result.table() and "  y" in result.table()
+@pytest.mark.mutate(
+    only=1.5, reason="a ceiling (RBF below the PID): our error halved still meets it"
+)
+def test_fig9_rbf_below_pid_at_200_hz_with_45_deg(matched: Fig9Matched, scaled) -> None:
+    i = matched.bandwidths_hz.index(200.0)
+    pid, rbf = matched.final("PID")[i], scaled(matched.final("RBF")[i])
+    # measured: PID 182-192 nm over the 8 periods (190 last), RBF 256 -> 137 nm (learning)
+    assert 150.0 < pid < 230.0, matched.table()
+    for c in ("PID", "RBF"):  # the design's 45° measured on the discrete loop (45.0)
+        assert (
+            matched.phase_margin_deg[c][i] >= paper.FIG_TARGETS["fig9_phase_margin_min_deg"] - 0.5
+        ), matched.table()
+    assert rbf / pid <= paper.FIG_TARGETS["fig9_rbf_over_pid_max"], matched.table()
+    # it learns: the last period below the first
+    assert matched.rms_nm["RBF"][i, -1] < 0.8 * matched.rms_nm["RBF"][i, 0], matched.table()
+
+
+@pytest.mark.xfail(
+    raises=AssertionError,
+    strict=True,
+    reason="issue 45: at 400 Hz the PID keeps 24-25 nm and the state-model RBF levels "
+    "off at 73 nm (last of 8 periods; 196 in the first); its ideal, the oracle of the "
+    "true §4.1 terms, gives 4 nm: the network's learning is slow, not its linear part",
+)
+def test_fig9_rbf_below_pid_at_400_hz(matched: Fig9Matched) -> None:
+    i = matched.bandwidths_hz.index(400.0)
+    assert matched.phase_margin_deg["RBF"][i] >= 44.5, matched.table()
+    ratio = matched.final("RBF")[i] / matched.final("PID")[i]
+    assert ratio <= paper.FIG_TARGETS["fig9_rbf_over_pid_max"], matched.table()
 
 
 def test_reference_is_two_uncorrelated_sines_with_the_circle_stroke_and_offset() -> None:

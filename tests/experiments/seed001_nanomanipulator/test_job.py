@@ -39,12 +39,20 @@ def test_example_is_the_default_config():
 def test_empty_sections_give_the_defaults(tmp_path):
     cfg = load_job(_job(tmp_path, "")).config
     assert cfg.fingerprint() == JobConfig().fingerprint()
+    assert cfg.controller == "proposed"
+
+
+def test_the_seed_network_is_a_job_setting(tmp_path):
+    cfg = load_job(_job(tmp_path, '[rbf]\ncontroller = "seed"\n')).config
+    assert cfg.controller == "seed" and cfg.rbf == JobConfig().rbf
+    assert cfg.fingerprint() != JobConfig().fingerprint()  # a saved run resumes only as it ran
 
 
 @pytest.mark.parametrize(
     ("body", "match"),
     [
         ("[rbf]\nspeed = 1\n", r"unknown key\(s\) \['speed'\] in \[rbf\]"),
+        ('[rbf]\ncontroller = "pid"\n', r"expected one of proposed, seed"),
         ("[lasers]\n", r"unknown section"),
         ("[rbf]\ngamma = 0.0\n", r"gamma \(Γ\)"),
         ("[rbf]\nsigma = -1.0\n", r"sigma \(σ\)"),

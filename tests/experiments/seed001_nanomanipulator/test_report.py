@@ -29,14 +29,16 @@ def test_job_writes_summary_and_report(tmp_path):
 
 def test_reproduction_gives_the_seed_table():
     rep = REPRODUCTIONS["nanomanipulator"]
-    out = rep.run(rep.parse_options({}), no_progress)
+    out = rep.run(rep.parse_options({"fig8_sweep": "octaves"}), no_progress)  # fine: ~1 min
     rows = {r[0]: r[1] for r in out.tables[0].rows}
     assert rows["axial RMS x [nm]"].endswith("/ 485.8")
-    assert out.data["gate_period"] == [3, 3, 3, 3]
+    # the proposed controller (issue 45), the twin's current noise: submicron from period 1
+    assert out.data["gate_period"] == [2, 2, 2, 2]
     titles = [t.title for t in out.tables]
     assert any("RBF per period" in t for t in titles) and any("Fig. 8" in t for t in titles)
     assert set(out.data["rbf_study"]["rms_nm"]) >= {"seed adaptive", "proposed adaptive"}
     assert [r["bandwidth_hz"] for r in out.data["fig8_fair"]["rows"]] == [100.0, 200.0, 400.0]
+    assert out.data["fig8_fair"]["divergences"] == []
     json.dumps(out.to_json(), allow_nan=False)  # what --json writes (an oracle has no weights)
     # the axial RMS is what the noise calibration fits; the contour RMS is predicted
     labels = {r[0]: lab for r, lab in zip(out.tables[0].rows, out.tables[0].labels, strict=True)}

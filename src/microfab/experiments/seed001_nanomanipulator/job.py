@@ -12,7 +12,8 @@ Job file (``examples/nanomanipulator_msl.toml``)::
     period_s = 1.0
     periods = 6
 
-    [rbf]                # seed 001 eqs. 2-5 (values assumed, see RBFConfig)
+    [rbf]                # controller = "proposed" (default) or "seed"; eqs. 2-5
+                         # settings of the seed's network (values assumed, RBFConfig)
     [rc]                 # plug-in RC, seed 001 §3.3
     [gate]               # threshold_um = 1.0: "reaches submicrons"
     [laser]              # warm-up 5 ms (assumed), compensated in one of the prints
@@ -44,6 +45,7 @@ from microfab.io.job import Key
 from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.machines.nanomanipulator.cure import cure_circles
 from microfab.machines.nanomanipulator.job import (
+    CONTROLLERS,
     JobConfig,
     RCSettings,
     TwinSettings,
@@ -70,6 +72,9 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
     # shared with `nanomanipulator analyze` (its period also with `rc step --period-s`)
     "pattern": PATTERN_KEYS,
     "rbf": (
+        Key(name="controller", type="str", default="proposed", choices=CONTROLLERS,
+            help="proposed: eq. 6's PD from eq. 9 + the state-model network (issue 45); "
+            "seed: the seed's network alone (eq. 4; the keys below)"),
         Key(name="n_nodes", type="int", default=25, low=1, high=1000, help="nodes per axis l"),
         Key(name="lam", type=_F, default=100.0, unit="1/s", help="λ of s = λe + ė (> 0)"),
         Key(name="gamma", type=_F, default=0.05, unit="V/mm", help="adaptive gain Γ (> 0)"),
@@ -141,9 +146,10 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> JobConfig:
         sec[k] for k in ("pattern", "rbf", "rc", "gate", "laser", "twin", "transfer")
     )
     pattern = PatternConfig(**p)
-    rbf = RBFConfig(**{k: v for k, v in r.items() if k != "handover_damping"})
+    rbf = RBFConfig(**{k: v for k, v in r.items() if k not in ("handover_damping", "controller")})
     return JobConfig(
         pattern=pattern,
+        controller=r["controller"],
         rbf=rbf,
         rc=RCSettings(
             enabled=rc["enabled"],
@@ -199,7 +205,7 @@ def _write_report(result: NanomanipulatorResult, out: Path, title: str) -> Path:
 
 def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
     from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
-    from microfab.experiments.seed001_nanomanipulator.fig8 import fair_fig8
+    from microfab.experiments.seed001_nanomanipulator.fig8 import fair_fig8, fine_fig8
     from microfab.experiments.seed001_nanomanipulator.study import learning_study
     from microfab.report.circle_tracking import tracking_table  # draws: loaded on use
 
@@ -209,7 +215,8 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
     progress("RBF learning study and Fig. 8 sweep", 0, None)
     circle = ComparisonConfig(seed=options["seed"])
     study = learning_study(circle)
-    fig8 = fair_fig8(circle)
+    # octaves, then 10 Hz steps within ±50 Hz of each best (~1 min); "octaves": those alone
+    fig8 = fine_fig8(circle) if options["fig8_sweep"] == "fine" else fair_fig8(circle)
     data = m.summary()
 
     def finite(v: Any) -> list[float | None]:  # JSON has no NaN: an oracle has no weights
@@ -233,6 +240,7 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
             for r in fig8.rows
         ],
         "skipped": list(fig8.skipped),
+        "divergences": [{**vars(d), "cause": d.cause()} for d in fig8.divergences],
     }
     return ReproductionResult(
         tables=(
@@ -246,9 +254,12 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
             "fits the noise to the axial RMS, after which the contour RMS is a prediction.",
             "RBF study and Fig. 8: one 0.15 mm circle 0.25 mm off-centre, 8 periods, noise "
             "off, d(t) and the §4.1 α, β terms on (compare.py's setting). The job above "
-            "runs the seed's network (eq. 4 alone, default centres), which the study shows "
-            "does not learn; 'proposed' is eq. 6's linear part from eq. 9 plus the network "
-            "with centres along the orbit (proposed.py).",
+            "runs the proposed controller (issue 45): eq. 6's linear part from eq. 9 (PD at "
+            "200 Hz with eq. 9's inverse) plus the network as a model of the state (centres "
+            "on a grid over each circle's state box), in the plug-in RC; the seed's network "
+            "(eq. 4 alone), which the study shows does not learn, is the job setting "
+            "[rbf] controller = \"seed\". In the study and Fig. 8, 'proposed' / 'RBF' is the "
+            "same linear part with centres along the orbit, 'RBF state' the state model.",
         ),
         data=data,
         figures=lambda: _study_figures(study),
@@ -284,6 +295,15 @@ NANOMANIPULATOR_MSL = JobKind(
 NANOMANIPULATOR_REPRODUCTION = Reproduction(
     name="nanomanipulator",
     run=_reproduce,
-    options=(Key(name="seed", type="int", default=0, low=0, help="twin seed"),),
+    options=(
+        Key(name="seed", type="int", default=0, low=0, help="twin seed"),
+        Key(
+            name="fig8_sweep",
+            type="str",
+            default="fine",
+            choices=("fine", "octaves"),
+            help="Fig. 8: octaves then 10 Hz steps around each best, or the octaves alone",
+        ),
+    ),
     data_files=nanomanipulator.DATA_FILES,
 )

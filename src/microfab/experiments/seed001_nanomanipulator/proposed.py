@@ -24,6 +24,15 @@ is one integrator on ``s``. Two changes, each from the seed's own law:
 
 `proposed_controller` builds it; `proposed_oracle` replaces its network by the true
 nonlinearity (`NonlinearityOracle`).
+
+**The state model** (issue 45, `state_controller`): the network above is a memory of one
+repeating path, and on Fig. 9's sines (no repeating path) it lost to the PID (200 Hz:
+333-794 nm against 182-192). `state_controller` keeps the same linear part and gives the
+network the states as inputs with centres on a grid over the state box the reference
+reaches (`microfab.control.rbf_grid.networks_for_box`), so that it is a model of the
+§4.1 ``α(x, x̄)``, ``β(x, x̄)`` and holds on any path in the box. Its settings are
+`STATE_RBF` (`microfab.control.rbf_grid.STATE_CONFIG`, assumed: the trials that chose
+them are listed there).
 """
 
 from __future__ import annotations
@@ -35,19 +44,24 @@ import numpy as np
 from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.rbf_composite import NonlinearityOracle, RBFPlusLinear
+from microfab.control.rbf_grid import STATE_CONFIG, eq6_linear_part
+from microfab.control.rbf_grid import state_network as _state_network
 from microfab.experiments.seed001_nanomanipulator.compare import CircleSetting
 from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, drift_and_gain
 
 __all__ = [
+    "STATE_RBF",
     "linear_part",
     "local_network",
     "orbit_z",
     "proposed_controller",
     "proposed_oracle",
+    "state_controller",
+    "state_network",
 ]
 
-_NO_INTEGRAL = 1e9  # integral_ratio of the design: the integral zero far below 1 Hz, then ki = 0
+STATE_RBF = STATE_CONFIG  # the state-model network's settings (`rbf_grid.STATE_CONFIG`)
 
 
 def orbit_z(st: CircleSetting, axis: int) -> np.ndarray:
@@ -65,20 +79,14 @@ def orbit_z(st: CircleSetting, axis: int) -> np.ndarray:
 def linear_part(plant: NanomanipulatorPlant, bandwidth_hz: float) -> PID:
     """Eq. 6's linear part: a PD at crossover ``bandwidth_hz`` (45°) plus eq. 9's inverse.
 
+    `microfab.control.rbf_grid.eq6_linear_part` on the plant's eq. 9.
+
     Raises
     ------
     ValueError
         When 45° cannot be reached at that crossover (`PIDGains.design`).
     """
-    pid = PID.tuned(
-        plant.continuous_models(),
-        bandwidth_hz=bandwidth_hz,
-        dt=plant.dt,
-        feedforward=True,
-        integral_ratio=_NO_INTEGRAL,
-    )
-    gains = [dataclasses.replace(g, ki=0.0) for g in pid.gains]
-    return PID(gains=gains, dt=plant.dt, feedforward=True)
+    return eq6_linear_part(plant.continuous_models(), bandwidth_hz, plant.dt)
 
 
 def _sum_h2(rbf: RBFAdaptive, z: np.ndarray) -> float:
@@ -118,3 +126,37 @@ def proposed_oracle(
         config.estimator,
         plant.dt,
     )
+
+
+def state_network(
+    position: np.ndarray,
+    velocity: np.ndarray,
+    acceleration: np.ndarray,
+    dt: float,
+    config: RBFConfig = STATE_RBF,
+) -> RBFAdaptive:
+    """The state-model network: a grid over the state box of the reference (module notes).
+
+    Parameters
+    ----------
+    position, velocity, acceleration : numpy.ndarray
+        The reference the states follow, mm, mm/s, mm/s², shape (n, 2).
+    dt : float
+        Sample time, s.
+    config : RBFConfig
+        Settings (default `STATE_RBF`); ``n_nodes`` must be the grid's 189 nodes.
+    """
+    return _state_network(position, velocity, acceleration, dt, config)
+
+
+def state_controller(
+    plant: NanomanipulatorPlant,
+    bandwidth_hz: float,
+    position: np.ndarray,
+    velocity: np.ndarray,
+    acceleration: np.ndarray,
+    config: RBFConfig = STATE_RBF,
+) -> RBFPlusLinear:
+    """`linear_part` at ``bandwidth_hz`` plus `state_network` on the given reference."""
+    net = state_network(position, velocity, acceleration, plant.dt, config)
+    return RBFPlusLinear(linear_part(plant, bandwidth_hz), net)

@@ -18,8 +18,23 @@ import numpy as np
 
 if TYPE_CHECKING:
     from microfab.experiments.seed001_nanomanipulator.results import NanomanipulatorResult
+    from microfab.machines.nanomanipulator.job import JobConfig
 
 __all__ = ["write_report"]
+
+
+def _circle_controller(cfg: JobConfig) -> str:
+    """The circle controller of job config ``cfg`` in words."""
+    if cfg.controller == "seed":
+        return (
+            f"the seed's RBF network alone (eqs. 2-5, l = {cfg.rbf.n_nodes} per axis, centres "
+            "from one period) handed over bumplessly from the PID"
+        )
+    return (
+        f"the proposed controller: eq. 6's linear part from eq. 9 (a PD at "
+        f"{cfg.pid_bandwidth_hz:g} Hz with eq. 9's inverse) plus the RBF network (eqs. 2-5) "
+        "as a model of the state, centres on a grid over the circle's state box, Ŵ(0) = 0"
+    )
 
 
 def _notes(result: NanomanipulatorResult) -> list[str]:
@@ -31,10 +46,11 @@ def _notes(result: NanomanipulatorResult) -> list[str]:
         "1/ω_n), a bounded disturbance d(t) and sensor noise "
         f"{noise[0]:.0f} / {noise[1]:.0f} nm rms (x / y); every value and its source in "
         "microfab/data/nanomanipulator_twin.toml.",
-        "Controllers: PID between circles (assumed, the seed does not say); on each circle a "
-        "fresh RBF network (seed eqs. 2-5, l = "
-        f"{cfg.rbf.n_nodes} per axis, centres from one period) handed over bumplessly, inside "
-        "the plug-in RC (Fig. 6-7)" + ("" if cfg.rc.enabled else " (RC off in this job)") + ".",
+        "Controllers: PID between circles (assumed, the seed does not say); on each circle "
+        + _circle_controller(cfg)
+        + ", inside the plug-in RC (Fig. 6-7)"
+        + ("" if cfg.rc.enabled else " (RC off in this job)")
+        + ".",
         f"Laser gate: opens at the next contour start after a period with RMS error norm "
         f"< {cfg.gate_threshold_mm * 1e3:g} µm (our reading of 'reaches submicrons'), "
         "exposes one loop.",

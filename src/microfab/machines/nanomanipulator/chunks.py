@@ -36,6 +36,8 @@ import numpy as np
 from microfab.control.gate import GateConfig, run_gate
 from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive
+from microfab.control.rbf_composite import RBFPlusLinear
+from microfab.control.rbf_grid import eq6_linear_part, state_network
 from microfab.control.rbf_handover import feedback_gain, handover
 from microfab.control.repetitive import PluginRC, RCConfig
 from microfab.io.checkpoint import read_state, save_state
@@ -183,17 +185,26 @@ class ChunkRunner:
             )
             for a in range(2)
         ]
+        self.linear = eq6_linear_part(self.plant.continuous_models(), config.pid_bandwidth_hz, dt)
         self._ctrl: dict[int, Any] = {}
 
     # -- controllers
     def circle_rbf(self, i: int) -> RBFAdaptive:
-        """A fresh RBF controller for circle ``i``, centred on one period of it."""
+        """A fresh seed network for circle ``i``, centred on one period of it."""
         s0, n = self.ref.starts[i], self.N
         one = slice(s0, s0 + n)
         r = self.ref
         return RBFAdaptive.for_reference(
             r.position[one], r.velocity[one], r.acceleration[one], r.dt, self.config.rbf
         )
+
+    def circle_proposed(self, i: int) -> RBFPlusLinear:
+        """A fresh proposed controller for circle ``i``: eq. 6's PD plus the state network."""
+        s0, n = self.ref.starts[i], self.N
+        one = slice(s0, s0 + n)
+        r = self.ref
+        net = state_network(r.position[one], r.velocity[one], r.acceleration[one], r.dt)
+        return RBFPlusLinear(self.linear, net)
 
     def rc_config(self, seg: Segment) -> RCConfig:
         """The plug-in RC of circle segment ``seg``, active over the circle's periods."""
@@ -217,6 +228,9 @@ class ChunkRunner:
         seg = self.segs[k]
         if seg.circle is None:
             ctrl: Any = self.pid
+        elif self.config.controller == "proposed":
+            inner = self.circle_proposed(seg.circle)
+            ctrl = PluginRC(inner, self.rc_config(seg)) if self.config.rc.enabled else inner
         else:
             rbf = self.circle_rbf(seg.circle)
             a = seg.start
@@ -266,13 +280,17 @@ class ChunkRunner:
         )
 
     def rbf_of(self, ctrl: Any) -> RBFAdaptive:
-        """The RBF controller of a circle's controller (inside the RC, if any)."""
-        return ctrl.inner if isinstance(ctrl, PluginRC) else ctrl
+        """The RBF network of a circle's controller (inside the RC and beside a PD, if any)."""
+        inner = ctrl.inner if isinstance(ctrl, PluginRC) else ctrl
+        return inner.rbf if isinstance(inner, RBFPlusLinear) else inner
 
     def inner_state(self, ctrl: Any, state: np.ndarray) -> np.ndarray:
-        """The RBF part of a circle controller's ``state``."""
+        """The RBF network's part of a circle controller's ``state``."""
+        inner = ctrl
         if isinstance(ctrl, PluginRC):
-            return ctrl.inner_state(state)
+            inner, state = ctrl.inner, ctrl.inner_state(state)
+        if isinstance(inner, RBFPlusLinear):
+            return inner.rbf_state(state)
         return state
 
     def run_chunk(

@@ -11,10 +11,15 @@ nanomanipulator`): `run_job` runs the whole pattern of
   how its stage moves between circles, and the RBF network fitted to one circle is not
   active far from it (assumed).
 * **Each circle** (its pause, spin-up, periods and spin-down) runs under a fresh RBF
-  controller (`RBFAdaptive.for_reference` on one period of that circle) inside the plug-in
-  RC (`PluginRC`, active over the circle's periods), handed over bumplessly from the PID
-  (`microfab.control.rbf_handover`). With ``rc.carry`` the RC memory of one circle seeds
-  the next.
+  controller inside the plug-in RC (`PluginRC`, active over the circle's periods; seed
+  001 Fig. 7, the integrated controller). ``controller = "proposed"`` (default, issue
+  45): eq. 6's linear part from eq. 9 (a PD at ``pid_bandwidth_hz``, 45°, with eq. 9's
+  inverse, `microfab.control.rbf_grid.eq6_linear_part`) plus the network as a model of
+  the state (`microfab.control.rbf_grid.state_network` on one period of that circle,
+  ``Ŵ(0) = 0``, settings `STATE_CONFIG`). ``controller = "seed"``: the seed's network as
+  the whole command (eq. 4; `RBFAdaptive.for_reference` with ``rbf``), handed over
+  bumplessly from the PID (`microfab.control.rbf_handover`). With ``rc.carry`` the RC
+  memory of one circle seeds the next.
 * **The laser gate** (`LaserGate`) of each circle watches the measured error
   ``r − y_m`` and exposes one loop after a period under the threshold.
 
@@ -68,6 +73,7 @@ from microfab.trajectory.circle_pattern import (
 )
 
 __all__ = [
+    "CONTROLLERS",
     "CircleRun",
     "JobConfig",
     "JobRun",
@@ -78,6 +84,9 @@ __all__ = [
     "make_twin",
     "run_job",
 ]
+
+#: The circle controllers a job can run (module notes).
+CONTROLLERS = ("proposed", "seed")
 
 #: ``progress(task, done, total)``: called per chunk.
 Progress = Callable[[str, int, int | None], None]
@@ -179,8 +188,12 @@ class JobConfig:
     ----------
     pattern : PatternConfig
         Circles, period, pauses.
+    controller : str
+        ``"proposed"`` (eq. 6's linear part plus the state-model network) or ``"seed"``
+        (the seed's network alone, eq. 4); see the module notes.
     rbf : RBFConfig
-        RBF settings (centres from each circle, `RBFAdaptive.for_reference`).
+        The seed network's settings (``controller = "seed"``; centres from each circle,
+        `RBFAdaptive.for_reference`).
     rc : RCSettings
         Plug-in RC.
     gate_threshold_mm : float
@@ -203,6 +216,7 @@ class JobConfig:
     """
 
     pattern: PatternConfig = field(default_factory=PatternConfig)
+    controller: str = "proposed"
     rbf: RBFConfig = field(default_factory=RBFConfig)
     rc: RCSettings = field(default_factory=RCSettings)
     gate_threshold_mm: float = 1e-3  # our reading of seed 001 "reaches submicrons"
@@ -214,6 +228,10 @@ class JobConfig:
     log_every: int = 500
 
     def __post_init__(self) -> None:
+        if self.controller not in CONTROLLERS:
+            raise ValueError(
+                f"controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}"
+            )
         check_positive("gate threshold_mm", self.gate_threshold_mm, "mm")
         check_positive("pid_bandwidth_hz", self.pid_bandwidth_hz, "Hz")
         check_positive("handover_damping", self.handover_damping, "")
