@@ -60,6 +60,26 @@ def test_default_axes_load_calibration_file(axes):
         assert ax.noise_rms_v > 0
 
 
+def test_calibration_file_is_sourced_and_read_from_a_path(tmp_path):
+    text = resources.files("microfab.data").joinpath("galvo_twin.toml").read_text()
+    data = tomllib.loads(text)["axes"]
+    for name in ("x", "y"):
+        for key in ("rigid_pole_hz", "gain_ratio", "noise_rms_v"):
+            assert data[name][f"{key}_source"].startswith("calibrated: `microfab calibrate galvo`")
+    copy = tmp_path / "twin.toml"
+    copy.write_text(text.replace("rigid_pole_hz = 105.464", "rigid_pole_hz = 99.0"))
+    assert default_galvo_axes(copy)["x"].rigid_pole_hz == 99.0
+    # a value without its source is refused, naming the file, the axis and the key
+    lines = [ln for ln in text.splitlines() if not ln.startswith("gain_ratio_source")]
+    copy.write_text("\n".join(lines))
+    with pytest.raises(ValueError, match=r"axes\.x\].*gain_ratio has no gain_ratio_source"):
+        default_galvo_axes(copy)
+    # a value the axis refuses names the file and the axis
+    copy.write_text(text.replace("noise_rms_v = 0.00128786", "noise_rms_v = -1.0"))
+    with pytest.raises(ValueError, match=r"twin\.toml \[axes\.y\].*noise_rms_v"):
+        default_galvo_axes(copy)
+
+
 def test_nominal_design_crosses_over_at_2khz(axes):
     # eq. (1) normalises |C G| = 1 at w_c on the nominal model (gain_ratio 1); the discrete
     # loop (Tustin controller, ZOH plant, one sample delay) keeps it within a few percent.
