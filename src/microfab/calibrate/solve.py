@@ -374,6 +374,14 @@ def calibrate(
     if conflict_budget < 0:
         raise ValueError(f"conflict_budget must be >= 0, got {conflict_budget}")
     memo = Memo(problem, memo_path)
+    n = len(problem.parameters)
+    if de_sized(budget, n, polish) < 0 and not len(memo):
+        # no population to search and no stored point to polish from: nothing to start at
+        least = next(b for b in range(budget, budget + 1000) if de_sized(b, n, polish) >= 0)
+        raise ValueError(
+            f"budget {budget} is below one population of the search over {n} parameters; "
+            f"give at least {least}"
+        )
     ev = _Evaluator(problem, memo, workers, on_progress)
     fit = np.array(problem.fit_index)
     try:
