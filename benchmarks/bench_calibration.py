@@ -22,12 +22,21 @@ worst ``|r|`` (median over the seeds); then ours as ratios against the baseline 
 the same run (a worst ``|r|`` near 1e-13 is round-off: its ratio says nothing). No asserts.
 About 5 s on the 2-core project machine.
 
-Run: ``python benchmarks/bench_calibration.py``.
+With ``--twin laser`` the same two methods run on a real twin instead of the toy: the
+seed 004 stage calibration (`microfab.machines.laser_stage.calibration.problem`: 5 free
+parameters, the Fig. 3 peak and the per-axis shares within ±0.5 µm as fit targets, about
+0.2-0.5 s a run), at ``--budget`` evaluations (default 120) for ``--seeds`` seeds (default
+2); printed per seed and method: evaluations to first met (every fit target) and the final
+worst fit ``|r|``. About 2-4 min on one core.
+
+Run: ``python benchmarks/bench_calibration.py [--twin laser] [--budget N] [--seeds N]``.
 """
 
 from __future__ import annotations
 
+import argparse
 import math
+import time
 from collections.abc import Mapping
 from functools import partial
 
@@ -75,12 +84,12 @@ def problem(rugged: float) -> CalibrationProblem:
     return CalibrationProblem(targets, params, partial(model, rugged=rugged))
 
 
-def ours(prob: CalibrationProblem, seed: int) -> tuple[int | None, float]:
-    res = calibrate(prob, budget=BUDGET, seed=seed, conflict_budget=0)
+def ours(prob: CalibrationProblem, seed: int, budget: int = BUDGET) -> tuple[int | None, float]:
+    res = calibrate(prob, budget=budget, seed=seed, conflict_budget=0)
     return res.first_met, res.worst_fit
 
 
-def baseline(prob: CalibrationProblem, seed: int) -> tuple[int | None, float]:
+def baseline(prob: CalibrationProblem, seed: int, budget: int = BUDGET) -> tuple[int | None, float]:
     rng = np.random.default_rng(seed)
     count = 0
     first_met: int | None = None
@@ -91,10 +100,11 @@ def baseline(prob: CalibrationProblem, seed: int) -> tuple[int | None, float]:
 
     def fun(u: np.ndarray) -> np.ndarray:
         nonlocal count, first_met, best
-        if count >= BUDGET:
+        if count >= budget:
             raise SpentError
         count += 1
         r = prob.residuals(prob.model_vector(prob.evaluate(prob.values(np.clip(u, 0.0, 1.0)))))
+        r = r[list(prob.fit_index)]
         worst = float(np.max(np.abs(r)))
         best = min(best, worst)
         if worst <= 1.0 and first_met is None:
@@ -102,7 +112,7 @@ def baseline(prob: CalibrationProblem, seed: int) -> tuple[int | None, float]:
         return r
 
     try:
-        while count < BUDGET:
+        while count < budget:
             u0 = rng.uniform(0.0, 1.0, len(prob.parameters))
             least_squares(fun, u0, bounds=(0.0, 1.0), method="trf", max_nfev=PER_START)
     except SpentError:
@@ -117,7 +127,34 @@ def summary(runs: list[tuple[int | None, float]]) -> tuple[float, float, float]:
     return share, evals, float(np.median([w for _, w in runs]))
 
 
+def laser(budget: int, seeds: int) -> None:
+    """Both methods on the seed 004 stage twin's calibration (module notes)."""
+    from microfab.machines.laser_stage.calibration import problem as laser_problem
+
+    prob = laser_problem()
+    print(
+        f"laser twin: budget {budget} evaluations, {seeds} seeds, "
+        f"{len(prob.parameters)} parameters, {len(prob.fit_index)} fit targets"
+    )
+    print(f"  {'method':28s} {'seed':>4s} {'evals to met':>12s} {'worst |r|':>10s} {'wall s':>7s}")
+    for seed in range(seeds):
+        for name, method in (("DE + polish (ours)", ours), ("multi-start least_squares", baseline)):
+            t0 = time.perf_counter()
+            met, worst = method(prob, seed, budget)
+            wall = time.perf_counter() - t0
+            shown = "-" if met is None else str(met)
+            print(f"  {name:28s} {seed:4d} {shown:>12s} {worst:10.3g} {wall:7.1f}", flush=True)
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--twin", choices=("laser",), help="run on a real twin, not the toy")
+    parser.add_argument("--budget", type=int, default=120, help="evaluations (--twin only)")
+    parser.add_argument("--seeds", type=int, default=2, help="seeds (--twin only)")
+    args = parser.parse_args()
+    if args.twin == "laser":
+        laser(args.budget, args.seeds)
+        return
     for rugged in RUGGED:
         prob = problem(rugged)
         rows = {

@@ -266,7 +266,12 @@ CASES: dict[str, Case] = {
         setup=_example("nanomanipulator_msl.toml", {"pattern": {"n_circles": 1, "periods": 3}}),
         outputs=("report/nanomanipulator/report.html",),
     ),
-    "calibrate laser": Case(says=("disturbance",)),
+    "calibrate laser --out cal_laser": Case(
+        argv="calibrate laser --out cal_laser --budget 17 --conflict-budget 0",
+        reduced="one population of the search (17 runs) and no conflict sweep, not 400 runs",
+        outputs=("cal_laser/calibration.json", "cal_laser/memo.json"),
+        says=("fig3_peak_um", "fig3_share_y", "rms_force_n"),
+    ),
     "run examples/laser_micromachining.toml": Case(
         reduced="one lap, no comparison run, no speed sweep, no autofocus study",
         setup=_example(
@@ -466,7 +471,7 @@ EXCLUDED: dict[str, str] = {
     "reproduce nanomanipulator --json s001.json": "40 s, no setting shortens it; "
     "tests/experiments/seed001_nanomanipulator run its parts",
     "reproduce nanomanipulator --out s001": "as `reproduce nanomanipulator --json s001.json`",
-    "calibrate nanomanipulator": "10 s of twin runs; tests/machines/"
+    "calibrate nanomanipulator": "240 runs of the seed's job (minutes); tests/machines/"
     "nanomanipulator/test_calibration.py runs the fit",
     "reproduce laser-micromachining": "24 s even without its speed study; "
     "tests/experiments/seed004_laser run its parts",

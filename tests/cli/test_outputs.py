@@ -152,6 +152,21 @@ CASES: list[tuple[str, Argv, str]] = [
         "is a folder",
     ),
     (
+        "calibrate nanomanipulator --contour-fit --write",
+        lambda p: ["calibrate", "nanomanipulator", "--contour-fit", "--write", f"{p}/n.toml"],
+        "--contour-fit is a diagnostic",
+    ),
+    (
+        "calibrate laser --out FILE",
+        lambda p: ["calibrate", "laser", "--out", f"{p}/t.csv"],
+        "is a file",
+    ),
+    (
+        "calibrate laser --json = --write",
+        lambda p: ["calibrate", "laser", "--write", f"{p}/m.toml", "--json", f"{p}/m.toml"],
+        "",
+    ),
+    (
         "calibrate galvo --write FOLDER",
         lambda p: ["calibrate", "galvo", "--write", f"{p}/d"],
         "is a folder",

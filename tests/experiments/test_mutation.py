@@ -35,14 +35,6 @@ NOT_MUTATED = {
         "ceiling met with a margin, kept as the target it is"
     ),
     "seed004_laser/test_fig7.py::"
-    "test_without_friction_the_correction_is_small_at_low_speed_and_large_at_high_speed": (
-        "the seed gives no Fig. 7 number ('matters little at low speed, much at high'); "
-        "the bounds are the project's (paper.PROJECT_CHOICES: < 50 nm change at 1 mm/s, "
-        "gain >= 2x), met at 2.2 nm and 4.2x, and the paper's own values used are inputs "
-        "(FIG7_SIZE_M, FIG7_SPEED_M_S). Moved here from tests/machines with the study "
-        "(issue 45 step 5), where this scan did not look; issue 45 step 4 redoes Fig. 7"
-    ),
-    "seed004_laser/test_fig7.py::"
     "test_near_the_axis_bandwidth_the_normal_row_alone_trades_normal_for_tangential_error": (
         "a cause study (the path-frame errors of a 30 µm circle near the axis bandwidth): "
         "the only paper-module value is the project's floor fig7_gain_min (2x, "

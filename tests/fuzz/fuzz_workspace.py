@@ -86,13 +86,15 @@ NANO_DT = 1 / 2000
 
 RECIPES: dict[str, Recipe] = {
     "calibrate galvo": Recipe(
-        ("calibrate", "galvo", "--budget", "19", "--out", "galvo_run", "--json",
-         "galvo_cal.json", "--write", "galvo_cal.toml"),
+        ("calibrate", "galvo", "--budget", "19", "--conflict-budget", "0", "--out",
+         "galvo_run", "--json", "galvo_cal.json", "--write", "galvo_cal.toml"),
         outputs=("galvo_run", "galvo_cal.json", "galvo_cal.toml")),
-    "calibrate laser": Recipe(("calibrate", "laser", "--write", "laser_twin.toml"),
+    "calibrate laser": Recipe(("calibrate", "laser", "--budget", "17", "--conflict-budget", "0",
+                               "--write", "laser_twin.toml"),
                               outputs=("laser_twin.toml",)),
     "calibrate nanomanipulator": Recipe(
-        ("calibrate", "nanomanipulator", "--job", "nano_job.toml", "--write", "nano_twin.toml"),
+        ("calibrate", "nanomanipulator", "--job", "nano_job.toml", "--budget", "17",
+         "--conflict-budget", "0", "--write", "nano_twin.toml"),
         inputs=("nano_job.toml",), outputs=("nano_twin.toml",)),
     "calibrate xy-stage": Recipe(
         ("calibrate", "xy-stage", "--duration", "5", "--search", "1", "--check", "--write",
@@ -190,10 +192,13 @@ RECIPES: dict[str, Recipe] = {
 
 #: Commands whose cheapest valid run takes about 3 s or more: seconds measured in process on
 #: a 2-core box. droplet calibrate runs the Eulerian jet model about twenty times (the
-#: Lagrangian one takes minutes); calibrate nanomanipulator simulates the seed's whole
-#: four-circle job twice (a shorter job is refused: its error without noise already
-#: exceeds the seed's RMS).
-SLOW: dict[str, float] = {"droplet calibrate": 5.5, "calibrate nanomanipulator": 3.0}
+#: Lagrangian one takes minutes); calibrate nanomanipulator and calibrate laser run one
+#: population of the search and the sensitivity (about 27 runs of the seed's job).
+SLOW: dict[str, float] = {
+    "droplet calibrate": 5.5,
+    "calibrate nanomanipulator": 20.0,
+    "calibrate laser": 20.0,  # one population and the sensitivity: 27 runs of Fig. 3
+}
 
 
 # --------------------------------------------------------------------------- the inputs

@@ -17,7 +17,7 @@ from microfab.plants.xy_stage_params import _BLOCK as XY_BLOCK
 from microfab.plants.xy_stage_params import _FRIC as XY_FRIC
 from microfab.plants.xy_stage_params import _HEADER as XY_HEADER
 
-# the seed 004 twin's x axis (data/lmw_stage.toml, all assumed values)
+# the seed 004 twin's x axis as assumed before issue 45's calibration (data/lmw_stage.toml)
 X_AXIS = {
     "coulomb_n": 0.15,
     "static_n": 0.225,
@@ -145,7 +145,13 @@ def test_both_twins_pack_their_laws_into_the_kernels():
         np.testing.assert_array_equal(
             xy.params[b : b + N_FRICTION], xy.config.friction_laws[a].pack()
         )
-    assert lmw.config.friction_laws[0] == law()  # the data file's x axis
+    # the data file's x axis: three values calibrated by `microfab calibrate laser`
+    calibrated = {
+        "static_n": 0.36989,
+        "stribeck_m_s": 1.0649e-4,
+        "bristle_stiffness_n_per_m": 1.0448e7,
+    }
+    assert lmw.config.friction_laws[0] == law(**calibrated)
     # the cable carrier is on y only in the seed 002 twin, with its links' ripple
     x, y = xy.config.friction_laws
     assert not x.cable and y.cable and y.cable_link_force_n == xy.config.cable_link_force_n

@@ -118,7 +118,8 @@ def test_table_i_values_and_nominal_model(twin):
     assert all(5.0 * m < 12.0 for m in cfg.mass_kg)
     np.testing.assert_allclose(twin.noise_level.array(), cfg.noise_rms_m)
     assert twin.noise_level.unit == "m"
-    assert all(1e-9 <= n <= 5e-9 for n in cfg.noise_rms_m)
+    # calibrated (microfab calibrate laser) within its bounds: up to Table I's 10 nm count
+    assert all(1e-9 <= n <= 1e-8 for n in cfg.noise_rms_m)
 
 
 def _independent_zoh(plant: LMWStage, nominal: bool = False):

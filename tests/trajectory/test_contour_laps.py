@@ -115,9 +115,12 @@ def test_a_sharp_star_at_20_mm_s_runs_limited_and_slows_only_at_its_corners() ->
     slow = ref.slowdowns()
     assert len(slow) == 10
     corners = np.sort(path.corners(1e-3))
-    for where, speed in slow:
-        assert np.min(np.abs(corners - where)) < 0.05 * path.length / 10
-        assert speed < 0.2 * 0.02
+    for d in slow:
+        assert np.min(np.abs(corners - d.at_m)) < 0.05 * path.length / 10
+        assert d.speed_m_s < 0.2 * 0.02
+    # each stretch names its one corner, and every corner is named once
+    assert [d.corners for d in slow] == [(k,) for k in range(1, 11)]
+    assert slow[0].from_rest and not any(d.from_rest for d in slow[1:])
     assert np.mean(v[ref.lap(1)] > 0.97 * 0.02) > 0.2
 
 
@@ -159,3 +162,33 @@ def test_a_limited_plan_given_the_masses_keeps_the_continuous_force() -> None:
     check_reference(ref, MachineLimits.seed004_stage(), masses)
     v = np.hypot(*np.asarray(ref.trajectory.velocity).T)
     assert v.max() < 0.5 * 0.02 and ref.slowdowns()  # it never reaches the speed asked
+
+
+def test_a_sharp_hexagon_at_50_mm_s_names_each_of_its_six_corners_and_the_force_cut():
+    """Issue 45: a regular hexagon of 1 mm sides at 50 mm/s. Its RMS force at 5 m/s² is
+    4.53 N on x (the twin's 1.54 kg) against Table I's 3 N, so the plan lowers the
+    acceleration to 2.08 m/s²; then corners 1 mm apart are closer than the stage needs to
+    get back to 45 mm/s, and two slow-downs each cover two corners: every corner is named
+    in exactly one slow-down, and the lowered acceleration is stated."""
+    from microfab.trajectory.contour_laps import CONTINUOUS_FORCE_N, contour_path
+
+    path = contour_path("polygon:n_sides=6,radius=1e-3")
+    masses = (1.54, 0.88)  # the stage twin's true masses (data/lmw_stage.toml)
+    ref = contour_reference(path, ContourMotion(speed_m_s=0.05, laps=1, profile="limited"), masses)
+    check_reference(ref, MachineLimits.seed004_stage(), masses)
+    slow = ref.slowdowns()
+    named = [c for d in slow for c in d.corners]
+    assert sorted(named) == [1, 2, 3, 4, 5, 6]  # each corner once
+    assert len(slow) < 6 and any(len(d.corners) == 2 for d in slow)  # measured 4: 1, 2+3, 4, 5+6
+    np.testing.assert_allclose(ref.corner_positions(), np.arange(6) * 1e-3, atol=1e-12)
+    for d in slow:  # the slowest point of a stretch is one of its corners
+        at = ref.corner_positions()[np.array(d.corners) - 1]
+        assert np.min(np.abs(at - d.at_m)) < 1e-6
+    low = ref.acceleration_lowered
+    assert low is not None and low.axis == "x" and low.asked_m_s2 == 5.0
+    assert low.asked_rms_force_n > CONTINUOUS_FORCE_N >= low.used_rms_force_n  # 4.53 / 2.37 N
+    assert 1.0 < low.used_m_s2 < 0.5 * low.asked_m_s2  # measured 2.08 m/s²
+    # without masses nothing is lowered, and the constant profile never slows
+    assert contour_reference(path, ContourMotion(speed_m_s=0.05, laps=1, profile="limited")
+                             ).acceleration_lowered is None  # fmt: skip
+    assert contour_reference(circle(1e-3), ContourMotion(speed_m_s=1e-3, laps=1)).slowdowns() == []

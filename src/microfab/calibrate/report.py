@@ -143,7 +143,11 @@ class Conflict:
             else:
                 parts.append(f"{b} is never met (least |r_{b}| = {absf[:, 1].min():.3g})")
             finding = f"targets {a} and {b} cannot both be met: " + "; ".join(parts)
-        finding += f" (in {requested} evaluations)"
+        # a sampled front, not a proof: a larger budget may still find the point
+        finding += (
+            f" (in {requested} evaluations: a conflict in the model, or a budget too small "
+            "to find the point; a larger budget tells them apart)"
+        )
         pts = tuple((float(x), float(y)) for x, y in sampled)
         return cls(a, b, pts, finding)
 

@@ -412,6 +412,15 @@ def calibrate(
         if np.any(r > 1.0) and len(fit) >= 2 and conflict_budget >= 1:
             ev.phase = "conflict"
             conflict = _conflict(ev, u, conflict_budget, seed, polish)
+            # The sweep may find a point that meets every fit target (the search's budget
+            # was short, not the model): then that point is the answer and there is no
+            # conflict to report.
+            met = [k for k, m in memo.items() if bool(np.all(np.abs(ev.residuals(m)[fit]) <= 1.0))]
+            if met:
+                u = min(met, key=lambda k: float(np.sum(ev.residuals(memo.get(k))[fit] ** 2)))
+                ev.phase = "sensitivity"
+                jac = _sensitivity(ev, u)
+                conflict = None
     finally:
         ev.close()
     model = memo.get(u)

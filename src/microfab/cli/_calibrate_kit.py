@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BudgetOption",
+    "ConflictBudgetOption",
     "FreshOption",
     "JsonOption",
     "OutOption",
@@ -45,6 +46,16 @@ BudgetOption = Annotated[
         "--budget",
         help="Model evaluations the search may ask for (default: the machine's).",
         low=5,
+        high=MAX_BUDGET,
+    ),
+]
+ConflictBudgetOption = Annotated[
+    int | None,
+    integer(
+        "--conflict-budget",
+        help="Evaluations of the conflict sweep when a fit target is unmet (default: "
+        "--budget; 0: no sweep).",
+        low=0,
         high=MAX_BUDGET,
     ),
 ]
@@ -142,6 +153,7 @@ def run_calibration(
     write: Path | None,
     write_twin: Callable[[CalibrationResult, Path], Path],
     inputs: dict[str, Path | None] | None = None,
+    conflict_budget: int | None = None,
 ) -> CalibrationResult:
     """Run a calibration for a command: checks, run folder, progress, tables, files.
 
@@ -164,6 +176,8 @@ def run_calibration(
         ``write_twin(result, path)``: the machine's writer of its twin file.
     inputs : dict, optional
         Input files by option (refused as outputs).
+    conflict_budget : int, optional
+        As `microfab.calibrate.calibrate` (default ``budget``).
 
     Returns
     -------
@@ -194,6 +208,7 @@ def run_calibration(
                 workers=workers,
                 on_progress=on,
                 memo_path=memo,
+                conflict_budget=conflict_budget,
             )
 
     try:

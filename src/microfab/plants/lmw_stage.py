@@ -10,7 +10,7 @@ axis, held over the sample (ZOH); the amplifier is a first-order lag ``τ = 1 / 
 (2 kHz assumed) with a current limit at ``F_peak / K_f``, so the motor force ``K_f i``
 saturates at Table I's 12 N peak (``saturation`` switch). The output is the encoder
 position of each axis (m), rounded to the nearest 10 nm count (Table I; ``quantisation``
-switch). Interpolation noise (``noise_rms_m``, assumed 2.5 nm rms) is *not* added here:
+switch). Interpolation noise (``noise_rms_m``, 6.2 nm rms calibrated) is *not* added here:
 the experiment draws it as the simulator's noise array, so it is added after the
 quantiser (hardware quantises the noisy interpolated signal; per sample the two differ by
 at most one count).
@@ -44,9 +44,12 @@ relative per sample). The bristle relaxation rate ``σ0 |ẋ| / g(ẋ)`` (1e5 1/
 makes the problem stiff, so ``n`` rises with the speed:
 ``n = clip(ceil(dt σ0 v_b / (c F_c)), n_min, n_max)`` with ``v_b`` the larger of the
 speeds at the start and end of the motor flow, ``c = relaxation_per_substep`` (0.5: well
-inside RK4's stability bound 2.79 for a decaying mode), ``n_min = 4``, ``n_max = 400``
-(stable to about 10 m/s). Measured against a 10x finer integration (``n_min``, ``n_max``
-x10, ``c`` / 10; encoder unquantised, PID loop at 80 Hz): 1.5e-11 m in position on a 30 µm
+inside RK4's stability bound 2.79 for a decaying mode), ``n_min = 4``, ``n_max = 4000``
+(stable to about 1.6 m/s with the calibrated bristles, σ0 / F_c = 7e7 1/m).
+Measured against a 10x finer integration (``n_min``, ``n_max`` x10, ``c`` / 10; encoder
+unquantised, PID loop at 80 Hz) with the bristles assumed before issue 45's calibration
+(σ0 / F_c = 1e6 1/m); with the calibrated ones, 1.2e-10 m on the 30 µm circle at 10 mm/s
+and 1.2e-11 m on the 5 mm move): 1.5e-11 m in position on a 30 µm
 circle at 10 mm/s with quadrant reversals, 1.0e-12 m on a 1 mm circle at 10 mm/s, 4.0e-12 m
 on a 5 mm move at 0.1 m/s (1/700 of the 10 nm count or less; the 10x finer run is itself
 within 2e-13 m of a 100x finer one); the mean ``F_l`` to 2e-7 N. Cost about 2 µs per

@@ -39,6 +39,13 @@ and held over the sample (assumed: its components lie 100x below the 10 kHz rate
 ``(cos, sin)`` are rotated once per sample and kept in the state, so a run resumes
 bit-identically. Sensor noise is not in the plant: the simulators add it (``noise_rms_mm``).
 
+**Sensor noise colour** (``noise_time_constant_s`` per axis, assumed: seed 001 names no
+sensor): `NanomanipulatorPlant.noise` draws the seeded white noise of `NoisyOutputs` and, on
+an axis with ``τ > 0``, passes it through the first-order low-pass
+``n_k = a n_{k-1} + sqrt(1 - a²) w_k``, ``a = exp(-dt/τ)`` (corner ``1/(2π τ)``), started
+stationary (``n_0 = w_0``), so its rms stays ``noise_rms_mm``. ``τ = 0`` (the default)
+leaves the white draw untouched, bit for bit (`colour_noise`).
+
 **Integration**: classical RK4, command held over the sample (ZOH), ``rk4_substeps`` (6)
 sub-steps; with the nonlinearity and ``d`` off the sampled response equals the exact ZOH
 discretisation of eq. (9) to 2.8e-10 of the response amplitude over 1 s, driven at resonance.
@@ -61,6 +68,7 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from scipy.signal import lfilter
 
 import control
 from microfab.plants.base import CompiledPlant, LTIPlant, NoiseLevel, NoisyOutputs
@@ -87,6 +95,7 @@ __all__ = [
     "NanomanipulatorPlant",
     "beta_minimum",
     "check_beta",
+    "colour_noise",
     "drift_and_gain",
     "load_params",
     "nanomanipulator_twin",
@@ -96,6 +105,37 @@ __all__ = [
 
 
 _N_STATE = 5  # x1, x2, y1, y2 (mm, mm/s), sample counter k; then the phasors of d
+
+
+def colour_noise(white: np.ndarray, time_constant_s: np.ndarray, dt: float) -> np.ndarray:
+    """First-order low-pass colour of white noise per column, rms kept (module notes).
+
+    Parameters
+    ----------
+    white : numpy.ndarray
+        White noise, any unit, shape (n_samples, n_columns).
+    time_constant_s : numpy.ndarray
+        ``τ`` per column, s, shape (n_columns,); 0 leaves that column as it is.
+    dt : float
+        Sample time, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``white`` itself when every ``τ`` is 0, else a new array of its shape:
+        ``n_k = a n_{k-1} + sqrt(1 - a²) w_k``, ``a = exp(-dt/τ)``, ``n_0 = w_0``.
+    """
+    tau = np.asarray(time_constant_s, dtype=np.float64)
+    if not np.any(tau > 0.0) or white.shape[0] == 0:
+        return white
+    out = np.array(white, dtype=np.float64, copy=True)
+    for j, t in enumerate(tau):
+        if t > 0.0:
+            a = math.exp(-dt / t)
+            w = out[:, j]
+            tail, _ = lfilter([math.sqrt(1.0 - a * a)], [1.0, -a], w[1:], zi=[a * w[0]])
+            out[1:, j] = tail
+    return out
 
 
 @njit(cache=True)
@@ -215,6 +255,16 @@ class NanomanipulatorPlant(CompiledPlant, NoisyOutputs):
         self.noise_level = NoiseLevel(config.noise_rms_mm, "mm")
         self._phases = config.disturbance_phases()
 
+    def noise(self, n_samples: int, seed: int = 0) -> np.ndarray:
+        """Seeded sensor noise, mm, shape (n_samples, 2): white, coloured per axis.
+
+        `NoisyOutputs.noise` (``default_rng(seed).standard_normal((n, 2)) * rms``) passed
+        through `colour_noise` with ``noise_time_constant_s``; white (the same array) when
+        both time constants are 0.
+        """
+        white = super().noise(n_samples, seed)
+        return colour_noise(white, np.array(self.config.noise_time_constant_s), self.dt)
+
     def init(self) -> np.ndarray:
         """At rest at the origin, sample 0, the phasors of ``d`` at ``t = 0``."""
         ph = self._phases.ravel()
@@ -288,8 +338,7 @@ class NanomanipulatorPlant(CompiledPlant, NoisyOutputs):
     def noise_rms_mm(self) -> np.ndarray:
         """``noise_level.array()``: encoder noise rms per axis (x, y), mm, shape (2,).
 
-        Kept for `microfab.machines.nanomanipulator.calibration`'s fit; new code
-        reads `noise_level`.
+        Kept for callers of the former noise fit; new code reads `noise_level`.
         """
         return self.noise_level.array()
 

@@ -103,6 +103,7 @@ _PER_AXIS = {
     "stiffness_per_s2": ("1/s^2", check_positive),
     "disturbance_mm_s2": ("mm/s^2", check_nonnegative),
     "noise_rms_mm": ("mm", check_nonnegative),
+    "noise_time_constant_s": ("s", check_nonnegative),
 }
 
 
@@ -143,6 +144,9 @@ class NanomanipulatorParams:
         Seed of the sinusoids' random phases.
     noise_rms_mm : tuple of float
         Encoder noise rms per axis, mm (added by the simulators, not by the plant).
+    noise_time_constant_s : tuple of float
+        Colour of the encoder noise per axis: time constant ``τ`` of a first-order
+        low-pass (corner ``1/(2π τ)``), s; 0 = white (the neutral value).
 
     Raises
     ------
@@ -171,6 +175,7 @@ class NanomanipulatorParams:
     disturbance_weights: tuple[float, ...]
     disturbance_seed: int
     noise_rms_mm: tuple[float, float]
+    noise_time_constant_s: tuple[float, float]
 
     def __post_init__(self) -> None:
         fs = check_positive("sample_rate_hz", self.sample_rate_hz, "Hz")

@@ -35,8 +35,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AXIS_COLOURS",
+    "acceleration_table",
     "analysis_table",
     "contour_table",
+    "corner_label",
     "fig_axis_errors",
     "fig_ballbar",
     "fig_contour_time",
@@ -356,18 +358,79 @@ def contour_table(runs: Mapping[str, ContourRun]) -> Table:
     )  # fmt: skip
 
 
-def slowdown_table(slowdowns: Sequence[tuple[float, float]], speed_m_s: float) -> Table:
-    """Where a limited profile slowed on lap 1 (`ContourReference.slowdowns`), and how much."""
+def corner_label(row: Mapping[str, Any]) -> str:
+    """The corners one slow-down covers, in words (a row of ``slowdowns`` in `summary.json`)."""
+    corners = row["corners"]
+    if not corners:
+        words = "no corner (a curve)"
+    elif len(corners) == 1:
+        words = f"corner {corners[0]}"
+    else:
+        words = "corners " + "+".join(str(c) for c in corners) + " (too close to get back to speed)"
+    return words + (", start from rest" if row["from_rest"] else "")
+
+
+def slowdown_table(rows: Sequence[Mapping[str, Any]], speed_m_s: float, n_corners: int) -> Table:
+    """Where a limited profile slowed on lap 1, and at which of the drawing's corners.
+
+    ``rows``: the ``slowdowns`` of a laser job's ``summary.json`` (``at_mm``,
+    ``speed_mm_s``, ``corners``, ``corner_at_mm``, ``from_rest``; distances along the
+    path from the start point, mm); ``n_corners``: the drawing's corners.
+    """
+    named = sorted({c for r in rows for c in r["corners"]})
+    missing = [c for c in range(1, n_corners + 1) if c not in named]
     return Table(
         title=f"Slowed below 90 % of {speed_m_s * 1e3:g} mm/s on lap 1 (the v/a/j planner, "
         "seed 004 Table I)",
-        columns=("at [mm from the start point]", "slowest [mm/s]", "of the speed [%]"),
+        columns=(
+            "where",
+            "corners at [mm]",
+            "slowest at [mm]",
+            "slowest [mm/s]",
+            "of the speed [%]",
+        ),
         rows=[
-            (f"{where * 1e3:.4f}", f"{v * 1e3:.4g}", f"{100 * v / speed_m_s:.1f}")
-            for where, v in slowdowns
+            (
+                corner_label(r),
+                ", ".join(f"{c:.4f}" for c in r["corner_at_mm"]) or "-",
+                f"{r['at_mm']:.4f}",
+                f"{r['speed_mm_s']:.4g}",
+                f"{100 * r['speed_mm_s'] * 1e-3 / speed_m_s:.1f}",
+            )
+            for r in rows
         ],
-        note="The requested speed is kept where the limits allow it; a sharp corner is taken "
-        "from rest.",
+        note=f"The drawing has {n_corners} corner(s), numbered from the start point (corner "
+        "1 when the start point is one) along the path"
+        + (f"; not slowed below 90 %: {', '.join(map(str, missing))}" if missing else "")
+        + ". The requested speed is kept where the limits allow it; a sharp corner is taken "
+        "from rest; corners closer than the speed allows share one slow-down.",
+    )
+
+
+def acceleration_table(lowered: Mapping[str, Any]) -> Table:
+    """The acceleration a limited plan lowered for the continuous force (``summary.json``)."""
+    return Table(
+        title="Acceleration lowered for Table I's continuous force",
+        columns=(
+            "asked [m/s²]",
+            "used [m/s²]",
+            "axis",
+            "RMS force asked / used [N]",
+            "continuous force [N]",
+        ),
+        rows=[
+            (
+                f"{lowered['asked_m_s2']:g}",
+                f"{lowered['used_m_s2']:.3g}",
+                lowered["axis"],
+                f"{lowered['asked_rms_force_n']:.3g} / {lowered['used_rms_force_n']:.3g}",
+                f"{lowered['continuous_force_n']:g}",
+            )
+        ],
+        note="Planned at the asked acceleration, the RMS of M a on this axis over the whole "
+        "reference passed the continuous force (seed 004 Table I); the planner lowered its "
+        f"acceleration limit ({lowered['plans']} plans) until it held. The lap is slower "
+        "than at the asked acceleration.",
     )
 
 

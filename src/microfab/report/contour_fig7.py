@@ -18,6 +18,7 @@ from microfab.report.tables import Table
 __all__ = [
     "FIG7_SPEED_QUANTITY",
     "fig7_cause_table",
+    "fig7_paper_table",
     "fig7_speed_figure",
     "fig7_study_table",
     "mode_name",
@@ -65,6 +66,70 @@ def fig7_study_table(rows: Sequence[Mapping[str, Any]]) -> Table:
         "on both laws; 'friction off': the twin's LuGre friction switched off (cogging, "
         "cable, saturation and quantisation stay). Speeds beyond Table I's 3 N RMS or "
         "5 m/s² are refused, not run.",
+    )
+    return labelled(table, Shows((FIG7_SPEED_QUANTITY,)))
+
+
+def _paper_cell(row: Mapping[str, Any] | None) -> str:
+    if row is None:
+        return ""
+    if "refused" in row:
+        return "refused (Table I)"
+    return f"{row['without_nm']:.3g} / {row['with_nm']:.3g} ({row['ratio']:.2f}x)"
+
+
+def fig7_paper_table(
+    paper: Sequence[Mapping[str, Any]],
+    resolution: Sequence[Mapping[str, Any]] = (),
+    twin: Sequence[Mapping[str, Any]] = (),
+) -> Table:
+    """Fig. 7 on the paper's model, beside the calibrated twin's prediction, per speed.
+
+    ``paper`` and ``resolution``: `microfab.experiments.seed004_laser.fig7.fig7_paper_model`'s
+    rows (equations alone; with Table I's 10 nm encoder); ``twin``: `fig7_study`'s rows of
+    the same circle with the calibrated twin (friction on, no feedforward).
+    """
+    by_speed: dict[float, dict[str, Mapping[str, Any]]] = {}
+    for name, rows in (("paper", paper), ("resolution", resolution), ("twin", twin)):
+        for r in rows:
+            by_speed.setdefault(float(r["speed_mm_s"]), {})[name] = r
+    out = []
+    for v in sorted(by_speed):
+        g = by_speed[v]
+        tw = g.get("twin")
+        ref = g.get("paper", {}).get("reference_nm")
+        out.append((
+            f"{v:g}",
+            _paper_cell(g.get("paper")),
+            _paper_cell(g.get("resolution")),
+            "" if tw is None else _cell(tw),
+            "" if ref is None else f"{ref:.2g}",
+        ))  # fmt: skip
+    cols = ["speed [mm/s]", "paper's model (eqs. 2-15)"]
+    keep = [0, 1]
+    if resolution:
+        cols.append("with Table I's 10 nm encoder")
+        keep.append(2)
+    if twin:
+        cols.append("calibrated twin (prediction)")
+        keep.append(3)
+    cols.append("reference's own [nm]")
+    keep.append(4)
+    table = Table(
+        title="Fig. 7 on the paper's model: max contour error after lap 1 [nm], without / "
+        "with the contour compensator (ratio), 100 µm circle",
+        columns=tuple(cols),
+        rows=[tuple(r[k] for k in keep) for r in out],
+        note="Paper's model: seed 004 eq. (2) per axis with M = M_n = 0.6 kg (Table I), "
+        "K_f = K_fn, F_l = 0 (the seed names no disturbance of its §IV.D simulation), the "
+        "controllers of eqs. (3)-(4) ('Response1') and (3)-(15) ('Response2'), noise off. "
+        "The seed's claim, issue 45's target: the ratio rises with speed and is <= 1.2 at "
+        "0.5 mm/s. At low speed both runs sit on the reference's own rounding (last "
+        "column); above it the compensator cuts the dynamic lag by a near-constant factor. "
+        "With the 10 nm encoder the floor is the count, and the compensator moves an error "
+        "below one count either way. The calibrated twin is a prediction: its low-speed "
+        "error is the LuGre friction's quadrant glitches, which the compensator removes "
+        "best where they last longest, so its ratio falls with speed (seed004_laser/fig7.py).",
     )
     return labelled(table, Shows((FIG7_SPEED_QUANTITY,)))
 

@@ -61,8 +61,10 @@ from microfab.trajectory.spline import TimeSpline
 
 __all__ = [
     "PROFILES",
+    "AccelerationLowered",
     "ContourMotion",
     "ContourReference",
+    "Slowdown",
     "check_force",
     "check_reference",
     "contour_path",
@@ -85,6 +87,9 @@ PROFILES: tuple[str, ...] = ("constant", "limited", "auto")
 _GRID_PER_LAP = 400
 #: Most plans of a "limited" profile lowering the acceleration for the continuous force.
 _FORCE_REPLANS = 6
+#: Tangent turn that makes a junction a corner in the slow-down table, rad (assumed: a
+#: milliradian, `microfab.geometry.path.Path.corners`' default).
+_CORNER_ANGLE_RAD = 1e-3
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -142,6 +147,63 @@ class ContourMotion:
         return max(0.02, 3.0 * self.speed_m_s / (0.5 * MAX_ACCELERATION_M_S2))
 
 
+@dataclass(frozen=True, kw_only=True)
+class Slowdown:
+    """One stretch of lap 1 that ran slower than the requested speed.
+
+    Attributes
+    ----------
+    at_m : float
+        Arc length from the start point at the stretch's slowest sample, m.
+    speed_m_s : float
+        The slowest speed there, m/s.
+    corners : tuple of int
+        The drawing's corners inside the stretch, numbered from 1 along the path from the
+        start point (`corner_numbers`), in the order the stage meets them. Two or more:
+        the corners are closer than the speed allows (the stage did not get back to
+        speed between them). Empty: a slow-down on a curve, or the start from rest on a
+        smooth contour.
+    from_rest : bool
+        The stretch holds the start of lap 1 from rest (or the stop after it).
+    """
+
+    at_m: float
+    speed_m_s: float
+    corners: tuple[int, ...] = ()
+    from_rest: bool = False
+
+
+@dataclass(frozen=True, kw_only=True)
+class AccelerationLowered:
+    """The acceleration a "limited" plan lowered to keep Table I's continuous force.
+
+    Attributes
+    ----------
+    asked_m_s2 : float
+        The acceleration limit planned first (Table I's 5 m/s²).
+    used_m_s2 : float
+        The limit of the plan used, m/s².
+    axis : str
+        The axis whose RMS force passed the continuous force at ``asked_m_s2``.
+    asked_rms_force_n : float
+        That axis's RMS force ``M a`` over the plan at ``asked_m_s2``, N.
+    used_rms_force_n : float
+        Its RMS force over the plan used, N.
+    continuous_force_n : float
+        The continuous force it is held to (Table I: 3 N).
+    plans : int
+        Plans made (the first included).
+    """
+
+    asked_m_s2: float
+    used_m_s2: float
+    axis: str
+    asked_rms_force_n: float
+    used_rms_force_n: float
+    continuous_force_n: float
+    plans: int
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class ContourReference:
     """A sampled reference along a closed contour.
@@ -161,6 +223,8 @@ class ContourReference:
     lap_starts, lap_ends : numpy.ndarray
         Sample index where each lap starts and where it ends (exclusive), shape (laps,);
         at constant speed every lap has the same number of samples.
+    acceleration_lowered : AccelerationLowered or None
+        What a "limited" plan lowered for the continuous force (None: nothing lowered).
     """
 
     path: Path
@@ -169,6 +233,7 @@ class ContourReference:
     trajectory: Trajectory
     lap_starts: np.ndarray
     lap_ends: np.ndarray
+    acceleration_lowered: AccelerationLowered | None = None
 
     @property
     def lap_samples(self) -> int:
@@ -180,8 +245,16 @@ class ContourReference:
         """Samples from the start of the first lap to the end of the last."""
         return slice(int(self.lap_starts[0]), int(self.lap_ends[-1]))
 
-    def slowdowns(self, below: float = 0.9) -> list[tuple[float, float]]:
-        """Where the laps ran slower than the requested speed, and how slow.
+    def corner_positions(self) -> np.ndarray:
+        """Arc length of the drawing's corners from the start point, m, ascending.
+
+        Corner ``k`` of `Slowdown.corners` is entry ``k - 1`` (the start point, when it is
+        a corner, is corner 1).
+        """
+        return np.sort(np.asarray(self.path.corners(_CORNER_ANGLE_RAD), dtype=float))
+
+    def slowdowns(self, below: float = 0.9) -> list[Slowdown]:
+        """Where lap 1 ran slower than the requested speed, how slow, and at which corners.
 
         Parameters
         ----------
@@ -191,26 +264,49 @@ class ContourReference:
 
         Returns
         -------
-        list of (float, float)
-            For each stretch of lap 1 that ran slower: its arc length from the start
-            point at the slowest sample (m) and the slowest speed there (m/s); empty at
-            constant speed.
+        list of Slowdown
+            One per stretch of lap 1 that ran slower, in the order of the lap (a stretch
+            over the end of the lap and its start is one, listed first); empty at
+            constant speed. Every corner of the drawing the stage slowed at is named
+            in exactly one of them; corners closer than the speed allows share one.
         """
         sl = self.lap(0)
         v = np.hypot(*np.asarray(self.trajectory.velocity)[sl].T)
         s = np.asarray(self.trajectory.s)[sl] if self.trajectory.s is not None else None
         slow = v < below * self.motion.speed_m_s
-        out: list[tuple[float, float]] = []
         if s is None or not slow.any():
-            return out
+            return []
+        arc = s - s[0]
+        length = float(self.path.length)
+        corners = self.corner_positions()
+        # a corner belongs to a stretch that reaches it to within a hundredth of a sample's
+        # travel at the requested speed (assumed: the samples straddle every corner)
+        tol = 0.01 * self.motion.speed_m_s * self.dt + 1e-12 * length
         edges = np.flatnonzero(np.diff(np.concatenate([[0], slow.astype(np.int8), [0]])))
-        for a, b in zip(edges[::2], edges[1::2], strict=True):
+        spans = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+        wrap = len(spans) > 1 and slow[0] and slow[-1]
+
+        def inside(a: int, b: int) -> list[int]:
+            lo, hi = arc[a] - tol, arc[b - 1] + tol
+            return [k + 1 for k, c in enumerate(corners) if lo <= c <= hi or lo <= c + length <= hi]
+
+        starts_at_rest = self.motion.profile == "limited"  # lap 1 starts from rest (notes)
+        out: list[Slowdown] = []
+        for a, b in spans:
             k = a + int(np.argmin(v[a:b]))
-            out.append((float(s[k] - s[0]), float(v[k])))
-        if len(out) > 1 and slow[0] and slow[-1]:  # the lap wraps: one stretch at its start
-            last = out.pop()
-            if last[1] < out[0][1]:
-                out[0] = (0.0, last[1])
+            out.append(Slowdown(at_m=float(arc[k]), speed_m_s=float(v[k]),
+                                corners=tuple(inside(a, b)),
+                                from_rest=starts_at_rest and a == 0))  # fmt: skip
+        if wrap:  # the lap wraps: the stretch at its end and the one at its start are one
+            last, first = out.pop(), out[0]
+            slowest = last if last.speed_m_s < first.speed_m_s else first
+            named = tuple(dict.fromkeys(last.corners + first.corners))
+            out[0] = Slowdown(
+                at_m=0.0 if slowest is last else first.at_m,
+                speed_m_s=slowest.speed_m_s,
+                corners=named,
+                from_rest=first.from_rest,
+            )
         return out
 
     @property
@@ -381,7 +477,13 @@ def _limited_reference(
     laps = concatenate([path] * m.laps)
     table = MachineLimits.seed004_stage()
     accel = MAX_ACCELERATION_M_S2
+    first: tuple[int, float] | None = None  # axis and RMS force of the first plan, if too high
+    rms = np.zeros(2)
+    plans = 0
+    used = accel
     for _ in range(_FORCE_REPLANS):
+        plans += 1
+        used = accel
         limits = replace(table, acceleration=(accel, accel))
         try:
             res = time_optimal(
@@ -400,6 +502,8 @@ def _limited_reference(
         excess = float(np.max(rms)) / CONTINUOUS_FORCE_N
         if excess <= 1.0:
             break
+        if first is None:
+            first = (int(np.argmax(rms)), float(np.max(rms)))
         accel *= 0.95 / excess**2
     traj = res.trajectory
     s = np.asarray(traj.s)
@@ -415,6 +519,17 @@ def _limited_reference(
         trajectory=traj,
         lap_starts=bounds[:-1].astype(np.int64),
         lap_ends=bounds[1:].astype(np.int64),
+        acceleration_lowered=None
+        if first is None
+        else AccelerationLowered(
+            asked_m_s2=MAX_ACCELERATION_M_S2,
+            used_m_s2=used,
+            axis="xy"[first[0]],
+            asked_rms_force_n=first[1],
+            used_rms_force_n=float(rms[first[0]]),
+            continuous_force_n=CONTINUOUS_FORCE_N,
+            plans=plans,
+        ),
     )
 
 

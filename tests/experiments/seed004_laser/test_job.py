@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -92,7 +93,15 @@ def test_a_job_runs_resumes_its_sweep_and_writes_its_report(tmp_path):
     assert report.exists() and (out / "ballbar.png").exists()
     assert (out / "focus.png").exists() and (out / "disturbance.png").exists()
     assert "Autofocus" in report.read_text(encoding="utf-8")
-    assert (out / "summary.json").exists()
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    # the autofocus against the project's targets, stated (measured 5.90 µm, 1.53x: not met)
+    assert summary["focus_targets"]["ptp_met"] == (summary["focus_targets"]["ptp_um"] <= 5.0)
+    g = summary["focus_targets"]
+    assert ("NOT met" in report.read_text(encoding="utf-8")) == (
+        not (g["ptp_met"] and g["ratio_met"])
+    )
+    # a circle at its speed: no slow-down, no acceleration lowered
+    assert summary["slowdowns"] == [] and summary["acceleration_lowered"] is None
 
 
 def test_reproduction_prints_the_seed_beside_ours():
@@ -101,8 +110,8 @@ def test_reproduction_prints_the_seed_beside_ours():
     res = rep.run(rep.parse_options({"speed_study": False}), no_progress)
     d = res.data
     assert d is not None
-    # every row labelled; the Fig. 3 peak is the calibrated scale's (fitted), the share
-    # within 0.5 µm and Fig. 7 are predicted
+    # every row labelled; the Fig. 3 peak and the share within 0.5 µm are fitted (jointly,
+    # calibrate laser), Fig. 7 predicted
     main = res.tables[0]
     origin = {row[0]: lab.origin for row, lab in zip(main.rows, main.labels, strict=True)}
     assert origin["Fig. 3 peak, x / y [µm]"] == "fitted"
@@ -110,11 +119,17 @@ def test_reproduction_prints_the_seed_beside_ours():
 
     fitted = {q for lab in main.labels for q in lab.fitted}
     assert fitted == set(CALIBRATION.targets)  # every target shown, and labelled fitted
-    assert origin["Fig. 3 within ±0.5 µm, x / y [%]"] == "predicted"
+    assert origin["Fig. 3 within ±0.5 µm, x / y [%]"] == "fitted"
     assert all(len(t.labels) == len(t.rows) for t in res.tables)
     assert abs(d["depth_of_focus_um"] - 54.0) <= 0.05 * 54.0
     for v in d["fig7_nm"].values():
         assert v["preview-dob"] >= 2.0 * v["contour"]
+    # Fig. 7 on the paper's model (its direction: tests/experiments/seed004_laser/test_fig7.py)
+    assert [r["speed_mm_s"] for r in d["fig7_paper_model"]] == [0.5, 1.0, 2.0, 5.0, 10.0, 20.0]
+    assert origin[next(k for k in origin if k.startswith("Fig. 7 on the paper's model"))] == (
+        "predicted"
+    )
+    assert d["focus_targets"]["ptp_max_um"] == 5.0 and "ratio_met" in d["focus_targets"]
 
 
 def test_a_one_lap_job_without_sweep_writes_its_report(tmp_path):
@@ -151,6 +166,10 @@ def test_a_sharp_star_runs_at_20_mm_s_through_microfab_run(tmp_path: Path) -> No
     assert "Slowed below 90 % of 20 mm/s" in res.output
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["profile"] == "limited" and len(summary["slowdowns"]) == 10
+    # each of the star's ten corners named, once (issue 45), and the force check stated
+    assert [r["corners"] for r in summary["slowdowns"]] == [[k] for k in range(1, 11)]
+    assert summary["corners"] == 10 and "acceleration_lowered" in summary
+    assert "corner 1, start from rest" in res.output
     assert 0 < max(summary["contour_lap_max_nm"]) < 3000  # measured 1437 nm
     job.write_text(body.format(profile='profile = "constant"\n'))
     res = CliRunner().invoke(app, ["run", str(job), "--out", str(tmp_path / "c")])
@@ -234,6 +253,15 @@ def test_the_fig7_study_table_and_note_read_the_studys_rows():
     assert table.columns[2:] == ("1 mm/s", "10 mm/s", "20 mm/s", "ours is")
     assert all(lab.origin == "predicted" for lab in table.labels)
     assert [r[1] for r in table.rows] == ["friction on", "friction on, feedforward", "friction off"]
-    assert table.rows[0][2].startswith("530 / 117") and table.rows[0][4] == "refused (Table I)"
+    # the cells and the note are the study's rows as printed (not recomputed)
+    first = next(r for r in rows if r["friction"] and not r["friction_ff"])
+    cell = f"{first['without_nm']:.0f} / {first['with_nm']:.0f}"
+    assert table.rows[0][2].startswith(cell) and table.rows[0][4] == "refused (Table I)"
+    low = [r for r in rows if r["speed_mm_s"] <= 2.0 and r.get("with_nm") is not None]
+    on = max(
+        abs(r["without_nm"] - r["with_nm"]) for r in low if r["friction"] and not r["friction_ff"]
+    )
+    off = max(abs(r["without_nm"] - r["with_nm"]) for r in low if not r["friction"])
     note = _study_note(rows)
-    assert "up to 413 nm on the calibrated twin" in note and "2 nm with the friction off" in note
+    assert f"up to {on:.0f} nm on the calibrated twin" in note
+    assert f"{off:.0f} nm with the friction off" in note

@@ -15,8 +15,8 @@ from microfab.machines.laser_stage.focus import FocusJob, focus_study, play_focu
 from microfab.plants.lmw_focus import lmw_focus_twin
 from microfab.sim.loop import simulate
 
-PTP_MAX_M = 5e-6  # issue: continuous law's steady peak-to-peak <= 5 µm
-RATIO_MIN = 5.0  # issue: ... and <= 1/5 of the discontinuous law's
+PTP_MAX_M = paper.PROJECT_CHOICES["autofocus_ptp_max_m"]  # continuous law's band <= 5 µm
+RATIO_MIN = paper.PROJECT_CHOICES["autofocus_ratio_min"]  # ... and <= 1/5 of the discontinuous
 
 
 @pytest.fixture(scope="module")
@@ -53,9 +53,11 @@ def test_the_search_reverses_at_the_start_and_falls_down_the_detector(study):
 @pytest.mark.xfail(
     raises=AssertionError,
     strict=True,
-    reason="issues 15, 33: continuous law <= 5 µm peak to peak; measured 5.90 µm on the "
-    "twin (z stage lag 5 ms at 2 mm/s: the reversal overruns). Twin unchanged: the seed "
-    "cites its set-up ([23]) without a detector model or z-stage data to correct it from",
+    reason="issues 15, 33, 45: continuous law <= 5 µm peak to peak; measured 5.90 µm on "
+    "the twin for noise seeds 0, 1 and 6 (5.80 µm noise off): the law's own stall-reversal "
+    "cycle (z stage lag 5 ms at 2 mm/s: the reversal overruns). Twin unchanged: the seed "
+    "cites its set-up ([23]) without a detector model or z-stage data to source other "
+    "constants from, and they are not fitted to this target",
 )
 def test_continuous_law_steady_band(study):
     assert study.continuous.steady_ptp_m <= PTP_MAX_M
@@ -64,13 +66,28 @@ def test_continuous_law_steady_band(study):
 @pytest.mark.xfail(
     raises=AssertionError,
     strict=True,
-    reason="issues 15, 33: continuous law's steady peak to peak <= 1/5 of the "
+    reason="issues 15, 33, 45: continuous law's steady peak to peak <= 1/5 of the "
     "discontinuous law's; measured 5.90 against 9.00 µm (1.53x): the detector's noise is "
-    "far below h, so the relay seldom chatters, and both laws keep the same stall-reversal "
-    "cycle. Twin unchanged: no citable detector model (the seed's [23] set-up is undescribed)",
+    "856x below h on ln q at focus, so the relay never chatters, and both laws keep the "
+    "same stall-reversal cycle (noise x10: 1.45x, x100: 2.5x; never 5x). Twin unchanged: "
+    "no citable detector model (the seed's [23] set-up is undescribed)",
 )
 def test_continuous_law_cuts_the_oscillation_fivefold(study):
     assert study.ptp_ratio >= RATIO_MIN
+
+
+def test_the_band_is_the_law_s_own_cycle_not_the_noise(study):
+    """Issue 45: the band does not depend on the detector noise seed. Not a dropped noise
+    (the traces differ from the 43rd sample on): the noise (2.3e-5) and one converter
+    count (1.1e-4) lie far below the law's h (0.019) on ln q at focus, so neither ever
+    triggers a reversal; the cycle is set by V, τ, ρ and h alone."""
+    s = study.summary()
+    assert s["h_over_noise"] > 100 and s["h_lnq"] > 10 * s["count_lnq"], s  # 856x, 176x
+    other = run_focus(FocusJob(duration_s=1.6, settle_window_s=0.5, seed=1))
+    same = run_focus(FocusJob(duration_s=1.6, settle_window_s=0.5, seed=0))
+    assert not np.array_equal(other.detector, same.detector)  # the noise is there
+    # the band agrees to one z encoder count (0.1 µm)
+    assert abs(other.steady_ptp_m - same.steady_ptp_m) <= 1.01e-7
 
 
 def test_continuous_law_is_steadier_than_the_discontinuous(study):

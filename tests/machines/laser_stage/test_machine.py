@@ -47,3 +47,15 @@ def test_controller_laws():
              for law in laser_stage.LAWS}  # fmt: skip
     assert names["contour"] == "ContourCompensator" and names["cross-coupled"] == "CrossCoupled"
     assert names["pd"] == names["preview"] == "PreviewDOB"
+
+
+def test_the_paper_model_is_eq_2_with_the_table_one_mass_and_no_disturbance():
+    """`TwinSettings.paper_model`: M = M_n = 0.6 kg on both axes (seed 004 Table I), K_f =
+    K_fn, no friction, cogging, cable or saturation; the 10 nm encoder only when
+    ``nonlinear`` is on."""
+    p = laser_stage.twin(TwinSettings(paper_model=True))
+    c = p.config
+    assert c.mass_kg == c.nominal_mass_kg == (laser_stage.PAPER_MASS_KG,) * 2
+    assert c.force_constant_n_per_a == c.nominal_force_constant_n_per_a
+    assert c.quantisation and not (c.friction or c.cogging or c.cable or c.saturation)
+    assert not laser_stage.twin(TwinSettings(paper_model=True, nonlinear=False)).config.quantisation

@@ -83,9 +83,16 @@ PROJECT_CHOICES = {
     "fig7_gain_min": 2.0,  # after lap 1 the correction cuts the max contour error >= 2x
     "fig7_low_speed_m_s": 1e-3,  # at <= 1 mm/s the correction changes it by < 50 nm
     "fig7_low_speed_change_m": 50e-9,
+    # issue 45, on the paper's model: the ratio without / with rises over 0.5-20 mm/s and
+    # is <= 1.2 at 0.5 mm/s (the seed's "almost no significant contribution" at low speed)
+    "fig7_ratio_low_max": 1.2,
+    "fig7_ratio_speeds_mm_s": (0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
     "fig3_fraction_below_typical": 0.95,  # "generally lower than 0.5 µm": >= 95 % of samples
     "fig3_peak_tolerance": 0.25,  # peak 0.8 µm ± 25 %
     "autofocus_start_m": 500e-6,  # autofocus starts 500 µm off focus (assumed)
+    # Fig. 6 has no numbers: the project's autofocus targets (issues 15, 33, 45)
+    "autofocus_ptp_max_m": 5e-6,  # continuous law's steady peak-to-peak of z <= 5 µm
+    "autofocus_ratio_min": 5.0,  # ... and <= 1/5 of the discontinuous law's
 }
 
 

@@ -22,6 +22,7 @@ laws on a fixed part, and the continuous law on a tilted one.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
@@ -255,10 +256,41 @@ class FocusStudy:
         w = round(r.job.settle_window_s / r.plant.dt)
         return float(np.max(np.abs(r.z[-w:] - r.focus[-w:])))
 
+    def resolution_against_h(self) -> dict[str, float]:
+        """The detector's noise and count against the law's ``h``, on ``ln q`` at focus.
+
+        Why the steady band does not depend on the noise seed: the law reverses when
+        ``σ`` reaches ``h`` (`microfab.control.focus`), and at focus one volt of the
+        detector is worth ``1 / (r (−ln r) full_scale)`` of ``ln q`` (``r = exp(−2
+        (a/w0)²)``, `dark_field_area`). When the noise and the converter count are
+        hundreds of times below ``h`` there, they never trigger a reversal: the band is
+        the law's own stall-reversal cycle (``V``, ``τ``, ``ρ``, ``h``), the same for
+        any seed to the z encoder's count.
+
+        Returns
+        -------
+        dict
+            ``h_lnq`` (the continuous law's ``h``), ``noise_lnq`` and ``count_lnq`` (the
+            detector noise rms and one converter count at focus), ``h_over_noise``.
+        """
+        plant = self.continuous.plant
+        c = plant.config
+        law = focus_law(plant, continuous=True)
+        r = math.exp(-2.0 * c.stop_radius_ratio**2)
+        per_volt = 1.0 / (r * -math.log(r) * c.full_scale_v)
+        noise = float(plant.noise_level.rms[0]) * per_volt
+        return {
+            "h_lnq": law.h,
+            "noise_lnq": noise,
+            "count_lnq": c.adc_count_v * per_volt,
+            "h_over_noise": law.h / noise if noise > 0 else float("inf"),
+        }
+
     def summary(self) -> dict[str, float | None]:
-        """The figures, JSON-ready (µm, s)."""
+        """The figures, JSON-ready (µm, s; ``ln q`` for the resolution against ``h``)."""
         tilt_err = self.tilted_max_error_m()
         return {
+            **self.resolution_against_h(),
             "depth_of_focus_um": self.continuous.depth_of_focus_m * 1e6,
             "start_um": self.continuous.plant.config.start_position_m * 1e6,
             "continuous_entered_s": self.continuous.entered_s,

@@ -93,6 +93,7 @@ from microfab.trajectory.contour_laps import (
 __all__ = [
     "DATA_FILES",
     "LAWS",
+    "PAPER_MASS_KG",
     "ContourJob",
     "ContourPlay",
     "ControlSettings",
@@ -113,6 +114,10 @@ __all__ = [
 
 #: The packaged data files the twins are built from (every value with its source).
 DATA_FILES = ("lmw_stage.toml", "lmw_focus.toml")
+
+#: Seed 004 Table I: single stage mass 0.6 kg, the ``M_n`` of eq. (2) on both axes of the
+#: paper's own simulation (`TwinSettings.paper_model`).
+PAPER_MASS_KG = 0.6
 
 #: Controller laws `ControlSettings.law` may name (module notes).
 LAWS = ("preview-dob", "contour", "preview", "pd", "cross-coupled")
@@ -167,6 +172,16 @@ class TwinSettings:
         robustness check.
     params_file : str or None
         Another twin data file.
+    paper_model : bool
+        The model seed 004 states for its own simulation (§IV.D) instead of the twin:
+        eq. (2) per axis with ``M = M_n`` = Table I's single stage mass (`PAPER_MASS_KG`)
+        on both axes and ``K_f = K_fn`` (the data file's nominal), ``F_l = 0`` (the seed
+        names no disturbance of its simulation and gives no value for one), no friction,
+        cogging, cable or saturation. What stays of the twin: the data file's current
+        amplifier lag (assumed; eq. (2) says "current controlled amplifiers", and the
+        kernel needs a lag below Nyquist), its sample time, and with ``nonlinear`` on
+        only Table I's 10 nm encoder resolution. ``friction`` and ``disturbance_scale``
+        are ignored; ``mass_error`` still sets the controller's nominal apart.
     """
 
     seed: int = 0
@@ -176,6 +191,7 @@ class TwinSettings:
     disturbance_scale: float | None = None
     mass_error: float = 0.0
     params_file: str | None = None
+    paper_model: bool = False
 
     def __post_init__(self) -> None:
         check_int("seed", self.seed, 0)
@@ -264,6 +280,16 @@ class ContourJob:
 def twin(settings: TwinSettings | None = None) -> LMWStage:
     """The stage twin of ``settings`` (`stage`: built once per distinct settings)."""
     tw = settings or TwinSettings()
+    if tw.paper_model:
+        k_fn = stage(tw.params_file, ideal=True).config.nominal_force_constant_n_per_a
+        return stage(
+            tw.params_file,
+            ideal=True,
+            quantisation=tw.nonlinear,
+            mass_kg=(PAPER_MASS_KG, PAPER_MASS_KG),
+            nominal_mass_kg=(PAPER_MASS_KG, PAPER_MASS_KG),
+            force_constant_n_per_a=tuple(k_fn),
+        )
     over: dict[str, Any] = {}
     if tw.disturbance_scale is not None:
         over["disturbance_scale"] = tw.disturbance_scale

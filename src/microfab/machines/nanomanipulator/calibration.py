@@ -1,52 +1,96 @@
-"""``microfab calibrate nanomanipulator``: fit the twin's sensor noise to seed 001 §4.2.
+"""``microfab calibrate nanomanipulator``: seed 001's twin fitted jointly on the calibration core.
 
-Seed 001 §4.2 (Fig. 13a) reports axial tracking errors of 485.8 nm (x) and 885.8 nm (y)
-on the four-circle job; it names no noise, disturbance or sensor. The twin's
-``noise_rms_mm`` per axis is the one free magnitude fitted here: `fit_sensor_noise` runs
-the job with a noise (the caller's ``run``; `fit_noise` runs the nanomanipulator job,
-`microfab.machines.nanomanipulator.job.run_job`), compares the axial
-RMS of the error the sensor shows over every circle period
-(`microfab.measure.circle_tracking.tracking_metrics`) with the seed's, and updates the
-noise per axis by the secant method on ``(σ², RMS²)``. White noise adds to the squared
-RMS, ``RMS² ≈ c + g σ²``, so the secant converges in two or three runs. The contour RMS
-(769.5 nm, Fig. 13b) is not fitted: it is the prediction the fit is checked on.
+Seed 001 §4.2 (``shared/seeds/001_44fdd8e8f587fd7f.txt``) measures, on the four-circle job,
+axial tracking errors of 485.8 nm (x) and 885.8 nm (y) (Fig. 13a), a contour error of
+769.5 nm RMS (Fig. 13b) and a laser that switches on once the error "reaches submicrons in
+3–4 periods". It names no sensor, noise or disturbance beyond eq. (1)'s bound ``d0``.
 
-`write_noise` stores the fitted values in a copy of the twin's data file (or the packaged
-one) with a source line naming this command.
+`problem` declares these as a `microfab.calibrate.CalibrationProblem` on the job itself
+(`microfab.machines.nanomanipulator.job.run_job`, whatever controller it runs):
+
+* **fit**: the axial RMS of x and y (the only two numbers the twin is chosen on);
+* **check** (held back, predicted): the contour RMS and the gate period.
+
+The free parameters are what the seed leaves open about the error's sources: the sensor
+noise rms per axis, its colour (one first-order low-pass time constant for both axes,
+`microfab.plants.nanomanipulator.colour_noise`) and the disturbance bound ``d0`` per axis.
+Five parameters for two fit targets: the fit is not unique, and the sensitivity says which
+parameter pins which target; the checks say whether the point chosen predicts the rest.
+
+**Why the contour RMS is hard to reach** (measured, see the module's tests and the issue's
+note). The metrics are taken on the measured error. An error source that is independent of
+the circle's phase (sensor noise of any colour, correlated between the axes or not; the
+disturbance, whose sinusoids are incommensurate with the 1 Hz circles) adds the same to
+the contour's mean square as the mean of the axial mean squares; over whole periods a
+correlation between the axes cancels (``mean(sin 2θ) = 0``). So with such sources alone the
+contour RMS stays at or below ``sqrt((485.8² + 885.8²)/2) = 714.3`` nm once the axial RMS
+are fitted, while seed 001 measures 769.5 nm: the paper's error is biased towards the
+radius, which only an error locked to the path's phase (a radius or gain error, not a lag)
+can give. The twin's own path-locked error is the first period's start-up transient, which
+is mostly tangential (a lag) and pulls the contour below 714 nm.
+
+Measured on the job of this commit (the RBF + plug-in RC job; `DEFAULT_BUDGET`, seed 0):
+the axial RMS are met (485.8 / 885.8 nm) and the contour RMS is predicted at 606 nm
+(−21 %); over the 570 points of that run and of a diagnostic run with the contour RMS as a
+third fit target, the contour never exceeded 0.98 of ``sqrt((ax² + ay²)/2)`` (0.90 where
+every gate opened by period 4; seed 001: 769.5 / 714.3 = 1.077), and every point with both
+axial RMS within ±3 % had a contour RMS of 602-627 nm. The structure this points to is a
+path-locked radial error (a radius or gain error at the circle's frequency, which Fig. 13b's
+"relatively uniform" contour error over the phase also suggests), not the noise's spectrum.
+
+`write_twin` writes a calibration's values into a twin data file through
+`microfab.calibrate.twin_file.write_calibrated` (sources naming the targets and checks).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Mapping
 from pathlib import Path
 
+from microfab.calibrate import CalibrationProblem, CalibrationResult, FreeParameter, Target
+from microfab.calibrate.twin_file import TwinKey, write_calibrated
 from microfab.core.provenance import Calibration, quantity
-from microfab.core.validate import check_in_range, check_int
-from microfab.io.atomic import atomic_write_text
-from microfab.machines.nanomanipulator.job import JobConfig, make_twin, run_job
+from microfab.data import read_text as read_data_text
+from microfab.machines.nanomanipulator.job import JobConfig, job_reference, make_twin, run_job
 from microfab.measure.circle_tracking import SEED_AXIAL_RMS_NM as _SEED_AXIAL
-from microfab.measure.circle_tracking import SEED_CONTOUR_RMS_NM
-from microfab.plants.sourced_toml import update_sourced
+from microfab.measure.circle_tracking import SEED_CONTOUR_RMS_NM, SEED_GATE_PERIODS
 
 __all__ = [
+    "AXIAL_TOLERANCE",
     "CALIBRATION",
+    "CONTOUR_TOLERANCE",
+    "DATA_FILE",
+    "DEFAULT_BUDGET",
     "SEED_AXIAL_RMS_NM",
     "SEED_CONTOUR_RMS_NM",
-    "NoiseFit",
+    "TWIN_KEYS",
     "axial_quantity",
-    "fit_noise",
-    "fit_sensor_noise",
-    "write_noise",
+    "evaluate",
+    "free_parameters",
+    "problem",
+    "targets",
+    "write_twin",
 ]
 
-#: seed 001 §4.2 / Fig. 13a: axial tracking errors (x, y), nm, read as RMS: the fit's
-#: target (`microfab.measure.circle_tracking.SEED_AXIAL_RMS_NM`, as a pair). The contour
-#: RMS of Fig. 13b, `SEED_CONTOUR_RMS_NM` (769.5 nm), is the check.
+#: seed 001 §4.2 / Fig. 13a: axial tracking errors (x, y), nm, read as RMS: the fit targets.
 SEED_AXIAL_RMS_NM = (_SEED_AXIAL["x"], _SEED_AXIAL["y"])
-_TARGET = SEED_AXIAL_RMS_NM
+#: The twin data file the calibration writes.
+DATA_FILE = "nanomanipulator_twin.toml"
+#: Relative tolerance of the axial RMS fit targets: assumed ±3 %. The paper reports one
+#: run with no spread; the twin's own spread over noise seeds 0-7 is 0.12 % (x and y, one
+#: standard deviation, measured on the default job), so ±3 % is set by the paper's unknown
+#: repeatability, not by the twin's noise.
+AXIAL_TOLERANCE = 0.03
+#: Relative tolerance of the contour RMS check: ±15 % (issue 45's acceptance).
+CONTOUR_TOLERANCE = 0.15
+#: Points the search may ask for by default. One job run costs about 0.45 s on one core
+#: (measured, default job, numba compiled), so the search, the sensitivity (10 points)
+#: and a conflict sweep of the same size stay within about 5 minutes on one core.
+DEFAULT_BUDGET = 240
 
 
 def axial_quantity(axis: str) -> str:
@@ -54,189 +98,219 @@ def axial_quantity(axis: str) -> str:
     return quantity("001", "§4.2", "axial RMS", axis)
 
 
-#: The fit's targets: the axial RMS of both axes (the contour RMS is its check).
+CONTOUR_QUANTITY = quantity("001", "§4.2", "contour RMS")
+GATE_QUANTITY = quantity("001", "§4.2", "gate period")
+
+#: The fit's targets (the axial RMS of both axes) and the checks held back (the contour
+#: RMS and the gate period).
 CALIBRATION = Calibration(
     command="microfab calibrate nanomanipulator",
-    data_file="nanomanipulator_twin.toml",
+    data_file=DATA_FILE,
     targets=frozenset(axial_quantity(a) for a in ("x", "y")),
-    what="sensor noise RMS per axis",
+    what="sensor noise rms per axis and its colour, disturbance bound d0 per axis",
+    checks=frozenset((CONTOUR_QUANTITY, GATE_QUANTITY)),
 )
-#: One run of the job: ``run(noise_nm) -> (axial RMS (x, y) nm, contour RMS nm)``.
-JobRunner = Callable[[tuple[float, float]], tuple[tuple[float, float], float]]
+
+#: Where each free parameter goes in the twin's data file (nm -> mm, ms -> s).
+TWIN_KEYS = (
+    TwinKey("noise_x_nm", "axes.x", "noise_rms_mm", scale=1e-6),
+    TwinKey("noise_y_nm", "axes.y", "noise_rms_mm", scale=1e-6),
+    TwinKey("noise_time_constant_ms", "axes.x", "noise_time_constant_s", scale=1e-3),
+    TwinKey("noise_time_constant_ms", "axes.y", "noise_time_constant_s", scale=1e-3),
+    TwinKey("d0_x_mm_s2", "axes.x", "disturbance_mm_s2"),
+    TwinKey("d0_y_mm_s2", "axes.y", "disturbance_mm_s2"),
+)
 
 
-@dataclass(frozen=True, kw_only=True)
-class NoiseFit:
-    """Result of `fit_noise`.
+def targets() -> tuple[Target, ...]:
+    """The seed 001 §4.2 targets: axial RMS x, y (fit); contour RMS, gate period (check)."""
+    lo, hi = SEED_GATE_PERIODS
+    out = [
+        Target(
+            axial_quantity(ax),
+            value,
+            AXIAL_TOLERANCE * value,
+            "nm",
+            f"seed 001 §4.2 / Fig. 13a: axial tracking error {ax} {value} nm (read as RMS); "
+            "tolerance assumed ±3 % (the paper gives no spread)",
+        )
+        for ax, value in zip("xy", SEED_AXIAL_RMS_NM, strict=True)
+    ]
+    out.append(
+        Target(
+            CONTOUR_QUANTITY,
+            SEED_CONTOUR_RMS_NM,
+            CONTOUR_TOLERANCE * SEED_CONTOUR_RMS_NM,
+            "nm",
+            "seed 001 §4.2 / Fig. 13b: contour error 769.5 nm RMS; ±15 % (issue 45's acceptance)",
+            role="check",
+        )
+    )
+    out.append(
+        Target(
+            GATE_QUANTITY,
+            (lo + hi) / 2.0,
+            (hi - lo) / 2.0,
+            "period",
+            "seed 001 §4.2: the laser is switched on once the error 'reaches submicrons in "
+            "3-4 periods'; ours: the period in which the gate opened (1-based), the latest "
+            "over the circles (the job waits for its slowest circle), met at 3 or 4 (a twin "
+            "converging faster or slower than the paper's is not met); NaN when a gate never "
+            "opened",
+            role="check",
+        )
+    )
+    return tuple(out)
 
-    Attributes
-    ----------
-    noise_rms_nm : tuple of float
-        Fitted sensor noise (x, y), nm.
-    axial_rms_nm : tuple of float
-        Axial RMS of the job with that noise (x, y), nm (seed 001: 485.8, 885.8).
-    contour_rms_nm : float
-        Contour RMS of the same run, nm: the prediction (seed 001: 769.5 nm).
-    runs : int
-        Job runs used.
-    history : tuple of tuple
-        ``(noise_x, noise_y, axial_x, axial_y)`` per run, nm.
-    """
 
-    noise_rms_nm: tuple[float, float]
-    axial_rms_nm: tuple[float, float]
-    contour_rms_nm: float
-    runs: int
-    history: tuple[tuple[float, float, float, float], ...]
-
-    @property
-    def axial_error_pct(self) -> tuple[float, float]:
-        """Axial RMS against the seed's, %, per axis."""
-        return tuple(100.0 * (a / t - 1.0) for a, t in zip(self.axial_rms_nm, _TARGET, strict=True))  # type: ignore[return-value]
-
-    @property
-    def contour_error_pct(self) -> float:
-        """Contour RMS (the prediction) against the seed's 769.5 nm, %."""
-        return 100.0 * (self.contour_rms_nm / SEED_CONTOUR_RMS_NM - 1.0)
-
-
-def fit_sensor_noise(
-    run: JobRunner,
-    start_nm: tuple[float, float],
-    *,
-    rtol: float = 0.01,
-    max_runs: int = 8,
-    progress: Callable[[int, tuple[float, float], tuple[float, float]], None] | None = None,
-) -> NoiseFit:
-    """Fit the sensor noise per axis so the job's axial RMS meets seed 001 §4.2.
-
-    Parameters
-    ----------
-    run : callable
-        ``run((σx, σy)) -> ((axial x, axial y), contour)``: the job run with that sensor
-        noise, nm in and out.
-    start_nm : tuple of float
-        Noise of the first run (x, y), nm (the twin's).
-    rtol : float
-        Stop when both axial RMS are within this relative error of the seed's, in
-        (0, 0.2] (default 1 %, inside the issue's ±5 %).
-    max_runs : int
-        Most job runs, >= 2.
-    progress : callable, optional
-        ``progress(run, noise_nm, axial_nm)`` after each run.
-
-    Returns
-    -------
-    NoiseFit
-
-    Raises
-    ------
-    ValueError
-        When the axial RMS does not reach the seed's within ``max_runs`` (the message gives
-        the last values), or the errors without noise already exceed the seed's (no noise
-        can fit).
-    """
-    tol = check_in_range("rtol", rtol, 0.0, 0.2, low_closed=False)
-    check_int("max_runs", max_runs, 2, "runs")
-    sigma = [float(start_nm[0]), float(start_nm[1])]  # nm
-    hist: list[tuple[float, float, float, float]] = []
-
-    def run_once(s: list[float]) -> tuple[tuple[float, float], float]:
-        ax, contour = run((s[0], s[1]))
-        ax = (float(ax[0]), float(ax[1]))
-        hist.append((s[0], s[1], ax[0], ax[1]))
-        if progress:
-            progress(len(hist), (s[0], s[1]), ax)
-        return ax, float(contour)
-
-    axial, contour = run_once(sigma)
-    prev: tuple[list[float], tuple[float, float]] | None = None
-    while not all(abs(a / t - 1.0) <= tol for a, t in zip(axial, _TARGET, strict=True)):
-        if len(hist) >= max_runs:
-            raise ValueError(
-                f"noise fit did not converge in {max_runs} runs: noise {sigma[0]:.1f} / "
-                f"{sigma[1]:.1f} nm gives axial RMS {axial[0]:.1f} / {axial[1]:.1f} nm "
-                f"(seed {_TARGET[0]} / {_TARGET[1]}); raise max_runs or rtol"
-            )
-        new = []
-        for a in range(2):
-            t2, s2, a2 = _TARGET[a] ** 2, sigma[a] ** 2, axial[a] ** 2
-            if prev is None or prev[1][a] == axial[a]:
-                s2_next = s2 * t2 / a2  # RMS² ∝ σ² to start
-            else:
-                ps2, pa2 = prev[0][a] ** 2, prev[1][a] ** 2
-                g = (a2 - pa2) / (s2 - ps2) if s2 != ps2 else a2 / s2
-                s2_next = s2 + (t2 - a2) / g if g > 0 else s2 * t2 / a2
-            if s2_next <= 0:
-                raise ValueError(
-                    f"axis {'xy'[a]}: the error without noise already exceeds the seed's "
-                    f"{_TARGET[a]} nm axial RMS; no sensor noise can fit it (lower the "
-                    "disturbance or retune the controller)"
-                )
-            new.append(math.sqrt(s2_next))
-        prev = (sigma, axial)
-        sigma = new
-        axial, contour = run_once(sigma)
-    return NoiseFit(
-        noise_rms_nm=(sigma[0], sigma[1]),
-        axial_rms_nm=axial,
-        contour_rms_nm=contour,
-        runs=len(hist),
-        history=tuple(hist),
+def free_parameters() -> tuple[FreeParameter, ...]:
+    """The free parameters: noise rms x, y; noise time constant; ``d0`` x, y."""
+    noise = (
+        "assumed: from 10 nm (far below the twin's noise-free axial error, 320 / 446 nm "
+        "measured) to 2000 nm (above the largest axial RMS of seed 001, 885.8 nm)"
+    )
+    d0 = (
+        "assumed: 1 to 4000 mm/s² (a static-equivalent d0/a0 of 0.01 µm to 40 µm), from "
+        "negligible to past the point where the §4.2 gates never open (measured: 100x the "
+        "file's 20 / 40 mm/s²); seed 001 eq. (1) only bounds |d(t)| <= d0"
+    )
+    return (
+        FreeParameter("noise_x_nm", 10.0, 2000.0, "nm", noise, log=True),
+        FreeParameter("noise_y_nm", 10.0, 2000.0, "nm", noise, log=True),
+        FreeParameter(
+            "noise_time_constant_ms",
+            0.03,
+            300.0,
+            "ms",
+            "assumed: first-order low-pass of the sensor noise, from nearly white (0.03 ms: "
+            "corner 5.3 kHz, past the 5 kHz Nyquist rate of the assumed 10 kHz loop) to "
+            "drift-like (300 ms: corner 0.53 Hz, below the 1 Hz circles); one for both "
+            "axes (the same sensor type)",
+            log=True,
+        ),
+        FreeParameter("d0_x_mm_s2", 1.0, 4000.0, "mm/s²", d0, log=True),
+        FreeParameter("d0_y_mm_s2", 1.0, 4000.0, "mm/s²", d0, log=True),
     )
 
 
-def fit_noise(
+def _with_parameters(config: JobConfig, values: Mapping[str, float]) -> JobConfig:
+    """``config`` with the twin's noise, colour and ``d0`` replaced by ``values``."""
+    tau = float(values["noise_time_constant_ms"]) * 1e-3
+    twin = dataclasses.replace(
+        config.twin,
+        noise_rms_mm=(float(values["noise_x_nm"]) * 1e-6, float(values["noise_y_nm"]) * 1e-6),
+        noise_time_constant_s=(tau, tau),
+        disturbance_mm_s2=(float(values["d0_x_mm_s2"]), float(values["d0_y_mm_s2"])),
+    )
+    return dataclasses.replace(config, twin=twin)
+
+
+def evaluate(values: Mapping[str, float], *, config: JobConfig) -> dict[str, float]:
+    """The job's metrics at one parameter set (the problem's model; module-level, picklable).
+
+    Parameters
+    ----------
+    values : mapping of str to float
+        ``noise_x_nm``, ``noise_y_nm`` (nm), ``noise_time_constant_ms`` (ms),
+        ``d0_x_mm_s2``, ``d0_y_mm_s2`` (mm/s²).
+    config : JobConfig
+        The job; its twin's noise and disturbance are replaced by ``values``.
+
+    Returns
+    -------
+    dict of str to float
+        Target id -> model value: axial RMS x, y and contour RMS (nm) of the measured
+        error over every circle's periods, and the latest gate period over the circles
+        (NaN when a gate never opened). Every value is NaN when the loop diverged (the job
+        refuses non-finite errors with a ValueError).
+    """
+    names = [t.name for t in targets()]
+    try:
+        m = run_job(_with_parameters(config, values)).metrics()
+    except ValueError:  # a diverging loop: the gate refuses its non-finite errors
+        return dict.fromkeys(names, math.nan)
+    gates = m.gate_period
+    gate = math.nan if any(g is None for g in gates) else float(max(g for g in gates if g))
+    return {
+        axial_quantity("x"): float(m.axial_rms_nm[0]),
+        axial_quantity("y"): float(m.axial_rms_nm[1]),
+        CONTOUR_QUANTITY: float(m.contour_rms_nm),
+        GATE_QUANTITY: gate,
+    }
+
+
+def _file_text(config: JobConfig) -> str:
+    p = config.twin.params_file
+    return read_data_text(DATA_FILE) if p is None else Path(p).read_text(encoding="utf-8")
+
+
+def problem(
     config: JobConfig | None = None,
     *,
-    rtol: float = 0.01,
-    max_runs: int = 8,
-    progress: Callable[[int, tuple[float, float], tuple[float, float]], None] | None = None,
-) -> NoiseFit:
-    """Fit ``noise_rms_mm`` per axis so the job's axial RMS meets seed 001 §4.2.
+    source: str | Path | None = None,
+    contour_fit: bool = False,
+) -> CalibrationProblem:
+    """Seed 001 §4.2 as a calibration problem on the nanomanipulator job.
 
     Parameters
     ----------
     config : JobConfig, optional
-        The job (default `JobConfig()`); its twin's noise is the start and must be on.
-    rtol, max_runs, progress
-        As `fit_sensor_noise`.
+        The job (default `JobConfig()`, seed 001 §4.2's four circles); its sensor noise and
+        disturbance must be on.
+    source : path-like, optional
+        The twin data file to calibrate (replaces ``config.twin.params_file``).
+    contour_fit : bool
+        Diagnostic: the contour RMS becomes a fit target too (its conflict with the axial
+        RMS is then reported by `microfab.calibrate.calibrate`); never for a twin written.
 
     Returns
     -------
-    NoiseFit
+    CalibrationProblem
+        Targets (`targets`), free parameters (`free_parameters`), the model `evaluate` on
+        ``config`` and an identity holding the twin file's and the job's digests.
 
     Raises
     ------
     ValueError
-        When the noise is off in ``config``, or as `fit_sensor_noise`.
+        When the job's sensor noise or disturbance is off (they are what is fitted), or
+        its path goes beyond the stage's travel or limits.
     """
     cfg = config or JobConfig()
-    if not cfg.twin.noise:
-        raise ValueError("fit_noise needs the sensor noise on ([twin] noise = true)")
-
-    def run(s: tuple[float, float]) -> tuple[tuple[float, float], float]:
-        tw = dataclasses.replace(cfg.twin, noise_rms_mm=(s[0] * 1e-6, s[1] * 1e-6))
-        m = run_job(dataclasses.replace(cfg, twin=tw)).metrics()
-        return (float(m.axial_rms_nm[0]), float(m.axial_rms_nm[1])), float(m.contour_rms_nm)
-
-    start = [float(v) * 1e6 for v in make_twin(cfg.twin).noise_rms_mm()]  # nm
-    return fit_sensor_noise(
-        run, (start[0], start[1]), rtol=rtol, max_runs=max_runs, progress=progress
+    if source is not None:
+        cfg = dataclasses.replace(cfg, twin=dataclasses.replace(cfg.twin, params_file=str(source)))
+    if not (cfg.twin.noise and cfg.twin.disturbance):
+        raise ValueError(
+            "the nanomanipulator calibration fits the sensor noise and the disturbance: "
+            "run it with [twin] noise = true and disturbance = true"
+        )
+    tgt = targets()
+    if contour_fit:
+        tgt = tuple(
+            dataclasses.replace(t, role="fit") if t.name == CONTOUR_QUANTITY else t for t in tgt
+        )
+    job_reference(cfg, make_twin(cfg.twin))  # a path the stage refuses fails here, not as NaN
+    digest = hashlib.sha256(_file_text(cfg).encode()).hexdigest()
+    return CalibrationProblem(
+        tgt,
+        free_parameters(),
+        functools.partial(evaluate, config=cfg),
+        identity=f"{DATA_FILE} sha256 {digest}; job {cfg.fingerprint()}",
     )
 
 
-def write_noise(fit: NoiseFit, path: str | Path, *, source: str | Path | None = None) -> Path:
-    """Write a twin data file with the fitted noise (atomically).
+def write_twin(
+    result: CalibrationResult, path: str | Path, *, source: str | Path | None = None
+) -> Path:
+    """Write a twin data file with the calibrated values (atomically).
 
     Parameters
     ----------
-    fit : NoiseFit
-        The fit.
+    result : CalibrationResult
+        A calibration of `problem` (its parameters hold every `TWIN_KEYS` parameter).
     path : path-like
         Where to write (may be ``source`` itself).
     source : path-like, optional
-        The data file to copy (default the packaged ``nanomanipulator_twin.toml``).
+        The data file to start from (default the packaged ``nanomanipulator_twin.toml``).
 
     Returns
     -------
@@ -246,19 +320,14 @@ def write_noise(fit: NoiseFit, path: str | Path, *, source: str | Path | None = 
     Raises
     ------
     ValueError
-        If the file does not hold ``noise_rms_mm`` and its source in ``[axes.x]`` and
-        ``[axes.y]`` (`microfab.plants.sourced_toml.update_sourced`); nothing is written.
+        A result without one of the parameters, or a file without one of the keys and
+        their sources (`microfab.plants.sourced_toml.update_sourced`); nothing is written.
     """
-    updates = {
-        (f"axes.{ax}", "noise_rms_mm"): (
-            float(f"{fit.noise_rms_nm[a] * 1e-6:.4e}"),
-            "calibrated: `microfab calibrate nanomanipulator` fits the sensor noise so that "
-            f"the four-circle job's axial RMS is seed 001 §4.2's {_TARGET[a]} nm ({ax}); got "
-            f"{fit.axial_rms_nm[a]:.1f} nm in {fit.runs} runs",
-        )
-        for a, ax in enumerate("xy")
-    }
-    out = update_sourced(source, "nanomanipulator_twin.toml", updates)
-    p = Path(path)
-    atomic_write_text(p, out)
-    return p
+    return write_calibrated(
+        result,
+        TWIN_KEYS,
+        command=CALIBRATION.command,
+        data_file=DATA_FILE,
+        path=path,
+        source=source,
+    )

@@ -171,8 +171,8 @@ class ChunkRunner:
         self.chunks = chunk_spans(self.segs, self.N)
         rms = self.plant.noise_level.array() if config.twin.noise else np.zeros(2)
         self.noise_rms = np.asarray(rms, dtype=float)
-        rng = np.random.default_rng(config.twin.seed)
-        self.noise = rng.standard_normal(self.ref.position.shape) * self.noise_rms[None, :]
+        n = self.ref.position.shape[0]  # the twin's seeded noise, coloured as its file says
+        self.noise = plant.noise(n, config.twin.seed) if config.twin.noise else np.zeros((n, 2))
         self.pid = PID.tuned(
             self.plant.continuous_models(), bandwidth_hz=config.pid_bandwidth_hz, dt=dt
         )

@@ -102,6 +102,9 @@ class TwinSettings:
         `microfab calibrate nanomanipulator` fitted).
     disturbance_mm_s2 : tuple of float, optional
         Disturbance bound ``d0`` per axis, mm/s², replacing the data file's.
+    noise_time_constant_s : tuple of float, optional
+        Sensor noise colour per axis (first-order low-pass time constant, s; 0 white),
+        replacing the data file's.
     params_file : str, optional
         Another twin data file (default ``data/nanomanipulator_twin.toml``).
     """
@@ -112,6 +115,7 @@ class TwinSettings:
     noise: bool = True
     noise_rms_mm: tuple[float, float] | None = None
     disturbance_mm_s2: tuple[float, float] | None = None
+    noise_time_constant_s: tuple[float, float] | None = None
     params_file: str | None = None
 
     def __post_init__(self) -> None:
@@ -119,7 +123,11 @@ class TwinSettings:
         for name in ("nonlinear", "disturbance", "noise"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        for name, unit in (("noise_rms_mm", "mm"), ("disturbance_mm_s2", "mm/s²")):
+        for name, unit in (
+            ("noise_rms_mm", "mm"),
+            ("disturbance_mm_s2", "mm/s²"),
+            ("noise_time_constant_s", "s"),
+        ):
             v = getattr(self, name)
             if v is not None:
                 if len(v) != 2:
@@ -229,6 +237,8 @@ def make_twin(settings: TwinSettings) -> NanomanipulatorPlant:
         over["noise_rms_mm"] = settings.noise_rms_mm
     if settings.disturbance_mm_s2 is not None:
         over["disturbance_mm_s2"] = settings.disturbance_mm_s2
+    if settings.noise_time_constant_s is not None:
+        over["noise_time_constant_s"] = settings.noise_time_constant_s
     return nanomanipulator.twin(
         settings.params_file,
         seed=settings.seed,
