@@ -466,7 +466,8 @@ EXCLUDED: dict[str, str] = {
     "reproduce droplet-fig4 --set workers=2": "13 breakup runs (24 s with 10 µs each); no "
     "setting cuts the points; seed 003 tests run the reproduction's points",
     "reproduce droplet-fig4": "as `reproduce droplet-fig4 --set workers=2`",
-    "calibrate galvo": "12 s of fits; tests/machines calibrate the galvo twin",
+    "calibrate galvo": "600 model runs, 11 s of CPU; tests/cli/test_calibrate_galvo.py runs "
+    "it on the least budget",
     "reproduce nanomanipulator --json s001.json": "40 s, no setting shortens it; "
     "tests/experiments/seed001_nanomanipulator run its parts",
     "reproduce nanomanipulator --out s001": "as `reproduce nanomanipulator --json s001.json`",

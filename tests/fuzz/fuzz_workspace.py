@@ -85,8 +85,10 @@ NANO_PATTERN = {"n_circles": 1, "period_s": 0.05, "periods": 3, "pause_s": 0.02,
 NANO_DT = 1 / 2000
 
 RECIPES: dict[str, Recipe] = {
-    "calibrate galvo": Recipe(("calibrate", "galvo", "--write", "galvo_cal.toml"),
-                              outputs=("galvo_cal.toml",)),
+    "calibrate galvo": Recipe(
+        ("calibrate", "galvo", "--budget", "19", "--conflict-budget", "0", "--out",
+         "galvo_run", "--json", "galvo_cal.json", "--write", "galvo_cal.toml"),
+        outputs=("galvo_run", "galvo_cal.json", "galvo_cal.toml")),
     "calibrate laser": Recipe(("calibrate", "laser", "--budget", "17", "--conflict-budget", "0",
                                "--write", "laser_twin.toml"),
                               outputs=("laser_twin.toml",)),

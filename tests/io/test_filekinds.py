@@ -47,7 +47,6 @@ ALLOWED = {
     # package data, read from the installed package (digests in the run fingerprints)
     "microfab.experiments.catalog:default_job": "package data (the default job)",
     "microfab.machines.provenance:parameter_source": "package data (twin tables)",
-    "microfab.plants.galvo:default_galvo_axes": "package data (galvo_twin.toml)",
     "microfab.experiments.seed002_stage.shipped:recheck": "package data (shipped record)",
     "microfab.experiments.seed002_stage.shipped:main": "package data (shipped record)",
     # internal resume files of the run store, which refuses stale or damaged state first

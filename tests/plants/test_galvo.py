@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 import tomllib
 from importlib import resources
 
@@ -58,6 +59,27 @@ def test_default_axes_load_calibration_file(axes):
         assert ax.gain_ratio == float(cal[name]["gain_ratio"])
         assert ax.noise_rms_v == float(cal[name]["noise_rms_v"])
         assert ax.noise_rms_v > 0
+
+
+def test_calibration_file_is_sourced_and_read_from_a_path(tmp_path):
+    text = resources.files("microfab.data").joinpath("galvo_twin.toml").read_text()
+    data = tomllib.loads(text)["axes"]
+    for name in ("x", "y"):
+        for key in ("rigid_pole_hz", "gain_ratio", "noise_rms_v"):
+            assert data[name][f"{key}_source"].startswith("calibrated: `microfab calibrate galvo`")
+    copy = tmp_path / "twin.toml"
+    copy.write_text(re.sub(r"(?m)^rigid_pole_hz = .*$", "rigid_pole_hz = 99.0", text, count=1))
+    assert default_galvo_axes(copy)["x"].rigid_pole_hz == 99.0
+    # a value without its source is refused, naming the file, the axis and the key
+    lines = [ln for ln in text.splitlines() if not ln.startswith("gain_ratio_source")]
+    copy.write_text("\n".join(lines))
+    with pytest.raises(ValueError, match=r"axes\.x\].*gain_ratio has no gain_ratio_source"):
+        default_galvo_axes(copy)
+    # a value the axis refuses names the file and the axis
+    y = text.index("[axes.y]")
+    copy.write_text(text[:y] + re.sub(r"(?m)^noise_rms_v = .*$", "noise_rms_v = -1.0", text[y:]))
+    with pytest.raises(ValueError, match=r"twin\.toml \[axes\.y\].*noise_rms_v"):
+        default_galvo_axes(copy)
 
 
 def test_nominal_design_crosses_over_at_2khz(axes):

@@ -143,6 +143,19 @@ class _Evaluator:
     def one(self, u: Sequence[float]) -> np.ndarray:
         return self.batch([u])[0]
 
+    def seen(self) -> list[tuple[tuple[float, ...], np.ndarray]]:
+        """``(point, model)`` of every point this run asked for, in order.
+
+        Not the whole memo: a resumed run's memo also holds the points of phases still to
+        come, and choosing from them would make the resumed run ask for other points.
+        """
+        out = []
+        for k in self.visited:
+            model = self.memo.get(k)
+            assert model is not None
+            out.append((k, model))
+        return out
+
 
 def _population(budget: int, n: int) -> tuple[int, int]:
     """DE's population and generations after the first within ``budget`` points, n params."""
@@ -196,8 +209,10 @@ def _minimise(
         best.append((cost_of(ev.one(start)), start))
         polish, budget = True, budget - 1
     elif de_sized(budget, n, polish) < 0 and len(ev.memo):
-        # Too few points for a population: polish from the best point stored.
-        start = min(ev.memo.items(), key=lambda item: cost_of(item[1]))[0]
+        # Too few points for a population: polish from the best point this run asked for
+        # (the conflict sweep's single optima), else the best one stored.
+        pool = ev.seen() if ev.visited else list(ev.memo.items())
+        start = min(pool, key=lambda item: cost_of(item[1]))[0]
         best.append((cost_of(ev.one(start)), start))
         polish, budget = True, budget - 1
     begin = ev.requested
@@ -281,7 +296,7 @@ def _conflict(
         # A level of the sweep: polished from the best point stored for its objective.
         # At least about 5 polish iterations of n + 1 points each, whatever the budget.
         each = max(6 * (len(u) + 1), (budget - 2 * ends) // len(levels))
-        start = min(ev.memo.items(), key=lambda item: float(np.sum(vec(item[1]) ** 2)))[0]
+        start = min(ev.seen(), key=lambda item: float(np.sum(vec(item[1]) ** 2)))[0]
         _minimise(ev, vec, each, seed + 1 + k, polish, start=start)
 
     def pair(model: np.ndarray) -> np.ndarray:
@@ -290,7 +305,7 @@ def _conflict(
 
     run(lambda m: pair(m)[:1], 0)  # A alone
     run(lambda m: pair(m)[1:], 1)  # B alone
-    front = pareto_filter([pair(m) for _, m in ev.memo.items()])
+    front = pareto_filter([pair(m) for _, m in ev.seen()])
     b_lo = float(np.min(np.abs(front[:, 1])))
     b_hi = float(np.abs(front[np.argmin(np.abs(front[:, 0])), 1]))
     levels = list(np.linspace(b_lo, b_hi, SWEEP_POINTS))
@@ -304,7 +319,7 @@ def _conflict(
             return np.array([ra, hinge * max(0.0, abs(rb) - eps)])
 
         run(vec, 2 + k)
-    front = pareto_filter([pair(m) for _, m in ev.memo.items()])
+    front = pareto_filter([pair(m) for _, m in ev.seen()])
     sampled = []
     for eps in sorted(set(levels)):
         ok = front[np.abs(front[:, 1]) <= eps + 1e-12]

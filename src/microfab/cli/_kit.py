@@ -161,6 +161,7 @@ RESUMING_COMMANDS = frozenset(
         "droplet sensitivity",
         "slm build",
         "identify ann",
+        "calibrate galvo",
         "calibrate laser",
         "calibrate nanomanipulator",
     }

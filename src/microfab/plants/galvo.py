@@ -17,17 +17,17 @@ calibrated against seed Table 1 by `microfab.machines.galvo.calibration`.
 from __future__ import annotations
 
 import functools
-import tomllib
+import os
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 import control
 from microfab.core.validate import check_nonnegative, check_positive
-from microfab.data import read_text as read_data_text
 from microfab.plants.lti import DiscreteLTI, discretize, with_input_delay
+from microfab.plants.sourced_toml import read_sourced
 
-__all__ = ["FS_HZ", "GalvoAxis", "default_galvo_axes"]
+__all__ = ["CALIBRATED_KEYS", "FS_HZ", "GalvoAxis", "default_galvo_axes"]
 
 FS_HZ = 1e6  # seed 000 §3.1: controllers run at 1 Msps
 NOMINAL_GAIN = (2 * np.pi * 2000.0) ** 2  # K in V/(V s^2); cancels in the loop (see module doc)
@@ -165,22 +165,35 @@ def _seed_axes() -> dict[str, GalvoAxis]:
     }
 
 
-def default_galvo_axes() -> dict[str, GalvoAxis]:
+#: The calibrated values of each axis in ``data/galvo_twin.toml`` (``[axes.x]``, ``[axes.y]``).
+CALIBRATED_KEYS = ("rigid_pole_hz", "gain_ratio", "noise_rms_v")
+
+
+def default_galvo_axes(path: str | os.PathLike[str] | None = None) -> dict[str, GalvoAxis]:
     """The calibrated x and y galvo twins (values from ``data/galvo_twin.toml``).
 
     The file is written by ``microfab calibrate galvo`` (see
-    `microfab.machines.galvo.calibration`); it records the fitted values and their
-    residuals.
+    `microfab.machines.galvo.calibration`); every value carries its ``_source``, which
+    names the targets it was fitted to.
+
+    Parameters
+    ----------
+    path : path-like, optional
+        Another file of the same layout; the packaged one when omitted.
+
+    Raises
+    ------
+    ValueError
+        A value without its ``_source``, an unknown or missing key, a value the axis
+        refuses; the message names the file.
     """
     axes = _seed_axes()
-    text = read_data_text("galvo_twin.toml")
-    cal = tomllib.loads(text)
+    values = read_sourced(path, "galvo_twin.toml", {}, CALIBRATED_KEYS, tuple(axes))
     out = {}
-    for name, ax in axes.items():
-        vals = cal["axes"][name]
-        out[name] = ax.with_calibration(
-            rigid_pole_hz=float(vals["rigid_pole_hz"]),
-            gain_ratio=float(vals["gain_ratio"]),
-            noise_rms_v=float(vals["noise_rms_v"]),
-        )
+    for i, (name, ax) in enumerate(axes.items()):
+        try:
+            out[name] = ax.with_calibration(**{k: float(values[k][i]) for k in CALIBRATED_KEYS})
+        except (TypeError, ValueError) as exc:
+            where = path if path is not None else "data/galvo_twin.toml"
+            raise ValueError(f"{where} [axes.{name}]: {exc}") from exc
     return out
