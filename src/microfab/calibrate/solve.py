@@ -415,7 +415,7 @@ def calibrate(
             # The sweep may find a point that meets every fit target (the search's budget
             # was short, not the model): then that point is the answer and there is no
             # conflict to report.
-            met = [k for k, m in memo.items() if bool(np.all(np.abs(ev.residuals(m)[fit]) <= 1.0))]
+            met = [k for k, m in ev.seen() if bool(np.all(np.abs(ev.residuals(m)[fit]) <= 1.0))]
             if met:
                 u = min(met, key=lambda k: float(np.sum(ev.residuals(memo.get(k))[fit] ** 2)))
                 ev.phase = "sensitivity"
