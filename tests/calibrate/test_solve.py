@@ -191,3 +191,15 @@ def test_process_pool_asks_for_the_same_points():
     pooled = calibrate(consistent(), budget=100, seed=5, workers=2)
     assert pooled.requested == serial.requested
     assert pooled.values == pytest.approx(serial.values, rel=1e-12)
+
+
+def test_the_conflict_pair_is_the_worst_target_and_what_pulls_against_it():
+    from microfab.calibrate.solve import conflict_pair
+
+    # a (worst) and c both depend on x and pull it opposite ways; b (second worst)
+    # depends on y alone: the conflict is a against c, not a against b
+    r = np.array([3.0, 2.0, -1.5])
+    jac = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])
+    assert conflict_pair(r, jac, [0, 1, 2]) == (0, 2)
+    # nothing opposes a: the second worst
+    assert conflict_pair(np.array([3.0, 2.0, 1.0]), jac, [0, 1, 2]) == (0, 1)

@@ -279,14 +279,40 @@ def _sensitivity(ev: _Evaluator, u: tuple[float, ...]) -> np.ndarray:
     return np.stack([(r[2 * j] - r[2 * j + 1]) / spans[j] for j in range(n)], axis=1)
 
 
+def conflict_pair(r: np.ndarray, jac: np.ndarray, fit: Sequence[int]) -> tuple[int, int]:
+    """The worst fit target and the fit target that pulls hardest against it.
+
+    At a least-squares answer the fit targets' pulls ``r_i ∇r_i`` (``jac`` rows, shape
+    (m, n), scaled by the residuals ``r`` (m,)) balance; the counterpart of the worst target
+    ``a`` is the target whose pull opposes ``a``'s most (the most negative
+    ``r_i r_a ∇r_i · ∇r_a``), not merely the second worst: with three fit targets or more
+    the second worst may depend on other parameters. Falls back to the second worst when
+    no pull opposes ``a``'s.
+    """
+    order = sorted(fit, key=lambda i: -abs(r[i]))
+    a = order[0]
+    pull = np.nan_to_num(r[:, None] * jac)
+    opposed = [(float(pull[i] @ pull[a]), i) for i in order[1:]]
+    against = [x for x in opposed if x[0] < 0.0]
+    b = min(against)[1] if against else order[1]
+    return a, b
+
+
 def _conflict(
-    ev: _Evaluator, u: tuple[float, ...], budget: int, seed: int, polish: bool
+    ev: _Evaluator,
+    u: tuple[float, ...],
+    budget: int,
+    seed: int,
+    polish: bool,
+    jac: np.ndarray,
 ) -> Conflict | None:
-    """The Pareto front of the two worst fit targets at ``u``, by an epsilon-constraint sweep."""
+    """The Pareto front of the worst fit target at ``u`` and its counterpart (`conflict_pair`).
+
+    Found by an epsilon-constraint sweep.
+    """
     problem = ev.problem
     fit = list(problem.fit_index)
-    r_u = np.abs(ev.residuals(ev.one(u)))
-    a, b = sorted(fit, key=lambda i: -r_u[i])[:2]
+    a, b = conflict_pair(ev.residuals(ev.one(u)), jac, fit)
     ends = budget // 5  # each single optimum: global search and polish
 
     def run(vec: Callable[[np.ndarray], np.ndarray], k: int) -> None:
@@ -411,7 +437,7 @@ def calibrate(
         conflict = None
         if np.any(r > 1.0) and len(fit) >= 2 and conflict_budget >= 1:
             ev.phase = "conflict"
-            conflict = _conflict(ev, u, conflict_budget, seed, polish)
+            conflict = _conflict(ev, u, conflict_budget, seed, polish, jac)
             # The sweep may find a point that meets every fit target (the search's budget
             # was short, not the model): then that point is the answer and there is no
             # conflict to report.
