@@ -26,7 +26,7 @@ from microfab.measure.contour import AxisErrors, ContourErrors
 from microfab.measure.contour_trace import TraceAnalysis
 from microfab.report.canvas import new_figure
 from microfab.report.tables import Table
-from microfab.trajectory.contour_laps import CONTINUOUS_FORCE_N, PEAK_FORCE_N
+from microfab.trajectory.force_check import CONTINUOUS_FORCE_N, PEAK_FORCE_N
 
 if TYPE_CHECKING:
     from microfab.control.margins import AxisMargins

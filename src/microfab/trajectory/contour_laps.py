@@ -57,6 +57,7 @@ from microfab.core.limits import LimitViolation, MachineLimits, check_trajectory
 from microfab.core.validate import check_int, check_nonnegative, check_positive
 from microfab.geometry.path import Path
 from microfab.trajectory.base import Trajectory
+from microfab.trajectory.force_check import CONTINUOUS_FORCE_N, check_force
 from microfab.trajectory.spline import TimeSpline
 
 __all__ = [
@@ -76,8 +77,6 @@ _MIN_KNOTS_PER_LAP = 64  # assumed: a coarser lap would show the spline's polygo
 #: and its arrays grow with it; 1e6 knots: tens of MB): 1 µm knots allow 1 m of laps.
 MAX_KNOTS = 1_000_000
 MAX_ACCELERATION_M_S2 = 5.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
-PEAK_FORCE_N = 12.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
-CONTINUOUS_FORCE_N = 3.0  # seed 004 Table I (experiments/seed004_laser/paper.py)
 #: How the laps are timed: "constant" (seed 004 eq. (6): constant tangential speed on the
 #: time-based spline), "limited" (the v/a/j planner, the speed as a cap) or "auto"
 #: (constant when that is within the limits, else limited).
@@ -557,54 +556,6 @@ def _pad_rest(traj: Trajectory, rest_s: float) -> Trajectory:
         at_rest=True,
         s=s,
     )
-
-
-def check_force(
-    acceleration: np.ndarray,
-    masses_kg: tuple[float, float],
-    dt: float,
-    *,
-    peak_n: float = PEAK_FORCE_N,
-    continuous_n: float = CONTINUOUS_FORCE_N,
-    axes: tuple[str, ...] = ("x", "y"),
-) -> None:
-    """Refuse a reference whose inertial force exceeds the motor's peak or continuous force.
-
-    Parameters
-    ----------
-    acceleration : numpy.ndarray
-        Reference acceleration, m/s², shape (n, n_axes).
-    masses_kg : tuple of float
-        Moving mass per axis, kg (the lower axis carries the upper one).
-    dt : float
-        Sample time, s (for the time named in the message).
-    peak_n, continuous_n : float
-        Peak and continuous force, N (seed 004 Table I: 12 N, 3 N).
-    axes : tuple of str
-        Axis names for the message.
-
-    Raises
-    ------
-    LimitViolation
-        Naming the axis, the time (peak) or the whole run (RMS), the value and the limit.
-    """
-    a = np.asarray(acceleration, dtype=float)
-    for k, ax in enumerate(axes):
-        f = masses_kg[k] * a[:, k]
-        i = int(np.argmax(np.abs(f)))
-        if abs(f[i]) > peak_n:
-            raise LimitViolation(
-                f"axis {ax}: force {f[i]:.4g} N (mass {masses_kg[k]:g} kg x acceleration "
-                f"{a[i, k]:.4g} m/s^2) at t = {i * dt:.6g} s exceeds the peak force "
-                f"{peak_n:g} N (seed 004 Table I); nothing was emitted"
-            )
-        rms = float(np.sqrt(np.mean(f**2)))
-        if rms > continuous_n:
-            raise LimitViolation(
-                f"axis {ax}: RMS force {rms:.4g} N over the whole reference "
-                f"(t = 0 to {(a.shape[0] - 1) * dt:.6g} s) exceeds the continuous force "
-                f"{continuous_n:g} N (seed 004 Table I); nothing was emitted"
-            )
 
 
 def check_reference(

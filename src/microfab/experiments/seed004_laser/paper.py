@@ -18,11 +18,8 @@ from __future__ import annotations
 
 from microfab.machines.laser_stage.calibration import FIG3_PEAK_ERROR_M
 from microfab.measure.contour import AXIS_BAND_M as FIG3_TYPICAL_ERROR_M
-from microfab.trajectory.contour_laps import (
-    CONTINUOUS_FORCE_N,
-    MAX_ACCELERATION_M_S2,
-    PEAK_FORCE_N,
-)
+from microfab.trajectory.contour_laps import MAX_ACCELERATION_M_S2
+from microfab.trajectory.force_check import CONTINUOUS_FORCE_N, PEAK_FORCE_N
 
 __all__ = [
     "AVERAGE_POWER_W",

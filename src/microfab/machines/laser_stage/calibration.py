@@ -66,6 +66,7 @@ from microfab.machines.twins import data_path
 from microfab.measure.contour import AXIS_BAND_M
 from microfab.plants.lmw_stage_params import AXES, LMWStageParams, load_params
 from microfab.plants.sourced_toml import update_sourced
+from microfab.trajectory.force_check import CONTINUOUS_FORCE_N  # seed 004 Table I: 3 N
 
 __all__ = [
     "CALIBRATION",
@@ -95,7 +96,6 @@ FIG3_PEAK_ERROR_M = 0.8e-6  # seed 004 §IV.A: "reaching 0.8 µm at the peak poi
 #: Share of samples within ±0.5 µm (`AXIS_BAND_M`, seed 004 §IV.A "generally lower than
 #: 0.5 µm") per axis: the issue's reading of "generally" (issue 45 item 4).
 FIG3_SHARE = 0.95
-CONTINUOUS_FORCE_N = 3.0  # seed 004 Table I: continuous force 3 N
 
 #: The Fig. 3 run: the seed's 30 µm circle under preview + DOB (the motion experiment of
 #: §IV.A has no contour compensator), at 1 mm/s (assumed), noise on.
