@@ -379,7 +379,7 @@ def test_term_shares_and_table(twin):
 def test_coloured_noise_keeps_its_rms_and_low_passes():
     # first-order low-pass, τ = 1 ms on x (a = exp(-0.1)), y white; 200 000 samples
     twin = nanomanipulator_twin(noise_time_constant_s=(1e-3, 0.0))
-    white = nanomanipulator_twin()
+    white = nanomanipulator_twin(noise_time_constant_s=(0.0, 0.0))
     n = twin.noise(200_000, 5)
     assert np.array_equal(n[:, 1], white.noise(200_000, 5)[:, 1])
     # rms ratio: spread 0.46 % (1 sd over seeds 0-19, measured); 3 % is 6 sd

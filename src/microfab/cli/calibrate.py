@@ -96,7 +96,12 @@ def calibrate_nanomanipulator_cmd(
         files={"--write": write, "--json": json_out}, folders={"--out": out}, inputs={"--job": job}
     )
     from microfab.cli._calibrate_kit import run_calibration
-    from microfab.machines.nanomanipulator.calibration import DEFAULT_BUDGET, problem, write_twin
+    from microfab.machines.nanomanipulator.calibration import (
+        DEFAULT_BUDGET,
+        contour_finding,
+        problem,
+        write_twin,
+    )
     from microfab.machines.nanomanipulator.job import JobConfig
 
     config = None
@@ -115,7 +120,7 @@ def calibrate_nanomanipulator_cmd(
     except ValueError as exc:
         fail(str(exc))
     src = None if config is None else config.twin.params_file
-    run_calibration(
+    result = run_calibration(
         prob,
         title="seed 001 nanomanipulator twin",
         budget=budget or DEFAULT_BUDGET,
@@ -129,6 +134,9 @@ def calibrate_nanomanipulator_cmd(
         inputs={"--job": job},
         conflict_budget=conflict_budget,
     )
+    finding = contour_finding(result)
+    if finding is not None:
+        console.print(f"finding: {finding}")
 
 
 @calibrate_app.command("laser")
