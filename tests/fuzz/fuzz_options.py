@@ -97,6 +97,10 @@ EXTRA_PATHS: dict[tuple[str, str], tuple[str, str]] = {
     ("shaper design", "--psd"): ("in", "chirp.csv"),
     ("nanomanipulator analyze", "--job"): ("in", "nano_job.toml"),
     ("reproduce", "--out"): ("out", "reproduce_page"),
+    ("calibrate laser", "--json"): ("out", "laser_cal.json"),
+    ("calibrate laser", "--out"): ("out", "laser_cal_run"),
+    ("calibrate nanomanipulator", "--json"): ("out", "nano_cal.json"),
+    ("calibrate nanomanipulator", "--out"): ("out", "nano_cal_run"),
 }
 
 

@@ -150,4 +150,14 @@ def test_every_twin_has_one_noise_level():
         twin = make()
         assert isinstance(twin, NoisyOutputs)
         assert twin.noise_level.units == want
+        if make is nanomanipulator_twin:
+            # its sensor noise is coloured (calibrated first-order low-pass, rms kept): the
+            # same seeded draw passed through the colour; white at time constants 0
+            from microfab.plants.nanomanipulator import colour_noise
+
+            tau = np.array(twin.config.noise_time_constant_s)
+            np.testing.assert_array_equal(
+                twin.noise(5, seed=3), colour_noise(twin.noise_level.draw(5, 3), tau, twin.dt)
+            )
+            twin = make(noise_time_constant_s=(0.0, 0.0))
         np.testing.assert_array_equal(twin.noise(5, seed=3), twin.noise_level.draw(5, 3))
