@@ -19,7 +19,6 @@ from microfab.machines.nanomanipulator.job import (
 )
 from microfab.trajectory.circle_pattern import PatternConfig
 
-
 #: The twin the seed's network was calibrated on (issue 14's white sensor noise fitted to
 #: the axial RMS of seed 001 §4.2 under that network, and the assumed d0 of 20 / 40
 #: mm/s²): the mechanics below are tested on that fixed scenario, not on the shipped
