@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from microfab.experiments.catalog import JOB_KINDS, REPRODUCTIONS
-from microfab.experiments.kinds import no_progress
+from microfab.experiments.kinds import ReproductionResult, no_progress
 from microfab.machines.nanomanipulator.job import JobConfig
 from microfab.trajectory.circle_pattern import PatternConfig
 
@@ -27,9 +29,13 @@ def test_job_writes_summary_and_report(tmp_path):
     assert not res.failures()
 
 
-def test_reproduction_gives_the_seed_table():
+@pytest.fixture(scope="module")
+def out() -> ReproductionResult:
     rep = REPRODUCTIONS["nanomanipulator"]
-    out = rep.run(rep.parse_options({"fig8_sweep": "octaves"}), no_progress)  # fine: ~1 min
+    return rep.run(rep.parse_options({"fig8_sweep": "octaves"}), no_progress)  # fine: ~1 min
+
+
+def test_reproduction_gives_the_seed_table(out: ReproductionResult) -> None:
     rows = {r[0]: r[1] for r in out.tables[0].rows}
     assert rows["axial RMS x [nm]"].endswith("/ 485.8")
     # the proposed controller (issue 45), the twin's current noise: submicron from period 1
@@ -46,3 +52,43 @@ def test_reproduction_gives_the_seed_table():
     assert labels["axial RMS x [nm]"].by == ("microfab calibrate nanomanipulator",)
     assert labels["contour RMS [nm]"].origin == "predicted"
     assert all(len(t.labels) == len(t.rows) for t in out.tables)
+
+
+def test_figs_8_to_10_on_the_paper_model_with_the_calibrated_twin_beside_them(
+    out: ReproductionResult,
+) -> None:
+    """Issue 45 item 2: each §4.1 figure on the paper's model, the twin's as a prediction."""
+    titles = [t.title for t in out.tables]
+    for fig in ("Fig. 8", "Fig. 9", "Fig. 10"):
+        model = [i for i, t in enumerate(titles) if fig + "," in t and "paper's model" in t]
+        twin = [i for i, t in enumerate(titles) if fig + "," in t and "calibrated twin" in t]
+        assert len(model) == len(twin) == 1, (fig, titles)
+        assert twin[0] == model[0] + 1, titles  # the prediction right beside the model
+        for i in model + twin:
+            labels = out.tables[i].labels
+            assert labels and all(lab.origin == "predicted" for lab in labels), titles[i]
+            assert all(q.startswith(f"seed 001 {fig} /") for lab in labels for q in lab.quantities)
+    fig9 = out.tables[titles.index(next(t for t in titles if "Fig. 9" in t))]
+    assert [r[0] for r in fig9.rows] == ["200", "400"]
+    fig10 = out.tables[titles.index(next(t for t in titles if "Fig. 10" in t))]
+    assert [r[0] for r in fig10.rows] == ["RBF", "RBF state"]
+    # the numbers in --json, both runs of each figure
+    d = out.data
+    assert [r["bandwidth_hz"] for r in d["fig8_twin"]["rows"]] == [100.0, 200.0, 400.0]
+    for run in ("paper_model", "twin"):
+        assert d["fig9"][run]["bandwidths_hz"] == [200.0, 400.0]
+        assert set(d["fig9"][run]["final_rms_nm"]) == {"PID", "RBF"}
+        assert set(d["fig10"][run]["gain"]) == {"RBF", "RBF state"}
+        assert all(len(v) == 8 for v in d["fig10"][run]["rms_nm"].values())
+    # the twin differs by the sensor noise alone: it raises the PID's error at every
+    # crossover (measured on Fig. 9: 190 -> 434 nm at 200 Hz, 25 -> 511 nm at 400 Hz)
+    for m, t in zip(
+        d["fig9"]["paper_model"]["final_rms_nm"]["PID"],
+        d["fig9"]["twin"]["final_rms_nm"]["PID"],
+        strict=True,
+    ):
+        assert t > m
+    notes = " ".join(out.notes)
+    assert "paper's model -> calibrated twin" in notes and "sensor noise" in notes
+    assert "d0 per axis jointly to the §4.2 axial RMS" in notes  # the calibration as it is
+    assert "contour RMS and the gate period are held back as checks" in notes

@@ -21,7 +21,8 @@ the same crossover, 45° phase margin and eq. 9's model-inverse feedforward:
   (`proposed.proposed_oracle`): the best the network could do.
 
 All on `compare.py`'s circle (0.25 mm off-centre: the §4.1 terms active), noise off,
-``d(t)`` on, the RMS of the last of 8 periods.
+``d(t)`` on, the RMS of the last of 8 periods; ``ComparisonConfig(noise=True)`` runs the
+same on the calibrated twin (its sensor noise, rms and colour, as the data file has them).
 
 **Finer sweep and divergences** (issue 45): `fine_fig8` runs the octaves, then 10 Hz steps
 within ±50 Hz of each controller's best, widening while a best sits on the edge of what
@@ -300,8 +301,14 @@ class Fig8Sweep:
         rows += [f"diverged: {d.cause()}" for d in self.divergences]
         return "\n".join(rows)
 
-    def as_table(self) -> Table:
-        """Last-period RMS per crossover as a report `Table` (NaN: diverged)."""
+    def as_table(self, model: str = "") -> Table:
+        """Last-period RMS per crossover as a report `Table` (NaN: diverged).
+
+        Parameters
+        ----------
+        model : str
+            What ran, appended to the title (``"calibrated twin (noise on)"``, ...).
+        """
 
         def cell(v: float) -> str:
             return f"{v:.0f}" if np.isfinite(v) else "diverged"
@@ -315,7 +322,8 @@ class Fig8Sweep:
             f"{c} {v:.0f} nm at {f:g} Hz" for c in CONTROLLERS for v, f in [self.best(c)]
         )
         return Table(
-            title="Seed 001 Fig. 8, fair: last of 8 periods, RMS [nm], same crossover and margin",
+            title="Seed 001 Fig. 8, fair: last of 8 periods, RMS [nm], same crossover and margin"
+            + (f", {model}" if model else ""),
             columns=("f_c [Hz]", "PM [deg]", *CONTROLLERS),
             rows=rows,
             note=f"Best: {best}. All with 45° at f_c and eq. 9's inverse feedforward. "
@@ -341,7 +349,8 @@ def fair_fig8(
     Parameters
     ----------
     config : ComparisonConfig, optional
-        Circle, RBF settings and seed (default `ComparisonConfig()`; run noise off).
+        Circle, RBF settings, seed and sensor noise (default `ComparisonConfig()`: noise
+        off, the paper's model; ``noise=True``: the calibrated twin's sensor noise).
     bandwidths_hz : tuple of float
         Crossovers, Hz.
     controllers : tuple of str
@@ -378,6 +387,7 @@ def fair_fig8(
                 st.position,
                 derivatives=(st.velocity, st.acceleration),
                 seed=cfg.seed,
+                noise=cfg.noise,
             )
             r = st.period_rms_nm(res.output)
             rms[name] = np.where(np.isfinite(r), r, np.nan)

@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 from microfab.control.rbf import RBFConfig
-from microfab.core.provenance import Shows, quantity
 from microfab.experiments.kinds import JobKind, Progress, Reproduction, ReproductionResult
 from microfab.experiments.seed001_nanomanipulator.keys import (
     PATTERN_KEYS,
@@ -205,18 +204,18 @@ def _write_report(result: NanomanipulatorResult, out: Path, title: str) -> Path:
 
 def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResult:
     from microfab.experiments.seed001_nanomanipulator.compare import ComparisonConfig
-    from microfab.experiments.seed001_nanomanipulator.fig8 import fair_fig8, fine_fig8
+    from microfab.experiments.seed001_nanomanipulator.simulations import figure_set
     from microfab.experiments.seed001_nanomanipulator.study import learning_study
     from microfab.report.circle_tracking import tracking_table  # draws: loaded on use
 
     cfg = JobConfig(twin=TwinSettings(seed=options["seed"]))
     run = run_job(cfg, None, progress)
     m = run.metrics()
-    progress("RBF learning study and Fig. 8 sweep", 0, None)
-    circle = ComparisonConfig(seed=options["seed"])
-    study = learning_study(circle)
-    # octaves, then 10 Hz steps within ±50 Hz of each best (~1 min); "octaves": those alone
-    fig8 = fine_fig8(circle) if options["fig8_sweep"] == "fine" else fair_fig8(circle)
+    progress("RBF learning study", 0, None)
+    study = learning_study(ComparisonConfig(seed=options["seed"]))
+    # Figs. 8-10 on the paper's model and on the calibrated twin; Fig. 8 "fine": octaves,
+    # then 10 Hz steps within ±50 Hz of each best (~1 min), "octaves": those alone
+    figs = figure_set(options["seed"], options["fig8_sweep"], progress)
     data = m.summary()
 
     def finite(v: Any) -> list[float | None]:  # JSON has no NaN: an oracle has no weights
@@ -227,39 +226,25 @@ def _reproduce(options: dict[str, Any], progress: Progress) -> ReproductionResul
         "weight_norm_v": {k: finite(v) for k, v in study.weight_norm.items()},
         "regressor": [vars(r) for r in study.regressor],
     }
-    data["fig8_fair"] = {
-        "gamma_v_per_mm": fig8.gamma,
-        "rows": [
-            {
-                "bandwidth_hz": r.bandwidth_hz,
-                "phase_margin_deg": r.phase_margin_deg,
-                "final_rms_nm": {
-                    c: (r.final(c) if math.isfinite(r.final(c)) else None) for c in r.rms_nm
-                },
-            }
-            for r in fig8.rows
-        ],
-        "skipped": list(fig8.skipped),
-        "divergences": [{**vars(d), "cause": d.cause()} for d in fig8.divergences],
-    }
+    data.update(figs.data())
     return ReproductionResult(
-        tables=(
-            tracking_table(m),
-            labelled(study.as_table(), OURS),
-            labelled(fig8.as_table(), Shows((quantity("001", "Fig. 8", "RBF against PID"),))),
-        ),
+        tables=(tracking_table(m), labelled(study.as_table(), OURS), *figs.tables()),
         notes=(
-            "Twin of seed 001 eq. 9 with the §4.1 terms, assumed noise and disturbance "
+            "Twin of seed 001 eq. 9 with the §4.1 terms, d(t) and sensor noise "
             "(microfab/data/nanomanipulator_twin.toml); `microfab calibrate nanomanipulator` "
-            "fits the noise to the axial RMS, after which the contour RMS is a prediction.",
-            "RBF study and Fig. 8: one 0.15 mm circle 0.25 mm off-centre, 8 periods, noise "
-            "off, d(t) and the §4.1 α, β terms on (compare.py's setting). The job above "
+            "fits the sensor noise per axis, its colour (a first-order low-pass) and d0 per "
+            "axis jointly to the §4.2 axial RMS x / y; the contour RMS and the gate period "
+            "are held back as checks (predicted).",
+            "RBF study, Figs. 8 and 10: one 0.15 mm circle 0.25 mm off-centre, 8 periods, "
+            "d(t) and the §4.1 α, β terms on (compare.py's setting). The job above "
             "runs the proposed controller (issue 45): eq. 6's linear part from eq. 9 (PD at "
             "200 Hz with eq. 9's inverse) plus the network as a model of the state (centres "
             "on a grid over each circle's state box), in the plug-in RC; the seed's network "
             "(eq. 4 alone), which the study shows does not learn, is the job setting "
             "[rbf] controller = \"seed\". In the study and Fig. 8, 'proposed' / 'RBF' is the "
-            "same linear part with centres along the orbit, 'RBF state' the state model.",
+            "same linear part with centres along the orbit, 'RBF state' the state model; in "
+            "Fig. 10, 'RBF' is the seed's network and 'RBF state' the proposed controller.",
+            *figs.notes(),
         ),
         data=data,
         figures=lambda: _study_figures(study),
