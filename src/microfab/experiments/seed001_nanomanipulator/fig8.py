@@ -319,7 +319,10 @@ class Fig8Sweep:
             for r in self.rows
         ]  # fmt: skip
         best = "; ".join(
-            f"{c} {v:.0f} nm at {f:g} Hz" for c in CONTROLLERS for v, f in [self.best(c)]
+            f"{c} {v:.0f} nm at {f:g} Hz"
+            for c in CONTROLLERS
+            for v, f in [self.best(c)]
+            if any(c in r.rms_nm for r in self.rows)  # a controller not run has no best
         )
         return Table(
             title="Seed 001 Fig. 8, fair: last of 8 periods, RMS [nm], same crossover and margin"
