@@ -313,21 +313,17 @@ class Fig8Sweep:
         def cell(v: float) -> str:
             return f"{v:.0f}" if np.isfinite(v) else "diverged"
 
+        ran = tuple(c for c in CONTROLLERS if any(c in r.rms_nm for r in self.rows))
         rows = [
             (f"{r.bandwidth_hz:g}", f"{r.phase_margin_deg:.1f}",
-             *(cell(r.final(c)) if c in r.rms_nm else "" for c in CONTROLLERS))
+             *(cell(r.final(c)) if c in r.rms_nm else "" for c in ran))
             for r in self.rows
         ]  # fmt: skip
-        best = "; ".join(
-            f"{c} {v:.0f} nm at {f:g} Hz"
-            for c in CONTROLLERS
-            for v, f in [self.best(c)]
-            if any(c in r.rms_nm for r in self.rows)  # a controller not run has no best
-        )
+        best = "; ".join(f"{c} {v:.0f} nm at {f:g} Hz" for c in ran for v, f in [self.best(c)])
         return Table(
             title="Seed 001 Fig. 8, fair: last of 8 periods, RMS [nm], same crossover and margin"
             + (f", {model}" if model else ""),
-            columns=("f_c [Hz]", "PM [deg]", *CONTROLLERS),
+            columns=("f_c [Hz]", "PM [deg]", *ran),  # the controllers that ran
             rows=rows,
             note=f"Best: {best}. All with 45° at f_c and eq. 9's inverse feedforward. "
             "PID+RBF = the same PID plus the eq. 2-5 network (centres along the orbit, "

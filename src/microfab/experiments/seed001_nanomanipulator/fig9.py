@@ -6,7 +6,8 @@ only, and the seed uses it to show that the RBF approximates the nonlinearity it
 The project's target (issue 45, `paper.FIG_TARGETS` ``"fig9_rbf_over_pid_max"`` and
 ``"fig9_phase_margin_min_deg"``): on these sines, the proposed RBF's error below the
 PID's at the same crossover (200 and 400 Hz), both loops with >= 45° phase margin
-(`fig9_matched`, on the paper's model: eq. 9, the §4.1 terms and ``d(t)``, noise off).
+(`fig9_matched`, on the paper's model: eq. 9, the §4.1 terms and ``d(t)``, noise off;
+with the circle's ``noise`` on, the same on the calibrated twin, a prediction).
 `fig9_rbf` runs the seed's literal network (`RBFAdaptive.for_reference`) on the sines and
 on the circle, as before.
 

@@ -200,7 +200,9 @@ class FigureSet:
             f"PID's, sqrt(twin² − model²), on Fig. 8: {self._pid_added()}), and the network "
             "(eq. 5) and "
             "the RC, which learn from the measured error, take the noise in as if it were "
-            "tracking error; it does not repeat, so neither can cancel it.",
+            "tracking error; it does not repeat, so neither can cancel it. Fig. 8 on the "
+            f"twin: {', '.join(TWIN_FIG8)} at "
+            f"{'/'.join(f'{r.bandwidth_hz:g}' for r in self.fig8_twin.rows)} Hz.",
             _fig8_note(self.fig8, self.fig8_twin),
             _fig9_note(self.fig9, self.fig9_twin),
             _fig10_note(self.fig10, self.fig10_twin),
