@@ -468,8 +468,8 @@ EXCLUDED: dict[str, str] = {
     "reproduce droplet-fig4": "as `reproduce droplet-fig4 --set workers=2`",
     "calibrate galvo": "600 model runs, 11 s of CPU; tests/cli/test_calibrate_galvo.py runs "
     "it on the least budget",
-    "reproduce nanomanipulator --json s001.json": "40 s, no setting shortens it; "
-    "tests/experiments/seed001_nanomanipulator run its parts",
+    "reproduce nanomanipulator --json s001.json": "35 s (23 s with --set fig8_sweep=octaves); "
+    "tests/experiments/seed001_nanomanipulator run it with the octaves",
     "reproduce nanomanipulator --out s001": "as `reproduce nanomanipulator --json s001.json`",
     "calibrate nanomanipulator": "240 runs of the seed's job (minutes); tests/machines/"
     "nanomanipulator/test_calibration.py runs the fit",
