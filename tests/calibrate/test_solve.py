@@ -203,3 +203,17 @@ def test_the_conflict_pair_is_the_worst_target_and_what_pulls_against_it():
     assert conflict_pair(r, jac, [0, 1, 2]) == (0, 2)
     # nothing opposes a: the second worst
     assert conflict_pair(np.array([3.0, 2.0, 1.0]), jac, [0, 1, 2]) == (0, 1)
+
+
+def test_a_small_budget_over_many_parameters_is_refused_not_crashed():
+    # eight parameters: SciPy's smallest population is 8 (popsize 1 x 8), not 5
+    params = [FreeParameter(f"p{i}", 0.0, 1.0, "1", "assumed: toy") for i in range(8)]
+    prob = CalibrationProblem(
+        [Target("s", 1.0, 0.1, "1", "toy: the sum")],
+        params,
+        lambda p: {"s": sum(p.values())},
+    )
+    with pytest.raises(ValueError, match="give at least"):
+        calibrate(prob, budget=7, seed=0, polish=False)
+    res = calibrate(prob, budget=16, seed=0, polish=False, conflict_budget=0)
+    assert res.requested >= 8 and len(res.parameters) == 8

@@ -12,7 +12,7 @@ from microfab.plants.galvo import default_galvo_axes
 
 #: The least budget the core takes for six parameters (one population and the polish);
 #: about 85 model runs with the sensitivity and the conflict sweep, 2-3 s.
-BUDGET = "19"
+BUDGET = "20"
 
 
 @pytest.fixture(scope="module")

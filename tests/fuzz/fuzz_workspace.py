@@ -86,7 +86,7 @@ NANO_DT = 1 / 2000
 
 RECIPES: dict[str, Recipe] = {
     "calibrate galvo": Recipe(
-        ("calibrate", "galvo", "--budget", "19", "--conflict-budget", "0", "--out",
+        ("calibrate", "galvo", "--budget", "20", "--conflict-budget", "0", "--out",
          "galvo_run", "--json", "galvo_cal.json", "--write", "galvo_cal.toml"),
         outputs=("galvo_run", "galvo_cal.json", "galvo_cal.toml")),
     "calibrate laser": Recipe(("calibrate", "laser", "--budget", "17", "--conflict-budget", "0",

@@ -159,9 +159,10 @@ class _Evaluator:
 
 def _population(budget: int, n: int) -> tuple[int, int]:
     """DE's population and generations after the first within ``budget`` points, n params."""
-    # 5 members at least (SciPy's floor), up to 15 per parameter (its default), fewer when
-    # the budget allows fewer than about 8 generations.
-    members = max(5, min(15, budget // (8 * n)) * n)
+    # One member per parameter at least (SciPy's population is popsize x n with popsize
+    # >= 1, and never below 5), up to 15 per parameter (its default), fewer when the
+    # budget allows fewer than about 8 generations.
+    members = max(5, max(1, min(15, budget // (8 * n))) * n)
     return members, budget // members - 1
 
 
