@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from microfab.core.threads import single_threaded
 from microfab.core.validate import check_int, check_positive
 from microfab.identify.ann_data import HISTORY, MODEL_RATE_HZ, WindowSpec, windows
 from microfab.identify.stage_data import StageRecord
@@ -98,6 +99,7 @@ def _features(x: np.ndarray, w: np.ndarray, b: np.ndarray, slope: float) -> np.n
     return np.concatenate([x, np.where(z > 0.0, z, slope * z), np.ones((x.shape[0], 1))], axis=1)
 
 
+@single_threaded
 def proxy_sigma(
     train: Sequence[StageRecord],
     val: Sequence[StageRecord],
