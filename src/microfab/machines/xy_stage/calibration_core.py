@@ -394,10 +394,11 @@ def problem(data: XYCalData | None = None) -> CalibrationProblem:
 
 
 #: Evaluations of a real run (`calibrate`'s ``budget``). Measured: one evaluation on the
-#: default data takes about 15 s on one core (60 s of linear data played 5 s and fitted
-#: 3 s, 60 s of network data played 3 s, the proxy 1.5 s); 100 points with 2 workers take
-#: about 13 min, the issue's ceiling of about 15 min.
-DEFAULT_BUDGET = 100
+#: default data (`XYCalData`) takes 3.2 s on one core with one BLAS thread (60 s of linear
+#: data played and fitted, 60 s of the networks' data played, the proxy); the search's
+#: 240 points, the sensitivity and a conflict sweep of as many again are about 500 points,
+#: some 13 min with ``workers=2`` on two free cores (issue 46: a real run within ~15 min).
+DEFAULT_BUDGET = 240
 
 
 def write_twin(
