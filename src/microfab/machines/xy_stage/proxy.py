@@ -19,8 +19,11 @@ calibration fits this proxy instead:
 
 It is a regression of the same inputs onto the same target with a fixed nonlinear basis:
 deterministic (a fixed seed), a linear solve per axis, about a second on a minute of data.
-How close it lies to the full training's σ is to be measured (issue 46: within 25 %, or
-the proxy is replaced); until then it is a proxy whose agreement is not yet shown.
+**Measured against the full training once** (`ProxySettings.recent`: the data file's twin,
+60 s of the networks' data, seed 0): proxy σ x / y 28.5 / 49.6 µm, the networks trained
+with the ``stage-identify`` job's schedule 23.1 / 36.4 µm: 23 % and 36 % above. The issue
+asks for 25 %: on y this proxy does not yet meet it (it over-states the unpredictable
+part), so it is to be improved or replaced before its σ is trusted as the networks'.
 """
 
 from __future__ import annotations
@@ -47,6 +50,15 @@ class ProxySettings:
     hidden : int
         Random hidden units (assumed 400: twice the 200 inputs, a few times fewer than
         the training windows of a minute of data, so the read-out is well determined).
+    recent : int or None
+        The hidden units read only the window's last ``recent`` encoded inputs (the most
+        recent lags and the absolute position; the read-out still sees the whole window
+        linearly). Assumed 50 (125 ms). Measured on 60 s of the networks' data (the data
+        file's twin, seed 0; 400 units), validation σ x / y µm: all 200 33.0 / 59.6, 100
+        31.0 / 54.3, 50 28.5 / 49.6, 20 30.9 / 53.4, 8 35.3 / 61.4; 1500 units at 50:
+        27.6 / 49.1. The networks trained on the same data with the ``stage-identify``
+        job's schedule (60 epochs, 282 s on 2 cores): 23.1 / 36.4 µm. The proxy lies 23 %
+        (x) and 36 % (y) above them: y is outside the issue's 25 %.
     offsets : int
         Subsampling offsets of the training windows, spread over the 25 of 10 kHz -> 400 Hz
         (assumed 2: twice the windows at the cost of one more pass; the validation uses
@@ -64,6 +76,7 @@ class ProxySettings:
     """
 
     hidden: int = 400
+    recent: int | None = 50
     offsets: int = 2
     ridge: float = 1e-2
     slope: float = 0.01
@@ -95,7 +108,7 @@ def _design(
 
 
 def _features(x: np.ndarray, w: np.ndarray, b: np.ndarray, slope: float) -> np.ndarray:
-    z = x @ w + b
+    z = x[:, -w.shape[0] :] @ w + b
     return np.concatenate([x, np.where(z > 0.0, z, slope * z), np.ones((x.shape[0], 1))], axis=1)
 
 
@@ -135,7 +148,8 @@ def proxy_sigma(
         sd = np.where(sd > 0.0, sd, 1.0)
         x, xv = (x - mu) / sd, (xv - mu) / sd
         t_mu, t_sd = float(t.mean()), float(t.std()) or 1.0
-        w = rng.standard_normal((x.shape[1], s.hidden)) / np.sqrt(x.shape[1])
+        k = x.shape[1] if s.recent is None else min(s.recent, x.shape[1])
+        w = rng.standard_normal((k, s.hidden)) / np.sqrt(k)
         b = rng.standard_normal(s.hidden)
         gram = np.zeros((x.shape[1] + s.hidden + 1,) * 2)
         rhs = np.zeros(gram.shape[0])
