@@ -27,6 +27,27 @@ and the LuGre bristle stiffness and damping follow in the ratios of the assumed 
 stays; `twin_keys`), the cogging amplitude per axis, the y cable carrier's link ripple
 and stiffness, the carriage resonance frequency and the y -> x reaction coupling.
 
+**Finding** (a real run: ``calibrate(problem(), budget=120, seed=0, workers=2)``, 349
+points asked, 295 evaluated, 882 s). Not converged: 1 of 6 fit targets met, at
+Coulomb 34.9 / 13.6 N, cogging 3.3 / 1.5 N, cable ripple 1.8 N and spring 193 N/m,
+resonance 116 Hz, coupling 0.028 (no parameter at a bound): linear σ 13.5 / 16.1 µm,
+proxy σ 8.0 / 8.7 µm; the τ check is met (22.9 ms). The structure cannot meet Table II:
+
+* **linear σ against the networks' σ.** Over every point evaluated the proxy σ follows
+  the linear σ (correlation 0.99; proxy / linear at least 0.31 on x and 0.43 on y; the
+  paper's 3.2 / 48.0 = 0.067 and 6.0 / 156.3 = 0.038). Where the linear σ is met, the
+  least proxy σ is 27.0 µm on x (29 points) and 64.7 µm on y (76 points): 8x and 11x the
+  paper's networks. The full training on the data file's twin gives the same picture
+  (networks / linear 0.48 on x, 0.43 on y), so the proxy's own excess (23 % / 36 %,
+  `microfab.machines.xy_stage.proxy`) does not explain it. Friction, cogging and the cable
+  raise what a linear model misses and what a network misses together; the real stage's
+  linear error is mostly predictable from its input window, which these forces are not.
+  What the twin lacks is a large, smooth, input-determined nonlinearity (or linear
+  dynamics a 4-state model at 1 kHz cannot follow) with small unpredictable forces.
+* **linear μ.** Over every point μ stays within -2.9..0.0 µm on x and -0.4..1.0 µm on y;
+  the paper's 3.0 / -13.2 µm needs a mean offset none of these forces makes (the core's
+  conflict pair: μ_y against σ_y, best |r| 6.8 with σ_y met).
+
 Each evaluation builds the twin from the candidate values through the same `TWIN_KEYS`
 that `write_twin` uses (rounded to the digits written), so the model the search runs is
 the file it writes.
@@ -85,8 +106,8 @@ _SLOW_TAU_MS = 20.0  # seed 002 §III-B reading: 500 ms history / 25
 
 # Tolerances, beside the spread measured over the data seed (0, 1, 2) at the data file's
 # twin on the default data (`XYCalData`): linear σ x 44.8-48.1, y 82.3-86.2 µm (±4 %);
-# linear μ x -0.4..0.4, y 0.1..1.1 µm; proxy σ x 22.9-33.0, y 45.1-60.9 µm (±20 %: three
-# validation runs); τ 44-50 ms.
+# linear μ x -0.4..0.4, y 0.1..1.1 µm; proxy σ (before its `ProxySettings.recent`
+# setting) x 22.9-33.0, y 45.1-60.9 µm (±20 %: three validation runs); τ 44-50 ms.
 # σ linear: ±15 % (issue 46's band), about four times the spread. μ linear: ±2 µm, twice
 # the spread (the seed states μ to 0.1 µm). Network σ: ±50 % (assumed: the issue's
 # acceptance asks the networks within 2x of Table II; over twice the proxy's spread).
@@ -395,10 +416,11 @@ def problem(data: XYCalData | None = None) -> CalibrationProblem:
 
 #: Evaluations of a real run (`calibrate`'s ``budget``). Measured: one evaluation on the
 #: default data (`XYCalData`) takes 3.2 s on one core with one BLAS thread (60 s of linear
-#: data played and fitted, 60 s of the networks' data played, the proxy); the search's
-#: 240 points, the sensitivity and a conflict sweep of as many again are about 500 points,
-#: some 13 min with ``workers=2`` on two free cores (issue 46: a real run within ~15 min).
-DEFAULT_BUDGET = 240
+#: data played and fitted, 60 s of the networks' data played, the proxy); a run with
+#: budget 120, ``workers=2`` and seed 0 asked 349 points (search and polish, sensitivity,
+#: conflict sweep), evaluated 295 and took 882 s on two cores shared with other work: the
+#: issue's ceiling of about 15 min.
+DEFAULT_BUDGET = 120
 
 
 def write_twin(
