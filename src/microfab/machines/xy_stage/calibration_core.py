@@ -39,9 +39,12 @@ proxy σ 8.0 / 8.7 µm; the τ check is met (22.9 ms). The structure cannot meet
   least proxy σ is 27.0 µm on x (29 points) and 64.7 µm on y (76 points): 8x and 11x the
   paper's networks. The full training on the data file's twin gives the same picture
   (networks / linear 0.48 on x, 0.43 on y), so the proxy's own excess (23 % / 36 %,
-  `microfab.machines.xy_stage.proxy`) does not explain it. Friction, cogging and the cable
-  raise what a linear model misses and what a network misses together; the real stage's
-  linear error is mostly predictable from its input window, which these forces are not.
+  `microfab.machines.xy_stage.proxy`) does not explain it. At the run's answer the
+  networks trained on its twin (the job's schedule, 60 s of data) reach 7.0 / 5.6 µm,
+  within about 2x of the paper's 3.2 / 6.0 µm, while its linear σ is 13.5 / 16.1 µm.
+  Friction, cogging and the cable raise what a linear model misses and what a network
+  misses together; the real stage's linear error is mostly predictable from its input
+  window, which these forces are not.
   What the twin lacks is a large, smooth, input-determined nonlinearity (or linear
   dynamics a 4-state model at 1 kHz cannot follow) with small unpredictable forces.
 * **linear μ.** Over every point μ stays within -2.9..0.0 µm on x and -0.4..1.0 µm on y;
