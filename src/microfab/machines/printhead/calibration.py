@@ -150,7 +150,7 @@ def simulated_breakup(
     res = run_point(
         SweepPoint(concentration_pct, SEED_VOLTAGE_V),
         DropletSettings(duration_s=400e-6, after_breakup_s=2e-6, model=model),
-        fluid=naalg(concentration_pct, relaxation_time_s=relaxation_time_s),
+        fluid=naalg(concentration_pct, relaxation_time_s=relaxation_time_s, model=model),
     )
     return res.breakup_time_s, res.breakup_mode
 
