@@ -31,8 +31,8 @@ _FILE = {
 
 @pytest.fixture(scope="module")
 def tiny_result():
-    # budget 26: the least the core takes for 8 parameters (one population of 8 and a polish)
-    return calibrate(cc.problem(_TINY), budget=26, seed=0, conflict_budget=0)
+    # budget 23: the least the core takes for 8 parameters (one population and a polish)
+    return calibrate(cc.problem(_TINY), budget=23, seed=0, conflict_budget=0)
 
 
 def test_targets_roles_and_sources():
