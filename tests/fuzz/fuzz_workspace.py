@@ -15,6 +15,7 @@ workspace path           what it is, made by
 ``job.toml``             ``examples/galvo_msl_default.toml`` (``run``)
 ``laser_job.toml``       a laser-micromachining job, one lap (``laser export``)
 ``nano_job.toml``        ``examples/nanomanipulator_msl.toml`` (the seed's job)
+``nano_small_job.toml``  the same, one circle of four periods (calibrate nanomanipulator)
 ``part.dxf``             a 2 mm square and a circle in mm (ezdxf)
 ``chirp.csv``            the SLM twin's chirp record (`fuzz_slm.base_chirp`)
 ``model.json``           the seed 003 model (`fuzz_slm.base_model`)
@@ -93,9 +94,9 @@ RECIPES: dict[str, Recipe] = {
                                "--write", "laser_twin.toml"),
                               outputs=("laser_twin.toml",)),
     "calibrate nanomanipulator": Recipe(
-        ("calibrate", "nanomanipulator", "--job", "nano_job.toml", "--budget", "17",
+        ("calibrate", "nanomanipulator", "--job", "nano_small_job.toml", "--budget", "17",
          "--conflict-budget", "0", "--write", "nano_twin.toml"),
-        inputs=("nano_job.toml",), outputs=("nano_twin.toml",)),
+        inputs=("nano_small_job.toml",), outputs=("nano_twin.toml",)),
     "calibrate xy-stage": Recipe(
         ("calibrate", "xy-stage", "--duration", "5", "--search", "1", "--check", "--write",
          "xy_twin.toml", "--json", "xy_cal.json"),
@@ -228,6 +229,11 @@ def _jobs(work: Path) -> None:
     _write(
         work / "nano_job.toml", (ROOT / "examples" / "nanomanipulator_msl.toml").read_bytes()
     )  # the seed's job
+    seed_job = (ROOT / "examples" / "nanomanipulator_msl.toml").read_text(encoding="utf-8")
+    _write(  # one circle of four periods: a calibration's 27 runs in a few seconds
+        work / "nano_small_job.toml",
+        seed_job.replace("n_circles = 4", "n_circles = 1").replace("periods = 6", "periods = 4"),
+    )
     _write(work / "naalg.toml", (ROOT / "src" / "microfab" / "data" / "naalg.toml").read_bytes())
 
 
