@@ -44,8 +44,11 @@ import numpy as np
 from microfab.control.pid import PID
 from microfab.control.rbf import RBFAdaptive, RBFConfig
 from microfab.control.rbf_composite import NonlinearityOracle, RBFPlusLinear
-from microfab.control.rbf_grid import STATE_CONFIG, eq6_linear_part
-from microfab.control.rbf_grid import state_network as _state_network
+from microfab.control.rbf_grid import (
+    STATE_CONFIG,
+    eq6_linear_part,
+    state_network,  # the state-model network, re-exported
+)
 from microfab.experiments.seed001_nanomanipulator.compare import CircleSetting
 from microfab.machines.nanomanipulator import machine as nanomanipulator
 from microfab.plants.nanomanipulator import NanomanipulatorPlant, drift_and_gain
@@ -126,27 +129,6 @@ def proposed_oracle(
         config.estimator,
         plant.dt,
     )
-
-
-def state_network(
-    position: np.ndarray,
-    velocity: np.ndarray,
-    acceleration: np.ndarray,
-    dt: float,
-    config: RBFConfig = STATE_RBF,
-) -> RBFAdaptive:
-    """The state-model network: a grid over the state box of the reference (module notes).
-
-    Parameters
-    ----------
-    position, velocity, acceleration : numpy.ndarray
-        The reference the states follow, mm, mm/s, mm/s², shape (n, 2).
-    dt : float
-        Sample time, s.
-    config : RBFConfig
-        Settings (default `STATE_RBF`); ``n_nodes`` must be the grid's 189 nodes.
-    """
-    return _state_network(position, velocity, acceleration, dt, config)
 
 
 def state_controller(
