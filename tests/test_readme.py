@@ -481,8 +481,9 @@ EXCLUDED: dict[str, str] = {
     "model alone, no setting shortens it; tests/experiments/seed002_stage run its parts",
     "droplet sweep --scheduler tcp://10.0.0.5:8786": "needs a running Dask scheduler at "
     "that address",
-    "droplet calibrate --write src/microfab/data/naalg.toml": "20-30 full runs; writes "
-    "the package's property table",
+    "droplet calibrate --workers 2 --out runs/ink --write src/microfab/data/naalg.toml": "120 "
+    "evaluations of six runs each, 10-15 minutes; writes the package's property table "
+    "(tests/machines/printhead/test_calibration.py runs the core on it with a tiny budget)",
     "droplet sensitivity": "dozens of 400 µs breakup runs and no option shortens them",
     "calibrate xy-stage --check": "fits on 600 s of twin runs, then an order scan",
     "run examples/blackbox_stage_reference.toml": "even one letter at one a_max with one "

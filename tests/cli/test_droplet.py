@@ -212,6 +212,27 @@ def test_calibrate_refuses_a_missing_table_before_running(tmp_path: Path) -> Non
     assert res.exit_code == 2 and "is not one of lagrangian, eulerian" in res.output
 
 
+def test_calibrate_refusals_leave_the_table(tmp_path: Path) -> None:
+    """Refused on one line before any run (a run on the core is tested on the library:
+    tests/machines/printhead/test_calibration.py; one through the CLI costs 15 s more)."""
+    from importlib import resources
+
+    table = tmp_path / "naalg.toml"
+    text = (resources.files("microfab.data") / "naalg.toml").read_text(encoding="utf-8")
+    table.write_text(text.replace("exponent_source", "exponent_note"), encoding="utf-8")
+    for argv, msg in (
+        (["--write", str(table)], "error: --write"),  # no sourced exponent to update
+        (["--mode-fit", "--write", str(table)], "error: --mode-fit is a diagnostic"),
+        (["--budget", "5"], "error: budget 5 is below one population"),
+        (["--duration", "5"], "error: Invalid value for '--duration'"),
+    ):
+        res = runner.invoke(app, ["droplet", "calibrate", *argv])
+        lines = [ln for ln in res.output.splitlines() if ln.strip()]
+        assert res.exit_code == 2 and len(lines) == 1, res.output
+        assert lines[0].startswith(msg), res.output
+    assert "exponent_note" in table.read_text(encoding="utf-8")
+
+
 def test_every_model_option_defaults_to_the_one_constant() -> None:
     import typer.main
 

@@ -105,8 +105,10 @@ RECIPES: dict[str, Recipe] = {
         ("droplet", "analyze", "frames", "--out", "analysis.png", "--json", "analysis.json"),
         inputs=("frames",), outputs=("analysis.png", "analysis.json")),
     "droplet calibrate": Recipe(
-        ("droplet", "calibrate", "--model", "eulerian", "--write", "naalg.toml"),
-        inputs=("naalg.toml",), outputs=("naalg.toml",)),
+        ("droplet", "calibrate", "--model", "eulerian", "--duration", "20", "--budget", "13",
+         "--conflict-budget", "0", "--out", "ink_run", "--json", "ink_cal.json", "--write",
+         "naalg.toml"),
+        inputs=("naalg.toml",), outputs=("naalg.toml", "ink_run", "ink_cal.json")),
     "droplet render": Recipe(
         ("droplet", "render", "rendered", "--duration", "100", "--frame-interval", "25"),
         outputs=("rendered",)),
@@ -192,9 +194,10 @@ RECIPES: dict[str, Recipe] = {
 }  # fmt: skip
 
 #: Commands whose cheapest valid run takes about 3 s or more: seconds measured in process on
-#: a 2-core box. droplet calibrate runs the Eulerian jet model about twenty times (the
-#: Lagrangian one takes minutes); calibrate nanomanipulator and calibrate laser run one
-#: population of the search and the sensitivity (about 27 runs of the seed's job).
+#: a 2-core box. droplet calibrate runs one population of the core's search and the
+#: sensitivity (19 parameter sets of six 20 µs Eulerian runs); calibrate nanomanipulator
+#: and calibrate laser run one population of the search and the sensitivity (about 27 runs
+#: of the seed's job).
 SLOW: dict[str, float] = {
     "droplet calibrate": 5.5,
     "calibrate nanomanipulator": 20.0,

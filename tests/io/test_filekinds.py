@@ -42,8 +42,6 @@ ALLOWED = {
     "edited, not a file",
     "microfab.plants.sourced_toml:update_sourced": "re-parses the text it is writing",
     "microfab.plants.sourced_toml:_check_update": "re-parses the text it is writing",
-    "microfab.machines.printhead.calibration:write_relaxation": "re-parses the table it is "
-    "about to write",
     # package data, read from the installed package (digests in the run fingerprints)
     "microfab.experiments.catalog:default_job": "package data (the default job)",
     "microfab.machines.provenance:parameter_source": "package data (twin tables)",
@@ -74,7 +72,6 @@ ALLOWED = {
 PENDING = {
     "microfab.process.inkjet.fluids:load_table": "TOML property table, checked key by key "
     "by _parse_table; no schema-derived generator yet",
-    "microfab.machines.printhead.calibration:check_property_table": "as fluids.load_table",
     "microfab.plants.sourced_toml:read_sourced": "twin TOML tables, checked key by key by "
     "_table; no schema-derived generator yet",
     "microfab.plants.sourced_toml:sources_of": "as read_sourced",

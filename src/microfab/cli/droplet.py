@@ -8,6 +8,15 @@ from typing import Annotated, Any
 
 import typer
 
+from microfab.cli._calibrate_kit import (
+    BudgetOption,
+    ConflictBudgetOption,
+    FreshOption,
+    JsonOption,
+    OutOption,
+    SeedOption,
+    WorkersOption,
+)
 from microfab.cli._kit import (
     check_output_path,
     check_outputs,
@@ -483,53 +492,71 @@ def sweep_cmd(
 def calibrate_cmd(
     write: Annotated[
         Path | None,
-        typer.Option(help="Store the fitted law in this property table (TOML) file."),
+        typer.Option(
+            help="Property table (TOML) to fit on and to store the fitted law in (default: "
+            "fit on the packaged table, write nothing)."
+        ),
     ] = None,
     model: ModelOpt = DEFAULT_JET_MODEL,
+    duration: Annotated[
+        float,
+        number(
+            help="Simulated time per concentration (a shorter one only for a quick look: a "
+            "later breakup counts as none).",
+            unit="µs",
+            low=10.0,
+            high=MAX_DURATION_US,
+        ),
+    ] = 1000.0,
+    mode_fit: Annotated[
+        bool,
+        typer.Option(
+            "--mode-fit",
+            help="Diagnostic: fit the pinch modes too and report their conflict (no --write).",
+        ),
+    ] = False,
+    json_out: JsonOption = None,
+    out: OutOption = None,
+    fresh: FreshOption = False,
+    budget: BudgetOption = None,
+    conflict_budget: ConflictBudgetOption = None,
+    seed: SeedOption = 0,
+    workers: WorkersOption = 1,
 ) -> None:
-    """Fit the relaxation law λ(c) to the seed's 95 µs (0.15 %) and 230 µs (1 %) breakups.
+    """Fit the ink (λ_ref, exponent m, polymer share) to the seed's 95 µs and 230 µs breakups.
 
-    Runs the full model twenty to thirty times (a few minutes with the Lagrangian model,
-    about 15 s with the Eulerian one). A law belongs to the jet model it was fitted with:
-    --write stores it as that model's law ([relaxation] or [relaxation_<model>]).
+    On the calibration core: the 0.15 % and 1 % first-breakup times at 50 V are fitted; the
+    pinch modes (front at 0.15 %, exit at 1 %), the rise over the six concentrations, a
+    2 % breakup within 1 ms and every breakup outside the orifice are held back as checks.
+    Each evaluation runs the six concentrations (3-13 s with the Eulerian model); --out
+    keeps the evaluations so that a rerun resumes. A law belongs to the jet model it was
+    fitted with: --write stores it as that model's law ([relaxation] or [relaxation_<model>]).
     """
-    check_output_path("--write", write)
-    from microfab.machines.printhead.calibration import (
-        calibrate_relaxation,
-        check_property_table,
-        model_breakup,
-        write_relaxation,
-    )
-
+    if mode_fit and write is not None:
+        fail("--mode-fit is a diagnostic (the pinch modes fitted, not checked): no --write")
+    check_outputs(files={"--write": write, "--json": json_out}, folders={"--out": out})
     if write is not None and not write.is_file():
         fail(f"--write {write}: no such property table (copy src/microfab/data/naalg.toml)")
-    if write is not None:
-        try:
-            check_property_table(write)  # before minutes of runs, not after them
-        except ValueError as exc:
-            fail(f"--write {exc}")
-    with progress() as bar:
-        task = bar.add_task("calibration runs", total=None)
-        fit = calibrate_relaxation(
-            breakup=model_breakup(model),
-            progress=lambda ev: bar.update(
-                task,
-                advance=1,
-                description=f"{ev.concentration_pct:g} %, λ {ev.relaxation_time_s * 1e6:.3g} µs",
-            ),
-        )
-    console.print(fit.summary())
-    if write is not None:
-        try:
-            write_relaxation(
-                fit,
-                write,
-                command=f"microfab droplet calibrate --model {model} --write {write}",
-                model=model,
-            )
-        except (OSError, ValueError) as exc:
-            fail(str(exc))
-        console.print(f"wrote {write}")
+    from microfab.cli._calibrate_kit import run_calibration
+    from microfab.machines.printhead.calibration import DEFAULT_BUDGET, problem, write_twin
+
+    try:  # a table that cannot take the result is refused before minutes of runs
+        prob = problem(source=write, model=model, duration_s=duration * 1e-6, mode_fit=mode_fit)
+    except (OSError, ValueError) as exc:
+        fail(f"--write {exc}" if write is not None else str(exc))
+    run_calibration(
+        prob,
+        title=f"seed 003 NaAlg ink ({model} jet model)",
+        budget=budget or DEFAULT_BUDGET,
+        seed=seed,
+        workers=workers,
+        out=out,
+        fresh=fresh,
+        json_out=json_out,
+        write=write,
+        write_twin=lambda r, p: write_twin(r, p, source=write, model=model),
+        conflict_budget=conflict_budget,
+    )
 
 
 @droplet_app.command("sensitivity")

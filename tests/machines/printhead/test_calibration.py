@@ -1,117 +1,111 @@
+"""The NaAlg ink on the calibration core: the problem, a tiny run, the twin file."""
+
 from __future__ import annotations
 
+import math
 import shutil
 from importlib import resources
 from pathlib import Path
 
 import pytest
 
-from microfab.machines.printhead.calibration import (
-    SEED_BREAKUP,
-    calibrate_relaxation,
-    write_relaxation,
-)
-from microfab.process.inkjet.fluids import load_table
+from microfab.calibrate import calibrate
+from microfab.machines.printhead import calibration as cal
+from microfab.plants.sourced_toml import sources_of
+from microfab.process.inkjet.fluids import load_table, naalg
+
+#: A run too short for any breakup (0.15 % breaks near 88 µs): the same model, about 0.1 s
+#: per parameter set, so a test's budget runs in a few seconds.
+SHORT_S = 20e-6
 
 
-def _stand_in(lam_true: float, m_true: float):
-    """A breakup-time law with a known answer: t = 100 µs · (1 + λ / λ(c)_true)."""
-
-    def breakup(c: float, lam: float) -> tuple[float, str]:
-        lam_c = lam_true * c**m_true
-        target = SEED_BREAKUP[c][0] if c in SEED_BREAKUP else 100e-6
-        return target * (0.5 + 0.5 * lam / lam_c), "exit"
-
-    return breakup
-
-
-def test_calibration_recovers_a_known_law() -> None:
-    fit = calibrate_relaxation(breakup=_stand_in(20e-6, 1.7), rtol=1e-3)
-    assert fit.lambda_ref_s == pytest.approx(20e-6, rel=1e-2)
-    assert fit.exponent == pytest.approx(1.7, abs=1e-2)
-    assert fit.at_bound == ()
-    assert fit.model_breakup[1.0][0] == pytest.approx(230e-6, rel=1e-2)
-    assert fit.model_breakup[0.15][0] == pytest.approx(95e-6, rel=1e-2)
-
-
-def test_calibration_reports_an_unreachable_target_at_a_bound() -> None:
-    # the 0.15 % time never falls below 120 µs: the exponent runs to its upper bound
-    def breakup(c: float, lam: float) -> tuple[float, str]:
-        return (120e-6 + lam, "exit") if c < 1 else (100e-6 + 10.0 * lam, "exit")
-
-    fit = calibrate_relaxation(breakup=breakup)
-    assert fit.lambda_ref_s == pytest.approx(13e-6, rel=0.02)
-    assert fit.at_bound == ("exponent",)
-    assert fit.exponent == pytest.approx(load_table().exponent_bounds[1])
-
-
-def test_calibration_takes_the_first_crossing_of_a_non_monotone_response() -> None:
-    # rises to 250 µs at 10 µs, then falls: the scan must stop on the rising branch
-    def breakup(c: float, lam: float) -> tuple[float | None, str | None]:
-        if c < 1:
-            return 95e-6, "front"
-        return (150e-6 + 10.0 * lam, "exit") if lam <= 10e-6 else (100e-6, "exit")
-
-    fit = calibrate_relaxation(breakup=breakup)
-    assert fit.lambda_ref_s == pytest.approx(8e-6, rel=0.02)
-
-
-def test_calibration_rejects_bad_settings() -> None:
-    with pytest.raises(ValueError, match="scan_factor"):
-        calibrate_relaxation(breakup=_stand_in(1e-5, 1.0), scan_factor=1.0)
-    with pytest.raises(ValueError, match="rtol"):
-        calibrate_relaxation(breakup=_stand_in(1e-5, 1.0), rtol=0.0)
-
-
-def test_write_relaxation_round_trip(tmp_path: Path) -> None:
-    src = resources.files("microfab.data").joinpath("naalg.toml")
+def _packaged(tmp_path: Path) -> Path:
     path = tmp_path / "naalg.toml"
-    with resources.as_file(src) as f:
-        shutil.copy(f, path)
-    before = load_table(path)
-    fit = calibrate_relaxation(breakup=_stand_in(20e-6, 1.7), rtol=1e-3)
-    write_relaxation(fit, path, command="test", model="lagrangian")
-    after = load_table(path)
-    assert after.relaxation_status == "calibrated"
-    assert after.lambda_ref_s == pytest.approx(fit.lambda_ref_s, rel=1e-3)
-    assert after.exponent == pytest.approx(fit.exponent, abs=1e-3)
-    assert after.exponent_bounds == before.exponent_bounds
-    assert list(after.zero_shear_viscosity_pa_s) == list(before.zero_shear_viscosity_pa_s)
-    assert "`test`" in after.relaxation_note
+    with resources.as_file(resources.files("microfab.data") / "naalg.toml") as src:
+        shutil.copy(src, path)
+    return path
 
 
-def test_write_relaxation_refuses_a_file_without_the_table(tmp_path: Path) -> None:
-    path = tmp_path / "x.toml"
-    path.write_text("a = 1\n")
-    fit = calibrate_relaxation(breakup=_stand_in(20e-6, 1.7))
-    with pytest.raises(ValueError, match="relaxation"):
-        write_relaxation(fit, path, command="test")
-    assert path.read_text() == "a = 1\n"
+def test_problem_fits_the_two_times_and_holds_the_modes_back() -> None:
+    prob = cal.problem()
+    fit = {t.name: t for t in prob.targets if t.role == "fit"}
+    assert set(fit) == {cal.T_LOW, cal.T_REF}
+    assert (fit[cal.T_LOW].value, fit[cal.T_LOW].tolerance) == (95.0, pytest.approx(9.5))
+    assert (fit[cal.T_REF].value, fit[cal.T_REF].tolerance) == (230.0, pytest.approx(23.0))
+    checks = {t.name: t for t in prob.targets if t.role == "check"}
+    assert set(checks) == {cal.FRONT, cal.EXIT, cal.RISE, cal.LAST, cal.LAST_AFTER, cal.RIM}
+    # a mode check is met exactly when the pinch lies in the seed's third of the jet
+    front, exit_ = checks[cal.FRONT], checks[cal.EXIT]
+    assert front.residual(2 / 3 + 1e-9) == pytest.approx(-1.0) and front.residual(0.6) < -1
+    assert exit_.residual(1 / 3 - 1e-9) == pytest.approx(1.0) and exit_.residual(0.4) > 1
+    assert all(t.source.startswith("seed 003 part 1") for t in prob.targets)
+    params = {p.name: p for p in prob.parameters}
+    assert set(params) == {"lambda_ref_s", "exponent", "polymer_share"}
+    assert params["exponent"].low > 0.0  # m = 0 needs a reason the seed does not give
+    assert params["lambda_ref_s"].log
+    assert (params["lambda_ref_s"].low, params["lambda_ref_s"].high) == (
+        load_table().lambda_ref_bounds_s
+    )
+    assert all("assumed" in params[n].source for n in ("exponent", "polymer_share"))
+    diag = cal.problem(mode_fit=True)
+    assert {t.name for t in diag.targets if t.role == "fit"} == {
+        cal.T_LOW,
+        cal.T_REF,
+        cal.FRONT,
+        cal.EXIT,
+    }
+    # the model is picklable for the process pool, and the table's digest is its identity
+    import pickle
+
+    assert pickle.loads(pickle.dumps(prob.evaluate)).keywords == prob.evaluate.keywords
+    assert prob.fingerprint() != cal.problem(model="lagrangian").fingerprint()
 
 
-def test_each_jet_model_keeps_its_own_law(tmp_path: Path) -> None:
-    src = resources.files("microfab.data").joinpath("naalg.toml")
-    path = tmp_path / "naalg.toml"
-    with resources.as_file(src) as f:
-        shutil.copy(f, path)
-    text = path.read_text()
-    # without an Eulerian law the table says how to get one
-    stripped = text[: text.index("[relaxation_eulerian]")]
-    path.write_text(stripped)
-    with pytest.raises(ValueError, match="--model eulerian --write"):
-        load_table(path).law("eulerian")
-    before = load_table(path)
-    fit = calibrate_relaxation(breakup=_stand_in(20e-6, 1.7), rtol=1e-3)
-    write_relaxation(fit, path, command="test", model="eulerian")  # appended
-    fit2 = calibrate_relaxation(breakup=_stand_in(30e-6, 0.9), rtol=1e-3)
-    write_relaxation(fit2, path, command="test2", model="eulerian")  # replaced in place
-    after = load_table(path)
-    law = after.law("eulerian")
-    assert law.lambda_ref_s == pytest.approx(30e-6, rel=1e-2)
-    assert law.exponent == pytest.approx(0.9, abs=1e-2)
-    assert "`test2`" in law.note and "eulerian jet model" in law.note
-    assert path.read_text().count("[relaxation_eulerian]") == 1
-    assert after.lambda_ref_s == before.lambda_ref_s  # the Lagrangian law is untouched
-    assert after.relaxation_time_s(1.0, "eulerian") == pytest.approx(law.lambda_ref_s)
-    with pytest.raises(ValueError, match="lower-case"):
-        write_relaxation(fit, path, command="x", model="Euler 2")
+def test_polymer_share_moves_viscosity_to_the_solvent_and_keeps_eta0() -> None:
+    full, half = naalg(1.0), naalg(1.0, polymer_share=0.5)
+    assert half.zero_shear_viscosity_pa_s == pytest.approx(full.zero_shear_viscosity_pa_s)
+    assert half.polymer_viscosity_pa_s == pytest.approx(0.5 * full.polymer_viscosity_pa_s)
+    with pytest.raises(ValueError, match="polymer_share"):
+        naalg(1.0, polymer_share=0.0)
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    """One tiny calibration on a run too short to break: every row comes back."""
+    prob = cal.problem(duration_s=SHORT_S)
+    return calibrate(prob, budget=13, seed=0, polish=False, conflict_budget=0)
+
+
+def test_a_tiny_run_returns_every_row(tiny) -> None:
+    assert [t.name for t in tiny.targets] == list(cal.problem().target_names)
+    assert [p.name for p in tiny.parameters] == ["lambda_ref_s", "exponent", "polymer_share"]
+    # nothing breaks within 20 µs: the times are NaN, counted as unmet, never as met
+    row = {t.name: t for t in tiny.targets}
+    assert math.isnan(row[cal.T_LOW].model) and not row[cal.T_LOW].met
+    assert not tiny.converged
+
+
+def test_write_twin_sources_name_the_command_and_targets(tiny, tmp_path: Path) -> None:
+    path = _packaged(tmp_path)
+    cal.write_twin(tiny, path, source=path, model="eulerian")
+    law = load_table(path).law("eulerian")
+    assert law.lambda_ref_s == pytest.approx(tiny.values["lambda_ref_s"], rel=1e-5)
+    assert law.polymer_share == pytest.approx(tiny.values["polymer_share"], rel=1e-5)
+    src = sources_of(path, "naalg.toml")
+    for key in ("lambda_ref_s", "exponent", "polymer_share"):
+        text = src[f"relaxation_eulerian.{key}"]
+        assert text.startswith("calibrated: `microfab droplet calibrate --model eulerian`")
+        assert cal.T_LOW in text and cal.T_REF in text
+    # the Lagrangian law is untouched
+    assert load_table(path).law("lagrangian") == load_table().law("lagrangian")
+
+
+def test_a_table_that_cannot_take_the_law_is_refused_and_left(tmp_path: Path) -> None:
+    path = _packaged(tmp_path)
+    text = path.read_text(encoding="utf-8").replace("polymer_share_source", "polymer_share_note")
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ValueError, match="polymer_share"):
+        cal.problem(source=path)
+    assert path.read_text(encoding="utf-8") == text
+    with pytest.raises(ValueError, match="model must be one of"):
+        cal.problem(model="smooth")

@@ -156,7 +156,9 @@ def test_model_defaults_follow_the_one_constant() -> None:
     assert DropletSettings().model == DEFAULT_JET_MODEL
     for fn in (
         printhead_calibration.simulated_breakup,
-        printhead_calibration.write_relaxation,
+        printhead_calibration.evaluate,
+        printhead_calibration.problem,
+        printhead_calibration.write_twin,
         printhead_sensitivity.perturbed_fluid,
     ):
         assert inspect.signature(fn).parameters["model"].default == DEFAULT_JET_MODEL, fn

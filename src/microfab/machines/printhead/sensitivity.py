@@ -23,11 +23,13 @@ saved atomically as it finishes, so an interrupted study resumes. The study serv
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from microfab.io.sweep import SweepResult, run_sweep
 from microfab.machines.printhead.machine import (
@@ -38,10 +40,16 @@ from microfab.machines.printhead.machine import (
 )
 from microfab.process.inkjet.droplet import DEFAULT_JET_MODEL
 
+if TYPE_CHECKING:
+    from microfab.process.inkjet.fluids import Fluid
+
 __all__ = [
     "FACTORS",
+    "RADIUS_FACTORS",
+    "ScalingRow",
     "SensitivityPoint",
     "markdown",
+    "nozzle_scaling",
     "perturbed_fluid",
     "sensitivity_points",
     "sensitivity_study",
@@ -210,3 +218,100 @@ def markdown(table: Sequence[dict[str, Any]]) -> str:
         lines.append(f"| {r['concentration_pct']:g} | {r['prop']} | {r['factor']:g} | {t} | "
                      f"{r['mode'] or '–'} | {d} | {r['outcome']} |")  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+#: Nozzle radii of the scaling check, relative to the seed's 60 µm (issue 46: ×0.7 / 1 / 1.4).
+RADIUS_FACTORS = (0.7, 1.0, 1.4)
+
+
+@dataclass(frozen=True)
+class ScalingRow:
+    """One nozzle radius of `nozzle_scaling`.
+
+    Attributes
+    ----------
+    radius_m : float
+        Orifice radius R, m.
+    ohnesorge : float
+        ``Oh = η / sqrt(ρ σ R)`` of the liquid at that radius.
+    capillary_time_s : float
+        ``sqrt(ρ R³ / σ)``, s.
+    breakup_time_s : float or None
+        First breakup, s (None: none within the run).
+    breakup_z_m : float or None
+        Its position from the orifice, m (< 0: inside the bore).
+    """
+
+    radius_m: float
+    ohnesorge: float
+    capillary_time_s: float
+    breakup_time_s: float | None
+    breakup_z_m: float | None
+
+    @property
+    def scaled_time(self) -> float:
+        """``t_b / sqrt(ρ R³ / σ)`` (NaN without a breakup)."""
+        if self.breakup_time_s is None:
+            return math.nan
+        return self.breakup_time_s / self.capillary_time_s
+
+
+def nozzle_scaling(
+    fluid: Fluid,
+    *,
+    factors: Sequence[float] = RADIUS_FACTORS,
+    voltage_v: float = FIG4_VOLTAGE_V,
+    settings: DropletSettings | None = None,
+) -> list[ScalingRow]:
+    """First breakup of ``fluid`` as the printhead's orifice radius is scaled.
+
+    The known scaling of capillary breakup (Rayleigh; Eggers & Villermaux, Rep. Prog. Phys.
+    71 (2008) 036601, §2): for a liquid of Oh < 0.1 the breakup time follows the inertial
+    capillary time ``sqrt(ρ R³ / σ)``, so it rises with R. The same head (`machine.twin`,
+    only ``nozzle_radius_m`` changed) is driven with the seed's bipolar waveform.
+
+    Parameters
+    ----------
+    fluid : Fluid
+        The liquid (e.g. `microfab.process.inkjet.fluids.WATER`).
+    factors : sequence of float
+        Radii relative to the twin's.
+    voltage_v : float
+        Drive amplitude, V.
+    settings : DropletSettings, optional
+        Simulated time and jet model (default: 400 µs, the default model).
+
+    Returns
+    -------
+    list of ScalingRow
+        One per factor, in order.
+    """
+    from microfab.machines.printhead.machine import twin
+    from microfab.process.inkjet.droplet import simulate_droplet
+    from microfab.trajectory.waveform import seed003_waveform
+
+    s = settings or DropletSettings(after_breakup_s=2e-6)
+    head = twin()
+    rows = []
+    for k in factors:
+        ph = dataclasses.replace(head, nozzle_radius_m=head.nozzle_radius_m * float(k))
+        r = simulate_droplet(
+            fluid,
+            seed003_waveform(voltage_v),
+            printhead=ph,
+            duration_s=s.duration_s,
+            after_breakup_s=s.after_breakup_s,
+            model=s.model,  # type: ignore[arg-type]
+        )
+        rad = ph.nozzle_radius_m
+        rho, sig = fluid.density_kg_m3, fluid.surface_tension_n_m
+        rows.append(
+            ScalingRow(
+                radius_m=rad,
+                ohnesorge=fluid.zero_shear_viscosity_pa_s / math.sqrt(rho * sig * rad),
+                capillary_time_s=math.sqrt(rho * rad**3 / sig),
+                breakup_time_s=r.breakup_time_s,
+                breakup_z_m=r.breakup_z_m,
+            )
+        )
+    return rows

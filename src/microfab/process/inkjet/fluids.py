@@ -20,7 +20,9 @@ Interpolation between the table points (`naalg`)
   ``c = 0``;
 * density and surface tension: linear in c between points, and linear to pure water
   (c = 0) below the first point;
-* polymer viscosity ``η_p = η0 - η_s``;
+* polymer viscosity ``η_p = s_p · (η0 - η_w)`` with ``s_p`` the law's ``polymer_share`` (1 when
+  the table gives none): the elastic share of what the polymer adds to water's viscosity; the
+  rest (its fast modes) acts as Newtonian solvent, ``η_s = η0 - η_p``;
 * relaxation time ``λ(c) = λ_ref · (c/c_ref)^exponent`` from the ``[relaxation]`` table.
 
 Exactly at a table point the tabulated density and surface tension are returned unchanged,
@@ -43,7 +45,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from microfab.core.validate import check_finite, check_nonnegative, check_positive
+from microfab.core.validate import (
+    check_finite,
+    check_in_range,
+    check_nonnegative,
+    check_positive,
+)
 from microfab.data import read_text as read_data_text
 
 __all__ = [
@@ -236,6 +243,9 @@ class RelaxationLaw:
         Power of the concentration.
     status, note : str
         ``"calibrated"`` or ``"uncalibrated"``, and how it was obtained.
+    polymer_share : float
+        Share of the polymer's added viscosity ``η0 - η_w`` that relaxes with λ (the rest
+        acts as Newtonian solvent), in (0, 1]; 1 when the table gives none.
     """
 
     lambda_ref_s: float
@@ -243,6 +253,7 @@ class RelaxationLaw:
     exponent: float
     status: str
     note: str = ""
+    polymer_share: float = 1.0
 
     def time_s(self, concentration_pct: float) -> float:
         """λ at ``concentration_pct`` (% w/v, >= 0), s."""
@@ -419,6 +430,7 @@ def _parse_table(data: Mapping[str, Any], origin: str) -> NaAlgTable:
                     exponent=float(raw["exponent"]),
                     status=str(raw["status"]),
                     note=str(raw.get("note", "")),
+                    polymer_share=float(raw.get("polymer_share", 1.0)),
                 )
         table = dataclasses.replace(table, model_laws=laws)
     except (KeyError, TypeError) as exc:
@@ -428,6 +440,8 @@ def _parse_table(data: Mapping[str, Any], origin: str) -> NaAlgTable:
                        law.reference_pct, "% w/v")  # fmt: skip
         check_positive(f"{origin}: [relaxation_{name}] λ_ref", law.lambda_ref_s, "s")
         check_finite(f"{origin}: [relaxation_{name}] exponent", law.exponent)
+        check_in_range(f"{origin}: [relaxation_{name}] polymer_share", law.polymer_share,
+                       0.0, 1.0, low_closed=False)  # fmt: skip
 
     if c.size < 1 or c[0] <= 0.0 or np.any(np.diff(c) <= 0.0):
         raise ValueError(f"{origin}: concentrations must be positive and distinct: {list(c)}")
@@ -526,6 +540,7 @@ def naalg(
     relaxation_time_s: float | None = None,
     table: NaAlgTable | None = None,
     model: str = DEFAULT_JET_MODEL,
+    polymer_share: float | None = None,
 ) -> Fluid:
     """Sodium alginate in deionised water at 25 °C, at any concentration of the table range.
 
@@ -540,6 +555,8 @@ def naalg(
     model : str, optional
         Jet model whose calibrated relaxation law to use (`NaAlgTable.law`): "eulerian"
         (default, `DEFAULT_JET_MODEL`) or "lagrangian".
+    polymer_share : float, optional
+        Override the law's share of ``η0 - η_w`` that is elastic (in (0, 1]; a calibration).
 
     Returns
     -------
@@ -597,6 +614,14 @@ def naalg(
         lam = 0.0
     else:
         lam = t.relaxation_time_s(c, model)
+    if polymer_share is None:
+        known = model == "lagrangian" or model in t.model_laws
+        share = t.law(model).polymer_share if known else 1.0
+    else:
+        share = float(polymer_share)
+        check_in_range("polymer_share", share, 0.0, 1.0, low_closed=False)
+    if share < 1.0:  # the fast modes' part of the polymer viscosity acts as solvent
+        eta_s = eta_s + (1.0 - share) * (eta0 - eta_s)
     return Fluid(
         name=f"NaAlg {c:g} % w/v",
         density_kg_m3=rho,
