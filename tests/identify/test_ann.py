@@ -191,11 +191,13 @@ def test_window_set_gathers_the_strided_windows(inputs):
     x, t = ws.batch(idx, 1)
     np.testing.assert_array_equal(x, x_ref[idx])
     np.testing.assert_array_equal(t, t_ref[idx])
-    scal = ws.fit_scaling(1)
     ref = Scaling.fit(x_ref, t_ref)
-    np.testing.assert_allclose(scal.in_offset, ref.in_offset, rtol=1e-9, atol=1e-15)
-    np.testing.assert_allclose(scal.in_scale, ref.in_scale, rtol=1e-9)
-    assert scal.out_scale == pytest.approx(ref.out_scale, rel=1e-9)
+    # one chunk, and chunks of 997 windows (the one-pass moments about a shift)
+    for scal in (ws.fit_scaling(1), ws.fit_scaling(1, chunk=997)):
+        np.testing.assert_allclose(scal.in_offset, ref.in_offset, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(scal.in_scale, ref.in_scale, rtol=1e-9)
+        assert scal.out_offset == pytest.approx(ref.out_offset, rel=1e-9, abs=1e-15)
+        assert scal.out_scale == pytest.approx(ref.out_scale, rel=1e-9)
 
 
 def test_scaling_round_trip():
