@@ -33,6 +33,7 @@ __all__ = [
     "study_summary",
     "study_warnings",
     "table_iii",
+    "table_iii_agreement",
     "times_table",
     "tradeoff_reduction",
     "tradeoff_table",
@@ -53,6 +54,10 @@ NOTES = (
 )
 
 _NORMS = ("l1", "l2", "linf")
+
+#: Band of `table_iii_agreement`, percentage points: issue 46 counts Table III's cells whose
+#: improvement lies within 15 points of the seed's.
+AGREEMENT_BAND_POINTS = 15.0
 
 
 def _ok(p: dict[str, Any] | None) -> bool:
@@ -91,9 +96,53 @@ def table_iii(study: ReferenceStudy, output: str = "twin", prefix: str = "") -> 
         f"{label} [%], ours / seed",
         columns=("shape", "a_max [m/s²]", "time [s]", "L1", "L2", "L∞"),
         rows=rows,
-        note="improvement = 100 (baseline - optimised) / baseline; seed: experimental",
+        note="improvement = 100 (baseline - optimised) / baseline; seed: experimental"
+        + _agreement_note(table_iii_agreement(study, output)),
     )
     return labelled(table, shows)
+
+
+def _agreement_note(agree: dict[str, float]) -> str:
+    if not agree["cells"]:
+        return ""
+    return (
+        f"; {agree['within']} of {agree['cells']} cells within ±{agree['band_points']:g} "
+        f"points of the seed's, mean |difference| {agree['mean_abs_diff_points']:.1f} points"
+    )
+
+
+def table_iii_agreement(study: ReferenceStudy, output: str = "twin") -> dict[str, float]:
+    """How close Table III's improvements come to the seed's, over the cells both have.
+
+    Parameters
+    ----------
+    study : ReferenceStudy
+        The study (its points at Table III's cases and a_max).
+    output : str
+        ``"twin"`` (the seed's "experimental") or ``"ann"`` (its "simulated").
+
+    Returns
+    -------
+    dict
+        ``cells``: improvement cells (L1, L2, L∞ of each point that ran and that Table III
+        lists); ``within``: those within `AGREEMENT_BAND_POINTS` of the seed's;
+        ``mean_abs_diff_points``: their mean |ours - seed|, percentage points (NaN
+        without cells); ``band_points``: the band.
+    """
+    diffs = []
+    for (case, a), p in sorted(study.points.items()):
+        seed = paper.TABLE_III.get(case, {}).get(a)
+        if seed is None or not _ok(p) or a not in study.settings.a_max:
+            continue
+        imp = p["improvement"][output]
+        diffs += [abs(float(imp[k]) - float(getattr(seed, k))) for k in _NORMS]
+    d = np.asarray(diffs, dtype=float)
+    return {
+        "cells": int(d.size),
+        "within": int(np.sum(d <= AGREEMENT_BAND_POINTS)),
+        "mean_abs_diff_points": float(d.mean()) if d.size else float("nan"),
+        "band_points": AGREEMENT_BAND_POINTS,
+    }
 
 
 def times_table(study: ReferenceStudy) -> Table:
@@ -403,6 +452,7 @@ def study_summary(study: ReferenceStudy) -> dict[str, Any]:
         "reached": [point_reached(p) for _, p in sorted(study.points.items())],
         "warnings": study_warnings(study),
         "table_iii_means": means,
+        "table_iii_agreement": {o: table_iii_agreement(study, o) for o in ("twin", "ann")},
         "table_iii_means_seed": {k: float(np.mean([getattr(r, k) for rows in
                                                    paper.TABLE_III.values()
                                                    for r in rows.values()]))
