@@ -16,7 +16,7 @@ from microfab.cli._calibrate_kit import (
     SeedOption,
     WorkersOption,
 )
-from microfab.cli._kit import check_outputs, console, fail, renamed, status
+from microfab.cli._kit import check_outputs, console, fail, renamed
 from microfab.cli._options import integer, number
 from microfab.experiments.seed002_stage.keys import MAX_TOTAL_S, RUNS_SEED, RUNS_TOTAL_S
 
@@ -267,8 +267,7 @@ def calibrate_xy_stage_cmd(
             seed=runs_seed,
             proxy=ProxySettings(hidden=proxy_hidden, offsets=proxy_offsets),
         )
-        with status("making the runs"):
-            prob = problem(data)
+        prob = problem(data)  # the networks' runs made (a second or two), checked
     except ValueError as exc:
         fail(renamed(str(exc), {"ann_s": "--ann-duration", "linear_s": "--duration"}))
     result = run_calibration(
