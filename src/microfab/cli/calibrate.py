@@ -199,8 +199,8 @@ def calibrate_xy_stage_cmd(
         float,
         number(
             "--ann-duration",
-            help="The networks' data per evaluation (random runs and shapes, 80/20 split; "
-            "at least two whole runs: about 10 s).",
+            help="The networks' data per evaluation (random runs and shapes, split 80/20 by "
+            "whole runs; it must leave a validation run: 10 s does with --runs-seed 0).",
             unit="s",
             low=0.0,
             low_open=True,
