@@ -485,7 +485,9 @@ EXCLUDED: dict[str, str] = {
     "evaluations of six runs each, 10-15 minutes; writes the package's property table "
     "(tests/machines/printhead/test_calibration.py runs the core on it with a tiny budget)",
     "droplet sensitivity": "dozens of 400 µs breakup runs and no option shortens them",
-    "calibrate xy-stage --check": "fits on 600 s of twin runs, then an order scan",
+    "calibrate xy-stage --workers 2 --out runs/xy-cal": "120 evaluations of 3 s each and "
+    "the sensitivity and conflict sweep (about 15 min on 2 cores); tests/cli/"
+    "test_calibrate_xy_stage.py runs it on the least budget and the smallest data",
     "run examples/blackbox_stage_reference.toml": "even one letter at one a_max with one "
     "Gauss-Newton iteration and the sizing given took 27 s (14 s CPU); "
     "tests/experiments/seed002_reference and tests/optimize run its parts",

@@ -101,8 +101,10 @@ def _range_cases() -> list[tuple[str, list[str], str]]:
         ("ann-validation", [*ann, "--validation", "0.95"], "'--validation': 0.95"),
         ("ann-seed", [*ann, "--seed", "-2"], "'--seed': -2"),
         ("cal-duration", [*cal, "--duration", "0.1"], "'--duration': 0.1 s"),
-        ("cal-search", [*cal, "--search", "0"], "'--search': 0 s"),
-        ("cal-seed", [*cal, "--seed", "-1"], "'--seed': -1"),
+        ("cal-ann-duration", [*cal, "--ann-duration", "0"], "'--ann-duration': 0 s"),
+        ("cal-runs-seed", [*cal, "--runs-seed", "-1"], "'--runs-seed': -1"),
+        ("cal-proxy-hidden", [*cal, "--proxy-hidden", "0"], "'--proxy-hidden': 0 units"),
+        ("cal-proxy-offsets", [*cal, "--proxy-offsets", "26"], "'--proxy-offsets': 26"),
     ]
 
 
@@ -133,7 +135,7 @@ SHARED = [
     (("stage", "play"), "seed", "twin", "seed"),
     (("stage", "play"), "hold", "twin", "hold_s"),
     (("calibrate", "xy-stage"), "duration", "linear", "total_s"),
-    (("calibrate", "xy-stage"), "seed", "linear", "seed"),
+    (("calibrate", "xy-stage"), "runs_seed", "linear", "seed"),
     (("identify", "linear"), "order", "linear", "order"),
     (("identify", "linear"), "decimate", "linear", "decimate"),
     (("identify", "ann"), "epochs", "ann", "max_epochs"),
@@ -186,10 +188,8 @@ def test_workers_with_one_axis_is_refused(files, tmp_path: Path, one_error_line)
     [
         (["stage", "excite", "--kind", "prbs", "--duration", "0.8"], "two runs of 0.4 s"),
         (["stage", "excite", "--kind", "chirp", "--duration", "0.9"], "two runs of 0.45 s"),
-        (["calibrate", "xy-stage", "--duration", "60"],
-         "--search 120 s (its default) is longer than --duration 60 s"),
-        (["calibrate", "xy-stage", "--duration", "10", "--search", "20"],
-         "--search 20 s is longer than --duration 10 s"),
+        (["calibrate", "xy-stage", "--ann-duration", "6"],
+         "--ann-duration = 6 s of the networks' data gives 3 training and 0 validation"),
     ],
 )  # fmt: skip
 def test_options_that_contradict_each_other_are_refused(

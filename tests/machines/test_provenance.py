@@ -14,10 +14,14 @@ from microfab.report.tables import Table
 def test_every_calibration_declares_targets_and_holds_on_the_shipped_data() -> None:
     cals = provenance.calibrations()
     assert len(cals) >= 5
-    assert len({c.command for c in cals}) == len(cals)
+    assert len({(c.command, c.marker) for c in cals}) == len(cals)
     for c in cals:
         assert c.targets and all(q.startswith("seed ") for q in c.targets)
-        assert provenance.holds(c), f"{c.data_file} does not name {c.command}"
+    # one command may declare a retired fit and its successor (told apart by their
+    # markers): exactly one of them holds on the shipped data
+    for command in {c.command for c in cals}:
+        held = [provenance.holds(c) for c in cals if c.command == command]
+        assert held.count(True) == 1, f"{command}: {held.count(True)} of {len(held)} hold"
 
 
 def test_a_target_is_fitted_the_rest_predicted_and_seed_values_are_inputs() -> None:

@@ -16,9 +16,16 @@ from microfab.cli._calibrate_kit import (
     SeedOption,
     WorkersOption,
 )
-from microfab.cli._kit import check_outputs, console, fail, renamed, status
-from microfab.cli._options import given, integer, number
+from microfab.cli._kit import check_outputs, console, fail, renamed
+from microfab.cli._options import integer, number
 from microfab.experiments.seed002_stage.keys import MAX_TOTAL_S, RUNS_SEED, RUNS_TOTAL_S
+
+#: Most hidden units of the networks' proxy (assumed: ten times its 400; the read-out's
+#: Gram matrix grows as (201 + hidden)^2 doubles, 140 MB at 4000).
+MAX_PROXY_HIDDEN = 4000
+#: Most subsampling offsets: the 25 samples of 10 kHz in one 400 Hz step
+#: (`microfab.machines.xy_stage.proxy.ProxySettings.offsets`).
+MAX_PROXY_OFFSETS = 25
 
 __all__ = ["calibrate_app"]
 
@@ -177,99 +184,108 @@ def calibrate_laser_cmd(
 
 @calibrate_app.command("xy-stage")
 def calibrate_xy_stage_cmd(
-    ctx: typer.Context,
     write: Annotated[
-        Path | None,
-        typer.Option(help="Write an XY stage twin data file with the fitted magnitudes here."),
-    ] = None,
-    json_out: Annotated[
-        Path | None, typer.Option("--json", help="Write the fit (and checks) as JSON here.")
+        Path | None, typer.Option(help="Write the calibrated XY stage twin data file here.")
     ] = None,
     duration: Annotated[
-        float, number("--duration", key=RUNS_TOTAL_S, help="Random-run data of the fit.")
-    ] = 600.0,
-    search: Annotated[
         float,
         number(
-            "--search",
-            help="Shorter data to search on first (at most --duration).",
+            "--duration",
+            key=RUNS_TOTAL_S,
+            help="Random runs of the linear model per evaluation (seed §III-C.1: 600 s).",
+        ),
+    ] = 60.0,
+    ann_duration: Annotated[
+        float,
+        number(
+            "--ann-duration",
+            help="The networks' data per evaluation (random runs and shapes, split 80/20 by "
+            "whole runs; it must leave a validation run: 10 s does with --runs-seed 0).",
             unit="s",
             low=0.0,
             low_open=True,
             high=MAX_TOTAL_S,
         ),
-    ] = 120.0,
-    seed: Annotated[
-        int, integer("--seed", key=RUNS_SEED, help="Seed of the runs and the noise.")
+    ] = 60.0,
+    runs_seed: Annotated[
+        int, integer("--runs-seed", key=RUNS_SEED, help="Seed of the runs and the twin's noise.")
     ] = 0,
-    check: Annotated[
-        bool, typer.Option(help="Then measure the checks (order scan 2..8, time constant).")
-    ] = False,
+    proxy_hidden: Annotated[
+        int,
+        integer(
+            "--proxy-hidden",
+            help="Random hidden units of the networks' σ proxy (xy_stage.proxy: 400).",
+            unit="units",
+            low=1,
+            high=MAX_PROXY_HIDDEN,
+        ),
+    ] = 400,
+    proxy_offsets: Annotated[
+        int,
+        integer(
+            "--proxy-offsets",
+            help="Subsampling offsets of the proxy's training windows (xy_stage.proxy: 2).",
+            low=1,
+            high=MAX_PROXY_OFFSETS,
+        ),
+    ] = 2,
+    json_out: JsonOption = None,
+    out: OutOption = None,
+    fresh: FreshOption = False,
+    budget: BudgetOption = None,
+    conflict_budget: ConflictBudgetOption = None,
+    seed: SeedOption = 0,
+    workers: WorkersOption = 1,
 ) -> None:
-    """Fit the XY stage twin's friction + cogging per axis to seed 002 Table II column 1."""
-    check_outputs(files={"--write": write, "--json": json_out})
-    if search > duration:
-        default = "" if given(ctx, "search") else " (its default)"
-        fail(
-            f"--search {search:g} s{default} is longer than --duration {duration:g} s: the "
-            "search runs on a shorter data set"
-        )
-    from microfab.machines.xy_stage.calibration import (
-        CalibrationSettings,
-        fit_scales,
-        force_budget,
-        scaled_changes,
-        write_calibration_json,
-        write_twin_file,
+    """Fit the XY stage twin's assumed magnitudes jointly to seed 002 Table II.
+
+    Free: Coulomb friction and cogging per axis, the y cable's link ripple and stiffness,
+    the carriage resonance and the y -> x coupling. Fit: the linear model's σ and μ per axis
+    on its training data and the networks' validation σ per axis, through a random-feature
+    proxy (training the networks per evaluation is far too slow); the slowest time
+    constant (about 20 ms, §III-B) is held back as a check. Each evaluation plays
+    --duration s of random runs and --ann-duration s of the networks' data on the twin.
+    """
+    # before the data are made: a refusal stays one line and writes nothing
+    check_outputs(files={"--write": write, "--json": json_out}, folders={"--out": out})
+    from microfab.cli._calibrate_kit import run_calibration
+    from microfab.machines.xy_stage.calibration import force_budget
+    from microfab.machines.xy_stage.calibration_core import (
+        DEFAULT_BUDGET,
+        XYCalData,
+        changes_of,
+        problem,
+        write_twin,
     )
-    from microfab.machines.xy_stage.identify import linear_checks
+    from microfab.machines.xy_stage.proxy import ProxySettings
     from microfab.plants.xy_stage_params import load_params
 
     try:
-        settings = CalibrationSettings(total_s=duration, search_s=search, seed=seed)
-    except ValueError as exc:
-        fail(renamed(str(exc), {"total_s": "--duration", "search_s": "--search"}))
-    try:
-        with status("fitting the friction and cogging scales") as show:
-            fit = fit_scales(
-                settings,
-                progress=lambda k, s, g: show(
-                    f"run {k}: scales {s[0]:.4g} / {s[1]:.4g} -> sigma {g[0] * 1e6:.1f} / "
-                    f"{g[1] * 1e6:.1f} µm"
-                ),
-            )
-            changes = scaled_changes(fit.scales)
-            checks = None
-            if check:  # before anything is printed: a refusal here stays one line
-                show("checks: order scan and time constants")
-                try:
-                    checks = linear_checks(fit.total_s, seed=seed, changes=changes)
-                except ValueError as exc:
-                    raise ValueError(
-                        f"--check on {fit.total_s:g} s of data: {exc}; give a longer --duration"
-                    ) from exc
-    except ValueError as exc:
-        fail(str(exc))
-    capped = [ax for ax, c in zip("xy", fit.capped, strict=True) if c]
-    console.print(
-        f"scales x {fit.scales[0]:.4g}, y {fit.scales[1]:.4g}: linear sigma "
-        f"{fit.sigma_m[0] * 1e6:.1f} / {fit.sigma_m[1] * 1e6:.1f} µm on {fit.total_s:g} s "
-        "(seed 48.0 / 156.3)" + (f"; capped: {', '.join(capped)}" if capped else "")
-    )
-    for b in force_budget(load_params().with_(**dict(changes))):
-        console.print(b.line())
-    if checks is not None:
-        d = checks.to_dict()
-        console.print(
-            f"checks: sigma(y-u) {d['tracking_sigma_um'][0]:.1f} / "
-            f"{d['tracking_sigma_um'][1]:.1f} µm; slowest time constant "
-            f"{d['slowest_time_constant_ms']:.1f} ms (seed reading 20 ms)"
+        data = XYCalData(
+            linear_s=duration,
+            ann_s=ann_duration,
+            seed=runs_seed,
+            proxy=ProxySettings(hidden=proxy_hidden, offsets=proxy_offsets),
         )
-        for n, row in d["order_scan_sigma_um"].items():
-            console.print(f"order {n}: sigma {row[0]:.1f} / {row[1]:.1f} µm")
-    if write is not None:
-        write_twin_file(fit, write)
-        console.print(f"wrote {write}")
-    if json_out is not None:
-        write_calibration_json(fit, json_out, checks=checks)
-        console.print(f"wrote {json_out}")
+        prob = problem(data)  # the networks' runs made (a second or two), checked
+    except ValueError as exc:
+        fail(renamed(str(exc), {"ann_s": "--ann-duration", "linear_s": "--duration"}))
+    result = run_calibration(
+        prob,
+        title="seed 002 XY stage twin",
+        budget=budget or DEFAULT_BUDGET,
+        seed=seed,
+        workers=workers,
+        out=out,
+        fresh=fresh,
+        json_out=json_out,
+        write=write,
+        write_twin=lambda r, p: write_twin(r, p),
+        conflict_budget=conflict_budget,
+    )
+    # plausibility of the answer's forces (a real stage of this size: friction
+    # coefficient about 0.01-0.1, cogging a few % of the peak force)
+    fitted = load_params().with_(**dict(changes_of(result.values)))
+    console.print("forces at the answer:")
+    for b in force_budget(fitted):
+        console.print(b.line())

@@ -79,6 +79,10 @@ class Calibration:
         Ids of the published numbers it holds back: predicted by the calibrated twin and
         reported beside the targets, never used to choose the parameters. A row that shows
         one is labelled predicted.
+    marker : str
+        The text whose presence in ``data_file`` shows the file holds this calibration's
+        result (default ``command``). Two calibrations by one command that wrote their
+        sources differently (a retired fit and its successor) tell their files apart by it.
     """
 
     command: str
@@ -86,6 +90,7 @@ class Calibration:
     targets: frozenset[str]
     what: str = ""
     checks: frozenset[str] = frozenset()
+    marker: str = ""
 
     def __post_init__(self) -> None:
         if not self.targets:

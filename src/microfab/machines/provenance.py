@@ -41,6 +41,7 @@ CALIBRATION_MODULES: tuple[str, ...] = (
     "microfab.machines.galvo.calibration",
     "microfab.machines.nanomanipulator.calibration",
     "microfab.machines.xy_stage.calibration",
+    "microfab.machines.xy_stage.calibration_core",
     "microfab.machines.xy_stage.cases",
     "microfab.machines.printhead.calibration",
     "microfab.machines.laser_stage.calibration",
@@ -68,9 +69,11 @@ def _data_text(name: str) -> str:
 def holds(cal: Calibration) -> bool:
     """Whether the shipped data file holds ``cal``'s result (its command is named there).
 
-    A calibration run at every run (``data_file`` empty) always holds.
+    A calibration run at every run (``data_file`` empty) always holds. The text looked for
+    is the calibration's ``marker`` when it has one (a retired fit and its successor by one
+    command), else its command.
     """
-    return not cal.data_file or cal.command in _data_text(cal.data_file)
+    return not cal.data_file or (cal.marker or cal.command) in _data_text(cal.data_file)
 
 
 def parameter_source(data_file: str, key: str) -> str:

@@ -97,8 +97,9 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
         Key(name="noise", type="bool", default=True, help="2 µm output noise (seed eq. 3)"),
         HOLD_S,
         Key(name="magnitudes", type="str", default="calibrated", choices=MAGNITUDES,
-            help="friction and cogging: 'calibrated' (the twin file's, fitted to Table II "
-            "column 1) or 'assumed' (the magnitudes before calibration)"),
+            help="the twin's disturbance magnitudes: 'calibrated' (the twin file's, fitted "
+            "to Table II by `microfab calibrate xy-stage`) or 'assumed' (every magnitude as "
+            "assumed before calibration)"),
     ),
     "linear": (
         RUNS_TOTAL_S,
@@ -150,14 +151,14 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
 
 
 def _magnitudes(tw: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
-    """Twin changes of the ``magnitudes`` choice (``"assumed"``: scale 1 of the reference)."""
-    from microfab.machines.xy_stage.calibration import scaled_changes
+    """Twin changes of the ``magnitudes`` choice (``"assumed"``: every magnitude as assumed)."""
+    from microfab.machines.xy_stage.calibration import assumed_changes
 
     if tw["magnitudes"] not in MAGNITUDES:
         raise ValueError(
             f"[twin] magnitudes must be one of {', '.join(MAGNITUDES)}, got {tw['magnitudes']!r}"
         )
-    return () if tw["magnitudes"] == "calibrated" else scaled_changes((1.0, 1.0))
+    return () if tw["magnitudes"] == "calibrated" else assumed_changes()
 
 
 def config_from_sections(sec: dict[str, dict[str, Any]]) -> StudySettings:

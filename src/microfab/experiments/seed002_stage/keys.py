@@ -15,7 +15,7 @@ stays light; ``tests/cli/test_option_rules_identify_stage.py`` checks that they 
 
 Option / key pairs: ``stage excite --duration`` and ``calibrate xy-stage --duration`` /
 ``[linear] total_s``; ``stage excite --amax`` / ``[linear] a_max``; ``stage excite --seed``
-and ``calibrate xy-stage --seed`` / ``[linear] seed``; ``stage play --seed`` / ``[twin]
+and ``calibrate xy-stage --runs-seed`` / ``[linear] seed``; ``stage play --seed`` / ``[twin]
 seed``; ``stage play --hold`` / ``[twin] hold_s``; ``identify linear --order`` and
 ``--decimate`` / ``[linear] order`` and ``decimate``; ``identify ann --epochs``,
 ``--threads``, ``--workers``, ``--epoch-windows``, ``--validation``, ``--seed`` / ``[ann]

@@ -145,6 +145,9 @@ CALIBRATION = Calibration(
         "friction, cogging and the loop's acceleration feedforward per axis, cable ripple "
         "and stiffness, resonance, coupling"
     ),
+    # the core's sources (`write_twin`); the retired fit's began otherwise
+    # (`xy_stage.calibration.CALIBRATION`): the shipped file tells which one it holds
+    marker=f"calibrated: `{COMMAND}`",
 )
 
 _T2 = "seed 002 Table II"
@@ -430,8 +433,14 @@ def problem(data: XYCalData | None = None) -> CalibrationProblem:
     CalibrationProblem
         Fit targets `FIT_NAMES`, check `CHECK_NAMES`, free `PARAMETERS`; its identity holds
         the packaged data file's SHA-256 and the data settings.
+
+    Raises
+    ------
+    ValueError
+        ``data.ann_s`` too short to leave one training and one validation run.
     """
     d = XYCalData() if data is None else data
+    _ann_runs(d.ann_s, d.seed)  # too little data for a validation run: refused here, once
     digest = hashlib.sha256(data_path(DATA_FILE).read_bytes()).hexdigest()
     return CalibrationProblem(
         targets=_targets(),

@@ -1,6 +1,6 @@
 """Identification runs on the XY stage twin: random runs played, the linear model fitted.
 
-What ``microfab calibrate xy-stage`` (`microfab.machines.xy_stage.calibration`) and the
+What ``microfab calibrate xy-stage`` (`microfab.machines.xy_stage.calibration_core`) and the
 seed 002 reproductions run on the twin (`microfab.machines.xy_stage.play_runs`): seeded
 random runs (`microfab.identify.excitation.random_runs`, seed 002 §III-C.1), played from
 rest, and eq. (6) fitted to them by `microfab.identify.stage_data.fit_linear`, the same
