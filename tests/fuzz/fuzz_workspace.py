@@ -98,11 +98,11 @@ RECIPES: dict[str, Recipe] = {
          "--conflict-budget", "0", "--write", "nano_twin.toml"),
         inputs=("nano_small_job.toml",), outputs=("nano_twin.toml",)),
     # the smallest data (4 s of the networks' data leave a validation run with runs seed
-    # 5) and a small proxy, about 0.08 s a model run; budget 29: one population and the
-    # polish for 8 or 9 free parameters (26 is the least for 8)
+    # 5) and a small proxy, about 0.08 s a model run; budget 32: one population and the
+    # polish for the 10 free parameters (the least the core takes)
     "calibrate xy-stage": Recipe(
         ("calibrate", "xy-stage", "--duration", "0.5", "--ann-duration", "4", "--runs-seed",
-         "5", "--proxy-hidden", "8", "--proxy-offsets", "1", "--budget", "29",
+         "5", "--proxy-hidden", "8", "--proxy-offsets", "1", "--budget", "32",
          "--conflict-budget", "0", "--out", "xy_run", "--json", "xy_cal.json", "--write",
          "xy_twin.toml"),
         outputs=("xy_run", "xy_cal.json", "xy_twin.toml")),

@@ -79,6 +79,7 @@ __all__ = [
     "CALIBRATION",
     "FREE_FIELDS",
     "REFERENCE",
+    "REFERENCE_LOOP",
     "REFERENCE_SHARED",
     "SOURCE_PREFIX",
     "TARGET_SIGMA_M",
@@ -144,6 +145,13 @@ REFERENCE_SHARED: dict[str, float] = {
     # the coupling negligible)
     "reaction_coupling": 0.01,
 }
+#: The built-in loop's values the core's fit frees, per axis (x, y), as assumed before any
+#: calibration.
+REFERENCE_LOOP: dict[str, tuple[float, float]] = {
+    # assumed: the acceleration feedforward tuned on the bare stage, without the user's
+    # 2 kg head: 28 kg of x's 30, 8 kg of y's 10
+    "feedforward_mass_kg": (28.0, 8.0),
+}
 #: The per-axis fields of `REFERENCE`.
 FREE_FIELDS: tuple[str, ...] = tuple(REFERENCE)
 
@@ -165,10 +173,14 @@ def scaled_changes(scales: Sequence[float]) -> tuple[tuple[str, tuple[float, flo
 def assumed_changes() -> tuple[tuple[str, Any], ...]:
     """`TwinSettings.changes` of the twin at every magnitude assumed before calibration.
 
-    `REFERENCE` at scale 1 and `REFERENCE_SHARED`: whatever the data file holds after a
-    calibration, this is the twin before it.
+    `REFERENCE` at scale 1, `REFERENCE_LOOP` and `REFERENCE_SHARED`: whatever the data
+    file holds after a calibration, this is the twin before it.
     """
-    return scaled_changes((1.0, 1.0)) + tuple(sorted(REFERENCE_SHARED.items()))
+    return (
+        scaled_changes((1.0, 1.0))
+        + tuple(sorted(REFERENCE_LOOP.items()))
+        + tuple(sorted(REFERENCE_SHARED.items()))
+    )
 
 
 # --- plausibility --------------------------------------------------------------------------
