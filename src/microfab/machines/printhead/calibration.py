@@ -213,7 +213,12 @@ def evaluate(
             model=model,
             polymer_share=share,
         )
-        res = run_point(SweepPoint(c, SEED_VOLTAGE_V), settings, fluid=fluid)
+        res = run_point(
+            SweepPoint(c, SEED_VOLTAGE_V),
+            settings,
+            fluid=fluid,
+            back_pressure_pa=table.back_pressure_pa if model == "eulerian" else 0.0,
+        )
         tb, z, length = res.breakup_time_s, res.breakup_z_m, res.jet_length_m
         times[c] = math.nan if tb is None else tb * 1e6
         ok = z is not None and length is not None and length > 0.0
