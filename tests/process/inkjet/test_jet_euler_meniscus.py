@@ -170,9 +170,7 @@ def test_a_back_pressure_holds_the_meniscus_where_the_laplace_balance_puts_it(p_
     assert np.min(delta) < z_eq < np.max(delta)  # it swung about the balance
     # settled: measured 7e-7 (-0.8) and 2e-7 (0.5) radii off after 10 capillary times
     assert delta[-1] == pytest.approx(z_eq, abs=1e-5)
-    held = run_jet_euler(
-        JetModel(ohnesorge=oh), EulerNumerics(length=4.0), meniscus_z0=z_eq, **kw
-    )
+    held = run_jet_euler(JetModel(ohnesorge=oh), EulerNumerics(length=4.0), meniscus_z0=z_eq, **kw)
     # at rest: the cap law and its inverse agree to round-off (measured drift 0 and 1e-15)
     assert np.max(np.abs(_column_displacement(held) - z_eq)) < 1e-12
     assert held.events == ()
