@@ -89,6 +89,16 @@ def test_bad_setup_is_refused() -> None:
         simulate_droplet(naalg(0.15), breakup_radius_m=1e-3)
     with pytest.raises(ValueError, match="outside the table"):
         naalg(-0.1)
+    # the back pressure: below the bore's Laplace pressure 2 sigma / R (2.39 kPa for the
+    # 0.15 % ink in the 60 µm bore), and only where the meniscus feels it
+    with pytest.raises(ValueError, match="Laplace pressure"):
+        simulate_droplet(naalg(0.15), model="eulerian", back_pressure_pa=2400.0)
+    with pytest.raises(ValueError, match="Laplace pressure"):
+        simulate_droplet(naalg(0.15), model="eulerian", back_pressure_pa=math.nan)
+    with pytest.raises(ValueError, match="needs the Eulerian model"):
+        simulate_droplet(naalg(0.15, model="lagrangian"), model="lagrangian", back_pressure_pa=10.0)
+    with pytest.raises(ValueError, match="needs the Eulerian model"):
+        simulate_droplet(naalg(0.15), model="eulerian", meniscus="pinned", back_pressure_pa=-10.0)
 
 
 def test_a_drop_pinched_at_the_exit_stays_in_the_silhouettes() -> None:

@@ -261,6 +261,24 @@ def test_load_table_rejects_bad_files(tmp_path: Path, old: str, new: str) -> Non
         load_table(p)
 
 
+def test_the_back_pressure_is_read_with_its_source_and_is_zero_without_a_jetting_table(
+    tmp_path: Path,
+) -> None:
+    t = load_table()
+    assert t.back_pressure_pa == _raw()["jetting"]["back_pressure_pa"]
+    assert "pneumatic controller" in t.back_pressure_source
+    assert t.back_pressure_source.startswith("assumed")
+    text = _toml_text()
+    p = tmp_path / "no_jetting.toml"
+    p.write_text(text[: text.index("[jetting]")], encoding="utf-8")
+    assert load_table(p).back_pressure_pa == 0.0
+    p.write_text(text.replace("back_pressure_pa = 0.0", "back_pressure_pa = -450.5"), "utf-8")
+    assert load_table(p).back_pressure_pa == -450.5
+    p.write_text(text.replace("back_pressure_pa = 0.0", "back_pressure_pa = nan"), "utf-8")
+    with pytest.raises(ValueError, match="back_pressure_pa"):
+        load_table(p)
+
+
 def test_load_table_rejects_invalid_toml(tmp_path: Path) -> None:
     p = tmp_path / "broken.toml"
     p.write_text("solution = [", encoding="utf-8")

@@ -13,7 +13,7 @@ from scipy.integrate import solve_ivp
 
 from microfab.process.inkjet.jet import JetModel
 from microfab.process.inkjet.jet_euler import EulerNumerics, Upstream, run_jet_euler
-from microfab.process.inkjet.jet_euler_meniscus import cap_depth, cap_pressure
+from microfab.process.inkjet.jet_euler_meniscus import cap_depth, cap_pressure, static_meniscus
 
 
 def _column(oh: float, length: float, dt: float = 1e-3) -> Upstream:
@@ -142,15 +142,59 @@ def test_a_retracting_meniscus_pulls_the_jet_root_into_the_bore() -> None:
     assert np.max(np.abs(balance)) < 1e-10
 
 
+def test_the_static_meniscus_balances_the_back_pressure_with_its_laplace_pressure() -> None:
+    # the cap law inverted: a convex cap on the rim for p_b > 0, a concave one in the bore
+    # for p_b < 0 (closed form; both are root-finding-free, so to round-off)
+    assert static_meniscus(0.0) == 0.0
+    for p in (-1.9, -0.8, -1e-3, 1e-3, 0.5, 1.9):
+        z = static_meniscus(p)
+        assert math.copysign(1.0, z) == math.copysign(1.0, p)
+        assert cap_pressure(z) == pytest.approx(p, rel=1e-12)
+    assert abs(static_meniscus(1.9999)) < 2.0 / 3.0  # short of the hemisphere
+
+
+@pytest.mark.parametrize("p_b", [-0.8, 0.5])
+def test_a_back_pressure_holds_the_meniscus_where_the_laplace_balance_puts_it(p_b: float) -> None:
+    # a column in the bore under a static back pressure p_b (sigma / R): started flat at the
+    # rim it swings about, and settles at, the cap whose Laplace pressure is p_b; started
+    # there it stays (-0.8: concave, 0.106 radii deep; 0.5: convex, a lumped cap 0.064 high;
+    # a cap taller than the hand-over is carried by the grid, a little stiffer than the cap
+    # law: 1.5 settles at 0.222 against its 0.241)
+    oh, length = 0.3, 2.0  # damped at 4 Oh = 1.2 per capillary time: 1e-5 left at t = 10
+    z_eq = static_meniscus(p_b)
+    up = _column(oh, length)
+    kw = {"upstream": up, "meniscus": "retracting", "back_pressure": p_b, "t_end": 10.0}
+    flat = run_jet_euler(JetModel(ohnesorge=oh), EulerNumerics(length=4.0), **kw)
+    assert flat.stop_reason == "end time reached"
+    delta = _column_displacement(flat)
+    assert np.min(delta) < z_eq < np.max(delta)  # it swung about the balance
+    # settled: measured 7e-7 (-0.8) and 2e-7 (0.5) radii off after 10 capillary times
+    assert delta[-1] == pytest.approx(z_eq, abs=1e-5)
+    held = run_jet_euler(JetModel(ohnesorge=oh), EulerNumerics(length=4.0), meniscus_z0=z_eq, **kw)
+    # at rest: the cap law and its inverse agree to round-off (measured drift 0 and 1e-15)
+    assert np.max(np.abs(_column_displacement(held) - z_eq)) < 1e-12
+    assert held.events == ()
+
+
 def test_bad_meniscus_and_upstream_inputs_are_refused() -> None:
     model = JetModel(ohnesorge=0.1)
     up = _column(0.1, 2.0)
     with pytest.raises(ValueError, match="meniscus must be one of"):
         run_jet_euler(model, t_end=0.1, meniscus="sliding")  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="meniscus_z0 must be <= 0"):
-        run_jet_euler(model, t_end=0.1, meniscus="retracting", meniscus_z0=0.1)
+    with pytest.raises(ValueError, match="below the hemisphere"):
+        run_jet_euler(model, t_end=0.1, meniscus="retracting", meniscus_z0=0.7)
     with pytest.raises(ValueError, match="needs meniscus='retracting'"):
         run_jet_euler(model, t_end=0.1, meniscus_z0=-0.1)
+    with pytest.raises(ValueError, match="needs meniscus='retracting'"):
+        run_jet_euler(model, t_end=0.1, meniscus_z0=0.05)
+    with pytest.raises(ValueError, match=r"back_pressure must lie in \(-2, 2\)"):
+        run_jet_euler(model, t_end=0.1, upstream=up, meniscus="retracting", back_pressure=2.0)
+    with pytest.raises(ValueError, match="back pressure needs an upstream"):
+        run_jet_euler(model, t_end=0.1, meniscus="retracting", back_pressure=0.5)
+    with pytest.raises(ValueError, match="back pressure needs an upstream"):
+        run_jet_euler(model, t_end=0.1, upstream=up, back_pressure=0.5)
+    with pytest.raises(ValueError, match="Laplace pressure"):
+        static_meniscus(-2.0)
     with pytest.raises(ValueError, match="either an inflow or an upstream"):
         run_jet_euler(model, t_end=0.1, upstream=up, inflow=_Still())
     with pytest.raises(ValueError, match="bore_length must be > 0"):

@@ -39,6 +39,7 @@ from microfab.process.inkjet.jet_euler import (
     Upstream,
     run_jet_euler,
 )
+from microfab.process.inkjet.jet_euler_meniscus import static_meniscus
 from microfab.process.inkjet.silhouette import Silhouette
 from microfab.trajectory.waveform import Waveform, seed003_waveform
 
@@ -279,6 +280,7 @@ def simulate_droplet(
     model: JetModelKind = DEFAULT_JET_MODEL,
     progress: Callable[[float], None] | None = None,
     meniscus: MeniscusKind | None = None,
+    back_pressure_pa: float = 0.0,
 ) -> DropletResult:
     """Simulate one drop-on-demand ejection.
 
@@ -313,6 +315,14 @@ def simulate_droplet(
         :mod:`.jet_euler_meniscus`), or it is held at the rim and fed the part of the
         acoustic flow that leaves the nozzle (:func:`jet_inflow`), as in the Lagrangian
         model.
+    back_pressure_pa : float, optional
+        Static pressure of the liquid in the bore over ambient, Pa (default 0): the back
+        pressure the seed's pneumatic controller sets on the reservoir "to obtain an ideal
+        meniscus" (seed 003 part 1, "Method"; it gives no value). The meniscus starts at
+        rest where its Laplace pressure balances it
+        (:func:`.jet_euler_meniscus.static_meniscus`) and the coupled acoustics feel it
+        throughout. Eulerian model with the retracting meniscus only; its magnitude must
+        stay below the bore's Laplace pressure ``2 sigma / R``.
 
     Returns
     -------
@@ -321,7 +331,8 @@ def simulate_droplet(
     Raises
     ------
     ValueError
-        For non-positive durations or a breakup radius not below the nozzle radius.
+        For non-positive durations, a breakup radius not below the nozzle radius, or a
+        back pressure the meniscus cannot hold or the chosen model cannot take.
 
     Examples
     --------
@@ -351,6 +362,17 @@ def simulate_droplet(
     if meniscus == "retracting" and model != "eulerian":
         raise ValueError("only the Eulerian jet model has a retracting meniscus (model='eulerian')")
     menisc: MeniscusKind = meniscus or ("retracting" if model == "eulerian" else "pinned")
+    laplace_pa = 2.0 * fluid.surface_tension_n_m / radius
+    if not (math.isfinite(back_pressure_pa) and abs(back_pressure_pa) < laplace_pa):
+        raise ValueError(
+            f"back pressure {back_pressure_pa} Pa must lie within ± the bore's Laplace pressure "
+            f"2 sigma / R = {laplace_pa:.6g} Pa, or no meniscus holds the liquid"
+        )
+    if back_pressure_pa != 0.0 and menisc != "retracting":
+        raise ValueError(
+            "a back pressure needs the Eulerian model with its retracting meniscus (the "
+            "acoustics coupled both ways)"
+        )
     sc = Scales.of(fluid, radius)
     frames = np.arange(0.0, duration_s + 0.5 * frame_interval_s, frame_interval_s)
     common: dict[str, Any] = {
@@ -374,7 +396,16 @@ def simulate_droplet(
         nu_e = dataclasses.replace(base, h_break=breakup_radius_m / radius)
         if menisc == "retracting":
             up = coupled_upstream(printhead, fluid, waveform, duration_s=duration_s)
-            run = run_jet_euler(sc.model(fluid), nu_e, upstream=up, meniscus=menisc, **common)
+            p_b = back_pressure_pa * radius / fluid.surface_tension_n_m  # in sigma / R
+            run = run_jet_euler(
+                sc.model(fluid),
+                nu_e,
+                upstream=up,
+                meniscus=menisc,
+                back_pressure=p_b,
+                meniscus_z0=static_meniscus(p_b),
+                **common,
+            )
             flow = _coupled_flow(run, sc, radius)
         else:
             flow = _one_way_flow(printhead, fluid, waveform, duration_s)

@@ -288,6 +288,10 @@ class NaAlgTable:
     model_laws : dict
         Relaxation laws of other jet models by name (``[relaxation_<model>]`` tables,
         e.g. ``"eulerian"``).
+    back_pressure_pa, back_pressure_source : float, str
+        Static back pressure of the reservoir over ambient, Pa, and its source (the
+        optional ``[jetting]`` table; 0 without it): what the seed's pneumatic controller
+        sets (:func:`microfab.process.inkjet.droplet.simulate_droplet`).
     """
 
     concentration_pct: NDArray[np.float64]
@@ -308,6 +312,8 @@ class NaAlgTable:
     sources: tuple[dict[str, str], ...] = field(default=())
     global_sources: dict[str, str] = field(default_factory=dict)
     model_laws: dict[str, RelaxationLaw] = field(default_factory=dict)
+    back_pressure_pa: float = 0.0
+    back_pressure_source: str = ""
 
     def law(self, model: str = DEFAULT_JET_MODEL) -> RelaxationLaw:
         """The relaxation law calibrated with jet model ``model``.
@@ -432,7 +438,13 @@ def _parse_table(data: Mapping[str, Any], origin: str) -> NaAlgTable:
                     note=str(raw.get("note", "")),
                     polymer_share=float(raw.get("polymer_share", 1.0)),
                 )
-        table = dataclasses.replace(table, model_laws=laws)
+        jetting = data.get("jetting", {})
+        table = dataclasses.replace(
+            table,
+            model_laws=laws,
+            back_pressure_pa=float(jetting.get("back_pressure_pa", 0.0)),
+            back_pressure_source=str(jetting.get("back_pressure_pa_source", "")),
+        )
     except (KeyError, TypeError) as exc:
         raise ValueError(f"{origin}: malformed NaAlg table ({exc!r})") from exc
     for name, law in table.model_laws.items():
@@ -464,6 +476,7 @@ def _parse_table(data: Mapping[str, Any], origin: str) -> NaAlgTable:
     check_positive("reference concentration", table.reference_pct, "% w/v")
     check_positive("reference relaxation time", table.lambda_ref_s, "s")
     check_finite(f"{origin}: relaxation exponent", table.exponent)
+    check_finite(f"{origin}: [jetting] back_pressure_pa", table.back_pressure_pa)
     return table
 
 

@@ -329,6 +329,7 @@ def run_jet_euler(
     meniscus_z0: float = 0.0,
     bore_length: float = math.inf,
     depin_area: float = em.DEPIN_AREA,
+    back_pressure: float = 0.0,
 ) -> JetRun:
     """Integrate the Eulerian slender-jet model from ``t0`` to ``t_end`` (dimensionless).
 
@@ -369,7 +370,11 @@ def run_jet_euler(
         A linear model that produces the nozzle flow from the meniscus pressure (two-way
         coupling), instead of a given ``inflow``.
     meniscus_z0 : float, optional
-        Initial meniscus position, <= 0 (below 0 only with ``meniscus="retracting"``).
+        Initial mean meniscus position: 0 flat at the rim; with ``meniscus="retracting"``
+        also < 0 (a concave cap in the bore) or > 0 (a convex cap on the rim, below the
+        hemisphere's 2/3; handed to the grid at the first step if taller than
+        ``numerics.cap_cells``). `jet_euler_meniscus.static_meniscus` gives the position
+        at rest under ``back_pressure``.
     bore_length : float, optional
         Depth of the straight bore behind the exit; the run stops if the meniscus
         retracts deeper (default: no limit).
@@ -377,6 +382,12 @@ def run_jet_euler(
         Squared radius of the liquid at the rim (over the bore's) below which suction
         lets the meniscus go into the bore instead of draining the bulge through the rim
         (default `jet_euler_meniscus.DEPIN_AREA`, an assumption), in ``(0, 1]``.
+    back_pressure : float, optional
+        Static pressure on the liquid in the bore over ambient (the reservoir's back
+        pressure), ``sigma / R``, in ``(-2, 2)`` (default 0): added to what the upstream
+        model feels (it pushes the column out against the meniscus). Needs ``upstream``
+        and ``meniscus="retracting"``; start the meniscus where it balances it
+        (``meniscus_z0``).
 
     Returns
     -------
@@ -413,10 +424,19 @@ def run_jet_euler(
         raise ValueError(f"a_nozzle must be > 0, got {a_nozzle}")
     if meniscus not in _MENISCUS:
         raise ValueError(f"meniscus must be one of {list(MENISCUS_KINDS)}, got {meniscus!r}")
-    if not (math.isfinite(meniscus_z0) and meniscus_z0 <= 0.0):
-        raise ValueError(f"meniscus_z0 must be <= 0 (inside the bore), got {meniscus_z0}")
-    if meniscus_z0 < 0.0 and meniscus != "retracting":
-        raise ValueError("a meniscus inside the bore (meniscus_z0 < 0) needs meniscus='retracting'")
+    if not (math.isfinite(meniscus_z0) and meniscus_z0 < em.HEMISPHERE_DEPTH):
+        raise ValueError(
+            f"meniscus_z0 must be below the hemisphere's {em.HEMISPHERE_DEPTH:.4g}, got "
+            f"{meniscus_z0}"
+        )
+    if meniscus_z0 != 0.0 and meniscus != "retracting":
+        raise ValueError("a meniscus off the rim (meniscus_z0 != 0) needs meniscus='retracting'")
+    if not (math.isfinite(back_pressure) and abs(back_pressure) < 2.0):
+        raise ValueError(
+            f"back_pressure must lie in (-2, 2) (the bore's Laplace pressure), got {back_pressure}"
+        )
+    if back_pressure != 0.0 and (upstream is None or meniscus != "retracting"):
+        raise ValueError("a back pressure needs an upstream model and meniscus='retracting'")
     if not bore_length > 0.0:
         raise ValueError(f"bore_length must be > 0, got {bore_length}")
     if not 0.0 < depin_area <= 1.0:
@@ -450,6 +470,7 @@ def run_jet_euler(
     par[ek.P_DT_MAX] = nu.dt_max
     par[ek.P_BORE] = bore_length
     par[ek.P_DEPIN] = depin_area
+    par[ek.P_BACK] = back_pressure
     cap = nu.cap_cells * dz  # centre height of the bulge the grid takes over
     par[ek.P_CAP] = cap * (3.0 + cap * cap) / 6.0 if meniscus == "retracting" else math.inf
     ipar = np.array(

@@ -60,9 +60,9 @@ BC_OUTFLOW = 2
 
 (
     P_DZ, P_OH, P_GP, P_INV_DE, P_INV_L2, P_A_FILM, P_A_NOZ, P_CFL, P_H_BREAK, P_REWET,
-    P_DT_MAX, P_BORE, P_CAP, P_DEPIN,
-) = range(14)  # fmt: skip
-N_PAR = 14
+    P_DT_MAX, P_BORE, P_CAP, P_DEPIN, P_BACK,
+) = range(15)  # fmt: skip
+N_PAR = 15
 I_BL, I_BR, I_LIMITER, I_MENISCUS, I_COUPLED = range(5)
 N_IPAR = 5
 

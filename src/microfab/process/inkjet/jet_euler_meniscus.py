@@ -64,7 +64,7 @@ from numba import njit
 
 from microfab.process.inkjet import jet_euler_kernels as ek
 
-__all__ = ["advance", "cap_depth", "meniscus_pressure"]
+__all__ = ["advance", "cap_depth", "meniscus_pressure", "static_meniscus"]
 
 #: Mean depth of the hemispherical meniscus (volume ``2 π R³ / 3`` over the bore area).
 HEMISPHERE_DEPTH = 2.0 / 3.0
@@ -102,6 +102,52 @@ def cap_pressure(z_m: float) -> float:
         return -2.0
     d = cap_depth(z_m)
     return 4.0 * d / (1.0 + d * d)
+
+
+def static_meniscus(back_pressure: float) -> float:
+    """Mean position of the meniscus at rest under a static back pressure (dimensionless).
+
+    The liquid in the bore at rest is at the back pressure ``p_b`` (``sigma / R``), which
+    the meniscus balances with its Laplace pressure (:func:`cap_pressure`): a convex cap on
+    the rim for ``p_b > 0``, a concave one in the bore for ``p_b < 0``, with centre height
+    ``d`` from ``4 d / (1 + d²) = |p_b|`` (the smaller root) and mean position
+    ``± d (3 + d²) / 6``. Beyond the hemisphere's ``|p_b| = 2`` (``2 sigma / R``) no cap
+    holds the liquid: it drips out or is drawn into the bore.
+
+    Parameters
+    ----------
+    back_pressure : float
+        Static pressure on the liquid in the bore over ambient, ``sigma / R``, in
+        ``(-2, 2)``.
+
+    Returns
+    -------
+    float
+        Mean meniscus position in nozzle radii (> 0 out of the rim, < 0 in the bore).
+
+    Raises
+    ------
+    ValueError
+        For ``|back_pressure| >= 2`` or a value that is not finite.
+
+    Examples
+    --------
+    >>> static_meniscus(0.0)
+    0.0
+    >>> round(float(cap_pressure(static_meniscus(-0.8))), 12)
+    -0.8
+    """
+    p = float(back_pressure)
+    if not (np.isfinite(p) and abs(p) < 2.0):
+        raise ValueError(
+            f"back pressure {back_pressure!r} (sigma / R) must lie in (-2, 2): beyond the "
+            "bore's Laplace pressure 2 sigma / R no meniscus holds"
+        )
+    if p == 0.0:
+        return 0.0
+    q = abs(p)
+    d = (2.0 - np.sqrt(4.0 - q * q)) / q
+    return float(np.copysign(d * (3.0 + d * d) / 6.0, p))
 
 
 @njit(cache=True)
@@ -383,7 +429,8 @@ def advance(
         elif t + 1.5 * dt > t_stop:
             dt = 0.5 * (t_stop - t)  # two even steps rather than a sliver
         if coupled:
-            p_m = meniscus_pressure(a, u, azz, arr, z_m, par)
+            # the back pressure on the liquid in the bore acts against the meniscus
+            p_m = meniscus_pressure(a, u, azz, arr, z_m, par) - par[ek.P_BACK]
             _fill_upstream(
                 t + dt, tab_t0, tab_dt, d_tab, u_tab, x, phi, g_drive, g_press, c_row,
                 slopes, counters, p_m,
