@@ -378,7 +378,11 @@ def step(
         er = ef[j + 2]  # cell j
         af = 0.5 * (el + er)
         adv = mflux[j] - mflux[j - 1] - u[j] * (qc[j] - qc[j - 1])
-        rhs[k] = u[j] + lam * (s[j] - s[j - 1] - adv) / af
+        # liquid arriving at a face shares its momentum with it: divide by the face's
+        # mass after the arrival (conservative), not before, or a face in the film that
+        # receives a front's liquid is flung at (arrived mass / film) times its speed
+        af_adv = max(af, af - lam * (qc[j] - qc[j - 1]))
+        rhs[k] = u[j] + lam * ((s[j] - s[j - 1]) / af - adv / af_adv)
         kap = dt * 3.0 * oh / (af * dz * dz)
         right_visc = not (br == BC_OUTFLOW and j == n - 1)
         lo[k] = -kap * el

@@ -261,7 +261,7 @@ def _hand_over(
         wet[i] = np.sqrt(a[i]) > par[ek.P_H_BREAK]
     for j in range(n + 1):
         z = j * dz
-        if z <= d:
+        if z <= d * (1.0 + 1e-9):  # the apex on a face (the cap height, to round-off)
             u[j] = u_cap
         else:
             x = (z - d) / dz
@@ -314,6 +314,36 @@ def _displacement(d_tab: np.ndarray, t0: float, dtab: float, t: float) -> float:
     if k >= d_tab.size - 1:
         return d_tab[d_tab.size - 1]
     return d_tab[k] + (x - k) * (d_tab[k + 1] - d_tab[k])
+
+
+@njit(cache=True)
+def _time_of_advance(
+    d_tab: np.ndarray, t0: float, dtab: float, t_a: float, t_b: float, rise: float
+) -> float:
+    """First time in ``[t_a, t_b]`` at which the displacement has grown by ``rise`` (> 0).
+
+    The displacement is linear between the table's samples (:func:`_displacement`), so the
+    crossing is found exactly, piece by piece; ``t_b`` if it is not reached.
+    """
+    d_a = _displacement(d_tab, t0, dtab, t_a)
+    goal = d_a + rise
+    if _displacement(d_tab, t0, dtab, t_b) < goal:
+        return t_b
+    lo = t_a
+    d_lo = d_a
+    k = int((t_a - t0) / dtab) + 1
+    while True:
+        hi = min(t0 + k * dtab, t_b)
+        d_hi = _displacement(d_tab, t0, dtab, hi)
+        if d_hi >= goal:
+            if d_hi <= d_lo:
+                return hi
+            return min(max(lo + (goal - d_lo) / (d_hi - d_lo) * (hi - lo), lo), hi)
+        if hi >= t_b:
+            return t_b
+        lo = hi
+        d_lo = d_hi
+        k += 1
 
 
 @njit(cache=True)
@@ -435,6 +465,15 @@ def advance(
                 t + dt, tab_t0, tab_dt, d_tab, u_tab, x, phi, g_drive, g_press, c_row,
                 slopes, counters, p_m,
             )  # fmt: skip
+        if retracting and 0.0 < z_m < par[ek.P_CAP]:
+            # a growing cap is handed over when it is exactly `P_CAP` tall: the step ends
+            # when the column has pushed it there, so the grid receives the same shape
+            # whatever the phase of the step sequence (a taller cap put a sliver of it
+            # into one more cell, whose face the next step flung forward)
+            t_cap = _time_of_advance(d_tab, tab_t0, tab_dt, t, t + dt, par[ek.P_CAP] - z_m)
+            if t_cap < t + dt:
+                dt = t_cap - t
+                last = t_cap >= t_stop - eps_t
         while True:
             d0 = _displacement(d_tab, tab_t0, tab_dt, t)
             d1 = _displacement(d_tab, tab_t0, tab_dt, t + dt)
@@ -442,6 +481,8 @@ def advance(
             z_new = z_m
             if retracting and (z_m != 0.0 or not wet[0] or (adv < 0.0 and a[0] < par[ek.P_DEPIN])):
                 z_new = z_m + adv  # the meniscus moves with the column
+                if z_m < par[ek.P_CAP] and abs(z_new - par[ek.P_CAP]) <= 1e-12:
+                    z_new = par[ek.P_CAP]  # the cut step's round-off
             w = (z_new - z_m) / dt
             rel = (adv - (z_new - z_m)) / dt
             u_left = adv / dt
