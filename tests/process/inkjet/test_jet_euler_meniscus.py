@@ -142,6 +142,50 @@ def test_a_retracting_meniscus_pulls_the_jet_root_into_the_bore() -> None:
     assert np.max(np.abs(balance)) < 1e-10
 
 
+class _ConstantPush:
+    """The column pushed out of the bore at a constant speed ``u`` (dimensionless)."""
+
+    def __init__(self, u: float) -> None:
+        self.u = u
+
+    def velocity(self, t: float) -> float:
+        return self.u
+
+    def displacement(self, t: float) -> float:
+        return self.u * t
+
+
+@pytest.mark.parametrize("u_push", [1.0, 5.46])  # 5.46: the 0.15 % NaAlg jet's column at 50 V
+def test_a_growing_cap_is_handed_to_the_grid_at_its_height_whatever_the_steps(
+    u_push: float,
+) -> None:
+    # the cap is handed over when it is exactly cap_cells high, whether snapshots cut the
+    # steps or not, and the grid carries it at the speed of a growing cap: its apex moves
+    # at 2 u / (1 + d^2) < 2 u. Before the fix the hand-over's height depended on where the
+    # step sequence fell, and the sliver it put into one more cell was flung forward at
+    # 11-137 times the column speed (measured with these runs; 1.12-1.35 u after it)
+    nu = EulerNumerics(length=4.0)
+    cap = nu.cap_cells * nu.dz
+    t_cap = cap * (3.0 + cap * cap) / 6.0 / u_push  # mean height over the push speed
+    for snaps in ((), np.arange(0.0, 1.0, 0.013), np.arange(0.0, 1.0, 0.0517)):
+        run = run_jet_euler(
+            JetModel(ohnesorge=0.05),
+            nu,
+            t_end=0.25,
+            inflow=_ConstantPush(u_push),
+            meniscus="retracting",
+            snapshot_times=snaps,
+        )
+        assert run.meniscus_z is not None
+        (k,) = np.flatnonzero((run.meniscus_z[:-1] > 0.0) & (run.meniscus_z[1:] == 0.0))
+        # the step lands on the crossing, found exactly in the inflow table (round-off)
+        assert run.t[k + 1] == pytest.approx(t_cap, rel=1e-9)
+        assert float(np.max(run.tip_v)) < 2.0 * u_push
+        assert not run.events
+        balance = run.volume - run.volume[0] - run.injected
+        assert np.max(np.abs(balance)) < 1e-10
+
+
 def test_the_static_meniscus_balances_the_back_pressure_with_its_laplace_pressure() -> None:
     # the cap law inverted: a convex cap on the rim for p_b > 0, a concave one in the bore
     # for p_b < 0 (closed form; both are root-finding-free, so to round-off)
