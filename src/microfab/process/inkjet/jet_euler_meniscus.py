@@ -214,6 +214,11 @@ def _hand_over(
     contents, linear interpolation of the face velocities), and the cells over ``[0, d]``
     get the cap's exact cell means, moving at ``u_cap``, with unstretched polymer.
     Returns the volume over pi that left through the far end.
+
+    :func:`advance` ends the step at which a growing cap reaches ``par[P_CAP]``, so
+    ``z_cap`` is that height and the apex lies on the face ``cap_cells`` from the rim,
+    whatever the step sequence (only a cap that starts taller, ``meniscus_z0``, is handed
+    over at its own height).
     """
     n = a.size
     dz = par[ek.P_DZ]
@@ -426,6 +431,10 @@ def advance(
     ``ipar[I_COUPLED]`` it is filled here, step by step, from the upstream model (``x``,
     ``phi``, ``g_drive``, ``g_press``, ``c_row``, ``slopes``; velocities in ``u_tab``),
     otherwise it is given whole and the upstream arrays are not used.
+
+    A step during which a cap on the rim would grow past the hand-over height
+    ``par[P_CAP]`` is cut at the time the column has pushed it exactly there
+    (:func:`_time_of_advance`), and the cap is handed to the grid (:func:`_hand_over`).
     """
     n = a.size
     a_new = np.empty(n)
