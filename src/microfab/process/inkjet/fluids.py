@@ -367,7 +367,10 @@ class NaAlgTable:
         Examples
         --------
         >>> t = load_table()
-        >>> t.relaxation_time_s(t.reference_pct) == t.lambda_ref_s
+        >>> law = t.law()  # the default jet model's (`DEFAULT_JET_MODEL`)
+        >>> t.relaxation_time_s(law.reference_pct) == law.lambda_ref_s
+        True
+        >>> t.relaxation_time_s(t.reference_pct, model="lagrangian") == t.lambda_ref_s
         True
         """
         return self.law(model).time_s(concentration_pct)
