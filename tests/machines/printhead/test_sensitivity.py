@@ -113,7 +113,7 @@ def test_the_scaling_check_is_a_newtonian_low_oh_liquid(water_scaling) -> None:
 @pytest.mark.xfail(
     raises=AssertionError,
     strict=True,
-    reason="measured (Eulerian model, 50 V, water): t_b 76.56 / 76.54 / 86.85 µs at R x0.7 / "
+    reason="measured (Eulerian model, 50 V, water): t_b 76.54 / 76.53 / 86.86 µs at R x0.7 / "
     "1 / 1.4, t_b / sqrt(rho R^3 / sigma) 2.39 / 1.40 / 0.96; every breakup is at the "
     "retracted meniscus inside the bore (z -22 / -21 / -39 µm), set by the drive's timing, "
     "not by the capillary time, so t_b is flat from x0.7 to x1 instead of rising as R^1.5",

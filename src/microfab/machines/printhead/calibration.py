@@ -25,7 +25,7 @@ with the Eulerian jet model on one core (measured: 0.3-1.7 s per concentration, 
 without a breakup). It runs with the table's static back pressure (``[jetting]``, the seed's
 pneumatic controller, 0 Pa), which is not free: over ±2000 Pa (±0.85 of the bore's Laplace
 pressure 2σ/R, the most a meniscus holds) the Eulerian breakups move by at most 0.2 µs at
-0.15 % and 0.3 µs at 1 % (at -2000 Pa 1 % front-pinches at 209 µs), the meniscus still
+0.15 % and 0.41 µs at 1 % (at -2000 Pa 1 % front-pinches at 208.5 µs), the meniscus still
 retracts 99-102 µm and the 0.15 % jet still pinches 88-92 µm inside the bore.
 
 The front pinch at 0.15 % is out of reach of these parameters, and of the jet model's
