@@ -34,7 +34,7 @@ from microfab.identify.stage_data import (
     stage_record,
     write_stage_model,
 )
-from microfab.machines.xy_stage.calibration import scaled_changes
+from microfab.machines.xy_stage.calibration import assumed_changes
 from microfab.plants.xy_stage import xy_stage_twin
 from microfab.sim.loop import simulate
 
@@ -44,9 +44,10 @@ DT = 1e-4  # seed 002 Table I: 10 kHz
 @pytest.fixture(scope="module")
 def twin_records() -> list[StageRecord]:
     """20 s of random runs (3 runs) played on the twin from rest, with its 2 µm noise."""
-    # the assumed (uncalibrated) friction and cogging: a twin whose linear part the fit
-    # can be checked against (the calibrated one has 6x the friction, seed002_stage tests)
-    twin = xy_stage_twin(**dict(scaled_changes((1.0, 1.0))))
+    # every magnitude as assumed before calibration: a twin whose linear part the fit can
+    # be checked against (the calibrated one's feedforward is off on purpose, and its error
+    # is the seed002_stage tests')
+    twin = xy_stage_twin(**dict(assumed_changes()))
     runs = random_runs(20.0, seed=1, design=RandomDesign(run_s=(4.0, 8.0)))
     out = []
     for i, r in enumerate(runs):

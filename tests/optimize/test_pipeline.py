@@ -113,18 +113,26 @@ def test_stage1_alone_is_kept_when_predicted_better():
 
 
 def test_the_prediction_warning_fires_when_sigma_or_rms_exceeds_mu():
-    """Issue 43: the shipped y network's validation σ (38.2 µm) exceeds μ = 20 µm."""
-    from microfab.optimize.models import recorded_validation_sigma
+    """Issue 43: a network's validation σ above μ = 20 µm is warned of, per axis."""
+    import json
+
+    from microfab.optimize.models import builtin_models_dir, recorded_validation_sigma
     from microfab.optimize.pipeline import PredictionCheck
 
     small = {"x": 5e-6, "y": 6e-6}
     assert PredictionCheck(20e-6, small, small).warning is None
     assert PredictionCheck(20e-6, small, None).warning is None
-    shipped = PredictionCheck(20e-6, small, recorded_validation_sigma("builtin"))
-    assert "recorded validation σ y 38.2 µm exceeds μ = 20 µm" in shipped.warning
-    assert "x 19.7" not in shipped.warning  # x (19.7 µm) is within μ
-    assert "good to about 38 µm" in shipped.warning
-    assert shipped.sigma_warning is not None and not shipped.rms_over_tolerance
+    sigma = {"x": 19.7e-6, "y": 38.2e-6}  # the shipped networks of issue 43
+    over = PredictionCheck(20e-6, small, sigma)
+    assert "recorded validation σ y 38.2 µm exceeds μ = 20 µm" in over.warning
+    assert "x 19.7" not in over.warning  # x (19.7 µm) is within μ
+    assert "good to about 38 µm" in over.warning
+    assert over.sigma_warning is not None and not over.rms_over_tolerance
+    # the shipped models' σ is read from their record
+    record = json.loads((builtin_models_dir() / "trained.json").read_text(encoding="utf-8"))
+    shipped = recorded_validation_sigma("builtin")
+    for ax in ("x", "y"):
+        assert shipped[ax] == pytest.approx(record["validation"][ax]["sigma_um"] * 1e-6)
     apart = PredictionCheck(20e-6, {"x": 5e-6, "y": 45e-6}, None)
     assert "differ by RMS y 45.0 µm (> μ = 20 µm)" in apart.warning
     assert apart.rms_over_tolerance and apart.sigma_warning is None

@@ -11,7 +11,7 @@ import pytest
 
 from microfab.control.setpoint import SetPoint
 from microfab.core.compiled import Compiled
-from microfab.machines.xy_stage.calibration import FREE_FIELDS
+from microfab.machines.xy_stage.calibration_core import TWIN_KEYS
 from microfab.plants.base import CompiledPlant, NoiseLevel, Plant
 from microfab.plants.sourced_toml import sources_of
 from microfab.plants.xy_stage import (
@@ -76,6 +76,10 @@ def _text() -> str:
     return resources.files("microfab.data").joinpath("xy_stage_twin.toml").read_text()
 
 
+#: The values `microfab calibrate xy-stage` writes (the core's `TWIN_KEYS`).
+_CALIBRATED = frozenset(k.key for k in TWIN_KEYS)
+
+
 def test_data_file_values_have_sources():
     data = tomllib.loads(_text())
     tables = [data[s] for s in data if s != "axes"] + [data["axes"]["x"], data["axes"]["y"]]
@@ -88,7 +92,7 @@ def test_data_file_values_have_sources():
             src = table[f"{key}_source"]
             assert src.startswith(("seed 002 ", "assumed: ", "calibrated: ")), (key, src)
             if src.startswith("calibrated"):  # only the free magnitudes of the Table II fit
-                assert key in FREE_FIELDS and "microfab calibrate xy-stage" in src, key
+                assert key in _CALIBRATED and "microfab calibrate xy-stage" in src, key
             if src.startswith("assumed"):
                 assert len(src) > len("assumed: ") + 10, key  # says why
     assert n_values == 20 + 7 + 2 * 14
@@ -150,7 +154,10 @@ def test_data_file_strictness(tmp_path):
     [
         ({"mass_kg": (-1.0, 8.0)}, r"mass_kg\[x\] must be positive and finite, got -1\.0 kg"),
         ({"peak_force_n": (500.0,)}, "one value per axis"),
-        ({"static_n": (10.0, 18.0)}, r"static_n\[x\] = 10\.0 N is below coulomb_n\[x\]"),
+        (
+            {"coulomb_n": (20.0, 12.0), "static_n": (10.0, 18.0)},
+            r"static_n\[x\] = 10\.0 N is below coulomb_n\[x\]",
+        ),
         ({"coulomb_n": (0.0, 0.0), "static_n": (0.0, 0.0)}, r"coulomb_n\[x\] = 0 N"),
         ({"current_bandwidth_hz": (1500.0, 6000.0)}, r"current_bandwidth_hz\[y\].*Nyquist"),
         ({"bandwidth_hz": 6000.0}, r"bandwidth_hz must lie in \(0, 5000\)"),

@@ -183,20 +183,25 @@ def test_table_ii_labels_the_calibrated_sigma_fitted_and_the_networks_predicted(
     import dataclasses
 
     from microfab.experiments.seed002_stage.tables import cases_table, table_ii
-    from microfab.machines.xy_stage.calibration import scaled_changes, table_ii_quantity
+    from microfab.machines.xy_stage.calibration import assumed_changes, table_ii_quantity
 
     study = ran[1].study
     labels = table_ii(study).labels  # linear x, linear y, ANN x, ANN y
+    # the core's fit: linear σ and μ and the networks' σ (through the proxy) on column 1;
+    # the letters columns are predicted
     assert labels[0].origin == "mixed"
-    assert labels[0].fitted == (table_ii_quantity("linear", "x", "training", "sigma"),)
+    assert set(labels[0].fitted) == {
+        table_ii_quantity("linear", "x", "training", k) for k in ("sigma", "mu")
+    }
     assert labels[0].by == ("microfab calibrate xy-stage",)
-    assert [lab.origin for lab in labels[2:]] == ["predicted", "predicted"]
+    assert [lab.origin for lab in labels[2:]] == ["mixed", "mixed"]
+    assert labels[3].fitted == (table_ii_quantity("ann", "y", "training", "sigma"),)
     # the twin at its assumed magnitudes: the calibration did not act, nothing is fitted
     assumed = dataclasses.replace(
         study,
         settings=dataclasses.replace(
             study.settings,
-            twin=dataclasses.replace(study.settings.twin, changes=scaled_changes((1.0, 1.0))),
+            twin=dataclasses.replace(study.settings.twin, changes=assumed_changes()),
         ),
     )
     assert all(lab.origin == "predicted" for lab in table_ii(assumed).labels)

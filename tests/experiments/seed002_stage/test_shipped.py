@@ -97,29 +97,32 @@ def _cell(again, axis: str, column: str) -> tuple[float, float]:
 CELLS = [(a, c) for a in ("x", "y") for c in ("training", "letters_1", "letters_3")]
 
 
-#: Measured on the shipped models (trained.json), σ µm, ours / seed: the cause of the gap.
+#: Measured on the shipped models (trained.json, trained on the twin calibrated on the core,
+#: issue 46), σ µm, ours / seed, of the cells that miss twice the seed's.
 MEASURED = {
-    ("x", "training"): "19.7 / 3.2", ("y", "training"): "38.2 / 6.0",
-    ("x", "letters_1"): "23.0 / 8.2", ("y", "letters_1"): "44.0 / 13.4",
-    ("x", "letters_3"): "25.7 / 11.1", ("y", "letters_3"): "59.5 / 18.7",
+    ("x", "training"): "10.6 / 3.2", ("y", "training"): "20.6 / 6.0",
+    ("y", "letters_3"): "39.8 / 18.7",
 }  # fmt: skip
 CAUSE = (
-    "the seed's network does not learn the twin's cogging (a 24 mm-periodic force of the "
-    "absolute position: with friction off, validation sigma x 21.5 of a 23.3 um target) nor "
-    "all of its friction (cogging off: 7.7 of 38.2 um); position features learn the cogging "
-    "(validation 13.9 / 24.8 um) but generalise worse to the letters (27.3 / 61.3 um at "
-    "1 m/s^2): issue 34's note"
+    "the networks do not learn what their window predicts: a fixed random-feature ridge "
+    "regression on the same windows and data (xy_stage.proxy) reaches 4.9 / 6.6 um on the "
+    "validation runs, so the twin's unpredictable part is within 2x of the seed's; the "
+    "networks' 60-epoch schedule stops 2-3x above it (the seed trains about 24 h per axis)"
 )
 
 
-def _xfail(a: str, c: str) -> pytest.MarkDecorator:
-    return pytest.mark.xfail(
-        raises=AssertionError, strict=True, reason=f"{MEASURED[a, c]} um; {CAUSE}"
+def _marks(a: str, c: str) -> tuple[pytest.MarkDecorator, ...]:
+    if (a, c) not in MEASURED:
+        return ()
+    return (
+        pytest.mark.xfail(
+            raises=AssertionError, strict=True, reason=f"{MEASURED[a, c]} um; {CAUSE}"
+        ),
     )
 
 
 @pytest.mark.parametrize(
-    ("axis", "column"), [pytest.param(a, c, marks=_xfail(a, c)) for a, c in CELLS]
+    ("axis", "column"), [pytest.param(a, c, marks=_marks(a, c)) for a, c in CELLS]
 )
 def test_table_ii_network_cell_within_twice_the_paper(again, axis, column):
     ours, seed = _cell(again, axis, column)

@@ -32,9 +32,10 @@ __all__ = [
 #: What differs from the seed and why, one line each (report and ``reproduce``).
 NOTES = (
     "Twin: our stand-in for the ETEL DXL-LM325 (microfab/data/xy_stage_twin.toml, every "
-    "value assumed except Table I); its friction, cogging and damping are calibrated so the "
-    "4-state model's σ on its training data matches Table II column 1 "
-    "(`microfab calibrate xy-stage`). Every other number here is a check.",
+    "value assumed except Table I); its friction, cogging, cable, resonance, coupling and "
+    "the loop's feedforward are fitted jointly to Table II column 1 (linear σ and μ, the "
+    "networks' σ through a proxy) on the calibration core (`microfab calibrate xy-stage`; "
+    "1 of 6 met). Every other number here is a check.",
     "Table II's a_max columns lost their values in the text; Fig. 8 gives 1 and 3 m/s².",
     "Letters columns: the seed evaluates on inputs optimised at a_max (part 2); here the "
     "input is the time-optimal reference at a_max per axis (Table I's 1.5 m/s), a stand-in "
