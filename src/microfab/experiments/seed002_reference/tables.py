@@ -102,16 +102,17 @@ def table_iii(study: ReferenceStudy, output: str = "twin", prefix: str = "") -> 
     return labelled(table, shows)
 
 
-def _agreement_note(agree: dict[str, float]) -> str:
+def _agreement_note(agree: dict[str, float | None]) -> str:
     if not agree["cells"]:
         return ""
     return (
         f"; {agree['within']} of {agree['cells']} cells within ±{agree['band_points']:g} "
-        f"points of the seed's, mean |difference| {agree['mean_abs_diff_points']:.1f} points"
+        f"points of the seed's, mean |difference| {agree['mean_abs_diff_points'] or 0.0:.1f} "
+        "points"
     )
 
 
-def table_iii_agreement(study: ReferenceStudy, output: str = "twin") -> dict[str, float]:
+def table_iii_agreement(study: ReferenceStudy, output: str = "twin") -> dict[str, float | None]:
     """How close Table III's improvements come to the seed's, over the cells both have.
 
     Parameters
@@ -126,8 +127,8 @@ def table_iii_agreement(study: ReferenceStudy, output: str = "twin") -> dict[str
     dict
         ``cells``: improvement cells (L1, L2, L∞ of each point that ran and that Table III
         lists); ``within``: those within `AGREEMENT_BAND_POINTS` of the seed's;
-        ``mean_abs_diff_points``: their mean |ours - seed|, percentage points (NaN
-        without cells); ``band_points``: the band.
+        ``mean_abs_diff_points``: their mean |ours - seed|, percentage points (None
+        without cells: the summary is strict JSON); ``band_points``: the band.
     """
     diffs = []
     for (case, a), p in sorted(study.points.items()):
@@ -140,7 +141,7 @@ def table_iii_agreement(study: ReferenceStudy, output: str = "twin") -> dict[str
     return {
         "cells": int(d.size),
         "within": int(np.sum(d <= AGREEMENT_BAND_POINTS)),
-        "mean_abs_diff_points": float(d.mean()) if d.size else float("nan"),
+        "mean_abs_diff_points": float(d.mean()) if d.size else None,
         "band_points": AGREEMENT_BAND_POINTS,
     }
 
