@@ -168,7 +168,7 @@ def stage_runs(tmp_path_factory) -> list[Path]:
     from microfab.control.base import as_loop
     from microfab.control.setpoint import SetPoint
     from microfab.identify.excitation import read_runs
-    from microfab.machines.xy_stage.calibration import scaled_changes
+    from microfab.machines.xy_stage.calibration import assumed_changes
     from microfab.plants.xy_stage import xy_stage_twin
     from microfab.sim.loop import simulate
 
@@ -176,9 +176,9 @@ def stage_runs(tmp_path_factory) -> list[Path]:
     res = runner.invoke(app, ["stage", "excite", "--duration", "20", "--seed", "5", "--out",
                               str(d / "commands")])  # fmt: skip
     assert res.exit_code == 0, res.output
-    # the assumed (uncalibrated) friction and cogging: a twin whose linear part the fit
-    # can be checked against (the calibrated one has 6x the friction, seed002_stage tests)
-    twin = xy_stage_twin(**dict(scaled_changes((1.0, 1.0))))
+    # every magnitude as assumed before calibration: a twin whose linear part the fit can
+    # be checked against (the calibrated one's error is the seed002_stage tests')
+    twin = xy_stage_twin(**dict(assumed_changes()))
     files = []
     for i, r in enumerate(read_runs(d / "commands")):
         rest = LoopState.at_rest(twin, as_loop(SetPoint(2)))  # then at the run's start

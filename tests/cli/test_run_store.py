@@ -53,7 +53,7 @@ CASES = [
          "compare = false\n[layer]\nsource = \"lattice:z=8.2e-4,radius=2e-3\"\n[build]\n"
          "layers = 2\nworkers = 1\noutline_radius_mm = 2.0\n[twin]\nseed = 0\n",
          "seed = 0", "seed = 1", "twin.seed 0 -> 1"),
-    Case("stage-identify", "[linear]\ntotal_s = 20.0\norders = [2, 4]\n[ann]\ntotal_s = 20.0\n"
+    Case("stage-identify", "[linear]\ntotal_s = 10.0\norders = [2, 4]\n[ann]\ntotal_s = 10.0\n"
          "max_epochs = 1\nepoch_windows = 4096\nval_windows = 4096\nworkers = 1\n[cases]\n"
          "table_a_max = [1.0]\nsweep_a_max = [1.0]\n[studies]\ncoupling = false\n"
          "classic = false\n[twin]\nseed = 0\n", "seed = 0", "seed = 1", "twin.seed 0 -> 1"),
