@@ -239,8 +239,9 @@ def calibrate_xy_stage_cmd(
 ) -> None:
     """Fit the XY stage twin's assumed magnitudes jointly to seed 002 Table II.
 
-    Free: Coulomb friction and cogging per axis, the y cable's link ripple and stiffness,
-    the carriage resonance and the y -> x coupling. Fit: the linear model's σ and μ per axis
+    Free: Coulomb friction, cogging and the built-in loop's acceleration feedforward per
+    axis, the y cable's link ripple and stiffness, the carriage resonance and the y -> x
+    coupling. Fit: the linear model's σ and μ per axis
     on its training data and the networks' validation σ per axis, through a random-feature
     proxy (training the networks per evaluation is far too slow); the slowest time
     constant (about 20 ms, §III-B) is held back as a check. Each evaluation plays
