@@ -63,7 +63,7 @@ def calibrate_galvo_cmd(
         fresh=fresh,
         json_out=json_out,
         write=write,
-        write_twin=lambda r, p: write_twin(r, p),
+        write_twin=write_twin,
         conflict_budget=conflict_budget,
     )
 
@@ -177,7 +177,7 @@ def calibrate_laser_cmd(
         fresh=fresh,
         json_out=json_out,
         write=write,
-        write_twin=lambda r, p: write_twin(r, p),
+        write_twin=write_twin,
         conflict_budget=conflict_budget,
     )
 
@@ -241,10 +241,10 @@ def calibrate_xy_stage_cmd(
 
     Free: Coulomb friction, cogging and the built-in loop's acceleration feedforward per
     axis, the y cable's link ripple and stiffness, the carriage resonance and the y -> x
-    coupling. Fit: the linear model's σ and μ per axis
-    on its training data and the networks' validation σ per axis, through a random-feature
-    proxy (training the networks per evaluation is far too slow); the slowest time
-    constant (about 20 ms, §III-B) is held back as a check. Each evaluation plays
+    coupling. Fit: the linear model's σ and μ per axis on its training data and the
+    networks' validation σ per axis, through a random-feature proxy (training the networks
+    per evaluation is far too slow); the slowest time constant (about 20 ms, §III-B) is
+    held back as a check. Each evaluation plays
     --duration s of random runs and --ann-duration s of the networks' data on the twin.
     """
     # before the data are made: a refusal stays one line and writes nothing
@@ -281,7 +281,7 @@ def calibrate_xy_stage_cmd(
         fresh=fresh,
         json_out=json_out,
         write=write,
-        write_twin=lambda r, p: write_twin(r, p),
+        write_twin=write_twin,
         conflict_budget=conflict_budget,
     )
     # plausibility of the answer's forces (a real stage of this size: friction

@@ -167,11 +167,11 @@ def _fit(
     squared error is predicted by the weights of the other folds, for every weight of
     `RIDGES` at once (one eigendecomposition per fold).
     """
-    parts = [_gram(x[fold == k], t[fold == k], w, b, s.slope) for k in range(_FOLDS)]
-    gram = np.sum([g for g, _ in parts], axis=0)
-    rhs = np.sum([r for _, r in parts], axis=0)
     ridge = s.ridge
     if ridge is None:
+        parts = [_gram(x[fold == k], t[fold == k], w, b, s.slope) for k in range(_FOLDS)]
+        gram = np.sum([g for g, _ in parts], axis=0)
+        rhs = np.sum([r for _, r in parts], axis=0)
         sse = np.zeros(len(RIDGES))
         for k, (g_k, r_k) in enumerate(parts):
             out = fold == k
@@ -189,7 +189,8 @@ def _fit(
                 pred = fh @ (proj / (np.maximum(e, 0.0) + lam * scale))
                 sse[j] += float(np.sum((t[out] - pred) ** 2))
         ridge = RIDGES[int(np.nanargmin(sse))] if np.isfinite(sse).any() else RIDGES[-1]
-    gram = gram.copy()
+    else:  # a fixed weight: one pass over all windows
+        gram, rhs = _gram(x, t, w, b, s.slope)
     gram[np.diag_indices_from(gram)] += ridge * float(np.mean(np.diag(gram)))
     try:
         return np.linalg.solve(gram, rhs)
