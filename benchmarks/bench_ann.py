@@ -10,14 +10,16 @@ Prints, in one run on this machine:
    networks' data (`ann_records`: about 60 % random runs, the rest shapes at constant
    speeds, split 80/20 by whole runs, seed 002 §III-C) played on the calibrated twin
    with 2 µm noise, one network per axis trained with epochs of 262 144 random windows,
-   the axes side by side in ``--workers`` processes (2), once with the schedule of
-   issue 17 (200 epochs, decay 0.97 per epoch) and once with the job's (`schedules`),
-   on the same data. Prints each training's wall time against the 5 min goal (issue 34),
-   the ratio, and the validation μ, σ per axis at every 10 kHz sample beside the seed's
-   Table II (ANN on validation data: x 3.2, y 6.0 µm).
+   the axes side by side in ``--workers`` processes (2), with the job's schedule once on
+   the scaled inputs as they are (the training before issue 46) and once whitened (the
+   job's now, `microfab.identify.ann_whiten`; `schedules`), on the same data. Prints each
+   training's wall time against the 5 min goal (issue 34), the ratio, and the validation
+   μ, σ per axis at every 10 kHz sample beside the seed's Table II (ANN on validation
+   data: x 3.2, y 6.0 µm) and beside the calibration's proxy σ on the same data
+   (`microfab.machines.xy_stage.proxy`; issue 46 asks the two within 25 %).
 
-Run: ``python benchmarks/bench_ann.py [--quick] [--job-only]`` (the comparison takes
-about 20 min on an idle 2-core machine, the job's schedule alone about 4).
+Run: ``python benchmarks/bench_ann.py [--quick] [--job-only] [--total-s 60]`` (the
+comparison takes about 10 min on an idle 2-core machine, the job's schedule alone about 5).
 """
 
 from __future__ import annotations
@@ -96,18 +98,22 @@ def throughput(threads: int, n_steps: int) -> None:
     )
 
 
-#: The training schedules compared by `real_run`: (name, max epochs, learning-rate decay
-#: per epoch). "issue 17" is the schedule the job had before issue 34 (about 16 min on an
-#: idle 2-core machine); "job" is the job's schedule now (`SCHEMA` defaults).
-def schedules() -> list[tuple[str, int, float]]:
+#: The trainings compared by `real_run`: (name, max epochs, learning-rate decay per epoch,
+#: whitening shrinkage or None). Both the job's schedule (`SCHEMA` defaults): "unwhitened"
+#: as before issue 46, "job" with the whitened inputs it trains on now.
+def schedules() -> list[tuple[str, int, float, float | None]]:
     from microfab.experiments.seed002_stage.job import SCHEMA
+    from microfab.identify.ann import AnnConfig
 
     ann = {k.name: k.default for k in SCHEMA["ann"]}
-    return [("issue 17", 200, 0.97), ("job", ann["max_epochs"], ann["lr_decay"])]
+    return [
+        ("unwhitened", ann["max_epochs"], ann["lr_decay"], None),
+        ("job", ann["max_epochs"], ann["lr_decay"], AnnConfig().whiten),
+    ]
 
 
 def real_run(
-    total_s: float, threads: int, workers: int, which: list[tuple[str, int, float]]
+    total_s: float, threads: int, workers: int, which: list[tuple[str, int, float, float | None]]
 ) -> None:
     """The ``stage-identify`` job's training (its data and epoch settings) on the twin.
 
@@ -117,6 +123,7 @@ def real_run(
     from microfab.experiments.seed002_stage.job import EPOCH_WINDOWS, VAL_WINDOWS
     from microfab.identify.stage_ann import ann_config, train_stage_ann
     from microfab.machines.xy_stage.ann import AnnSettings, ann_records
+    from microfab.machines.xy_stage.proxy import proxy_sigma
 
     settings = AnnSettings(total_s=total_s, epoch_windows=EPOCH_WINDOWS,
                            val_windows=VAL_WINDOWS, threads=threads, workers=workers)  # fmt: skip
@@ -131,25 +138,30 @@ def real_run(
         flush=True,
     )
     lin = linear_baseline([(r.u, r.y) for r in val.records])
+    t1 = time.perf_counter()
+    px = dict(zip(("x", "y"), proxy_sigma(train.records, val.records, train.dt), strict=True))
+    print(f"proxy (xy_stage.proxy): sigma x {px['x'] * 1e6:.2f} um, y {px['y'] * 1e6:.2f} um "
+          f"in {time.perf_counter() - t1:.1f} s", flush=True)  # fmt: skip
     times = {}
-    for name, epochs, decay in which:
+    for name, epochs, decay, whiten in which:
         config = ann_config(
             1.0 / train.dt, ("x", "y"), max_epochs=epochs, lr_decay=decay,
             epoch_windows=EPOCH_WINDOWS, val_windows=VAL_WINDOWS, seed=settings.seed,
-            threads=threads, workers=workers,
+            threads=threads, workers=workers, whiten=whiten,
         )  # fmt: skip
         t1 = time.perf_counter()
         fit = train_stage_ann(train.records, val.records, config)
         times[name] = time.perf_counter() - t1
         ep = ", ".join(f"{a} {fit.model.info['axes'][a]['epochs']}" for a in fit.model.axes)
-        print(f"{name}: {epochs} epochs at most, decay {decay:g}/epoch: training "
+        print(f"{name}: {epochs} epochs at most, decay {decay:g}/epoch, whiten {whiten}: "
+              f"training "
               f"{times[name]:.0f} s (epochs run: {ep})", flush=True)  # fmt: skip
         for a in fit.model.axes:
             e = fit.validation[a]
             print(
                 f"  {a}: validation mu {e.mu * 1e6:+.2f} um, sigma {e.sigma * 1e6:.2f} um "
                 f"(seed Table II: {SEED_SIGMA_UM[a]} um; command as prediction "
-                f"{lin[a]:.1f} um)",
+                f"{lin[a]:.1f} um; networks / proxy {e.sigma / px[a]:.2f})",
                 flush=True,
             )
     if len(times) == 2:
@@ -176,7 +188,7 @@ def main() -> None:
         throughput(threads, 3 if args.quick else 10)
     which = schedules()
     if args.quick:
-        real_run(20.0, args.train_threads, args.workers, [(n, 2, d) for n, _, d in which])
+        real_run(20.0, args.train_threads, args.workers, [(n, 2, d, w) for n, _, d, w in which])
     else:
         real_run(args.total_s, args.train_threads, args.workers,
                  which[1:] if args.job_only else which)  # fmt: skip

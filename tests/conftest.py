@@ -66,8 +66,14 @@ def tiny_models(tmp_path_factory):
     d = tmp_path_factory.mktemp("models")
     train = [smooth_run(12_000, s) for s in range(3)]
     val = [smooth_run(8_000, 10)]
+    # unwhitened (the training before issue 46): the optimiser tests were written on these
+    # networks. Measured with the default whitening (1e-3) instead: as accurate (validation
+    # σ 9.7 / 23.3 against 10.6 / 22.1 µm), but stage 2 on the easy circle of
+    # tests/optimize/test_stage2.py stops after 14 iterations "not converged" with every
+    # hard constraint holding (its score not improving); converged at 1e-2 and unwhitened.
     cfg = AnnConfig(window=WindowSpec(), batch_size=512, offsets=(0, 7, 13),
-                    learning_rate=2e-3, max_epochs=4, device="cpu", threads=1)  # fmt: skip
+                    learning_rate=2e-3, max_epochs=4, device="cpu", threads=1,
+                    whiten=None)  # fmt: skip
     model = train_ann(train, val, cfg)
     save_ann_model(model, d / "ann" / "model")
     a, b, c, dd = stage_matrices()

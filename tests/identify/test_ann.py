@@ -276,11 +276,15 @@ def test_resume_is_bit_identical(tmp_path):
     assert part.info["axes"]["y"]["epochs"] == 2
     resumed = train_ann(TRAIN, VAL, small_config(max_epochs=4), checkpoint_dir=d)
     assert resumed.info["axes"]["x"]["history"] == whole.info["axes"]["x"]["history"]
+    differ = []
     for a in ("x", "y"):
         sw, sr = whole.networks[a].state_dict(), resumed.networks[a].state_dict()
         assert all(torch.equal(sw[k], sr[k]) for k in sw)
         sp = part.networks[a].state_dict()
-        assert not all(torch.equal(sw[k], sp[k]) for k in sw)
+        differ.append(not all(torch.equal(sw[k], sp[k]) for k in sw))
+    # the resumed epochs did work: an axis whose best epoch came after the interruption
+    # (an axis may keep its early best epoch)
+    assert any(differ)
 
 
 def test_checkpoint_of_another_training_refused(trained, tmp_path):

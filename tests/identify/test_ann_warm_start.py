@@ -58,7 +58,9 @@ def test_warm_start_starts_from_the_previous_weights(first):
     # is what the training started from
     still = config(max_epochs=1, learning_rate=1e-30)
     warm = train_ann(TRAIN + MORE, VAL, still, init=first)
-    cold = train_ann(TRAIN + MORE, VAL, still)
+    # unwhitened, so that the cold start's network comes back as it was built (a
+    # whitened one comes back with the whitening folded into its first layer)
+    cold = train_ann(TRAIN + MORE, VAL, config(max_epochs=1, learning_rate=1e-30, whiten=None))
     for a in ("x", "y"):
         assert same(warm.networks[a], first.networks[a])
         assert warm.scalings[a] == first.scalings[a]  # the scaling is kept, not refitted
@@ -73,7 +75,10 @@ def test_warm_start_continues_where_the_previous_training_ended(first):
     for a in ("x", "y"):
         h_warm = warm.info["axes"][a]["history"]
         h_cold = cold.info["axes"][a]["history"]
-        assert h_warm[0][1] < 0.2 * h_cold[0][1]  # validation loss after one epoch
+        # the first epoch's training loss: the start is already trained (its validation
+        # loss after one epoch may rise a little while Adam, restarted, takes its first
+        # steps on the larger data: 0.034 -> 0.041 on y with whitened inputs)
+        assert h_warm[0][0] < 0.2 * h_cold[0][0]
         best = warm.info["axes"][a]["best_val_loss"]
         assert best <= first.info["axes"][a]["best_val_loss"] * 1.0001  # never worse
 

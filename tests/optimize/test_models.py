@@ -41,8 +41,13 @@ def test_the_recorded_validation_sigma_is_read(tmp_path):
 
     from microfab.optimize.models import recorded_validation_sigma
 
+    from microfab.optimize.models import builtin_models_dir
+
     shipped = recorded_validation_sigma("builtin")
-    assert shipped is not None and shipped["y"] > 20e-6  # the shipped y network: 38.2 µm
+    record = json.loads((builtin_models_dir() / "trained.json").read_text(encoding="utf-8"))
+    assert shipped is not None
+    for a in ("x", "y"):  # the record's µm read as m (y: 7.9 µm)
+        assert shipped[a] == pytest.approx(record["validation"][a]["sigma_um"] * 1e-6, rel=1e-12)
     assert recorded_validation_sigma(tmp_path) is None  # none recorded: no warning by σ
     (tmp_path / "summary.json").write_text(json.dumps(
         {"ann": {"validation": {"x": {"std_m": 3e-6}, "y": {"std_m": 4e-6}}}}))  # fmt: skip

@@ -8,6 +8,10 @@ imports them (the model module does not import this one).
   ``AnnConfig.threads`` threads (default 1, see `AnnConfig`), seeded; early stopping on
   the validation loss (the best epoch's weights are kept). `EpochRecord` is handed to
   ``progress`` after each epoch.
+* Whitened inputs (``AnnConfig.whiten``, `microfab.identify.ann_whiten`): the network is
+  trained on the ZCA-whitened scaled windows and the whitening is folded into its first
+  layer at the end, so the returned network reads the scaled inputs as before. A warm
+  start's first layer is unfolded with the new data's whitening (the same function).
 * Checkpoints (weights, Adam, scheduler, RNG, epoch, best, scaling) are written
   atomically every ``checkpoint_every`` epochs; a rerun with the same configuration and
   data resumes, and on the CPU the result is bit for bit that of an uninterrupted run. A
@@ -50,6 +54,7 @@ from microfab.identify.ann import (
     build_network,
 )
 from microfab.identify.ann_data import AXES, Run, Scaling, WindowSet, data_digest
+from microfab.identify.ann_whiten import fold, input_covariance, unfold, whitening
 from microfab.io.checkpoint import read_state, save_state
 from microfab.io.runstore import RunRefusedError
 
@@ -300,14 +305,20 @@ def _train_axis(
         sched.load_state_dict(meta["scheduler"])
         torch.set_rng_state(torch.from_numpy(arrays["torch_rng"]))
         st = meta["state"]
+        white = _whitening_of(arrays, config)
     elif start is not None:  # warm start: the previous weights and scaling (module doc)
         net.load_state_dict({k: v.detach().clone() for k, v in start[0].state_dict().items()})
         scaling = start[1]
+        white = _whitening(train, ax, scaling, config)
+        if white is not None:  # the same function, now reading whitened inputs
+            unfold(net, white[1])
         best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
         net.eval()
-        st["best_val"] = _val_loss(net, val, ax, scaling, device, val_idx)
+        st["best_val"] = _val_loss(net, val, ax, scaling, device, val_idx, white)
     else:
         scaling = train.fit_scaling(ax)
+        white = _whitening(train, ax, scaling, config)
+    w_in = None if white is None else torch.from_numpy(white[0].astype(np.float32)).to(device)
 
     n_all = len(train)
     n = n_all if config.epoch_windows is None else min(config.epoch_windows, n_all)
@@ -322,6 +333,8 @@ def _train_axis(
             idx = perm[i : i + bs]
             x, t = train.batch(idx, ax)
             xb = torch.from_numpy(scaling.scale_inputs(x)).to(device)
+            if w_in is not None:
+                xb = xb @ w_in
             tb = torch.from_numpy(scaling.scale_target(t)).to(device)
             opt.zero_grad(set_to_none=True)
             loss = loss_fn(net(xb)[:, 0], tb)
@@ -330,7 +343,7 @@ def _train_axis(
             total += float(loss.detach()) * idx.size
         sched.step()
         net.eval()
-        val_loss = _val_loss(net, val, ax, scaling, device, val_idx)
+        val_loss = _val_loss(net, val, ax, scaling, device, val_idx, white)
         train_loss = total / n
         if st["best_val"] is None or val_loss < st["best_val"]:
             st["best_val"], st["best_epoch"], st["bad"] = val_loss, st["epoch"], 0
@@ -344,7 +357,7 @@ def _train_axis(
         done = st["stopped"] or st["epoch"] >= config.max_epochs
         if path is not None and (done or st["epoch"] % config.checkpoint_every == 0):
             assert best_state is not None
-            _write_checkpoint(path, expect, st, scaling, net, best_state, opt, sched)
+            _write_checkpoint(path, expect, st, scaling, net, best_state, opt, sched, white)
         if progress is not None:
             progress(
                 EpochRecord(
@@ -359,6 +372,11 @@ def _train_axis(
     if best_state is not None:
         net.load_state_dict(best_state)
     net = net.cpu().eval()
+    if white is not None and st["best_epoch"] == -1 and start is not None:
+        # no epoch beat the start: its weights exactly (unfold-then-fold rounds them)
+        net.load_state_dict({k: v.detach().clone() for k, v in start[0].state_dict().items()})
+    elif white is not None:  # the saved network reads the scaled inputs (ann_whiten)
+        fold(net, white[0])
     summary = {
         "epochs": st["epoch"],
         "best_epoch": st["best_epoch"],
@@ -456,15 +474,44 @@ def _val_loss(
     scaling: Scaling,
     device: torch.device,
     idx: np.ndarray | None = None,
+    white: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> float:
-    """Scaled MSE over the windows ``idx`` of ``ws`` (default all), chunk by chunk."""
+    """Scaled MSE over the windows ``idx`` of ``ws`` (default all), chunk by chunk.
+
+    ``white``: the whitening and its inverse (`_whitening`) the network reads its inputs
+    through, or None.
+    """
     idx = np.arange(len(ws)) if idx is None else idx
+    w = None if white is None else white[0].astype(np.float32)
     total = 0.0
     for i in range(0, idx.size, _EVAL_CHUNK):
         x, t = ws.batch(idx[i : i + _EVAL_CHUNK], ax)
-        z = _forward(net, scaling.scale_inputs(x), device)
+        s = scaling.scale_inputs(x)
+        z = _forward(net, s if w is None else s @ w, device)
         total += float(((z - scaling.scale_target(t)) ** 2).sum())
     return total / idx.size
+
+
+def _whitening(
+    train: WindowSet, ax: int, scaling: Scaling, config: AnnConfig
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The whitening of the scaled training inputs and its inverse (None: not whitened)."""
+    if config.whiten is None:
+        return None
+    return whitening(input_covariance(train, ax, scaling), config.whiten)
+
+
+def _whitening_of(
+    arrays: dict[str, np.ndarray], config: AnnConfig
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The whitening a checkpoint was trained with (its fingerprint holds ``whiten``)."""
+    if config.whiten is None:
+        return None
+    if "whiten" not in arrays or "whiten_inv" not in arrays:
+        raise CheckpointMismatchError(
+            f"the checkpoint has no whitening though its settings whiten the inputs; {_FIX}"
+        )
+    return arrays["whiten"], arrays["whiten_inv"]
 
 
 def _write_checkpoint(
@@ -476,9 +523,12 @@ def _write_checkpoint(
     best_state: dict[str, torch.Tensor],
     opt: torch.optim.Optimizer,
     sched: torch.optim.lr_scheduler.LRScheduler,
+    white: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> None:
     osd = opt.state_dict()
     arrays = _state_arrays("w", net.state_dict())
+    if white is not None:  # saved, not recomputed: a resume is then bit for bit
+        arrays["whiten"], arrays["whiten_inv"] = white
     arrays.update(_state_arrays("best", best_state))
     for i, s in osd["state"].items():
         arrays.update(_state_arrays(f"adam.{i}", s))

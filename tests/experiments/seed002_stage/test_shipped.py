@@ -43,10 +43,12 @@ def test_the_shipped_folder_holds_models_and_their_record():
 #: encoder noise on the positions' scale (seed 002 Table I; 3.4e-5 of their 58 mm RMS).
 DATA_TOL = 1e-5
 #: Validation and letter cells, µm: σ relative, μ absolute. Measured spread across the
-#: same kernels: σ 3.0e-6 relative, μ 0.0038 µm (μ is a mean of errors of σ ≈ 6-40 µm,
-#: so it moves in absolute terms, not relative to its near-zero value); ten times σ's,
-#: five times μ's (as before, where the earlier twin's spread was 0.0036 µm).
-SIGMA_REL = 3e-5
+#: same kernels on the networks trained with whitened inputs (issue 46): σ 1.7e-5 relative
+#: (y letters at 3 m/s²; 1e-6 on validation), μ 0.0038 µm (μ is a mean of errors of σ ≈
+#: 4-14 µm, so it moves in absolute terms, not relative to its near-zero value). About ten
+#: times σ's and five times μ's (as before, where the earlier networks spread 3.0e-6 and
+#: 0.0038 µm): far below any cell's distance from twice the seed's.
+SIGMA_REL = 2e-4
 MU_ABS_UM = 0.02
 
 
@@ -98,33 +100,28 @@ def _cell(again, axis: str, column: str) -> tuple[float, float]:
 CELLS = [(a, c) for a in ("x", "y") for c in ("training", "letters_1", "letters_3")]
 
 
-#: Measured on the shipped models (trained.json, trained on the twin calibrated on the core,
-#: issue 46), σ µm, ours / seed, of the cells that miss twice the seed's.
-MEASURED = {
-    ("x", "training"): "10.6 / 3.2", ("y", "training"): "20.6 / 6.0",
-    ("y", "letters_3"): "39.8 / 18.7",
-}  # fmt: skip
-CAUSE = (
-    "the networks do not learn what their window predicts: a fixed random-feature ridge "
-    "regression on the same windows and data (xy_stage.proxy) reaches 4.9 / 6.6 um on the "
-    "validation runs, so the twin's unpredictable part is within 2x of the seed's; the "
-    "networks' 60-epoch schedule stops 2-3x above it (the seed trains about 24 h per axis)"
-)
+#: Measured on the shipped models (trained.json: trained on the twin calibrated on the core
+#: with whitened inputs, issue 46), σ µm, ours / seed, validation x 5.2 / 3.2, y 7.9 / 6.0;
+#: letters 1 m/s² x 3.6 / 8.2, y 10.7 / 13.4; 3 m/s² x 3.9 / 11.1, y 13.5 / 18.7: every
+#: cell within twice the seed's (three missed before the whitening: 10.6, 20.6, 39.8 µm).
 
 
-def _marks(a: str, c: str) -> tuple[pytest.MarkDecorator, ...]:
-    if (a, c) not in MEASURED:
-        return ()
-    return (
-        pytest.mark.xfail(
-            raises=AssertionError, strict=True, reason=f"{MEASURED[a, c]} um; {CAUSE}"
-        ),
-    )
-
-
-@pytest.mark.parametrize(
-    ("axis", "column"), [pytest.param(a, c, marks=_marks(a, c)) for a, c in CELLS]
-)
+@pytest.mark.parametrize(("axis", "column"), CELLS)
 def test_table_ii_network_cell_within_twice_the_paper(again, axis, column):
     ours, seed = _cell(again, axis, column)
     assert ours <= 2 * seed, f"{axis} {column}: ours {ours:.1f} um, seed {seed:.1f} um"
+
+
+#: The issue's bound on the calibration's proxy against the full training (issue 46).
+PROXY_BAND = 0.25
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_the_networks_lie_within_25_percent_of_the_calibration_proxy(again, axis):
+    # the proxy the twin's calibration fits (xy_stage.proxy), recorded on the networks' own
+    # data when the models were made; the networks' σ recomputed here
+    proxy = again["recorded"]["proxy"][axis]["sigma_um"]
+    nets = again["validation"][axis]["sigma_um"]
+    assert abs(nets / proxy - 1.0) <= PROXY_BAND, (
+        f"{axis}: networks {nets:.2f} um against the proxy's {proxy:.2f} um"
+    )

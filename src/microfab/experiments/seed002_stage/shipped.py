@@ -12,16 +12,18 @@ studies off, Table II's letter columns only), made by::
 
     python -m microfab.experiments.seed002_stage.shipped [--out DIR] [--work DIR]
 
-(``make shipped-models``). Besides ``linear_model.json`` and ``ann/model`` the folder holds
-``trained.json`` (`write_record`): the sections that made them, the data digests the
+(``make shipped-models``). Besides ``linear_model.json`` and ``ann/model`` the folder
+holds ``trained.json`` (`write_record`): the sections that made them, the data digests the
 training recorded and a summary of those data that can be compared with a tolerance
-(`microfab.identify.ann_data.data_summary`), the validation σ per axis, Table II's letter
-cells, the wall times and the versions. `recheck` recomputes, without training, what can
-be recomputed: the networks' data from the recorded settings and the networks' errors on
-the validation runs and the letters. The data are floats made by a simulation, so their
-bytes (the digests) depend on the CPU's BLAS kernels: the test suite
-(``tests/experiments/seed002_stage/test_shipped.py``) compares the summaries and the
-errors within tolerances measured across kernels and thread counts, never the digests.
+(`microfab.identify.ann_data.data_summary`), the validation σ per axis and beside it the
+calibration's proxy σ on the same data (`microfab.machines.xy_stage.proxy`: the issue asks
+the two within 25 %), Table II's letter cells, the wall times and the versions. `recheck`
+recomputes, without training, what can be recomputed: the networks' data from the recorded
+settings and the networks' errors on the validation runs and the letters. The data are
+floats made by a simulation, so their bytes (the digests) depend on the CPU's BLAS
+kernels: the test suite (``tests/experiments/seed002_stage/test_shipped.py``) compares the
+summaries and the errors within tolerances measured across kernels and thread counts,
+never the digests.
 """
 
 from __future__ import annotations
@@ -97,12 +99,15 @@ def write_record(
     sections: dict[str, Any],
     wall_s: float,
     summaries: dict[str, Any] | None = None,
+    proxy: dict[str, float] | None = None,
 ) -> Path:
     """Write ``trained.json`` (module docstring) into ``folder``, atomically.
 
     ``summaries`` holds ``"train_summary"`` and ``"val_summary"``
     (`microfab.identify.ann_data.data_summary` of the networks' data), which `recheck`
     compares with a tolerance; the digests only tell whether the bytes are the same.
+    ``proxy`` holds the calibration's proxy σ per axis on the same data, µm
+    (`microfab.machines.xy_stage.proxy.proxy_sigma`), recorded beside the networks' σ.
     """
     import torch
 
@@ -125,6 +130,7 @@ def write_record(
             a: {"mu_um": ann.validation[a].mu * 1e6, "sigma_um": ann.validation[a].sigma * 1e6}
             for a in ann.model.axes
         },
+        "proxy": {a: {"sigma_um": v} for a, v in (proxy or {}).items()},
         "epochs": {a: info["axes"][a]["epochs"] for a in ann.model.axes},
         "linear_on_training": _stats(study.linear.mu_m, study.linear.sigma_m, ("x", "y")),
         "letters": _letters(study),
@@ -154,6 +160,7 @@ def train_shipped(
     from microfab.identify.stage_ann import runs_of, save_ann_model
     from microfab.identify.stage_data import write_stage_model
     from microfab.machines.xy_stage.ann import ann_records
+    from microfab.machines.xy_stage.proxy import proxy_sigma
 
     out = Path(out)
     settings = shipped_settings()
@@ -167,12 +174,14 @@ def train_shipped(
         "train_summary": data_summary(runs_of(train.records)),
         "val_summary": data_summary(runs_of(val.records)),
     }
+    px = proxy_sigma(train.records, val.records, train.dt)  # the calibration's proxy
+    proxy = {"x": px[0] * 1e6, "y": px[1] * 1e6}
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
     try:
         write_stage_model(stage / "linear_model.json", study.linear.stage_model())
         save_ann_model(study.ann.model, stage / "ann" / "model")
-        write_record(stage, study, canonical_settings(_sections(SECTIONS)), wall, summaries)
+        write_record(stage, study, canonical_settings(_sections(SECTIONS)), wall, summaries, proxy)
         old = out.with_name(f".{out.name}-old")
         if old.exists():
             shutil.rmtree(old)

@@ -12,8 +12,9 @@ Table II:
 * **the networks' σ per axis** (column 1 of the non-linear model: the validation data),
   through the proxy `microfab.machines.xy_stage.proxy.proxy_sigma` (a fixed
   random-feature ridge regression on the networks' own windows and split): training the
-  networks inside the loop is far too slow. The proxy against the full training: within
-  25 % on x, 29-45 % above on y (`microfab.machines.xy_stage.proxy`).
+  networks inside the loop is far too slow. The proxy against the full training (whitened
+  inputs, `microfab.identify.ann_whiten`): within 25 % on both axes of the calibrated twin
+  (`microfab.machines.xy_stage.proxy`, checked on the shipped record by the suite).
 
 Check held back (never fitted): the slowest time constant of the 4-state model, about
 20 ms (seed 002 §III-B reading, `experiments/seed002_stage/paper.py`
