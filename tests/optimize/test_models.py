@@ -39,9 +39,7 @@ def test_the_recorded_validation_sigma_is_read(tmp_path):
     """Shipped models: trained.json (µm); a stage-identify output: summary.json (m)."""
     import json
 
-    from microfab.optimize.models import recorded_validation_sigma
-
-    from microfab.optimize.models import builtin_models_dir
+    from microfab.optimize.models import builtin_models_dir, recorded_validation_sigma
 
     shipped = recorded_validation_sigma("builtin")
     record = json.loads((builtin_models_dir() / "trained.json").read_text(encoding="utf-8"))
