@@ -62,7 +62,7 @@ def test_problem_fits_the_two_times_and_holds_the_modes_back() -> None:
 
 
 def test_polymer_share_moves_viscosity_to_the_solvent_and_keeps_eta0() -> None:
-    full, half = naalg(1.0), naalg(1.0, polymer_share=0.5)
+    full, half = naalg(1.0, polymer_share=1.0), naalg(1.0, polymer_share=0.5)
     assert half.zero_shear_viscosity_pa_s == pytest.approx(full.zero_shear_viscosity_pa_s)
     assert half.polymer_viscosity_pa_s == pytest.approx(0.5 * full.polymer_viscosity_pa_s)
     with pytest.raises(ValueError, match="polymer_share"):

@@ -167,11 +167,20 @@ def test_a_shorter_run_is_the_prefix_of_a_longer_one() -> None:
             marks=pytest.mark.xfail(
                 raises=AssertionError,
                 strict=True,
-                reason="by design: the 0.15 % thread breaks at the retracted meniscus, 90 µm "
+                reason="by design: the 0.15 % thread breaks at the retracted meniscus, 61 µm "
                 "inside the bore, where a camera outside the nozzle cannot see it",
             ),
         ),
-        ("eulerian", 1.0),
+        pytest.param(
+            "eulerian",
+            1.0,
+            marks=pytest.mark.xfail(
+                raises=AssertionError,
+                strict=True,
+                reason="with the core's ink law (issue 46) the 1 % thread breaks at 238.5 µs "
+                "43.5 µm inside the bore; the camera outside the nozzle sees the gap at 250 µs",
+            ),
+        ),
     ],
 )
 def test_the_camera_sees_the_breakup_the_solver_reports(model: str, c: float) -> None:

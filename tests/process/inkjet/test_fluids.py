@@ -121,10 +121,11 @@ def test_table_points_returned_exactly() -> None:
         assert f.zero_shear_viscosity_pa_s == pytest.approx(
             r["zero_shear_viscosity_pa_s"], rel=1e-15
         )
-        assert f.solvent_viscosity_pa_s == ETA_S
-        assert f.polymer_viscosity_pa_s == pytest.approx(
-            r["zero_shear_viscosity_pa_s"] - ETA_S, rel=1e-14
-        )
+        # the default model's law splits η0 - η_w by its polymer share (fluids module doc)
+        share = load_table().law(DEFAULT_JET_MODEL).polymer_share
+        excess = r["zero_shear_viscosity_pa_s"] - ETA_S
+        assert f.solvent_viscosity_pa_s == pytest.approx(ETA_S + (1 - share) * excess, rel=1e-14)
+        assert f.polymer_viscosity_pa_s == pytest.approx(share * excess, rel=1e-14)
 
 
 def test_one_percent_literal_values() -> None:
@@ -152,9 +153,13 @@ def test_interpolation_laws_by_hand() -> None:
     # ... and linear to water below the first point.
     assert naalg(0.05).density_kg_m3 == pytest.approx(997.05 + (997.65 - 997.05) / 3)
     assert naalg(0.05).surface_tension_n_m == pytest.approx(0.07197 + (0.0716 - 0.07197) / 3)
-    # η_p = η0 - η_s.
+    # η_p = s_p (η0 - η_w), s_p the default model's polymer share.
     f = naalg(0.7)
-    assert f.polymer_viscosity_pa_s == pytest.approx(f.zero_shear_viscosity_pa_s - ETA_S)
+    share = load_table().law(DEFAULT_JET_MODEL).polymer_share
+    assert f.polymer_viscosity_pa_s == pytest.approx(share * (f.zero_shear_viscosity_pa_s - ETA_S))
+    assert naalg(0.7, polymer_share=1.0).polymer_viscosity_pa_s == pytest.approx(
+        f.zero_shear_viscosity_pa_s - ETA_S
+    )
 
 
 def test_relaxation_law() -> None:

@@ -209,8 +209,9 @@ def play(
     frame_interval_s : float, optional
         Spacing of the stored silhouettes, s. The Lagrangian model does not cut its steps
         to them; the Eulerian one lands its steps on them, which does not move its
-        breakup: at 50 V the 0.15 % jet breaks at 88.216-88.220 µs, 89.94-90.00 µm inside
-        the bore, with 1 to 10 µs frames or none (measured; the default is 10 µs).
+        breakup: at 50 V the 0.15 % jet broke at 88.216-88.220 µs, 89.94-90.00 µm inside
+        the bore, with 1 to 10 µs frames or none (measured with the ink law before the
+        calibration core's; the default is 10 µs).
     progress : callable, optional
         Called with the simulated time in s.
     back_pressure_pa : float, optional

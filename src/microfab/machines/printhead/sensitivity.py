@@ -90,19 +90,26 @@ def perturbed_fluid(point: SensitivityPoint, model: str = DEFAULT_JET_MODEL) -> 
     -------
     microfab.process.inkjet.fluids.Fluid
     """
-    from microfab.process.inkjet.fluids import naalg
+    from microfab.process.inkjet.fluids import load_table, naalg
 
     base = naalg(point.concentration_pct, model=model)
     f = point.factor
     if point.prop == "none":
         return base
     if point.prop == "zero_shear_viscosity":
-        eta_p = f * base.zero_shear_viscosity_pa_s - base.solvent_viscosity_pa_s
-        if eta_p < 0.0:
+        # η0 scaled, water's share kept and the rest split between the relaxing polymer and
+        # its fast modes as the law's polymer share splits it (fluids: η_p = s_p (η0 - η_w))
+        eta_w = load_table().solvent_viscosity_pa_s
+        excess = f * base.zero_shear_viscosity_pa_s - eta_w
+        if excess < 0.0:
             raise ValueError(
                 f"η0 × {f} of {base.name} is below the water's viscosity; use a larger factor"
             )
-        return base.with_(polymer_viscosity_pa_s=eta_p)
+        share = base.polymer_viscosity_pa_s / (base.zero_shear_viscosity_pa_s - eta_w)
+        return base.with_(
+            solvent_viscosity_pa_s=eta_w + (1.0 - share) * excess,
+            polymer_viscosity_pa_s=share * excess,
+        )
     field = {
         "relaxation_time": "relaxation_time_s",
         "surface_tension": "surface_tension_n_m",

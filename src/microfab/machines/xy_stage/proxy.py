@@ -35,17 +35,18 @@ the same, unwhitened (before the whitening)    5.4 / 8.25    7.1 / 13.7    1.31 
 
 (The whitened 60 s row: the networks' σ on the 131 072 stopping windows at 400 Hz at the
 best epoch, a run of the same schedule outside the job; the others at every 10 kHz
-validation sample, as Table II.) The networks reach the proxy (within the issue's 25 %) once their inputs are whitened
-(`microfab.identify.ann_whiten`): before, 60 epochs of Adam on the nearly collinear
-window (covariance eigenvalues from 175 to 1e-12) stopped far short of what a regression
-on the same windows reaches, and the proxy under-stated the networks' σ. The shipped
-record keeps both numbers (``proxy`` beside ``validation`` in ``trained.json``) and the
-suite checks them (``tests/experiments/seed002_stage/test_shipped.py``). On the earlier,
-uncalibrated twins (friction 119 / 131 N; 35 / 14 N) the proxy lay 18 % / 29 % and 4 % /
-45 % above the unwhitened networks (a fixed ridge weight then). Before the cross-validated
-ridge (a fixed 1e-2), on a twin whose error is linear in the window (friction, cogging,
-cable off, no feedforward), the proxy read 7.5 / 6.7 µm where 2.5 / 2.6 µm is reachable
-(its 2 µm noise).
+validation sample, as Table II.) The networks reach the proxy (within the issue's 25 %)
+once their inputs are whitened (`microfab.identify.ann_whiten`): before, 60 epochs of Adam
+on the nearly collinear window (covariance eigenvalues from 175 to 1e-12) stopped far
+short of what a regression on the same windows reaches, and the proxy under-stated the
+networks' σ. The shipped record keeps both numbers (``proxy`` beside ``validation`` in
+``trained.json``) and the suite checks them
+(``tests/experiments/seed002_stage/test_shipped.py``). On the earlier, uncalibrated twins
+(friction 119 / 131 N; 35 / 14 N) the proxy lay 18 % / 29 % and 4 % / 45 % above the
+unwhitened networks (a fixed ridge weight then). Before the cross-validated ridge (a fixed
+1e-2), on a twin whose error is linear in the window (friction, cogging, cable off, no
+feedforward), the proxy read 7.5 / 6.7 µm where 2.5 / 2.6 µm is reachable (its 2 µm
+noise).
 """
 
 from __future__ import annotations
