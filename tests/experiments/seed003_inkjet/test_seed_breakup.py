@@ -191,3 +191,26 @@ def test_eulerian_two_percent_breaks_within_1_ms_after_one_and_a_half() -> None:
     t2, t15 = _within_1_ms(2.0), _within_1_ms(1.5)
     assert t2 is not None and t15 is not None
     assert t15 < t2 < 1e-3
+
+
+@pytest.mark.xfail(
+    raises=AssertionError,
+    strict=True,
+    reason="known gap (issue 46): with the core's law the Eulerian jets at 50 V pinch 61, 77, "
+    "95, 44 and 34 µm inside the bore (0.15-1.5 %; 2 % does not break), where a camera at "
+    "the nozzle plate cannot see them; in all 313 inks the calibration tried, a pinch lay "
+    "30-107 µm inside (the meniscus retracting into the bore, a structural finding)",
+)
+def test_eulerian_breakups_lie_outside_the_orifice() -> None:
+    from microfab.machines.printhead.calibration import RIM_SLACK_UM
+    from microfab.machines.printhead.machine import DropletSettings, SweepPoint, run_point
+
+    # the five that break within 400 µs (2 % does not within 1 ms: its own test above)
+    settings = DropletSettings(model="eulerian", duration_s=400e-6, after_breakup_s=2e-6)
+    depth = {}
+    for c in SEED_CONCENTRATIONS_PCT[:5]:
+        res = run_point(SweepPoint(c, 50.0), settings)
+        assert res.breakup_z_m is not None, c
+        depth[c] = res.breakup_z_m * 1e6
+    # z from the orifice, inside < 0; one camera pixel of slack (calibration's RIM check)
+    assert all(z >= -RIM_SLACK_UM for z in depth.values()), depth

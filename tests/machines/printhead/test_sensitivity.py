@@ -16,14 +16,19 @@ from microfab.machines.printhead.sensitivity import (
     sensitivity_points,
     sensitivity_table,
 )
-from microfab.process.inkjet.fluids import naalg
+from microfab.process.inkjet.fluids import load_table, naalg
 
 
 def test_each_change_touches_one_property() -> None:
     base = naalg(1.0)
     eta = perturbed_fluid(SensitivityPoint(1.0, "zero_shear_viscosity", 2.0))
     assert eta.zero_shear_viscosity_pa_s == pytest.approx(2.0 * base.zero_shear_viscosity_pa_s)
-    assert eta.solvent_viscosity_pa_s == base.solvent_viscosity_pa_s
+    # η0 - η_w is split as the law's polymer share splits it (fluids: η_p = s_p (η0 - η_w))
+    eta_w = load_table().solvent_viscosity_pa_s
+    share = base.polymer_viscosity_pa_s / (base.zero_shear_viscosity_pa_s - eta_w)
+    assert eta.polymer_viscosity_pa_s == pytest.approx(
+        share * (eta.zero_shear_viscosity_pa_s - eta_w), rel=1e-12
+    )
     assert eta.relaxation_time_s == base.relaxation_time_s
     lam = perturbed_fluid(SensitivityPoint(1.0, "relaxation_time", 0.5))
     assert lam.relaxation_time_s == pytest.approx(0.5 * base.relaxation_time_s)
