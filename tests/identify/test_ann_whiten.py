@@ -102,3 +102,17 @@ def test_covariance_strides_at_most_the_given_windows():
     assert not np.allclose(few, every, rtol=1e-9)  # a subset, not all of them
     assert np.trace(every) == pytest.approx(20.0, rel=0.05)  # scaled: unit variance each
     _ = Scaling  # the type the covariance reads its inputs through
+
+
+def test_shorter_epochs_sum_fewer_windows_but_never_too_few():
+    from microfab.identify.ann_whiten import (
+        COVARIANCE_WINDOWS,
+        LEAST_COVARIANCE_WINDOWS,
+        covariance_windows,
+    )
+
+    assert covariance_windows(None) == COVARIANCE_WINDOWS
+    assert covariance_windows(262_144) == COVARIANCE_WINDOWS  # the job's epochs: as shipped
+    assert covariance_windows(4096) == LEAST_COVARIANCE_WINDOWS
+    assert covariance_windows(100_000) == 100_000
+    assert covariance_windows(10**7) == COVARIANCE_WINDOWS

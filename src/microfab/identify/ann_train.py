@@ -54,7 +54,13 @@ from microfab.identify.ann import (
     build_network,
 )
 from microfab.identify.ann_data import AXES, Run, Scaling, WindowSet, data_digest
-from microfab.identify.ann_whiten import fold, input_covariance, unfold, whitening
+from microfab.identify.ann_whiten import (
+    covariance_windows,
+    fold,
+    input_covariance,
+    unfold,
+    whitening,
+)
 from microfab.io.checkpoint import read_state, save_state
 from microfab.io.runstore import RunRefusedError
 
@@ -498,7 +504,8 @@ def _whitening(
     """The whitening of the scaled training inputs and its inverse (None: not whitened)."""
     if config.whiten is None:
         return None
-    return whitening(input_covariance(train, ax, scaling), config.whiten)
+    most = covariance_windows(config.epoch_windows)
+    return whitening(input_covariance(train, ax, scaling, most=most), config.whiten)
 
 
 def _whitening_of(

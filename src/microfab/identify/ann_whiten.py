@@ -31,13 +31,37 @@ from torch import nn
 from microfab.core.validate import check_positive
 from microfab.identify.ann_data import Scaling, WindowSet
 
-__all__ = ["COVARIANCE_WINDOWS", "fold", "input_covariance", "unfold", "whitening"]
+__all__ = [
+    "COVARIANCE_WINDOWS",
+    "LEAST_COVARIANCE_WINDOWS",
+    "covariance_windows",
+    "fold",
+    "input_covariance",
+    "unfold",
+    "whitening",
+]
 
 #: Most training windows the covariance is summed over (evenly strided, no random draw):
-#: ample for a 200 x 200 matrix, and a few seconds on one thread (assumed).
+#: ample for a 200 x 200 matrix, and about a second on one thread (assumed). A training of
+#: shorter epochs sums over one epoch's worth, at least `LEAST_COVARIANCE_WINDOWS`
+#: (`covariance_windows`).
 COVARIANCE_WINDOWS = 262_144
+#: Fewest windows of the covariance when the training has fewer (assumed: 65 536, a few
+#: hundred per input of 200).
+LEAST_COVARIANCE_WINDOWS = 65_536
 
 _CHUNK = 65_536
+
+
+def covariance_windows(epoch_windows: int | None) -> int:
+    """Windows the covariance sums over for epochs of ``epoch_windows`` (None: all).
+
+    `COVARIANCE_WINDOWS`, or one epoch's worth when epochs are shorter, but at least
+    `LEAST_COVARIANCE_WINDOWS`.
+    """
+    if epoch_windows is None:
+        return COVARIANCE_WINDOWS
+    return min(COVARIANCE_WINDOWS, max(int(epoch_windows), LEAST_COVARIANCE_WINDOWS))
 
 
 def input_covariance(
