@@ -48,6 +48,12 @@ def test_points_and_bad_values() -> None:
         SensitivityPoint(1.0, "density", 0.0)
     with pytest.raises(ValueError, match="below the water"):
         perturbed_fluid(SensitivityPoint(0.15, "zero_shear_viscosity", 0.1))
+    # pure water: no polymer share to keep, the added viscosity is the polymer's (as before
+    # the share; a division by its zero polymer part once)
+    eta_w = load_table().solvent_viscosity_pa_s
+    water = perturbed_fluid(SensitivityPoint(0.0, "zero_shear_viscosity", 2.0))
+    assert water.zero_shear_viscosity_pa_s == pytest.approx(2 * eta_w, rel=1e-12)
+    assert water.solvent_viscosity_pa_s == eta_w
 
 
 def test_table_gives_the_change_against_the_unperturbed_run() -> None:

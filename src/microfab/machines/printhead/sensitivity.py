@@ -90,7 +90,7 @@ def perturbed_fluid(point: SensitivityPoint, model: str = DEFAULT_JET_MODEL) -> 
     -------
     microfab.process.inkjet.fluids.Fluid
     """
-    from microfab.process.inkjet.fluids import load_table, naalg
+    from microfab.process.inkjet.fluids import load_table, naalg, split_viscosity
 
     base = naalg(point.concentration_pct, model=model)
     f = point.factor
@@ -100,16 +100,16 @@ def perturbed_fluid(point: SensitivityPoint, model: str = DEFAULT_JET_MODEL) -> 
         # η0 scaled, water's share kept and the rest split between the relaxing polymer and
         # its fast modes as the law's polymer share splits it (fluids: η_p = s_p (η0 - η_w))
         eta_w = load_table().solvent_viscosity_pa_s
-        excess = f * base.zero_shear_viscosity_pa_s - eta_w
-        if excess < 0.0:
+        eta0 = f * base.zero_shear_viscosity_pa_s
+        if eta0 < eta_w:
             raise ValueError(
                 f"η0 × {f} of {base.name} is below the water's viscosity; use a larger factor"
             )
-        share = base.polymer_viscosity_pa_s / (base.zero_shear_viscosity_pa_s - eta_w)
-        return base.with_(
-            solvent_viscosity_pa_s=eta_w + (1.0 - share) * excess,
-            polymer_viscosity_pa_s=share * excess,
-        )
+        # the share the fluid was made with; pure water (no polymer) gives it all to η_p
+        gap = base.zero_shear_viscosity_pa_s - eta_w
+        share = base.polymer_viscosity_pa_s / gap if gap > 0.0 else 1.0
+        eta_s, eta_p = split_viscosity(eta0, eta_w, share)
+        return base.with_(solvent_viscosity_pa_s=eta_s, polymer_viscosity_pa_s=eta_p)
     field = {
         "relaxation_time": "relaxation_time_s",
         "surface_tension": "surface_tension_n_m",

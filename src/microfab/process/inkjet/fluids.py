@@ -64,6 +64,7 @@ __all__ = [
     "load_table",
     "naalg",
     "newtonian",
+    "split_viscosity",
 ]
 
 #: NaAlg concentrations (% w/v) printed in seed 003 part 1 ("Materials").
@@ -550,6 +551,17 @@ def _polymer_part(eta0: float, eta_s: float) -> float:
     return p
 
 
+def split_viscosity(eta0: float, eta_w: float, share: float) -> tuple[float, float]:
+    """``(η_s, η_p)`` of a polymer solution of zero-shear viscosity ``eta0`` in a solvent.
+
+    The polymer adds ``η0 - η_w``; its share ``share`` relaxes (``η_p``), the rest, its
+    fast modes, acts as solvent: ``η_s = η_w + (1 - share) (η0 - η_w)``, ``η_p = η0 - η_s``
+    (so ``η_s + η_p == η0`` exactly, `_polymer_part`). Viscosities in Pa·s.
+    """
+    eta_s = eta_w if share >= 1.0 else eta_w + (1.0 - share) * (eta0 - eta_w)
+    return eta_s, _polymer_part(eta0, eta_s)
+
+
 def naalg(
     concentration_pct: float,
     *,
@@ -636,14 +648,13 @@ def naalg(
     else:
         share = float(polymer_share)
         check_in_range("polymer_share", share, 0.0, 1.0, low_closed=False)
-    if share < 1.0:  # the fast modes' part of the polymer viscosity acts as solvent
-        eta_s = eta_s + (1.0 - share) * (eta0 - eta_s)
+    eta_s, eta_p = split_viscosity(eta0, eta_s, share)
     return Fluid(
         name=f"NaAlg {c:g} % w/v",
         density_kg_m3=rho,
         surface_tension_n_m=sigma,
         solvent_viscosity_pa_s=eta_s,
-        polymer_viscosity_pa_s=_polymer_part(eta0, eta_s),
+        polymer_viscosity_pa_s=eta_p,
         relaxation_time_s=lam,
         extensibility_l2=t.extensibility_l2,
         concentration_pct=c,
