@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import multiprocessing
@@ -388,3 +389,68 @@ def test_scheduler_addresses_that_are_no_address_are_refused_before_any_file(
     with pytest.raises(ValueError, match="not a Dask scheduler address"):
         run_sweep(square, [Pt(1)], results_dir=tmp_path / "r", scheduler=address)
     assert list(tmp_path.iterdir()) == []
+
+
+class _Closable:
+    def __init__(self) -> None:
+        self.closed = 0
+
+    def close(self) -> None:
+        self.closed += 1
+
+
+@pytest.fixture
+def dask_logging() -> Any:
+    """The ``distributed`` logger and its handlers' levels, put back after the test."""
+    logger = logging.getLogger("distributed")
+    saved = (logger.level, [(h, h.level) for h in logger.handlers])
+    yield logger
+    logger.setLevel(saved[0])
+    for handler, level in saved[1]:
+        handler.setLevel(level)
+
+
+class _Keep(logging.Handler):
+    """A handler on ``distributed`` like the one Dask's logging config adds (outside
+    pytest, whose own capture replaces it), keeping the messages it would print."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.NOTSET)
+        self.seen: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.seen.append(record.getMessage())
+
+
+def _dask_teardown_lines() -> None:
+    # what a cluster cut by Ctrl-C logged from its loop thread as it closed (CI, stop 51),
+    # and a child logger with a level of its own (Dask's config: distributed.client WARNING)
+    logging.getLogger("distributed.batched").info("Batched Comm Closed <TCP (closed)>")
+    logging.getLogger("distributed.client").warning("a client warning")
+
+
+@pytest.mark.parametrize("cut", [True, False], ids=["cut-by-ctrl-c", "ends-well"])
+def test_a_sweep_cut_by_an_error_drops_dask_s_teardown_logs(dask_logging: Any, cut: bool) -> None:
+    """The Ctrl-C's one line is the whole report: Dask's broken-connection tracebacks,
+    logged while or after the cut cluster closes, are dropped (not raced); a sweep that
+    ends well leaves Dask's logging as it was."""
+    from microfab.io.sweep import _closed_quietly_on_error
+
+    dask_logging.setLevel(logging.INFO)
+    logging.getLogger("distributed.client").setLevel(logging.WARNING)
+    handler = _Keep()
+    dask_logging.addHandler(handler)
+    cluster = _Closable()
+    try:
+        with contextlib.suppress(KeyboardInterrupt), _closed_quietly_on_error(cluster):
+            if cut:
+                raise KeyboardInterrupt
+        _dask_teardown_lines()
+    finally:
+        dask_logging.removeHandler(handler)
+    assert cluster.closed == 1
+    if cut:
+        assert handler.seen == []
+    else:
+        assert dask_logging.level == logging.INFO
+        assert handler.seen == ["Batched Comm Closed <TCP (closed)>", "a client warning"]

@@ -514,6 +514,7 @@ def _run_on_cluster(
                     if held:  # the workers' start was cut by the Ctrl-C they heard too:
                         # close the half-started cluster now, quietly (left to Python's
                         # exit, Dask asserts on a worker still starting and prints it)
+                        _silence_distributed_logs()
                         for half in set(instances or ()) - earlier:
                             with contextlib.suppress(Exception):
                                 half.close(timeout=5)
@@ -592,10 +593,29 @@ def _closed_quietly_on_error(resource: Any) -> Iterator[Any]:
     try:
         yield resource
     except BaseException:
+        _silence_distributed_logs()
         with contextlib.suppress(Exception):
             resource.close()
         raise
     resource.close()
+
+
+def _silence_distributed_logs() -> None:
+    """Drop Dask's log records from now on in this process: a sweep was cut by an error.
+
+    A cluster torn down by a Ctrl-C (whose workers heard it too and are gone) logs its
+    broken connections, with tracebacks, from its event-loop thread, and may do so while
+    or after it closes (``distributed.batched``'s "Batched Comm Closed" at INFO). Those
+    lines say nothing the error being reported does not, so the ``distributed`` logger is
+    set above CRITICAL and left there, and so are its handlers (a child logger with a
+    level of its own, ``distributed.client``, still reaches them): the caller is reporting
+    that error (the command line exits on it). A program that goes on using Dask after an
+    interrupted sweep can set those levels back.
+    """
+    logger = logging.getLogger("distributed")
+    logger.setLevel(logging.CRITICAL + 1)
+    for handler in logger.handlers:
+        handler.setLevel(logging.CRITICAL + 1)
 
 
 def _run_pickled(task: bytes, point: bytes, threads: int = 1) -> Any:
