@@ -100,6 +100,7 @@ def _range_cases() -> list[tuple[str, list[str], str]]:
         ("ann-epoch-windows", [*ann, "--epoch-windows", "-1"], "'--epoch-windows': -1"),
         ("ann-validation", [*ann, "--validation", "0.95"], "'--validation': 0.95"),
         ("ann-seed", [*ann, "--seed", "-2"], "'--seed': -2"),
+        ("ann-whiten", [*ann, "--whiten", "2"], "'--whiten': 2"),
         ("cal-duration", [*cal, "--duration", "0.1"], "'--duration': 0.1 s"),
         ("cal-ann-duration", [*cal, "--ann-duration", "0"], "'--ann-duration': 0 s"),
         ("cal-runs-seed", [*cal, "--runs-seed", "-1"], "'--runs-seed': -1"),
@@ -144,6 +145,7 @@ SHARED = [
     (("identify", "ann"), "epoch_windows", "ann", "epoch_windows"),
     (("identify", "ann"), "validation", "ann", "validation"),
     (("identify", "ann"), "seed", "ann", "seed"),
+    (("identify", "ann"), "whiten", "ann", "whiten"),
 ]
 
 
@@ -162,6 +164,13 @@ def test_restated_bounds_agree_with_their_sources():
     assert keys.MAX_TOTAL_S == excitation.MAX_TOTAL_S
     assert MachineLimits.seed002_stage().acceleration == (keys.A_MAX_HIGH, keys.A_MAX_HIGH)
     assert MAX_BLOCK_ROWS == subspace.MAX_BLOCK_ROWS
+    pytest.importorskip("torch")
+    from microfab.identify.ann import WHITEN_LOW, AnnConfig
+    from microfab.machines.xy_stage.ann import AnnSettings
+
+    assert keys.WHITEN_LOW == WHITEN_LOW
+    assert keys.WHITEN == AnnConfig.__dataclass_fields__["whiten"].default
+    assert keys.WHITEN == AnnSettings().whiten
 
 
 # --- options with no effect in the chosen mode ---------------------------------------------
@@ -180,6 +189,14 @@ def test_workers_with_one_axis_is_refused(files, tmp_path: Path, one_error_line)
     argv = ["identify", "ann", str(files["r0"]), str(files["r1"]), "--axis", "y",
             "--workers", "2", "--out", str(tmp_path / "a")]  # fmt: skip
     _refused(argv, "--workers has no effect with --axis y", tmp_path, one_error_line)
+
+
+def test_a_whitening_too_small_to_fold_is_refused(files, tmp_path: Path, one_error_line):
+    """Inside the declared [0, 1] but below the least shrinkage: refused before training."""
+    argv = ["identify", "ann", str(files["r0"]), str(files["r1"]), "--whiten", "1e-9",
+            "--out", str(tmp_path / "a")]  # fmt: skip
+    _refused(argv, "--whiten must be 0 (not whitened) or lie in [1e-06, 1]", tmp_path,
+             one_error_line)  # fmt: skip
 
 
 # --- rules between options, and between an option and the file ----------------------------

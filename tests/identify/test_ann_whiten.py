@@ -28,10 +28,12 @@ def test_whitening_whitens_a_full_rank_covariance_and_inverts():
     rng = np.random.default_rng(0)
     a = rng.standard_normal((6, 6))
     c = a @ a.T + 0.1 * np.eye(6)
-    w, w_inv = whitening(c, 1e-9)
+    shrink = 1e-6  # the least allowed (WHITEN_LOW)
+    w, w_inv = whitening(c, shrink)
     # float64 through LAPACK eigh: agreement to ~1e-12 relative measured; 1e-7 allows
-    # any kernel while a wrong formula misses by order one
-    np.testing.assert_allclose(w @ c @ w, np.eye(6), atol=1e-7)
+    # any kernel while a wrong formula misses by order one. W whitens C plus its shrinkage.
+    floor = shrink * np.trace(c) / 6
+    np.testing.assert_allclose(w @ (c + floor * np.eye(6)) @ w, np.eye(6), atol=1e-7)
     np.testing.assert_allclose(w @ w_inv, np.eye(6), atol=1e-7)
     np.testing.assert_allclose(w, w.T, atol=1e-12)
 
@@ -44,7 +46,7 @@ def test_shrinkage_bounds_the_gain_of_an_unvisited_direction():
     assert w[0, 0] == pytest.approx(1.0 / np.sqrt(4.02), rel=1e-9)
 
 
-@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan")])
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), 5e-324, 1e-9, 1.5])
 def test_whitening_refuses_a_bad_shrinkage(bad):
     with pytest.raises(ValueError, match="whiten"):
         whitening(np.eye(3), bad)

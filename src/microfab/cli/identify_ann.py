@@ -35,7 +35,9 @@ from microfab.experiments.seed002_stage.keys import (
     ANN_SEED,
     ANN_THREADS,
     ANN_VALIDATION,
+    ANN_WHITEN,
     ANN_WORKERS,
+    check_whiten_key,
 )
 from microfab.io.lock import hold_for_command
 from microfab.report.tables import Table
@@ -130,6 +132,16 @@ def ann_cmd(
             "twin); none: the seed's 200 inputs only.",
         ),
     ] = "none",
+    whiten: Annotated[
+        float,
+        number(
+            "--whiten",
+            key=ANN_WHITEN,
+            help="Shrinkage of the whitened inputs the training feeds the networks, a share "
+            "of their mean eigenvalue (the whitening is folded into the first layer, so the "
+            "saved networks are the seed's); 0: the scaled inputs as they are.",
+        ),
+    ] = 1e-3,
 ) -> None:
     """Train seed 002's per-axis networks (eq. 7, Fig. 5) on measured runs of the stage.
 
@@ -145,6 +157,10 @@ def ann_cmd(
         refuse_unused(ctx, ["workers"], f"with --axis {axis} (one network, one process)")
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file: the model is a directory (model.json, weights.npz)")
+    try:
+        shrink = check_whiten_key(whiten, "--whiten")
+    except ValueError as exc:
+        fail(str(exc))
     try:
         import torch
 
@@ -172,6 +188,7 @@ def ann_cmd(
             threads=threads,
             workers=workers,
             epoch_windows=epoch_windows or None,
+            whiten=shrink,
         )
     except ValueError as exc:
         fail(renamed(str(exc), {"validation must": "--validation must"}))

@@ -53,10 +53,12 @@ __all__ = [
     "FORMAT_VERSION",
     "HIDDEN",
     "NEGATIVE_SLOPE",
+    "WHITEN_LOW",
     "AnnConfig",
     "AnnModel",
     "ErrorStats",
     "build_network",
+    "check_whiten",
     "n_weights",
     "read_model_meta",
     "read_weights",
@@ -89,6 +91,25 @@ def build_network(n_inputs: int, *, seed: int, hidden: Sequence[int] = HIDDEN) -
         layers.append(nn.Linear(sizes[-1], 1))
         net = nn.Sequential(*layers)
     return net
+
+
+#: Least shrinkage of the whitened inputs, relative to the mean eigenvalue (assumed): a
+#: direction the data do not visit is amplified at most 1e3 times, so the whitening folded
+#: into the float32 first layer (`microfab.identify.ann_whiten.fold`) keeps its weights
+#: within about 1e3 of the network's; below it the amplification grows as ``ε^-1/2``
+#: without bound (at 5e-324 the shrinkage is zero in float64 and the whitening divides by
+#: the zero eigenvalues of the seed's collinear windows).
+WHITEN_LOW = 1e-6
+
+
+def check_whiten(whiten: float) -> float:
+    """``whiten`` (`AnnConfig.whiten`) if it lies in [`WHITEN_LOW`, 1]; ValueError else."""
+    w = check_positive("whiten", whiten, "of the mean eigenvalue")
+    if not WHITEN_LOW <= w <= 1.0:
+        raise ValueError(
+            f"whiten must lie in [{WHITEN_LOW:g}, 1] of the mean eigenvalue (or be off), got {w:g}"
+        )
+    return w
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -133,6 +154,7 @@ class AnnConfig:
         networks' data, y, best validation σ within 25 epochs): ε 1e-2 / 1e-3 / 1e-4 gave
         10.1 / 9.8 / 9.8 µm; without whitening 13.7 µm after 60 epochs. None: the scaled inputs
         as they are (the training before whitening; a model file without the field).
+        Between `WHITEN_LOW` and 1.
     workers : int
         Axes trained at once on the CPU, each in its own (spawned) process with
         ``threads`` threads; 1 (default): one after the other in this process. The
@@ -201,9 +223,7 @@ class AnnConfig:
             if getattr(self, name) is not None:
                 check_int(name, getattr(self, name), 1, "windows")
         if self.whiten is not None:
-            w = check_positive("whiten", self.whiten, "of the mean eigenvalue")
-            if w > 1.0:
-                raise ValueError(f"whiten must lie in (0, 1] of the mean eigenvalue, got {w}")
+            check_whiten(self.whiten)
 
     _NOT_FINGERPRINTED = ("max_epochs", "checkpoint_every", "device", "threads", "workers")
 

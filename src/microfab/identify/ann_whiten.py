@@ -28,7 +28,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from microfab.core.validate import check_positive
+from microfab.identify.ann import check_whiten
 from microfab.identify.ann_data import Scaling, WindowSet
 
 __all__ = [
@@ -104,7 +104,8 @@ def whitening(covariance: np.ndarray, shrink: float) -> tuple[np.ndarray, np.nda
     covariance : numpy.ndarray
         Shape (n, n), symmetric, positive semi-definite.
     shrink : float
-        ``ε``: added to every eigenvalue as a share of their mean (module docstring).
+        ``ε``: added to every eigenvalue as a share of their mean (module docstring), in
+        [`microfab.identify.ann.WHITEN_LOW`, 1].
 
     Returns
     -------
@@ -112,7 +113,7 @@ def whitening(covariance: np.ndarray, shrink: float) -> tuple[np.ndarray, np.nda
         Each (n, n), float64, symmetric: ``W = V diag((λ + ε λ̄)^-1/2) Vᵀ`` and
         ``W_inv = V diag((λ + ε λ̄)^1/2) Vᵀ``.
     """
-    check_positive("whiten", shrink, "of the mean eigenvalue")
+    check_whiten(shrink)
     c = np.asarray(covariance, dtype=np.float64)
     if c.ndim != 2 or c.shape[0] != c.shape[1] or not np.all(np.isfinite(c)):
         raise ValueError(f"covariance must be a finite square matrix, got shape {c.shape}")

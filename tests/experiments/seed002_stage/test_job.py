@@ -61,6 +61,20 @@ def test_registered_with_its_example():
     assert s.coupling and s.classic
 
 
+@pytest.mark.parametrize(
+    ("line", "whiten"), [("", 1e-3), ("whiten = 0.0\n", None), ("whiten = 0.01\n", 0.01)]
+)
+def test_the_networks_whitening_is_a_job_key(line: str, whiten: float | None):
+    """[ann] whiten: the default, 0 (off: the training before whitening), or a shrinkage."""
+    assert _job(TINY.replace("[ann]\n", f"[ann]\n{line}")).ann.whiten == whiten
+
+
+@pytest.mark.parametrize("value", ["1e-9", "1.5", "-0.1"])
+def test_a_whitening_out_of_its_range_is_refused(value: str):
+    with pytest.raises((ValueError, JobFileError), match="whiten"):
+        _job(TINY.replace("[ann]\n", f"[ann]\nwhiten = {value}\n"))
+
+
 def test_config_refusals():
     with pytest.raises(ValueError, match="need the networks"):
         _job(TINY.replace("[ann]\n", "[ann]\nenabled = false\n"))

@@ -34,6 +34,7 @@ from microfab.experiments.seed002_stage.keys import (
     ANN_SEED,
     ANN_THREADS,
     ANN_VALIDATION,
+    ANN_WHITEN,
     ANN_WORKERS,
     DECIMATE,
     EPOCH_WINDOWS,
@@ -43,6 +44,7 @@ from microfab.experiments.seed002_stage.keys import (
     RUNS_SEED,
     RUNS_TOTAL_S,
     TWIN_SEED,
+    check_whiten_key,
 )
 from microfab.experiments.seed002_stage.study import (
     MODEL_FOLDERS,
@@ -130,6 +132,7 @@ SCHEMA: dict[str, tuple[Key, ...]] = {
         ANN_THREADS,
         ANN_WORKERS,
         ANN_SEED,
+        ANN_WHITEN,
     ),
     "cases": (
         Key(name="table_a_max", type="float_list", default=TABLE_A_MAX, low=0.0, high=40.0,
@@ -197,6 +200,7 @@ def config_from_sections(sec: dict[str, dict[str, Any]]) -> StudySettings:
             threads=an["threads"],
             workers=an["workers"],
             seed=an["seed"],
+            whiten=check_whiten_key(an["whiten"], "[ann] whiten"),
             twin=twin,
         )
     elif st["coupling"] or st["classic"]:

@@ -11,15 +11,17 @@ stays light; ``tests/cli/test_option_rules_identify_stage.py`` checks that they 
 
 - ``MIN_RUN_S`` = `microfab.identify.stage_runs.MIN_RUN_S`,
 - ``MAX_TOTAL_S`` = `microfab.identify.excitation.MAX_TOTAL_S`,
-- ``A_MAX_HIGH`` = ``MachineLimits.seed002_stage().acceleration`` (`microfab.core.limits`).
+- ``A_MAX_HIGH`` = ``MachineLimits.seed002_stage().acceleration`` (`microfab.core.limits`),
+- ``WHITEN`` = ``AnnConfig().whiten`` and ``WHITEN_LOW`` = `microfab.identify.ann.WHITEN_LOW`.
 
 Option / key pairs: ``stage excite --duration`` and ``calibrate xy-stage --duration`` /
 ``[linear] total_s``; ``stage excite --amax`` / ``[linear] a_max``; ``stage excite --seed``
 and ``calibrate xy-stage --runs-seed`` / ``[linear] seed``; ``stage play --seed`` / ``[twin]
 seed``; ``stage play --hold`` / ``[twin] hold_s``; ``identify linear --order`` and
 ``--decimate`` / ``[linear] order`` and ``decimate``; ``identify ann --epochs``,
-``--threads``, ``--workers``, ``--epoch-windows``, ``--validation``, ``--seed`` / ``[ann]
-max_epochs``, ``threads``, ``workers``, ``epoch_windows``, ``validation``, ``seed``.
+``--threads``, ``--workers``, ``--epoch-windows``, ``--validation``, ``--seed``,
+``--whiten`` / ``[ann] max_epochs``, ``threads``, ``workers``, ``epoch_windows``,
+``validation``, ``seed``, ``whiten``.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ __all__ = [
     "ANN_SEED",
     "ANN_THREADS",
     "ANN_VALIDATION",
+    "ANN_WHITEN",
     "ANN_WORKERS",
     "A_MAX",
     "A_MAX_HIGH",
@@ -46,6 +49,9 @@ __all__ = [
     "RUNS_SEED",
     "RUNS_TOTAL_S",
     "TWIN_SEED",
+    "WHITEN",
+    "WHITEN_LOW",
+    "check_whiten_key",
 ]
 
 #: Shortest run the identification reads, s (seed 002 §III-B: the networks read "the most
@@ -173,3 +179,37 @@ ANN_WORKERS = Key(
 ANN_SEED = Key(
     name="seed", type="int", default=0, low=0, help="seed of the runs, the split and the training"
 )
+#: Shrinkage of the whitened inputs, relative to the mean eigenvalue (`microfab.identify.
+#: ann.AnnConfig.whiten`, assumed there and measured in `microfab.identify.ann_whiten`).
+WHITEN = 1e-3
+#: Least shrinkage (`microfab.identify.ann.WHITEN_LOW`, assumed there).
+WHITEN_LOW = 1e-6
+#: 0 turns the whitening off (the training before it); a value between 0 and
+#: ``WHITEN_LOW`` is refused (`check_whiten_key`).
+ANN_WHITEN = Key(
+    name="whiten",
+    type=_F,
+    default=WHITEN,
+    low=0.0,
+    high=1.0,
+    help="shrinkage of the whitened inputs, a share of their mean eigenvalue (0: not whitened)",
+)
+
+
+def check_whiten_key(value: float, name: str) -> float | None:
+    """``value`` of `ANN_WHITEN` as the training takes it: None for 0 (off), else itself.
+
+    Raises
+    ------
+    ValueError
+        ``value`` between 0 and ``WHITEN_LOW``, or outside [0, 1]; the message names
+        ``name`` (the option or the key).
+    """
+    if value == 0.0:
+        return None
+    if not WHITEN_LOW <= value <= 1.0:
+        raise ValueError(
+            f"{name} must be 0 (not whitened) or lie in [{WHITEN_LOW:g}, 1] of the mean "
+            f"eigenvalue, got {value:g}"
+        )
+    return value

@@ -76,6 +76,9 @@ class AnnSettings:
         Axes trained at once, each in its own process (`microfab.identify.ann.AnnConfig`).
     seed : int
         Seed of the runs, the split and the training.
+    whiten : float or None
+        Shrinkage of the whitened inputs (`microfab.identify.ann.AnnConfig.whiten`; None:
+        not whitened).
     twin : TwinSettings
         The twin the runs are played on.
     """
@@ -91,6 +94,7 @@ class AnnSettings:
     threads: int = 1
     workers: int = 1
     seed: int = 0
+    whiten: float | None = 1e-3  # AnnConfig's default (microfab.identify.ann)
     twin: TwinSettings = field(default_factory=TwinSettings)
 
     @property
@@ -166,6 +170,7 @@ def train_networks(
         seed=s.seed,
         threads=s.threads,
         workers=s.workers,
+        whiten=s.whiten,
     )
     return train_stage_ann(
         train.records, val.records, config, checkpoint_dir=checkpoint_dir, progress=progress,
