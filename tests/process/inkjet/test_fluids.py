@@ -101,7 +101,7 @@ def test_table_matches_toml_and_seed() -> None:
     assert rel["reference_pct"] == 1.0
     assert rel["status"] in {"uncalibrated", "calibrated"}
     assert rel["bounds"]["lambda_ref_s"] == [1.0e-6, 5.0e-3]
-    assert rel["bounds"]["exponent"] == [0.0, 4.0]
+    assert rel["bounds"]["exponent"] == [0.3, 4.0]  # semi-dilute (its note)
     lo, hi = t.lambda_ref_bounds_s
     assert lo <= t.lambda_ref_s <= hi
     lo, hi = t.exponent_bounds
@@ -244,7 +244,7 @@ def test_load_table_from_path(tmp_path: Path) -> None:
     assert (t.relaxation_status, t.lambda_ref_s, t.exponent) == ("calibrated", 3.0e-4, 2.0)
     assert naalg(1.0, table=t, model="lagrangian").relaxation_time_s == 3.0e-4
     assert naalg(0.5, table=t, model="lagrangian").relaxation_time_s == pytest.approx(3.0e-4 * 0.25)
-    assert t.exponent_bounds == (0.0, 4.0)
+    assert t.exponent_bounds == (0.3, 4.0)
 
 
 @pytest.mark.parametrize(

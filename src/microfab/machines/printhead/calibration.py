@@ -327,6 +327,7 @@ def _targets(mode_fit: bool) -> list[Target]:
 def _parameters(model: str, source: str | None) -> list[FreeParameter]:
     table = load_table(source)
     lo, hi = table.lambda_ref_bounds_s
+    m_lo, m_hi = table.exponent_bounds
     return [
         FreeParameter(
             "lambda_ref_s",
@@ -339,16 +340,15 @@ def _parameters(model: str, source: str | None) -> list[FreeParameter]:
         ),
         FreeParameter(
             "exponent",
-            0.3,
-            4.0,
+            m_lo,
+            m_hi,
             "",
-            "assumed: λ grows with c in semi-dilute solutions, c^0.3 (good solvent) to c^1 "
-            "(theta) by Rouse scaling, c^1.6-2.3 entangled (reptation), up to c^3-4 for "
-            "extensional times near entanglement (data/naalg.toml [relaxation.bounds]); "
-            "analogue polyelectrolytes measured c^0.5-1.5 (Jimenez et al., Macromolecules "
-            "2018). m = 0 (dilute Zimm) is left out: all six concentrations are above c* "
-            "(data/naalg.toml, c* near 0.1 %), and the seed attributes the rise to 'the "
-            "longer relaxation time of high-concentration' solutions (Fig. 4 text)",
+            "data/naalg.toml [relaxation.bounds] (assumed there): λ grows with c in "
+            "semi-dilute solutions, c^0.3 (good solvent) to c^1 (theta) by Rouse scaling, "
+            "c^1.6-2.3 entangled (reptation), up to c^3-4 for extensional times near "
+            "entanglement; m = 0 (dilute Zimm) is left out: all six concentrations are "
+            "above c* (near 0.1 %), and the seed attributes the rise to 'the longer "
+            "relaxation time of high-concentration' solutions (Fig. 4 text)",
         ),
         FreeParameter(
             "polymer_share",
