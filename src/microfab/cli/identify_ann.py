@@ -37,6 +37,7 @@ from microfab.experiments.seed002_stage.keys import (
     ANN_VALIDATION,
     ANN_WHITEN,
     ANN_WORKERS,
+    WHITEN,
     check_whiten_key,
 )
 from microfab.io.lock import hold_for_command
@@ -141,7 +142,7 @@ def ann_cmd(
             "of their mean eigenvalue (the whitening is folded into the first layer, so the "
             "saved networks are the seed's); 0: the scaled inputs as they are.",
         ),
-    ] = 1e-3,
+    ] = WHITEN,
 ) -> None:
     """Train seed 002's per-axis networks (eq. 7, Fig. 5) on measured runs of the stage.
 
