@@ -67,7 +67,6 @@ not ``h`` times it).
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -76,6 +75,14 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from microfab.core.validate import check_int, check_positive
+from microfab.identify.ann_digest import SUMMARY_POINTS as SUMMARY_POINTS
+from microfab.identify.ann_digest import (
+    Run,
+    data_digest,
+    data_summary,
+    summary_deviation,
+)
+from microfab.identify.ann_scaling import Scaling
 
 __all__ = [
     "AXES",
@@ -113,8 +120,6 @@ FEATURE_WAVELENGTHS_M: tuple[float, ...] = tuple(10.0 ** (-k / 5.0) for k in ran
 #: 40 ms at 400 Hz). Assumed: a position-dependent force acts on the output through the
 #: built-in loop over about its response time (a 25 Hz loop: some 40 ms); denser near now.
 FEATURE_LAGS: tuple[int, ...] = (1, 2, 3, 4, 6, 8, 12, 16)
-
-Run = tuple[np.ndarray, np.ndarray]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -270,81 +275,6 @@ def check_run(
     return cmd, meas
 
 
-def data_digest(runs: Sequence[Run]) -> str:
-    """SHA-256 of the runs (shapes and float64 bytes, in order), hex."""
-    h = hashlib.sha256()
-    for command, measured in runs:
-        for a in (command, measured):
-            arr = np.ascontiguousarray(a, dtype=np.float64)
-            h.update(repr(arr.shape).encode())
-            h.update(arr.tobytes())
-    return h.hexdigest()
-
-
-#: Samples of each run's signals kept by `data_summary` (evenly spaced, ends included).
-SUMMARY_POINTS = 9
-
-
-def data_summary(runs: Sequence[Run]) -> dict[str, Any]:
-    """A summary of runs that can be compared with a tolerance (unlike `data_digest`).
-
-    The bytes of data made by a simulation depend on the CPU's BLAS kernels and thread
-    count at the last bits; `data_digest` therefore only tells whether two data sets are
-    the same bytes. This summary tells whether they are the same data to a tolerance:
-    per run and per column of the command and the measured position, the mean, the RMS
-    and `SUMMARY_POINTS` samples evenly spaced over the run.
-
-    Parameters
-    ----------
-    runs : sequence of (command, measured)
-        Each a float array (n, 2), m, as `train_ann` reads them.
-
-    Returns
-    -------
-    dict
-        ``"samples"``: the runs' lengths (integers); ``"command"`` and ``"measured"``:
-        nested lists (runs, 2 columns, 2 + `SUMMARY_POINTS` values), m: mean, RMS, then
-        the samples. JSON-ready.
-    """
-    out: dict[str, Any] = {"samples": [], "command": [], "measured": []}
-    for command, measured in runs:
-        out["samples"].append(int(np.shape(command)[0]))
-        for name, a in (("command", command), ("measured", measured)):
-            arr = np.asarray(a, dtype=np.float64).reshape(len(a), -1)
-            idx = np.linspace(0, len(arr) - 1, SUMMARY_POINTS).round().astype(int)
-            stats = np.vstack([arr.mean(axis=0), np.sqrt((arr**2).mean(axis=0)), arr[idx]])
-            out[name].append(stats.T.tolist())
-    return out
-
-
-def summary_deviation(got: dict[str, Any], want: dict[str, Any]) -> float:
-    """Largest difference between two `data_summary` results, relative to the data's scale.
-
-    Every value's difference is divided by the RMS over all runs of that signal's column
-    in ``want`` (so a deviation of 1e-9 is a nanometre on a metre-sized signal's scale).
-
-    Raises
-    ------
-    ValueError
-        When the two summaries are of different run counts, run lengths or columns: the
-        data are not the same data at all (infinite deviation would hide which).
-    """
-    if got["samples"] != want["samples"]:
-        raise ValueError(
-            f"the runs differ in count or length: {len(got['samples'])} runs "
-            f"{got['samples'][:4]}... against {len(want['samples'])} runs {want['samples'][:4]}..."
-        )
-    worst = 0.0
-    for name in ("command", "measured"):
-        g, w = np.asarray(got[name], dtype=float), np.asarray(want[name], dtype=float)
-        if g.shape != w.shape:
-            raise ValueError(f"{name}: summary shapes {g.shape} and {w.shape} differ")
-        scale = np.sqrt(np.mean(w[:, :, 1] ** 2, axis=0))  # RMS over runs, per column
-        scale = np.where(scale > 0, scale, 1.0)
-        worst = max(worst, float(np.max(np.abs(g - w) / scale[None, :, None])))
-    return worst
-
-
 def _encode(win: np.ndarray, spec: WindowSpec) -> tuple[np.ndarray, np.ndarray]:
     """Encode raw windows (b, h) of one axis; returns (encoded (b, h), base (b,))."""
     last = win[:, -1].copy()
@@ -438,98 +368,6 @@ def windows(
         y = meas[offset::factor, axis][first:]
         target = y - base
     return inputs, target, base
-
-
-@dataclass(frozen=True)
-class Scaling:
-    """Offset and scale of every network input column and of the target.
-
-    ``scaled = (value - offset) / scale``. Fitted on the training windows (`fit`).
-
-    Parameters
-    ----------
-    in_offset, in_scale : numpy.ndarray
-        Shape (n_inputs,), m.
-    out_offset, out_scale : float
-        Of the encoded target, m.
-    """
-
-    in_offset: np.ndarray
-    in_scale: np.ndarray
-    out_offset: float
-    out_scale: float
-
-    def __post_init__(self) -> None:
-        off = np.asarray(self.in_offset, dtype=np.float64)
-        sc = np.asarray(self.in_scale, dtype=np.float64)
-        if off.ndim != 1 or off.shape != sc.shape:
-            raise ValueError(
-                f"in_offset and in_scale must be 1-D of one length, got {off.shape}, {sc.shape}"
-            )
-        if not (np.all(np.isfinite(off)) and np.all(np.isfinite(sc)) and np.all(sc > 0)):
-            raise ValueError("in_offset must be finite and in_scale finite and positive")
-        check_positive("out_scale", self.out_scale, "m")
-        object.__setattr__(self, "in_offset", off)
-        object.__setattr__(self, "in_scale", sc)
-        object.__setattr__(self, "out_offset", float(self.out_offset))
-        object.__setattr__(self, "out_scale", float(self.out_scale))
-
-    @property
-    def n_inputs(self) -> int:
-        """Number of input columns."""
-        return int(self.in_offset.shape[0])
-
-    @classmethod
-    def fit(cls, inputs: np.ndarray, target: np.ndarray) -> Scaling:
-        """Mean and standard deviation per column (a constant column keeps scale 1)."""
-        return cls._from_moments(
-            inputs.shape[0], inputs.mean(axis=0), inputs.var(axis=0), target.mean(), target.var()
-        )
-
-    @classmethod
-    def _from_moments(
-        cls, n: int, mean: np.ndarray, var: np.ndarray, t_mean: float, t_var: float
-    ) -> Scaling:
-        if n < 2:
-            raise ValueError(f"scaling needs at least 2 training windows, got {n}")
-
-        def scale(v: np.ndarray, m: np.ndarray) -> np.ndarray:
-            s = np.sqrt(np.maximum(v, 0.0))
-            tiny = 1e-12 * np.maximum(np.abs(m), 1.0)
-            return np.where(s > tiny, s, 1.0)
-
-        return cls(mean, scale(var, mean), float(t_mean), float(scale(np.array(t_var), t_mean)))
-
-    def scale_inputs(self, inputs: np.ndarray) -> np.ndarray:
-        """Scaled inputs as float32, shape as given."""
-        return ((inputs - self.in_offset) / self.in_scale).astype(np.float32)
-
-    def scale_target(self, target: np.ndarray) -> np.ndarray:
-        """Scaled encoded target as float32."""
-        return ((np.asarray(target) - self.out_offset) / self.out_scale).astype(np.float32)
-
-    def unscale_target(self, scaled: np.ndarray) -> np.ndarray:
-        """Encoded target (m, float64) from the network's scaled output."""
-        return np.asarray(scaled, dtype=np.float64) * self.out_scale + self.out_offset
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON form."""
-        return {
-            "in_offset": self.in_offset.tolist(),
-            "in_scale": self.in_scale.tolist(),
-            "out_offset": self.out_offset,
-            "out_scale": self.out_scale,
-        }
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> Scaling:
-        """Inverse of `as_dict`."""
-        return cls(
-            np.array(d["in_offset"], dtype=np.float64),
-            np.array(d["in_scale"], dtype=np.float64),
-            float(d["out_offset"]),
-            float(d["out_scale"]),
-        )
 
 
 class WindowSet:
