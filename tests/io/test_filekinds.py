@@ -70,8 +70,8 @@ ALLOWED = {
 #: Raw reads of user files still to move to a checked loader (issue 44 A), with what is
 #: in the way. Each must still exist (a stale entry fails `test_the_lists_are_not_stale`).
 PENDING = {
-    "microfab.process.inkjet.fluids:load_table": "TOML property table, checked key by key "
-    "by _parse_table; no schema-derived generator yet",
+    "microfab.process.inkjet.fluids_table:load_table": "TOML property table, checked key by "
+    "key by _parse_table; no schema-derived generator yet",
     "microfab.plants.sourced_toml:read_sourced": "twin TOML tables, checked key by key by "
     "_table; no schema-derived generator yet",
     "microfab.plants.sourced_toml:sources_of": "as read_sourced",
