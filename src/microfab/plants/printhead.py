@@ -78,6 +78,8 @@ nearly *open*: the channel modes sit close to the half-wave series ``n c / (2 L)
 (16.7 kHz, 33 kHz, ...), below which the liquid column swings on the meniscus spring at
 about 1.1-1.4 kHz. In the closed-nozzle limit (tiny orifice) they become the
 quarter-wave series ``(2 n - 1) c / (4 L)``.
+The orifice flow record (`NozzleFlow`) is in :mod:`.printhead_flow` and the ZOH Markov
+parameters of the response in :mod:`.printhead_markov`; both are re-exported here.
 
 References
 ----------
@@ -91,7 +93,6 @@ H. Wijshoff, "The dynamics of the piezo inkjet printhead operation", Phys. Rep. 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
 from typing import Protocol
@@ -102,6 +103,10 @@ import scipy.signal
 
 from microfab.core.threads import single_threaded
 from microfab.core.validate import check_int, check_nonnegative, check_positive
+from microfab.plants.printhead_flow import NozzleFlow
+from microfab.plants.printhead_markov import _MAX_MODAL_CONDITION as _MAX_MODAL_CONDITION
+from microfab.plants.printhead_markov import _MODAL_BLOCK as _MODAL_BLOCK
+from microfab.plants.printhead_markov import _markov_doubling, _markov_modal
 
 __all__ = [
     "SEED003_DWELL_S",
@@ -363,204 +368,6 @@ def printhead_state_space(
     return a_mat, b_mat, c_mat, np.zeros((1, b_mat.shape[1]))
 
 
-@dataclass(frozen=True, kw_only=True)
-class NozzleFlow:
-    """Mean orifice velocity history on a uniform time grid.
-
-    Attributes
-    ----------
-    t_s : numpy.ndarray
-        Sample times in s, shape (n,), ``n >= 2``, uniform, starting at 0.
-    velocity_m_s : numpy.ndarray
-        Mean orifice velocity ``q_n / (π R²)`` in m/s, shape (n,), positive out of the
-        nozzle.
-    displacement_m : numpy.ndarray
-        Cumulative ``∫ u dt`` in m by the trapezoid rule, shape (n,), 0 at ``t = 0``.
-    nozzle_radius_m : float
-        Orifice radius ``R`` in m, > 0.
-
-    Examples
-    --------
-    >>> flow = NozzleFlow(t_s=np.array([0.0, 1e-6, 2e-6]),
-    ...                   velocity_m_s=np.array([0.0, 2.0, 2.0]),
-    ...                   displacement_m=np.array([0.0, 1e-6, 3e-6]), nozzle_radius_m=60e-6)
-    >>> float(flow.velocity(0.5e-6)), flow.peak_velocity_m_s
-    (1.0, 2.0)
-    """
-
-    t_s: np.ndarray
-    velocity_m_s: np.ndarray
-    displacement_m: np.ndarray
-    nozzle_radius_m: float
-
-    def __post_init__(self) -> None:
-        check_positive("nozzle_radius_m", self.nozzle_radius_m, "m")
-        arrays = {}
-        for name in ("t_s", "velocity_m_s", "displacement_m"):
-            arr = np.array(getattr(self, name), dtype=float)
-            if arr.ndim != 1 or arr.size < 2:
-                raise ValueError(f"{name} must have shape (n,) with n >= 2, got {arr.shape}")
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"{name} holds NaN or inf")
-            arr.setflags(write=False)
-            arrays[name] = arr
-        t = arrays["t_s"]
-        if arrays["velocity_m_s"].shape != t.shape or arrays["displacement_m"].shape != t.shape:
-            raise ValueError(
-                f"t_s {t.shape}, velocity_m_s {arrays['velocity_m_s'].shape} and "
-                f"displacement_m {arrays['displacement_m'].shape} must have the same shape"
-            )
-        dt = t[1] - t[0]
-        if t[0] != 0.0 or not dt > 0 or not np.allclose(np.diff(t), dt, rtol=1e-9, atol=0.0):
-            raise ValueError(
-                f"t_s must be uniform and start at 0 s, got t_s[0] = {t[0]} s, "
-                f"spacing {dt} s to {np.diff(t).max()} s"
-            )
-        for name, arr in arrays.items():
-            object.__setattr__(self, name, arr)
-
-    @property
-    def dt_s(self) -> float:
-        """Sample spacing in s."""
-        return float(self.t_s[1] - self.t_s[0])
-
-    @property
-    def peak_velocity_m_s(self) -> float:
-        """Largest outward mean orifice velocity over the record in m/s."""
-        return float(np.max(self.velocity_m_s))
-
-    @functools.cached_property
-    def _lists(self) -> tuple[list[float], list[float], list[float]]:
-        return self.t_s.tolist(), self.velocity_m_s.tolist(), self.displacement_m.tolist()
-
-    def at(self, t_s: float) -> tuple[float, float]:
-        """Velocity (m/s) and displacement (m) at one time ``t_s`` (s).
-
-        `velocity` and `displacement` for a scalar, with the same arithmetic (bit for bit)
-        and without the array overhead: a solver that asks for the inflow at every stage of
-        every step (the slender-jet models) spent a quarter of its time in the array path.
-
-        Examples
-        --------
-        >>> flow = NozzleFlow(t_s=np.array([0.0, 1.0]), velocity_m_s=np.array([0.0, 4.0]),
-        ...                   displacement_m=np.array([0.0, 2.0]), nozzle_radius_m=1e-4)
-        >>> flow.at(0.5)
-        (2.0, 0.5)
-        """
-        t = float(t_s)
-        ts, u, d = self._lists
-        t_end = ts[-1]
-        dt = ts[1] - ts[0]
-        if not math.isfinite(t) or t > t_end + 1e-9 * dt:
-            raise ValueError(f"time {t} s lies beyond the end of the record ({t_end} s)")
-        if t < 0.0:
-            return 0.0, 0.0
-        tc = min(t, t_end)
-        k = min(max(math.floor(tc / dt), 0), len(ts) - 2)
-        tau = tc - ts[k]
-        slope = (u[k + 1] - u[k]) / dt
-        return u[k] + slope * tau, d[k] + u[k] * tau + 0.5 * slope * tau * tau
-
-    def _locate(self, t_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Sample index ``k`` and offset ``τ = t - t_k`` of each time, and the t < 0 mask."""
-        t = np.asarray(t_s, dtype=float)
-        t_end = self.t_s[-1]
-        bad = ~np.isfinite(t) | (t > t_end + 1e-9 * self.dt_s)
-        if np.any(bad):
-            first = t[bad].flat[0]
-            raise ValueError(f"time {first} s lies beyond the end of the record ({t_end} s)")
-        before = t < 0.0
-        tc = np.clip(t, 0.0, t_end)
-        k = np.clip(np.floor(tc / self.dt_s).astype(np.intp), 0, self.t_s.size - 2)
-        return k, tc - self.t_s[k], before
-
-    def velocity(self, t_s: np.ndarray | float) -> np.ndarray:
-        """Mean orifice velocity at any times, by linear interpolation.
-
-        Parameters
-        ----------
-        t_s : float or numpy.ndarray
-            Times in s, any shape, not after the end of the record.
-
-        Returns
-        -------
-        numpy.ndarray
-            Velocity in m/s, same shape as ``t_s``; 0 before ``t = 0``.
-
-        Raises
-        ------
-        ValueError
-            If a time lies after the end of the record (or is not finite).
-
-        Examples
-        --------
-        >>> flow = NozzleFlow(t_s=np.array([0.0, 1.0]), velocity_m_s=np.array([0.0, 4.0]),
-        ...                   displacement_m=np.array([0.0, 2.0]), nozzle_radius_m=1e-4)
-        >>> flow.velocity([-1.0, 0.25, 1.0]).tolist()
-        [0.0, 1.0, 4.0]
-        """
-        k, tau, before = self._locate(t_s)
-        u = self.velocity_m_s
-        slope = (u[k + 1] - u[k]) / self.dt_s
-        return np.where(before, 0.0, u[k] + slope * tau)
-
-    def displacement(self, t_s: np.ndarray | float) -> np.ndarray:
-        """Exact integral of the interpolated velocity from 0 to ``t``.
-
-        Piecewise quadratic, equal to `displacement_m` at the samples and with derivative
-        `velocity` everywhere.
-
-        Parameters
-        ----------
-        t_s : float or numpy.ndarray
-            Times in s, any shape, not after the end of the record.
-
-        Returns
-        -------
-        numpy.ndarray
-            Displacement in m, same shape as ``t_s``; 0 before ``t = 0``.
-
-        Raises
-        ------
-        ValueError
-            If a time lies after the end of the record (or is not finite).
-
-        Examples
-        --------
-        >>> flow = NozzleFlow(t_s=np.array([0.0, 1.0]), velocity_m_s=np.array([0.0, 4.0]),
-        ...                   displacement_m=np.array([0.0, 2.0]), nozzle_radius_m=1e-4)
-        >>> flow.displacement([0.5, 1.0]).tolist()
-        [0.5, 2.0]
-        """
-        k, tau, before = self._locate(t_s)
-        u = self.velocity_m_s
-        slope = (u[k + 1] - u[k]) / self.dt_s
-        x = self.displacement_m[k] + u[k] * tau + 0.5 * slope * tau * tau
-        return np.where(before, 0.0, x)
-
-    def volume_m3(self, t_s: np.ndarray | float) -> np.ndarray:
-        """Volume pushed through the orifice from 0 to ``t``, ``π R² × displacement``.
-
-        Parameters
-        ----------
-        t_s : float or numpy.ndarray
-            Times in s, any shape, not after the end of the record.
-
-        Returns
-        -------
-        numpy.ndarray
-            Volume in m³, same shape as ``t_s``.
-
-        Examples
-        --------
-        >>> flow = NozzleFlow(t_s=np.array([0.0, 1.0]), velocity_m_s=np.array([1.0, 1.0]),
-        ...                   displacement_m=np.array([0.0, 1.0]), nozzle_radius_m=1.0)
-        >>> round(float(flow.volume_m3(1.0)), 12)
-        3.14159265359
-        """
-        return math.pi * self.nozzle_radius_m**2 * self.displacement(t_s)
-
-
 def _balanced_model(
     printhead: Printhead,
     density_kg_m3: float,
@@ -584,71 +391,6 @@ def _balanced_model(
     b_bal = b_mat[:, 0] / scale
     c_bal = c_mat[0] * scale / printhead.nozzle_area_m2
     return a_bal, b_bal, c_bal
-
-
-#: Largest eigenvector condition number for which the modal Markov parameters are used.
-_MAX_MODAL_CONDITION = 1e6
-#: Rows of the modal power table evaluated at once (bounds the memory to a few MB).
-_MODAL_BLOCK = 2048
-
-
-def _markov_modal(
-    a_bal: np.ndarray, b_bal: np.ndarray, c_bal: np.ndarray, dt_s: float, n: int
-) -> np.ndarray | None:
-    """ZOH Markov parameters ``g_i = c Φ^i Γ`` from the eigen-decomposition of ``A``.
-
-    With ``A = V Λ V⁻¹`` the ZOH model is ``Φ = V e^{Λ dt} V⁻¹`` and
-    ``Γ = V diag((e^{λ dt} - 1) / λ) V⁻¹ b``, so ``g_i = Σ_m α_m μ_m^i`` with
-    ``μ_m = e^{λ_m dt}``. Returns None when the eigenvectors are too ill-conditioned
-    (near-defective ``A``) for this to be accurate.
-    """
-    lam, vec = np.linalg.eig(a_bal)
-    try:
-        inv = np.linalg.inv(vec)
-    except np.linalg.LinAlgError:
-        return None
-    # 1-norm condition number (cheap: no SVD)
-    condition = np.linalg.norm(vec, 1) * np.linalg.norm(inv, 1)
-    if not condition < _MAX_MODAL_CONDITION:
-        return None
-    z = lam * dt_s
-    small = np.abs(z) < 1e-8
-    zoh_gain = np.where(small, dt_s * (1.0 + 0.5 * z), np.expm1(z) / np.where(small, 1.0, lam))
-    alpha = (c_bal @ vec) * (inv @ b_bal) * zoh_gain
-    block = min(n, _MODAL_BLOCK)
-    powers = np.exp(np.arange(block)[:, None] * z[None, :])  # μ^j, j < block
-    starts = np.arange(0, n, block)
-    # μ^(i0 + j) = μ^i0 μ^j: one product per block of rows, the blocks side by side
-    g = powers @ (alpha[:, None] * np.exp(z[:, None] * starts[None, :]))
-    return g.real.T.reshape(-1)[:n]
-
-
-def _markov_doubling(
-    a_bal: np.ndarray, b_bal: np.ndarray, c_bal: np.ndarray, dt_s: float, n: int
-) -> np.ndarray:
-    """ZOH Markov parameters ``g_i = c Φ^i Γ`` by matrix exponential and doubling.
-
-    ``Φ`` and ``Γ`` come from the exponential of the augmented matrix ``[[A, b], [0, 0]]
-    dt``; the vectors ``Φ^i Γ`` are filled in blocks of doubling length (``Φ^m`` applied to
-    the first ``m`` of them), so only ``log2(n)`` matrix products are needed. Used when
-    ``A`` is too close to defective for the modal route.
-    """
-    nx = a_bal.shape[0]
-    aug = np.zeros((nx + 1, nx + 1))
-    aug[:nx, :nx] = a_bal * dt_s
-    aug[:nx, nx] = b_bal * dt_s
-    expo = scipy.linalg.expm(aug)
-    rows = np.empty((n, nx))  # row i is (Φ^i Γ)ᵀ, kept C-contiguous
-    rows[0] = expo[:nx, nx]
-    power_t = np.ascontiguousarray(expo[:nx, :nx].T)  # (Φ^m)ᵀ
-    m = 1
-    while m < n:
-        k = min(m, n - m)
-        rows[m : m + k] = rows[:k] @ power_t
-        m += k
-        if m < n:
-            power_t = power_t @ power_t
-    return rows @ c_bal
 
 
 @single_threaded
