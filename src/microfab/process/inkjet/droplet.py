@@ -7,9 +7,12 @@ velocity pushes liquid into the one-dimensional jet model (:mod:`.jet`), scaled 
 nozzle radius and the capillary time. The jet is followed through its first breakup
 (time, position, mode) and for a while after it, long enough to count satellites.
 
-Coupling is one way: the jet outside does not load the acoustics, and the jet is fed only
+With the Lagrangian model, and the Eulerian one with its meniscus held at the rim, the
+coupling is one way: the jet outside does not load the acoustics, and the jet is fed only
 by outflow beyond everything pushed out before (:func:`jet_inflow`); the retraction of
-the meniscus into the bore is left to the acoustic model.
+the meniscus into the bore is left to the acoustic model. With the Eulerian model's
+default, the retracting meniscus, it is two way: the meniscus moves into the bore and
+the acoustics feel the jet (:func:`coupled_upstream`).
 
 The capillary scales and what feeds the jet (the one-way inflow, the coupled upstream
 model) are in :mod:`.droplet_inflow`, re-exported here.

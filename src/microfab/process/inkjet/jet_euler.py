@@ -68,7 +68,7 @@ only above ``rewet_factor * h_break``. Runs of at least two wet cells are bodies
 touching a nozzle boundary is attached to the nozzle). A breakup is a body that splits
 into two bodies (or into the nozzle and a body) across cells that dried during the step;
 its time is interpolated linearly in ``h`` between the two steps. Details in
-:func:`.jet_euler_kernels.analyse`.
+:func:`.jet_euler_breakup.analyse`.
 
 The settings, the initial states and the state on the grid are in :mod:`.jet_euler_grid`,
 re-exported here.
