@@ -26,7 +26,7 @@ HELPERS = {
     "microfab.io.trace:_read_mat": "trace (read_trace, read_columns)",
     "microfab.io.trace:_read_h5": "trace (read_trace, read_columns)",
     "microfab.io.checkpoint:_read": "ilc-state (read_state: every state file, check_npz first)",
-    "microfab.identify.ann:read_weights": "ann-model (AnnModel.load)",
+    "microfab.identify.ann_files:read_weights": "ann-model (AnnModel.load)",
     "microfab.io.schema:describe_file": "the schema module (sizes checked before reading)",
     "microfab.io.schema:read_json": "the schema module (size budget, depth, constants)",
 }

@@ -16,6 +16,8 @@ not the other way round.
   interleaving all offsets), `AnnModel.metrics` (μ, σ per axis as seed 002 Table II,
   `ErrorStats`), `AnnModel.save` / `AnnModel.load` (``weights.npz`` + ``model.json``, no
   pickles; another format version, rate or history refused).
+* The files' schema and readers (`MetaDoc`, `read_model_meta`, `read_weights`,
+  `FORMAT_VERSION`) are in `microfab.identify.ann_files`, re-exported here.
 
 PyTorch is imported here and in `microfab.identify.ann_train` only (extra ``ann``).
 """
@@ -24,30 +26,32 @@ from __future__ import annotations
 
 import itertools
 import os
-import zipfile
-import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any
 
 import numpy as np
 import torch
-from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
 from microfab.core.validate import check_int, check_positive
 from microfab.identify.ann_data import AXES, Run, Scaling, WindowSpec, check_run, windows
-from microfab.io.atomic import atomic_save_npz, atomic_write_json
-from microfab.io.filekinds import FILE_KINDS
-from microfab.io.schema import (
-    SchemaError,
-    check_array,
-    check_npz,
-    describe_file,
-    read_json,
-    validated,
+from microfab.identify.ann_files import _STRICT as _STRICT
+from microfab.identify.ann_files import (
+    FORMAT_VERSION,
+    read_model_meta,
+    read_weights,
 )
+from microfab.identify.ann_files import MAX_SCALING_M as MAX_SCALING_M
+from microfab.identify.ann_files import MAX_WEIGHT as MAX_WEIGHT
+from microfab.identify.ann_files import META_KIND as META_KIND
+from microfab.identify.ann_files import ConfigDoc as ConfigDoc
+from microfab.identify.ann_files import MetaDoc as MetaDoc
+from microfab.identify.ann_files import ScalingDoc as ScalingDoc
+from microfab.identify.ann_files import WindowDoc as WindowDoc
+from microfab.io.atomic import atomic_save_npz, atomic_write_json
+from microfab.io.schema import SchemaError
 
 __all__ = [
     "FORMAT_VERSION",
@@ -64,7 +68,6 @@ __all__ = [
     "read_weights",
 ]
 
-FORMAT_VERSION = 1  # of model.json / weights.npz and of the checkpoints
 HIDDEN = (200, 200, 100, 100, 50, 25, 12, 6)  # seed 002 Fig. 5: hidden layer sizes
 NEGATIVE_SLOPE = 0.01  # seed 002 §III-B: LeakyReLU slope 0.01
 BATCH = 16_384  # seed 002 §III-C: "batches of 16k segments"
@@ -493,156 +496,3 @@ class AnnModel:
         for a, net in nets.items():
             net.load_state_dict({k: torch.from_numpy(arrays[f"{a}.{k}"]) for k in net.state_dict()})
         return cls(config, nets, scal, meta.info)
-
-
-# --- the files' schema ---------------------------------------------------------------------
-#: What `microfab.io.schema.read_json` calls ``model.json``.
-META_KIND = FILE_KINDS["ann-model"].what
-_STRICT = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
-#: Largest offset or scale of the networks' inputs and target read, m (assumed: see
-#: `ScalingDoc`).
-MAX_SCALING_M = 1e3
-#: Largest weight or bias read (assumed: Adam-trained weights of scaled inputs are of
-#: order 1; a value of 1e6 is a damaged file, and 1e308 overflows every prediction).
-MAX_WEIGHT = 1e6
-
-
-class WindowDoc(BaseModel):
-    """``window`` of ``model.json`` (`WindowSpec.as_dict`); rates in Hz, ``h`` in samples."""
-
-    model_config = _STRICT
-
-    run_rate_hz: float = Field(gt=0, le=1e8)
-    rate_hz: float = Field(gt=0, le=1e8)
-    h: int = Field(ge=2, le=100_000)
-    inputs: Literal["own", "both"]
-    encoding: Literal["relative", "extrapolated", "absolute"]
-    pad: bool
-    features: Literal["none", "position"]
-
-
-class ScalingDoc(BaseModel):
-    """``scaling.<axis>`` of ``model.json`` (`Scaling.as_dict`), m."""
-
-    model_config = _STRICT
-
-    # assumed bounds: the stage's travel and windows are well below a metre; an offset or
-    # scale of a kilometre is a damaged file (and 1e308 overflows every prediction)
-    in_offset: list[Annotated[float, Field(ge=-MAX_SCALING_M, le=MAX_SCALING_M)]] = Field(
-        min_length=1, max_length=100_000
-    )
-    in_scale: list[Annotated[float, Field(gt=0, le=MAX_SCALING_M)]] = Field(
-        min_length=1, max_length=100_000
-    )
-    out_offset: float = Field(ge=-MAX_SCALING_M, le=MAX_SCALING_M)
-    out_scale: float = Field(gt=0, le=MAX_SCALING_M)
-
-
-class ConfigDoc(BaseModel):
-    """``config`` of ``model.json`` (`AnnConfig.fingerprint`)."""
-
-    model_config = _STRICT
-
-    window: WindowDoc
-    axes: list[Literal["x", "y"]] = Field(min_length=1, max_length=2)
-    offsets: list[Annotated[int, Field(ge=0, le=100_000)]] | None
-    batch_size: int = Field(ge=1, le=10**9)
-    learning_rate: float = Field(gt=0, le=1e3)
-    lr_decay: float = Field(gt=0, le=1)
-    patience: int = Field(ge=1, le=10**6)
-    epoch_windows: int | None = Field(ge=1, le=10**12)
-    val_windows: int | None = Field(ge=1, le=10**12)
-    whiten: float | None = Field(default=None, gt=0, le=1)  # absent before the field
-    seed: int = Field(ge=0)
-
-
-class MetaDoc(BaseModel):
-    """``model.json`` of a network model folder (`AnnModel.meta`)."""
-
-    model_config = ConfigDict(strict=True, extra="allow", allow_inf_nan=False)
-
-    format_version: int
-    window: WindowDoc
-    axes: list[Literal["x", "y"]] = Field(min_length=1, max_length=2)
-    layers: list[int] = Field(min_length=2, max_length=64)
-    config: ConfigDoc
-    scaling: dict[str, ScalingDoc]
-    info: dict[str, Any] = Field(default_factory=dict)
-
-
-def read_model_meta(directory: str | os.PathLike[str]) -> MetaDoc:
-    """``model.json`` of a model folder, through its schema (`MetaDoc`).
-
-    Raises
-    ------
-    FileNotFoundError
-        No ``model.json``.
-    ValueError
-        Another format version; `microfab.io.schema.SchemaError` for a file that is not
-        JSON, of another kind, or breaks the schema (the line names the field).
-    """
-    p = Path(directory) / "model.json"
-    doc = read_json(p, META_KIND)
-    ver = doc.get("format_version") if isinstance(doc, dict) else None
-    if ver != FORMAT_VERSION or isinstance(ver, bool):
-        raise ValueError(
-            f"{p}: model format version {ver}, this microfab reads "
-            f"version {FORMAT_VERSION}; retrain the model"
-        )
-    return validated(MetaDoc, doc, str(p))
-
-
-def read_weights(path: str | os.PathLike[str], nets: dict[str, nn.Module]) -> dict[str, np.ndarray]:
-    """``weights.npz``: one float32 member ``<axis>.<name>`` per tensor of ``nets``.
-
-    Shapes and dtypes are checked from the members' headers before anything is read
-    (`microfab.io.schema.check_npz`), the values after (finite).
-
-    Parameters
-    ----------
-    path : path
-        The archive.
-    nets : dict of str to torch.nn.Module
-        The networks the archive must fill, by axis (their tensors give names and shapes).
-
-    Returns
-    -------
-    dict of str to numpy.ndarray
-        Every member named by ``nets``, float32, shape of its tensor.
-
-    Raises
-    ------
-    SchemaError
-        Unreadable, a member missing, of another shape or dtype, or not finite.
-    """
-    p = Path(path)
-    want = {f"{a}.{k}": tuple(v.shape) for a, n in nets.items() for k, v in n.state_dict().items()}
-    try:
-        members = check_npz(p)
-    except SchemaError:
-        raise
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
-        other = describe_file(p)
-        if other is not None and other != "a zip archive":
-            raise SchemaError(f"{p}: this is {other}, not ANN weights (weights.npz)") from None
-        raise SchemaError(f"{p}: not readable ANN weights ({exc})") from None
-    for name, shape in want.items():
-        if name not in members:
-            raise SchemaError(f"{p}: member {name!r} is missing")
-        got, dtype = members[name]
-        if got != shape or dtype.kind != "f":
-            raise SchemaError(
-                f"{p}: member {name!r} must be float of shape {shape}, got {dtype} {got}"
-            )
-    out = {}
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            for name, shape in want.items():
-                arr = check_array(str(p), f"member {name!r}", np.array(z[name]), shape=shape,
-                                  low=-MAX_WEIGHT, high=MAX_WEIGHT)  # fmt: skip
-                out[name] = arr.astype(np.float32)
-    except SchemaError:
-        raise
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
-        raise SchemaError(f"{p}: not readable ANN weights ({exc})") from None
-    return out
