@@ -3,9 +3,12 @@
 ``run``, ``kinds``, ``reproduce`` (`run.py`), ``ilc step`` (`ilc.py`), ``rc step``
 (`rc.py`), ``nanomanipulator analyze`` (`nanomanipulator.py`), ``laser analyze``
 (`laser.py`), ``calibrate`` (`calibrate.py`), ``path show`` and ``trajectory``
-(`geometry.py`), ``droplet`` (`droplet.py`), ``identify chirp``, ``identify linear`` and
-``identify validate`` (`identify.py`), ``identify ann`` (`identify_ann.py`, registered on
-the ``identify`` group when imported here), ``shaper design`` (`shaper.py`), ``slm scan-time``
+(`geometry.py`), ``droplet simulate``, ``droplet render`` and ``droplet analyze``
+(`droplet.py`), ``droplet sweep``, ``droplet calibrate`` and ``droplet sensitivity``
+(`droplet_studies.py`, registered on the ``droplet`` group when imported here),
+``identify chirp``, ``identify linear`` and ``identify validate`` (`identify.py`),
+``identify ann`` (`identify_ann.py`, registered on the ``identify`` group when imported
+here), ``shaper design`` (`shaper.py`), ``slm scan-time``
 (`slm.py`), ``stage excite`` (`stage.py`), ``optimize`` (`optimize.py`); `_kit.py` holds
 the console, errors, progress bars, tables and the readers several groups share
 (``LOW:HIGH`` ranges, measured traces); `_sigint.py` how a Ctrl-C is taken, from the
@@ -28,6 +31,7 @@ try:
     from microfab.cli._kit import OneLineErrors, print_interrupted
     from microfab.cli.calibrate import calibrate_app
     from microfab.cli.droplet import droplet_app
+    from microfab.cli.droplet_studies import sweep_cmd as _sweep_cmd  # noqa: F401 (registers them)
     from microfab.cli.geometry import path_app, trajectory_cmd
     from microfab.cli.identify import identify_app
     from microfab.cli.identify_ann import ann_cmd as _ann_cmd  # noqa: F401 (registers it)
