@@ -1,6 +1,6 @@
 """``microfab identify ann``: the per-axis networks of seed 002 (eq. 7) on measured runs.
 
-The runs are read and checked as ``identify linear`` reads them (`cli/identify.py`), split
+The runs are read and checked as ``identify linear`` reads them (`cli/identify_stage.py`), split
 80/20 by whole runs (seeded), and the networks trained by
 `microfab.identify.ann_train.train_ann` with their checkpoints in ``DIR/checkpoints``: an
 interrupted training resumes when the same command is run again, ``--restart`` starts

@@ -201,7 +201,7 @@ FILE_KINDS: dict[str, FileKind] = {
             ArraySchema(
                 "npz",
                 (Member("*.<layer>.weight", shape=(None, None)), Member("*.<layer>.bias")),
-                header="microfab.identify.ann:MetaDoc",
+                header="microfab.identify.ann_files:MetaDoc",
             ),
             "identify validate",
             (),
