@@ -11,7 +11,7 @@ pytest.importorskip("torch")
 from microfab.core.limits import MachineLimits
 from microfab.optimize.pipeline import optimize_reference
 from microfab.optimize.stage1 import Stage1Settings
-from microfab.optimize.stage2 import Stage2Settings, solve_stage2
+from microfab.optimize.stage2 import STOPS, Stage2Settings, solve_stage2
 
 
 def run(case, **kw):
@@ -141,6 +141,11 @@ def test_converged_only_when_every_constraint_holds_on_the_prediction(
         assert res.status in ("infeasible", "not converged")
     s = res.summary()
     assert s["converged"] == res.converged and s["status"] == res.status
+    # why it ended, recorded: the solver's own stop, or the iteration cap
+    assert s["stop"] == res.stop in STOPS
+    assert res.stopped == (res.stop != "max_iter")
+    if res.stop == "max_iter":
+        assert res.iterations == max_iter
     if not res.feasible:
         assert s["feasibility"]["worst"]["holds"] is False
 
@@ -153,6 +158,7 @@ def test_the_easy_problem_converges(case):
                        limits=problem.limits, settings=Stage2Settings(max_iter=20))  # fmt: skip
     assert res.converged and res.status == "converged" and res.feasibility.worst is None
     assert "every hard constraint holds" in res.describe()
+    assert res.stop != "max_iter" and res.iterations < 20  # it stopped by itself
 
 
 @pytest.mark.parametrize(

@@ -64,12 +64,15 @@ from microfab.optimize.command import input_bounds
 from microfab.optimize.feasibility import Feasibility, finite_or_none, measure
 from microfab.optimize.stage2_state import Best, fingerprint, load_state, save_iterate
 
-__all__ = ["Stage2Result", "Stage2Settings", "feasible_input", "solve_stage2"]
+__all__ = ["STOPS", "Stage2Result", "Stage2Settings", "feasible_input", "solve_stage2"]
 
 _UM = 1e6  # scaled unit: µm per m
 NORMS = ("euclidean", "axis")
 #: The step's QP solvers (`microfab.optimize.stage2_qp`).
 QP_SOLVERS = ("piqp", "ipopt")
+#: Why stage 2's iterations end (`Stage2Result.stop`); all but "max_iter" are the solver
+#: stopping by itself (`Stage2Result.stopped`).
+STOPS = ("small gain", "zero step", "no step", "trust region", "max_iter")
 #: Settings that stop or pace the iterations but do not change their course: a rerun with
 #: more iterations resumes the checkpoint.
 _NOT_FINGERPRINTED = frozenset({"max_iter", "tol", "checkpoint_every", "qp", "threads"})
@@ -197,6 +200,11 @@ class Stage2Result:
         residual, its sample and time, the rows beyond.
     stopped : bool
         The solver stopped by itself (see ``converged``).
+    stop : str
+        Why the iterations ended (`STOPS`): "small gain" (an accepted step gained less
+        than ``tol`` of the merit), "zero step" (the QP's step below 1e-9 µm), "no step"
+        (the QP gave none), "trust region" (the radius fell below 1e-4 µm after rejected
+        steps) or "max_iter"; "" for a result made before it was recorded.
     score_history : list of float
         `Feasibility.score` of each iterate of ``cost_history`` (0: every constraint holds);
         NaN for the iterates before a resume from a checkpoint written before issue 43.
@@ -222,6 +230,7 @@ class Stage2Result:
     phase_s: dict[str, float] = field(default_factory=dict)
     feasibility: Feasibility | None = None
     stopped: bool = False
+    stop: str = ""
     returned: int = -1
     score_history: list[float] = field(default_factory=list)
 
@@ -260,6 +269,7 @@ class Stage2Result:
             "converged": self.converged,
             "status": self.status,
             "stopped": self.stopped,
+            "stop": self.stop,
             "returned_iterate": self.returned,
             "score_history": [finite_or_none(x) for x in self.score_history],
             "least_violating": self.returned not in (-1, len(self.cost_history) - 1),
@@ -481,6 +491,7 @@ def solve_stage2(
         history = [(merit, cost, score)]
     best = Best.better(best, score, merit, cost, r, len(history) - 1)
     stopped = False
+    stop = "max_iter"
     accepted = 0
     it = it0
     while it < st.max_iter:
@@ -489,7 +500,7 @@ def solve_stage2(
         step = qp.solve(r, phi, jac, trust)
         spent["qp_s"] += time.perf_counter() - t0
         if step is None or np.max(np.abs(step)) < 1e-9:
-            stopped = True
+            stopped, stop = True, "no step" if step is None else "zero step"
             break
         r_new = r + step
         t0 = time.perf_counter()
@@ -512,12 +523,12 @@ def solve_stage2(
             if accepted % st.checkpoint_every == 0:
                 save_iterate(checkpoint, key, r, trust, it, history, band, best)
             if gain < st.tol * max(merit, 1e-12):
-                stopped = True
+                stopped, stop = True, "small gain"
                 break
         else:
             trust *= 0.25
             if trust < 1e-4:
-                stopped = True
+                stopped, stop = True, "trust region"
                 break
         if progress is not None:
             progress(it, merit)
@@ -553,6 +564,7 @@ def solve_stage2(
         phase_s=spent,
         feasibility=feas,
         stopped=stopped,
+        stop=stop,
         returned=returned,
         score_history=[float(row[2]) for row in history],
     )

@@ -150,7 +150,7 @@ def test_every_point_reports_what_its_stages_reached(small):
     assert not all_hold and s2["status"] == "infeasible" and not s2["converged"]
     summary = ReferenceResult(study=study).summary()
     row = summary["reached"][0]
-    assert row["stage2"] == s2["status"]
+    assert row["stage2"] == s2["status"] and row["stop"] == s2["stop"]
     table = reached_table(study)
     page = write_report(study, out, "t").read_text()
     assert "What the optimisation reached" in page

@@ -211,7 +211,8 @@ def point_reached(p: dict[str, Any]) -> dict[str, Any]:
 
     Keys: ``case``, ``a_max``, ``stage1`` ("converged", "failed" or None when not
     recorded), ``stage2`` (`microfab.optimize.stage2.Stage2Result.status`, "failed", or
-    None), and for a broken constraint (stage 2's worst, or stage 1's when it failed)
+    None), ``stop`` (why stage 2's iterations ended, `Stage2Result.stop`; None when not
+    recorded), and for a broken constraint (stage 2's worst, or stage 1's when it failed)
     ``constraint``, ``equation``, ``excess``, ``unit``, ``sample``, ``time_s``,
     ``rows_over``, ``rows``; ``rms_m`` and ``rms_over_tolerance`` of the prediction check,
     ``warning`` (its text); ``error``.
@@ -223,6 +224,7 @@ def point_reached(p: dict[str, Any]) -> dict[str, Any]:
     else:
         out["stage1"] = "failed" if "error" in p else None
     out["stage2"] = s2.get("status") or ("failed" if "error" in p else None)
+    out["stop"] = s2.get("stop") or None
     worst = (s2.get("feasibility") or {}).get("worst")
     if worst is None and out["stage1"] == "failed":
         worst = (s1.get("feasibility") or {}).get("worst")
