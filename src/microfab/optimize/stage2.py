@@ -198,13 +198,12 @@ class Stage2Result:
     feasibility : Feasibility or None
         14c-14f measured on ``phi`` (`_Problem.feasibility`): per constraint the largest
         residual, its sample and time, the rows beyond.
-    stopped : bool
-        The solver stopped by itself (see ``converged``).
     stop : str
         Why the iterations ended (`STOPS`): "small gain" (an accepted step gained less
         than ``tol`` of the merit), "zero step" (the QP's step below 1e-9 µm), "no step"
         (the QP gave none), "trust region" (the radius fell below 1e-4 µm after rejected
-        steps) or "max_iter"; "" for a result made before it was recorded.
+        steps) or "max_iter". All but "max_iter" are the solver stopping by itself
+        (`stopped`).
     score_history : list of float
         `Feasibility.score` of each iterate of ``cost_history`` (0: every constraint holds);
         NaN for the iterates before a resume from a checkpoint written before issue 43.
@@ -229,10 +228,14 @@ class Stage2Result:
     info: dict[str, Any] = field(default_factory=dict)
     phase_s: dict[str, float] = field(default_factory=dict)
     feasibility: Feasibility | None = None
-    stopped: bool = False
-    stop: str = ""
+    stop: str = "max_iter"
     returned: int = -1
     score_history: list[float] = field(default_factory=list)
+
+    @property
+    def stopped(self) -> bool:
+        """The solver stopped by itself (`stop` is not "max_iter"; see ``converged``)."""
+        return self.stop != "max_iter"
 
     @property
     def feasible(self) -> bool:
@@ -490,7 +493,6 @@ def solve_stage2(
     if not history:  # rows (merit, cost, feasibility score) per accepted iterate
         history = [(merit, cost, score)]
     best = Best.better(best, score, merit, cost, r, len(history) - 1)
-    stopped = False
     stop = "max_iter"
     accepted = 0
     it = it0
@@ -500,7 +502,7 @@ def solve_stage2(
         step = qp.solve(r, phi, jac, trust)
         spent["qp_s"] += time.perf_counter() - t0
         if step is None or np.max(np.abs(step)) < 1e-9:
-            stopped, stop = True, "no step" if step is None else "zero step"
+            stop = "no step" if step is None else "zero step"
             break
         r_new = r + step
         t0 = time.perf_counter()
@@ -523,12 +525,12 @@ def solve_stage2(
             if accepted % st.checkpoint_every == 0:
                 save_iterate(checkpoint, key, r, trust, it, history, band, best)
             if gain < st.tol * max(merit, 1e-12):
-                stopped, stop = True, "small gain"
+                stop = "small gain"
                 break
         else:
             trust *= 0.25
             if trust < 1e-4:
-                stopped, stop = True, "trust region"
+                stop = "trust region"
                 break
         if progress is not None:
             progress(it, merit)
@@ -557,13 +559,12 @@ def solve_stage2(
             "acceleration": float(viol["acceleration"].max(initial=0.0)) / _UM / pb.dt**2,
         },
         iterations=it,
-        converged=stopped and feas.feasible and returned == last,
+        converged=stop != "max_iter" and feas.feasible and returned == last,
         wall_s=time.perf_counter() - t_start,
         resumed_from=it0,
         info={"norm": st.norm, "penalty": st.penalty, "band": band, "qp": st.qp},
         phase_s=spent,
         feasibility=feas,
-        stopped=stopped,
         stop=stop,
         returned=returned,
         score_history=[float(row[2]) for row in history],
